@@ -1,0 +1,85 @@
+"""Camera and light projection matrices (numpy, column vectors, OpenGL clip conventions)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def normalize(v):
+    v = np.asarray(v, np.float64)
+    return v / max(np.linalg.norm(v), 1e-300)
+
+
+def look_at(eye, target, up) -> np.ndarray:
+    eye, target = np.asarray(eye, np.float64), np.asarray(target, np.float64)
+    f = normalize(target - eye)
+    up = np.asarray(up, np.float64)
+    if abs(np.dot(f, normalize(up))) > 0.999:  # looking along up: pick another up
+        up = np.array([0.0, 0.0, 1.0]) if abs(f[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    s = normalize(np.cross(f, up))
+    u = np.cross(s, f)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3] = s, u, -f
+    m[:3, 3] = -m[:3, :3] @ eye
+    return m
+
+
+def perspective(fov_y_deg, aspect, near, far) -> np.ndarray:
+    f = 1.0 / np.tan(np.radians(fov_y_deg) / 2)
+    m = np.zeros((4, 4))
+    m[0, 0], m[1, 1] = f / aspect, f
+    m[2, 2] = (far + near) / (near - far)
+    m[2, 3] = 2 * far * near / (near - far)
+    m[3, 2] = -1.0
+    return m
+
+
+def orthographic(half_w, half_h, near, far) -> np.ndarray:
+    m = np.eye(4)
+    m[0, 0], m[1, 1] = 1 / half_w, 1 / half_h
+    m[2, 2] = -2 / (far - near)
+    m[2, 3] = -(far + near) / (far - near)
+    return m
+
+
+def bounding_sphere(lo, hi):
+    c = (np.asarray(lo, np.float64) + np.asarray(hi, np.float64)) / 2
+    return c, float(np.linalg.norm(np.asarray(hi, np.float64) - lo) / 2)
+
+
+def camera_matrices(camera, aspect: float, lo, hi):
+    """(view, projection, eye, near, far) for a scene Camera; near/far fitted to the bounds."""
+    c, r = bounding_sphere(lo, hi)
+    eye = np.asarray(camera.position, np.float64)
+    d = np.linalg.norm(eye - c)
+    near = camera.near if camera.near else max(d - r * 1.5, r * 1e-3, 1e-4)
+    far = camera.far if camera.far else d + r * 1.5
+    return look_at(eye, camera.target, camera.up), perspective(camera.fov_deg, aspect, near, far), eye, near, far
+
+
+def light_matrices(light, lo, hi):
+    """View-projection of a light's shadow map covering the scene's bounding sphere.
+
+    Directional: orthographic along the light's direction. Spot: perspective with the cone's
+    angle. Point: perspective aimed at the scene centre (one map, not a cube map: a point light
+    inside the scene casts shadows only within that frustum). Returns (viewproj, eye).
+    """
+    c, r = bounding_sphere(lo, hi)
+    r *= 1.02
+    d = normalize(light.direction)
+    if light.kind == "directional":
+        eye = c - d * (2.0 * r)
+        view = look_at(eye, c, (0, 1, 0))
+        proj = orthographic(r, r, 0.5 * r, 3.5 * r)
+        return proj @ view, eye
+    eye = np.asarray(light.position, np.float64)
+    dist = np.linalg.norm(c - eye)
+    if light.kind == "spot":
+        target = eye + d
+        fov = min(2 * light.spot_angle_deg + 2.0, 170.0)
+    else:
+        target = c
+        fov = min(2 * np.degrees(np.arcsin(min(r / max(dist, 1e-9), 0.999))) + 2.0, 170.0) if dist > r else 150.0
+    near = max(dist - r, dist * 1e-3, 1e-4)
+    far = dist + r
+    return perspective(fov, 1.0, near, far) @ look_at(eye, target, (0, 1, 0)), eye

@@ -1,0 +1,164 @@
+"""The ``dermis`` command: a thin layer over the Python API.
+
+User errors (DermisError, bad options) print one line, ``dermis: error: ...``, and exit 2.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import click
+
+from dermis.errors import DermisError
+
+
+def parse_size(value: str, option="--size") -> tuple[int, int]:
+    from dermis.renderer import check_size
+
+    try:
+        w, h = value.lower().split("x")
+        size = (int(w), int(h))
+    except Exception:
+        raise DermisError(f"{option}: expected WxH such as 512x512, got '{value}'") from None
+    return check_size(size, option)
+
+
+def scene_from_arg(scene_arg: str | None, technique: str | None = None):
+    import dermis
+
+    scene = dermis.default_scene() if scene_arg is None else dermis.load_scene(scene_arg)
+    if technique:
+        scene.technique = technique
+    return scene
+
+
+def write_json_atomic(path, obj):
+    from dermis.images import _atomic_write
+
+    text = json.dumps(obj, indent=2, default=float)
+    _atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="dermis")
+def cli():
+    """dermis: physically based real-time skin rendering (texture-space diffusion and friends)."""
+
+
+@cli.command()
+@click.option("--device", type=int, default=None, help="EGL device (GPU) index.")
+@click.option("--json", "as_json", is_flag=True, help="Print as JSON.")
+def info(device, as_json):
+    """Print the OpenGL renderer, version and limits."""
+    from dermis.gl.context import create_context, gl_info
+    from dermis.techniques import technique_names
+
+    ctx = create_context(device)
+    data = gl_info(ctx)
+    data["techniques"] = technique_names()
+    ctx.release()
+    if as_json:
+        click.echo(json.dumps(data, indent=2))
+    else:
+        for k, v in data.items():
+            click.echo(f"{k:18s} {v}")
+
+
+@cli.command()
+@click.argument("scene", required=False)
+@click.option("--technique", "-t", default=None, help="Technique name (default: the scene's, else tsd).")
+@click.option("--size", default="512x512", show_default=True, help="Output size WxH.")
+@click.option("--out", "-o", default="out/render.png", show_default=True, help="PNG output (display-encoded).")
+@click.option("--exr", default=None, help="Also write the linear HDR image as OpenEXR.")
+@click.option("--stats", default=None, help="Write pass timings and frame info as JSON.")
+@click.option("--exposure", type=float, default=None, help="Exposure in stops (overrides the scene).")
+@click.option("--tonemap", type=click.Choice(["aces", "linear"]), default=None, help="Tone map (overrides the scene).")
+@click.option("--samples", type=int, default=4, show_default=True, help="MSAA samples (capped at 4 on llvmpipe).")
+@click.option("--irradiance-size", type=int, default=1024, show_default=True, help="Texture-space resolution (tsd).")
+@click.option("--debug-buffers", default=None, help="Folder to write intermediate buffers (EXR) into.")
+@click.option("--device", type=int, default=None, help="EGL device (GPU) index.")
+def render(scene, technique, size, out, exr, stats, exposure, tonemap, samples, irradiance_size, debug_buffers, device):
+    """Render SCENE (a .toml scene or a .glb/.gltf/.obj mesh; default: the built-in head)."""
+    from dermis.images import write_exr, write_png
+    from dermis.output import output_transform
+    from dermis.renderer import Renderer
+    from dermis.techniques import technique_class
+
+    w, h = parse_size(size)
+    if not 64 <= irradiance_size <= 8192:
+        raise DermisError(f"--irradiance-size must be in [64, 8192], got {irradiance_size}")
+    sc = scene_from_arg(scene, technique)
+    technique_class(sc.technique)  # unknown names fail before any GL work
+    outputs = [Path(p) for p in (out, exr, stats) if p]
+    for p in outputs:
+        if not p.parent.exists():
+            if p.parent == Path("out"):
+                p.parent.mkdir(parents=True, exist_ok=True)
+            else:
+                raise DermisError(f"{p}: output folder {p.parent} does not exist")
+    with Renderer(sc, (w, h), device=device, samples=samples, irradiance_size=irradiance_size) as r:
+        img = r.render()
+        if not np.isfinite(img).all():
+            raise DermisError(f"{sc.source}: the render produced NaN or infinite values (bad scene values?)")
+        o = sc.output
+        write_png(out, output_transform(img, exposure if exposure is not None else o.exposure, tonemap or o.tonemap))
+        if exr:
+            write_exr(exr, img)
+        if stats:
+            write_json_atomic(stats, r.stats)
+        if debug_buffers:
+            d = Path(debug_buffers)
+            d.mkdir(parents=True, exist_ok=True)
+            for name, arr in r.debug_buffers().items():
+                write_exr(d / f"{name}.exr", arr[:, :, :3] if arr.shape[2] >= 3 else np.repeat(arr[:, :, :1], 3, axis=2))
+        click.echo(f"wrote {out} ({w}x{h}, {sc.technique}, {r.stats['frame_ms']:.0f} ms)")
+
+
+import numpy as np  # noqa: E402  (used by commands above)
+
+
+def _register_optional():
+    """Commands from modules that may not be present in every build of the tree."""
+    for mod, attr in (("dermis.profiles.cli", "profile_cmd"), ("dermis.bench", "bench_cmd"),
+                      ("dermis.compare", "compare_cmd"), ("dermis.reference.cli", "reference_cmd"),
+                      ("dermis.reference.cli", "validate_cmd"), ("dermis.viewer.cli", "view_cmd"),
+                      ("dermis.viewer.cli", "turntable_cmd")):
+        try:
+            m = __import__(mod, fromlist=[attr])
+        except ModuleNotFoundError as exc:
+            if exc.name and mod.startswith(exc.name):
+                continue
+            raise
+        if hasattr(m, attr):
+            cli.add_command(getattr(m, attr))
+
+
+_register_optional()
+
+
+def main(argv=None):
+    try:
+        cli.main(args=argv, prog_name="dermis", standalone_mode=False)
+    except DermisError as exc:
+        click.echo(f"dermis: error: {exc}", err=True)
+        sys.exit(2)
+    except click.exceptions.Abort:
+        click.echo("dermis: aborted", err=True)
+        sys.exit(130)
+    except click.ClickException as exc:
+        click.echo(f"dermis: error: {exc.format_message()}", err=True)
+        sys.exit(exc.exit_code if exc.exit_code else 2)
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
+    except KeyboardInterrupt:
+        sys.exit(130)
+    except MemoryError:
+        click.echo("dermis: error: out of memory (try a smaller --size or --irradiance-size)", err=True)
+        sys.exit(2)
+    sys.exit(0)
+
+
+if __name__ == "__main__":
+    main()

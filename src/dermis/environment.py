@@ -1,0 +1,58 @@
+"""Environment lighting as spherical-harmonic irradiance (Ramamoorthi & Hanrahan 2001).
+
+Equirectangular convention: row 0 is straight up (+y); u = 0.5 + atan2(x, -z) / (2 pi), so the
+image centre looks along -z. The 9 coefficients returned are A_l * L_lm (irradiance), ready for
+common/environment.glsl.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# cosine-lobe convolution constants A_l (Ramamoorthi & Hanrahan 2001, eq. 8)
+_A = np.array([np.pi, 2 * np.pi / 3, 2 * np.pi / 3, 2 * np.pi / 3, np.pi / 4, np.pi / 4, np.pi / 4, np.pi / 4, np.pi / 4])
+
+
+def sh9_basis(d):
+    """Real SH basis Y_lm for l <= 2 at unit directions d (..., 3), in the order the shader uses."""
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    return np.stack([
+        np.full_like(x, 0.282095), 0.488603 * y, 0.488603 * z, 0.488603 * x,
+        1.092548 * x * y, 1.092548 * y * z, 0.315392 * (3 * z * z - 1), 1.092548 * x * z,
+        0.546274 * (x * x - y * y)], -1)
+
+
+def equirect_directions(h, w):
+    theta = (np.arange(h) + 0.5) / h * np.pi  # from +y
+    phi = ((np.arange(w) + 0.5) / w - 0.5) * 2 * np.pi
+    th, ph = np.meshgrid(theta, phi, indexing="ij")
+    d = np.stack([np.sin(th) * np.sin(ph), np.cos(th), -np.sin(th) * np.cos(ph)], -1)
+    d_omega = (np.pi / h) * (2 * np.pi / w) * np.sin(th)
+    return d, d_omega
+
+
+def sh_irradiance_from_equirect(img) -> np.ndarray:
+    """(9, 3) irradiance SH coefficients A_l L_lm from a linear equirect radiance image."""
+    img = np.asarray(img, np.float64)[:, :, :3]
+    d, dw = equirect_directions(*img.shape[:2])
+    Y = sh9_basis(d)  # (h, w, 9)
+    L = np.einsum("hwk,hwc,hw->kc", Y, img, dw)
+    return (_A[:, None] * L).astype(np.float32)
+
+
+def sh_irradiance_constant(rgb) -> np.ndarray:
+    """A constant radiance c everywhere gives irradiance pi * c for every normal."""
+    out = np.zeros((9, 3), np.float32)
+    out[0] = np.pi * np.asarray(rgb, np.float64) / 0.282095
+    return out
+
+
+def irradiance_sh_eval(coeffs, n):
+    """E(n) from the 9 coefficients (numpy twin of environment_irradiance())."""
+    return np.maximum(sh9_basis(np.asarray(n, np.float64)) @ np.asarray(coeffs, np.float64), 0.0)
+
+
+def environment_sh(env) -> np.ndarray:
+    if env.image is not None:
+        return sh_irradiance_from_equirect(env.image.data) * env.intensity
+    return sh_irradiance_constant(env.color) * env.intensity

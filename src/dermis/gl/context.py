@@ -1,0 +1,70 @@
+"""Headless OpenGL 4.5 core contexts through EGL (moderngl + glcontext).
+
+On a machine without a GPU, EGL gives Mesa's llvmpipe (slow, exact); on NVIDIA machines the
+vendor EGL. The user never creates a context: :func:`create_context` is called by the renderer.
+"""
+
+from __future__ import annotations
+
+import os
+
+from dermis.errors import GLUnavailableError
+
+_INSTALL_HINT = (
+    "install the headless GL packages (Debian/Ubuntu: apt-get install libegl1 libgl1 libegl-mesa0 "
+    "libgl1-mesa-dri) or run on a machine with a GPU driver"
+)
+
+
+def create_context(device_index: int | None = None):
+    """Create a standalone OpenGL 4.5 core context through EGL.
+
+    ``device_index`` picks the EGL device (GPU) on machines with several; None takes the default.
+    The DERMIS_GL_DEVICE environment variable sets it too. Raises GLUnavailableError (one line).
+    """
+    try:
+        import moderngl
+    except Exception as exc:  # pragma: no cover - import failure is an install problem
+        raise GLUnavailableError(f"cannot import moderngl ({exc}); reinstall dermis") from None
+    if device_index is None and os.environ.get("DERMIS_GL_DEVICE", "").strip():
+        try:
+            device_index = int(os.environ["DERMIS_GL_DEVICE"])
+        except ValueError:
+            raise GLUnavailableError("DERMIS_GL_DEVICE must be an integer device index") from None
+    kwargs = {"standalone": True, "backend": "egl", "require": 450}
+    if device_index is not None:
+        if device_index < 0:
+            raise GLUnavailableError(f"GL device index must be >= 0, got {device_index}")
+        kwargs["device_index"] = int(device_index)
+    try:
+        ctx = moderngl.create_context(**kwargs)
+    except Exception as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise GLUnavailableError(f"no OpenGL 4.5 context through EGL ({first}); {_INSTALL_HINT}") from None
+    if ctx.version_code < 450:
+        ctx.release()
+        raise GLUnavailableError(f"OpenGL 4.5 core is required, the driver offers {ctx.version_code}; {_INSTALL_HINT}")
+    return ctx
+
+
+def is_software(ctx) -> bool:
+    """True on Mesa's CPU rasterisers (llvmpipe, softpipe), where MSAA is capped at 4x."""
+    r = ctx.info.get("GL_RENDERER", "").lower()
+    return "llvmpipe" in r or "softpipe" in r or "swrast" in r
+
+
+def gl_info(ctx) -> dict:
+    """Renderer, version and the limits dermis cares about."""
+    info = ctx.info
+    return {
+        "renderer": info.get("GL_RENDERER", "?"),
+        "vendor": info.get("GL_VENDOR", "?"),
+        "version": info.get("GL_VERSION", "?"),
+        "glsl": info.get("GL_SHADING_LANGUAGE_VERSION", "?"),
+        "version_code": ctx.version_code,
+        "max_texture_size": info.get("GL_MAX_TEXTURE_SIZE"),
+        "max_samples": ctx.max_samples,
+        "max_texture_units": ctx.max_texture_units,
+        "max_viewport_dims": info.get("GL_MAX_VIEWPORT_DIMS"),
+        "software": is_software(ctx),
+    }

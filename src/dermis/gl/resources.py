@@ -1,0 +1,178 @@
+"""GPU copies of a scene: vertex/index buffers, material textures, light and shadow uniforms.
+
+Texture upload flips image rows: image arrays keep row 0 at the top (as files do) while GL puts
+the first uploaded row at t = 0, and dermis UVs have v = 0 at the bottom of the image.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dermis.camera import light_matrices
+from dermis.environment import environment_sh
+
+VERTEX_FORMAT = "3f 3f 2f 4f"
+VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent")
+
+
+def set_uniform(prog, name, value):
+    """Set a uniform if the program uses it (the GLSL compiler drops unused ones)."""
+    if name not in prog:
+        return
+    u = prog[name]
+    if isinstance(value, np.ndarray):
+        arr = np.ascontiguousarray(value, dtype=np.int32 if value.dtype.kind in "iu" else np.float32)
+        n = getattr(u, "array_length", 1)
+        if arr.ndim >= 2 and n < len(arr):  # the compiler may trim unused array tails
+            arr = arr[:n]
+        u.write(arr.tobytes())
+    else:
+        u.value = value
+
+
+def mat_bytes(m) -> bytes:
+    """A numpy 4x4 (row-major math) as GLSL column-major bytes."""
+    return np.ascontiguousarray(np.asarray(m, np.float32).T).tobytes()
+
+
+def upload_texture(ctx, data: np.ndarray, *, components=None, dtype="f4", mipmaps=True, repeat=False):
+    """Upload an (H, W, C) float image (row 0 = top) as a linear-filtered texture."""
+    arr = np.asarray(data, np.float32)
+    if arr.ndim == 2:
+        arr = arr[:, :, None]
+    c = components or arr.shape[2]
+    if arr.shape[2] < c:
+        pad = np.ones(arr.shape[:2] + (c - arr.shape[2],), np.float32)
+        arr = np.concatenate([arr, pad], axis=2)
+    arr = np.ascontiguousarray(arr[::-1, :, :c])
+    if dtype == "f1":
+        payload = np.clip(arr * 255.0 + 0.5, 0, 255).astype(np.uint8).tobytes()
+    elif dtype == "f2":
+        payload = arr.astype(np.float16).tobytes()
+    else:
+        payload = arr.tobytes()
+    tex = ctx.texture((arr.shape[1], arr.shape[0]), c, payload, dtype=dtype)
+    tex.repeat_x = tex.repeat_y = repeat
+    if mipmaps:
+        tex.build_mipmaps()
+        tex.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
+        tex.anisotropy = 8.0
+    else:
+        import moderngl
+
+        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    return tex
+
+
+class GpuScene:
+    """Mesh buffers and material textures of one Scene on one context."""
+
+    def __init__(self, ctx, scene):
+        self.ctx = ctx
+        self.scene = scene
+        m = scene.mesh
+        verts = np.concatenate([m.positions, m.normals, m.uvs, m.tangents], axis=1).astype(np.float32)
+        self.vbo = ctx.buffer(np.ascontiguousarray(verts).tobytes())
+        self.ibo = ctx.buffer(np.ascontiguousarray(m.indices, np.uint32).tobytes())
+        self._vaos = {}
+        self.textures = {}
+        self.upload_material()
+
+    def vao(self, prog):
+        key = id(prog)
+        if key not in self._vaos:
+            # attributes a program does not use are skipped as padding ("3x4" = 3 floats)
+            parts, used = [], []
+            for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS):
+                if a in prog:
+                    parts.append(f)
+                    used.append(a)
+                else:
+                    parts.append(f"{f[0]}x4")
+            self._vaos[key] = (self.ctx.vertex_array(prog, [(self.vbo, " ".join(parts), *used)], self.ibo), prog)
+        return self._vaos[key][0]
+
+    def upload_material(self):
+        mat = self.scene.material
+        for t in self.textures.values():
+            t.release()
+        self.textures = {}
+        if mat.albedo is not None:
+            self.textures["albedo"] = upload_texture(self.ctx, mat.albedo.data[:, :, :3], components=3, dtype="f2")
+        else:
+            self.textures["albedo"] = upload_texture(self.ctx, np.array([[mat.albedo_color]], np.float32), mipmaps=False)
+        if mat.normal_map is not None:
+            self.textures["normal"] = upload_texture(self.ctx, mat.normal_map.data[:, :, :3], components=3, dtype="f1")
+        else:
+            self.textures["normal"] = upload_texture(self.ctx, np.array([[[0.5, 0.5, 1.0]]], np.float32), mipmaps=False)
+        if mat.specular_map is not None:
+            self.textures["specular"] = upload_texture(self.ctx, mat.specular_map.data[:, :, :1], components=1, dtype="f1")
+        else:
+            self.textures["specular"] = upload_texture(self.ctx, np.array([[[1.0]]], np.float32), mipmaps=False)
+            # no map: rho_s as given (bias + scale * 1 would rescale it)
+        self.has_specular_map = mat.specular_map is not None
+
+    def material_uniforms(self, prog, units: dict):
+        mat = self.scene.material
+        for name, key in (("uAlbedoMap", "albedo"), ("uNormalMap", "normal"), ("uSpecularMap", "specular")):
+            if name in prog:
+                unit = units[name]
+                self.textures[key].use(unit)
+                prog[name].value = unit
+        set_uniform(prog, "uNormalStrength", float(mat.normal_strength))
+        set_uniform(prog, "uRhoS", float(mat.rho_s))
+        set_uniform(prog, "uRoughness", float(mat.roughness))
+        bias_scale = (mat.specular_map_bias, mat.specular_map_scale) if self.has_specular_map else (1.0, 0.0)
+        set_uniform(prog, "uSpecMapBiasScale", tuple(float(x) for x in bias_scale))
+        set_uniform(prog, "uMix", float(mat.mix))
+        set_uniform(prog, "uMmPerUnit", float(self.scene.mm_per_unit))
+
+    def release(self):
+        for v, _ in self._vaos.values():
+            v.release()
+        self._vaos = {}
+        for t in self.textures.values():
+            t.release()
+        self.vbo.release()
+        self.ibo.release()
+
+
+class LightUniforms:
+    """Packs the scene's lights (and shadow tiles) into the arrays of common/lights.glsl."""
+
+    MAX_LIGHTS = 8
+
+    def __init__(self, scene, shadow_atlas=None):
+        lights = scene.lights[: self.MAX_LIGHTS]
+        n = self.MAX_LIGHTS
+        self.count = len(lights)
+        self.pos_type = np.zeros((n, 4), np.float32)
+        self.direction = np.zeros((n, 4), np.float32)
+        self.radiance = np.zeros((n, 4), np.float32)
+        self.spot = np.zeros((n, 4), np.float32)
+        self.viewproj = np.zeros((n, 4, 4), np.float32)
+        lo, hi = scene.bounds()
+        types = {"directional": 0, "point": 1, "spot": 2}
+        for i, L in enumerate(lights):
+            vp, eye = light_matrices(L, lo, hi)
+            self.viewproj[i] = vp
+            pos = np.asarray(L.position, np.float32) if L.kind != "directional" else eye.astype(np.float32)
+            self.pos_type[i] = (*pos, types[L.kind])
+            self.direction[i, :3] = np.asarray(L.direction, np.float32) / np.linalg.norm(L.direction)
+            self.radiance[i] = (*L.radiance_rgb(), 1.0 if L.cast_shadows else 0.0)
+            outer = np.cos(np.radians(L.spot_angle_deg))
+            inner = np.cos(np.radians(L.spot_angle_deg * (1 - L.spot_blend)))
+            self.spot[i] = (outer, max(inner, outer + 1e-4), 0, 0)
+        self.env_sh = environment_sh(scene.environment)
+        self.lights = lights
+
+    def apply(self, prog):
+        set_uniform(prog, "uLightCount", self.count)
+        set_uniform(prog, "uLightPosType", self.pos_type)
+        set_uniform(prog, "uLightDir", self.direction)
+        set_uniform(prog, "uLightRadiance", self.radiance)
+        set_uniform(prog, "uLightSpot", self.spot)
+        if "uLightViewProj" in prog:
+            n = prog["uLightViewProj"].array_length
+            prog["uLightViewProj"].write(b"".join(mat_bytes(m) for m in self.viewproj[:n]))
+        set_uniform(prog, "uEnvSH", self.env_sh)

@@ -1,0 +1,94 @@
+"""Shadow maps for all lights in one atlas, with the translucent-shadow-map channel.
+
+Tile i of the atlas is light i's map. The depth attachment is sampled with hardware comparison
+(sampler2DShadow); the colour attachment (RGBA32F) keeps, per texel, the (u, v) of the surface
+nearest the light, its distance to the light in mm and a coverage flag: the translucent shadow
+map of d'Eon & Luebke 2007 (GPU Gems 3, sec. 14.5.3).
+"""
+
+from __future__ import annotations
+
+import math
+
+import moderngl
+import numpy as np
+
+from dermis.gl.resources import mat_bytes, set_uniform
+from dermis.gl.shaders import program
+
+
+class ShadowAtlas:
+    def __init__(self, ctx, tile_size: int = 1024, max_lights: int = 8):
+        self.ctx = ctx
+        self.tile_size = int(tile_size)
+        self.cols = 4 if max_lights > 4 else max(1, min(max_lights, 2))
+        self.rows = math.ceil(max_lights / self.cols)
+        self.prog = program(ctx, "shadow/shadow.vert", "shadow/shadow.frag")
+        self._size = None
+        self.depth = self.aux = self.fbo = None
+        self.tiles = np.zeros((max_lights, 4), np.float32)
+        self.params = np.zeros((max_lights, 4), np.float32)
+
+    def _ensure(self, n_lights):
+        cols = min(self.cols, max(n_lights, 1))
+        rows = max(1, math.ceil(max(n_lights, 1) / cols))
+        size = (cols * self.tile_size, rows * self.tile_size)
+        if size == self._size:
+            return
+        self.release()
+        self._size = size
+        self.depth = self.ctx.depth_texture(size)
+        self.depth.compare_func = "<="
+        self.depth.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.depth.repeat_x = self.depth.repeat_y = False
+        self.aux = self.ctx.texture(size, 4, dtype="f4")
+        self.aux.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.aux.repeat_x = self.aux.repeat_y = False
+        self.fbo = self.ctx.framebuffer(color_attachments=[self.aux], depth_attachment=self.depth)
+        self.grid = (cols, rows)
+
+    def render(self, gpu_scene, light_uniforms, scene):
+        """Render every light's tile. Returns the number of tiles drawn."""
+        n = light_uniforms.count
+        self._ensure(n)
+        cols, rows = self.grid
+        W, H = self._size
+        self.fbo.use()
+        self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)  # thin parts: both faces occlude
+        light_uniforms.apply(self.prog)
+        set_uniform(self.prog, "uMmPerUnit", float(scene.mm_per_unit))
+        vao = gpu_scene.vao(self.prog)
+        lo, hi = scene.bounds()
+        radius = float(np.linalg.norm(hi - lo) / 2)
+        for i, L in enumerate(light_uniforms.lights):
+            c, r = i % cols, i // cols
+            self.tiles[i] = (c / cols, r / rows, 1.0 / cols, 1.0 / rows)
+            # normal offset of ~1.5 texels of the map's footprint against acne (King 2004)
+            texel_world = 2.0 * radius / self.tile_size
+            self.params[i] = (L.shadow_softness, L.shadow_bias, 1.5 * texel_world, 1.0 / self.tile_size)
+            if not L.cast_shadows:
+                continue
+            self.fbo.viewport = (c * self.tile_size, r * self.tile_size, self.tile_size, self.tile_size)
+            self.prog["uViewProj"].write(mat_bytes(light_uniforms.viewproj[i]))
+            self.prog["uLight"].value = i
+            vao.render(moderngl.TRIANGLES)
+        return sum(1 for L in light_uniforms.lights if L.cast_shadows)
+
+    def bind(self, prog, depth_unit: int, aux_unit: int):
+        if "uShadowAtlas" in prog:
+            self.depth.use(depth_unit)
+            prog["uShadowAtlas"].value = depth_unit
+        if "uShadowAux" in prog:
+            self.aux.use(aux_unit)
+            prog["uShadowAux"].value = aux_unit
+        set_uniform(prog, "uShadowTile", self.tiles)
+        set_uniform(prog, "uShadowParams", self.params)
+
+    def release(self):
+        for o in (self.fbo, self.depth, self.aux):
+            if o is not None:
+                o.release()
+        self.fbo = self.depth = self.aux = None
+        self._size = None

@@ -1,0 +1,167 @@
+"""Image input and output with the safety rules of the project.
+
+- Input: size-limited BEFORE decoding (the header is read first), decoded sRGB -> linear for
+  colour maps, kept as-is for data maps (normals, specular masks). One-line errors.
+- Output: written to a temporary name in the destination folder and renamed, so no reader ever
+  sees a half-written file. PNG (8-bit sRGB after the output transform) and EXR (linear half/float).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from dermis.errors import DermisError
+
+MAX_IMAGE_PIXELS = 8192 * 8192  # refuse larger images before decoding (64 Mpx)
+
+
+def srgb_to_linear(c):
+    """IEC 61966-2-1 sRGB decoding."""
+    c = np.asarray(c, dtype=np.float32)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(c):
+    """IEC 61966-2-1 sRGB encoding (input clamped to [0, 1])."""
+    c = np.clip(np.asarray(c, dtype=np.float32), 0.0, 1.0)
+    return np.where(c <= 0.0031308, c * 12.92, 1.055 * np.power(c, 1.0 / 2.4) - 0.055).astype(np.float32)
+
+
+def _decode_bytes(data: bytes, source: str, max_pixels: int) -> np.ndarray:
+    from PIL import Image
+
+    Image.MAX_IMAGE_PIXELS = None  # our own limit below, checked before any decoding
+    try:
+        with Image.open(io.BytesIO(data)) as im:
+            w, h = im.size
+            if w <= 0 or h <= 0:
+                raise DermisError(f"{source}: image has zero size")
+            if w * h > max_pixels:
+                raise DermisError(f"{source}: image is {w}x{h}, over the limit of {max_pixels} pixels; refused before decoding")
+            mode = im.mode
+            if mode in ("I;16", "I;16B", "I;16L", "I"):
+                arr = np.asarray(im, dtype=np.float32) / 65535.0
+            else:
+                if mode not in ("L", "RGB", "RGBA", "LA"):
+                    im = im.convert("RGBA" if "A" in mode or mode == "P" else "RGB")
+                arr = np.asarray(im, dtype=np.float32) / 255.0
+    except DermisError:
+        raise
+    except Exception as exc:
+        raise DermisError(f"{source}: cannot decode image ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
+    if arr.ndim == 2:
+        arr = arr[:, :, None]
+    return arr
+
+
+def _read_exr(path: Path, max_pixels: int) -> np.ndarray:
+    import OpenEXR
+
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            hdr = f.header()
+            (x0, y0), (x1, y1) = hdr["dataWindow"]
+            w, h = x1 - x0 + 1, y1 - y0 + 1
+            if w * h > max_pixels:
+                raise DermisError(f"{path}: image is {w}x{h}, over the limit of {max_pixels} pixels; refused before decoding")
+            ch = f.channels()
+            names = [c for c in ("R", "G", "B") if c in ch] or list(ch)[:3]
+            arr = np.stack([np.asarray(ch[n].pixels, dtype=np.float32) for n in names], axis=-1)
+    except DermisError:
+        raise
+    except Exception as exc:
+        raise DermisError(f"{path}: cannot read EXR ({type(exc).__name__})") from None
+    return arr
+
+
+def read_image(path, *, srgb: bool, max_pixels: int = MAX_IMAGE_PIXELS, data: bytes | None = None, source: str | None = None) -> np.ndarray:
+    """Decode an image file (or bytes) to float32 (H, W, C), row 0 = top of the image.
+
+    ``srgb=True`` decodes colour maps to linear; HDR formats (EXR, Radiance .hdr) are linear already.
+    """
+    src = source or str(path)
+    if data is None:
+        p = Path(path)
+        if not p.is_file():
+            raise DermisError(f"{p}: image file not found")
+        if p.suffix.lower() == ".exr":
+            return _read_exr(p, max_pixels)
+        if p.suffix.lower() == ".hdr":
+            return _read_hdr(p, max_pixels)
+        data = p.read_bytes()
+    arr = _decode_bytes(data, src, max_pixels)
+    if srgb:
+        c = min(arr.shape[2], 3)
+        arr[:, :, :c] = srgb_to_linear(arr[:, :, :c])
+    if not np.all(np.isfinite(arr)):
+        raise DermisError(f"{src}: image contains NaN or infinite values")
+    return arr
+
+
+def _read_hdr(path: Path, max_pixels: int) -> np.ndarray:
+    """Radiance RGBE (.hdr) through imageio, with the size read from the header first."""
+    head = path.read_bytes()[:4096]
+    for line in head.split(b"\n"):
+        parts = line.split()
+        if len(parts) == 4 and parts[0] in (b"-Y", b"+Y"):
+            try:
+                h, w = int(parts[1]), int(parts[3])
+            except ValueError:
+                break
+            if w * h > max_pixels:
+                raise DermisError(f"{path}: image is {w}x{h}, over the limit of {max_pixels} pixels; refused before decoding")
+            break
+    try:
+        import imageio.v3 as iio
+
+        arr = np.asarray(iio.imread(path), dtype=np.float32)
+    except Exception as exc:
+        raise DermisError(f"{path}: cannot read HDR image ({type(exc).__name__})") from None
+    return arr[:, :, :3] if arr.ndim == 3 else arr[:, :, None]
+
+
+def _atomic_write(path, write_fn) -> Path:
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise DermisError(f"{path}: output folder {folder} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part" + path.suffix, dir=folder)
+    os.close(fd)
+    try:
+        write_fn(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
+def write_png(path, rgb_srgb_float: np.ndarray) -> Path:
+    """Write an (H, W, 3) array already in display (sRGB-encoded) [0, 1] values as 8-bit PNG."""
+    from PIL import Image
+
+    arr = np.clip(np.asarray(rgb_srgb_float, np.float32) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    return _atomic_write(path, lambda tmp: Image.fromarray(arr).save(tmp, format="PNG"))
+
+
+def write_exr(path, rgb_linear: np.ndarray, half: bool = False) -> Path:
+    """Write a linear (H, W, 3) image as OpenEXR (float32 by default, or half)."""
+    import OpenEXR
+
+    arr = np.ascontiguousarray(np.asarray(rgb_linear, np.float16 if half else np.float32))
+
+    def write(tmp):
+        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+        channels = {"RGB": arr}
+        with OpenEXR.File(header, channels) as f:
+            f.write(tmp)
+
+    return _atomic_write(path, write)

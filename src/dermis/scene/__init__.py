@@ -1,0 +1,1 @@
+"""Scenes: the model, loaders (glTF, OBJ, TOML) and built-in meshes."""

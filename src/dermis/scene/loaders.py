@@ -1,0 +1,369 @@
+"""Mesh and material loaders: glTF 2.0 (.glb/.gltf, through pygltflib) and OBJ + MTL (through trimesh).
+
+Safety: every external URI (buffers, images, MTL maps) is resolved inside the asset's own folder;
+a URI that escapes it (``../``, absolute paths, other schemes) is refused. Images are size-checked
+from their header before decoding (dermis.images).
+
+UV convention: glTF stores v = 0 at the TOP of the image, OBJ at the bottom. dermis uses v = 0 at the
+bottom (OpenGL). ``uv_convention`` says what the FILE uses: "v-down" (glTF spec) flips v on load,
+"v-up" keeps it (OBJ, and glTF files written with OpenGL-style UVs such as the Lee Perry-Smith head).
+"""
+
+from __future__ import annotations
+
+import base64
+import struct
+from pathlib import Path
+from urllib.parse import unquote
+
+import numpy as np
+
+from dermis.errors import DermisError
+from dermis.images import MAX_IMAGE_PIXELS, read_image
+from dermis.scene.model import Mesh, Texture
+from dermis.scene.tangents import generate_tangents
+
+UV_CONVENTIONS = ("v-up", "v-down")
+
+
+def resolve_inside(folder: Path, uri: str, what: str, source) -> Path:
+    """Resolve a relative URI inside ``folder``; refuse anything that escapes it."""
+    if "://" in uri or uri.startswith("/") or uri.startswith("\\") or (len(uri) > 1 and uri[1] == ":"):
+        raise DermisError(f"{source}: {what} URI '{uri}' is not a relative path inside the asset folder; refused")
+    folder = folder.resolve()
+    target = (folder / unquote(uri)).resolve()
+    try:
+        target.relative_to(folder)
+    except ValueError:
+        raise DermisError(f"{source}: {what} URI '{uri}' points outside the asset folder {folder}; refused") from None
+    if not target.is_file():
+        raise DermisError(f"{source}: {what} '{uri}' not found in {folder}")
+    return target
+
+
+def _data_uri(uri: str) -> bytes | None:
+    if not uri.startswith("data:"):
+        return None
+    try:
+        head, payload = uri.split(",", 1)
+        return base64.b64decode(payload) if ";base64" in head else unquote(payload).encode()
+    except Exception:
+        raise DermisError("malformed data: URI") from None
+
+
+def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: str, tangents=None) -> Mesh:
+    if uvs is None:
+        raise DermisError(f"{source}: mesh has no texture coordinates (UVs); dermis needs a UV layout")
+    positions = np.ascontiguousarray(positions, np.float32)
+    indices = np.ascontiguousarray(indices, np.int64).reshape(-1, 3)
+    uvs = np.ascontiguousarray(uvs, np.float32).copy()
+    for name, a in (("positions", positions), ("uvs", uvs)):
+        if not np.all(np.isfinite(a)):
+            raise DermisError(f"{source}: mesh {name} contain NaN or infinite values")
+    if len(indices) == 0:
+        raise DermisError(f"{source}: mesh has no triangles")
+    if indices.min() < 0 or indices.max() >= len(positions):
+        raise DermisError(f"{source}: triangle indices out of range")
+    if uv_convention == "v-down":
+        uvs[:, 1] = 1.0 - uvs[:, 1]
+    elif uv_convention != "v-up":
+        raise DermisError(f"{source}: uv_convention must be one of {UV_CONVENTIONS}, got '{uv_convention}'")
+    if normals is None:
+        normals = vertex_normals(positions, indices)
+    normals = np.asarray(normals, np.float32)
+    if not np.all(np.isfinite(normals)):
+        raise DermisError(f"{source}: mesh normals contain NaN or infinite values")
+    nl = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.where(nl > 1e-12, normals / np.maximum(nl, 1e-12), vertex_normals(positions, indices)).astype(np.float32)
+    indices = indices.astype(np.uint32)
+    if tangents is None or uv_convention == "v-down":
+        # Provided tangents follow the file's v direction; regenerate after a flip.
+        tangents = generate_tangents(positions, normals, uvs, indices)
+    return Mesh(positions, normals, uvs, indices, np.asarray(tangents, np.float32), source=source).validate()
+
+
+def vertex_normals(positions, indices) -> np.ndarray:
+    p = positions.astype(np.float64)
+    i = indices.astype(np.int64)
+    fn = np.cross(p[i[:, 1]] - p[i[:, 0]], p[i[:, 2]] - p[i[:, 0]])  # area-weighted
+    n = np.zeros_like(p)
+    for c in range(3):
+        np.add.at(n, i[:, c], fn)
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    return (n / np.maximum(ln, 1e-20)).astype(np.float32)
+
+
+# ----------------------------------------------------------------------------- glTF 2.0
+
+_COMPONENT = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
+_NCOMP = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+
+
+class GltfAsset:
+    """Reads a glTF 2.0 file's meshes (all primitives of all nodes, world transforms applied)."""
+
+    def __init__(self, path: Path):
+        import pygltflib
+
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise DermisError(f"{self.path}: mesh file not found")
+        self.folder = self.path.resolve().parent
+        try:
+            if self.path.suffix.lower() == ".glb":
+                raw = self.path.read_bytes()
+                if len(raw) < 12 or raw[:4] != b"glTF":
+                    raise ValueError("not a binary glTF (bad magic)")
+                self.gltf = pygltflib.GLTF2.load_from_bytes(raw)
+            else:
+                self.gltf = pygltflib.GLTF2.load_json(self.path.read_text(encoding="utf-8"))
+        except DermisError:
+            raise
+        except Exception as exc:
+            raise DermisError(f"{self.path}: cannot parse glTF ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
+        self._buffers: dict[int, bytes] = {}
+
+    def buffer(self, i: int) -> bytes:
+        if i not in self._buffers:
+            b = self.gltf.buffers[i]
+            if b.uri is None:
+                blob = self.gltf.binary_blob()
+                if blob is None:
+                    raise DermisError(f"{self.path}: buffer {i} has no data")
+                self._buffers[i] = bytes(blob)
+            else:
+                data = _data_uri(b.uri)
+                if data is None:
+                    data = resolve_inside(self.folder, b.uri, "buffer", self.path).read_bytes()
+                self._buffers[i] = data
+        return self._buffers[i]
+
+    def view_bytes(self, view_index: int) -> tuple[bytes, int | None]:
+        v = self.gltf.bufferViews[view_index]
+        buf = self.buffer(v.buffer)
+        start = v.byteOffset or 0
+        if start + v.byteLength > len(buf):
+            raise DermisError(f"{self.path}: bufferView {view_index} runs past its buffer (file truncated?)")
+        return buf[start : start + v.byteLength], v.byteStride
+
+    def accessor(self, index: int) -> np.ndarray:
+        a = self.gltf.accessors[index]
+        dtype = np.dtype(_COMPONENT[a.componentType])
+        n = _NCOMP[a.type]
+        if a.bufferView is None:
+            out = np.zeros((a.count, n), dtype)
+        else:
+            data, stride = self.view_bytes(a.bufferView)
+            off = a.byteOffset or 0
+            elem = dtype.itemsize * n
+            stride = stride or elem
+            need = off + stride * (a.count - 1) + elem if a.count else 0
+            if need > len(data):
+                raise DermisError(f"{self.path}: accessor {index} runs past its bufferView (file truncated?)")
+            arr = np.ndarray((a.count, n), dtype=dtype, buffer=data, offset=off, strides=(stride, dtype.itemsize))
+            out = np.array(arr)
+        if getattr(a, "sparse", None) is not None:
+            raise DermisError(f"{self.path}: sparse accessors are not supported")
+        if a.normalized and dtype.kind in "iu":
+            info = np.iinfo(dtype)
+            out = np.maximum(out.astype(np.float32) / info.max, -1.0)
+        return out
+
+    def image(self, texture_index: int, srgb: bool, max_pixels: int) -> Texture:
+        tex = self.gltf.textures[texture_index]
+        img = self.gltf.images[tex.source]
+        label = f"{self.path} image {tex.source}"
+        if img.bufferView is not None:
+            data, _ = self.view_bytes(img.bufferView)
+            arr = read_image(None, srgb=srgb, max_pixels=max_pixels, data=data, source=label)
+        elif img.uri:
+            data = _data_uri(img.uri)
+            if data is not None:
+                arr = read_image(None, srgb=srgb, max_pixels=max_pixels, data=data, source=label)
+            else:
+                p = resolve_inside(self.folder, img.uri, "image", self.path)
+                arr = read_image(p, srgb=srgb, max_pixels=max_pixels)
+                label = str(p)
+        else:
+            raise DermisError(f"{label}: image has neither a URI nor a bufferView")
+        return Texture(arr, label)
+
+    def _node_matrices(self):
+        g = self.gltf
+        mats = {}
+
+        def local(node):
+            if node.matrix:
+                return np.array(node.matrix, np.float64).reshape(4, 4).T
+            t = np.eye(4)
+            if node.translation:
+                t[:3, 3] = node.translation
+            r = np.eye(4)
+            if node.rotation:
+                x, y, z, w = node.rotation
+                r[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                             [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                             [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+            s = np.eye(4)
+            if node.scale:
+                s[0, 0], s[1, 1], s[2, 2] = node.scale
+            return t @ r @ s
+
+        def walk(i, parent, depth=0):
+            if depth > 64:
+                raise DermisError(f"{self.path}: node hierarchy too deep or cyclic")
+            m = parent @ local(g.nodes[i])
+            mats.setdefault(i, m)
+            for c in g.nodes[i].children or []:
+                walk(c, m, depth + 1)
+
+        scene = g.scenes[g.scene or 0] if g.scenes else None
+        roots = scene.nodes if scene else range(len(g.nodes))
+        for r_ in roots:
+            walk(r_, np.eye(4))
+        return mats
+
+    def load(self, uv_convention: str, max_pixels: int = MAX_IMAGE_PIXELS):
+        """Returns (Mesh, material dict with 'albedo', 'normal_map', 'specular_map' Textures or None)."""
+        g = self.gltf
+        if not g.meshes:
+            raise DermisError(f"{self.path}: glTF has no meshes")
+        P, N, T, UV, I, TAN = [], [], [], [], [], []
+        base = 0
+        material_index = None
+        mats = self._node_matrices()
+        node_meshes = [(mats[i], n.mesh) for i, n in enumerate(g.nodes) if n.mesh is not None and i in mats]
+        if not node_meshes:
+            node_meshes = [(np.eye(4), i) for i in range(len(g.meshes))]
+        have_tangents = True
+        try:
+            for m4, mi in node_meshes:
+                for prim in g.meshes[mi].primitives:
+                    if prim.mode not in (None, 4):
+                        continue  # points/lines: not skin
+                    at = prim.attributes
+                    if at.POSITION is None:
+                        continue
+                    if at.TEXCOORD_0 is None:
+                        raise DermisError(f"{self.path}: mesh primitive has no TEXCOORD_0 (UVs); dermis needs a UV layout")
+                    p = self.accessor(at.POSITION).astype(np.float64)
+                    p = (np.c_[p, np.ones(len(p))] @ m4.T)[:, :3]
+                    nm = np.linalg.inv(m4[:3, :3]).T
+                    n = self.accessor(at.NORMAL).astype(np.float64) @ nm.T if at.NORMAL is not None else None
+                    uv = self.accessor(at.TEXCOORD_0).astype(np.float64)
+                    if at.TANGENT is not None:
+                        tg = self.accessor(at.TANGENT).astype(np.float64)
+                        tg[:, :3] = tg[:, :3] @ m4[:3, :3].T
+                        TAN.append(tg)
+                    else:
+                        have_tangents = False
+                    idx = self.accessor(prim.indices).reshape(-1) if prim.indices is not None else np.arange(len(p))
+                    if len(idx) % 3:
+                        raise DermisError(f"{self.path}: index count {len(idx)} is not a multiple of 3")
+                    if len(idx) and (idx.max() >= len(p)):
+                        raise DermisError(f"{self.path}: triangle indices out of range")
+                    P.append(p)
+                    N.append(n)
+                    UV.append(uv)
+                    I.append(idx.reshape(-1, 3).astype(np.int64) + base)
+                    base += len(p)
+                    if material_index is None:
+                        material_index = prim.material
+        except DermisError:
+            raise
+        except Exception as exc:
+            raise DermisError(f"{self.path}: malformed glTF mesh data ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
+        if not P:
+            raise DermisError(f"{self.path}: glTF has no triangle meshes")
+        normals = None if any(n is None for n in N) else np.concatenate(N)
+        tangents = np.concatenate(TAN) if have_tangents and TAN else None
+        mesh = finish_mesh(np.concatenate(P), normals, np.concatenate(UV), np.concatenate(I), str(self.path), uv_convention, tangents)
+        material = {"albedo": None, "normal_map": None, "specular_map": None, "albedo_color": None}
+        if material_index is not None and g.materials:
+            mat = g.materials[material_index]
+            pbr = mat.pbrMetallicRoughness
+            if pbr is not None:
+                if pbr.baseColorTexture is not None:
+                    material["albedo"] = self.image(pbr.baseColorTexture.index, srgb=True, max_pixels=max_pixels)
+                if pbr.baseColorFactor:
+                    material["albedo_color"] = tuple(pbr.baseColorFactor[:3])
+            if mat.normalTexture is not None:
+                material["normal_map"] = self.image(mat.normalTexture.index, srgb=False, max_pixels=max_pixels)
+        return mesh, material
+
+
+# ----------------------------------------------------------------------------- OBJ + MTL
+
+
+def _safe_resolver(folder: Path, source: Path, max_pixels: int):
+    import trimesh.resolvers
+
+    class InsideFolderResolver(trimesh.resolvers.FilePathResolver):
+        """trimesh resolver that refuses names escaping the OBJ's folder and oversized images."""
+
+        def get(self, name):
+            p = resolve_inside(folder, name, "referenced file", source)
+            data = p.read_bytes()
+            if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".tga", ".bmp", ".tif", ".tiff"):
+                from PIL import Image
+                import io
+
+                try:
+                    with Image.open(io.BytesIO(data)) as im:
+                        w, h = im.size
+                except Exception:
+                    raise DermisError(f"{p}: cannot decode image") from None
+                if w * h > max_pixels:
+                    raise DermisError(f"{p}: image is {w}x{h}, over the limit of {max_pixels} pixels; refused before decoding")
+            return data
+
+    return InsideFolderResolver(str(source))
+
+
+def load_obj(path: Path, uv_convention: str = "v-up", max_pixels: int = MAX_IMAGE_PIXELS):
+    import trimesh
+
+    path = Path(path)
+    if not path.is_file():
+        raise DermisError(f"{path}: mesh file not found")
+    folder = path.resolve().parent
+    try:
+        loaded = trimesh.load(str(path), file_type="obj", process=False, maintain_order=True, force="mesh",
+                              resolver=_safe_resolver(folder, path, max_pixels))
+    except DermisError:
+        raise
+    except Exception as exc:
+        raise DermisError(f"{path}: cannot parse OBJ ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise DermisError(f"{path}: OBJ has no triangles")
+    uv = getattr(loaded.visual, "uv", None)
+    if uv is None or len(uv) != len(loaded.vertices):
+        raise DermisError(f"{path}: mesh has no texture coordinates (UVs); dermis needs a UV layout")
+    normals = None
+    if "vertex_normals" in loaded._cache.cache or getattr(loaded, "_vertex_normals_from_file", False):
+        normals = np.asarray(loaded.vertex_normals)
+    mesh = finish_mesh(np.asarray(loaded.vertices), normals, np.asarray(uv), np.asarray(loaded.faces), str(path), uv_convention)
+    material = {"albedo": None, "normal_map": None, "specular_map": None, "albedo_color": None}
+    mat = getattr(loaded.visual, "material", None)
+    if mat is not None:
+        img = getattr(mat, "image", None) or getattr(mat, "baseColorTexture", None)
+        if img is not None:
+            arr = np.asarray(img.convert("RGB"), np.float32) / 255.0
+            from dermis.images import srgb_to_linear
+
+            material["albedo"] = Texture(srgb_to_linear(arr), f"{path} map_Kd")
+        col = getattr(mat, "diffuse", None)
+        if col is not None and img is None:
+            material["albedo_color"] = tuple(np.asarray(col[:3], np.float32) / 255.0)
+    return mesh, material
+
+
+def load_mesh_file(path, uv_convention: str | None = None, max_pixels: int = MAX_IMAGE_PIXELS):
+    """Load a .glb/.gltf/.obj; ``uv_convention`` None picks the format's own convention."""
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext in (".glb", ".gltf"):
+        return GltfAsset(path).load(uv_convention or "v-down", max_pixels)
+    if ext == ".obj":
+        return load_obj(path, uv_convention or "v-up", max_pixels)
+    raise DermisError(f"{path}: unsupported mesh format '{ext}' (use .glb, .gltf or .obj)")

@@ -1,0 +1,140 @@
+"""The scene model: mesh, skin material, lights, camera, environment, with explicit units.
+
+Conventions (used everywhere in dermis):
+- Positions are in scene units; ``Scene.mm_per_unit`` converts them to millimetres, the unit of
+  every scattering distance (profiles, blur widths, translucency).
+- UVs are OpenGL style: v = 0 is the BOTTOM row of a texture image. Image arrays are stored
+  with row 0 at the TOP (as files are) and flipped on upload. Loaders convert other conventions.
+- Colours and radiance are linear RGB. sRGB images are decoded to linear on load.
+- Tangents are (x, y, z, w) with w = handedness: bitangent = w * cross(N, T) (MikkTSpace).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dermis.errors import DermisError
+from dermis.profiles.gaussians import SumOfGaussians, deon_skin
+
+
+@dataclass
+class Mesh:
+    positions: np.ndarray  # (N, 3) float32, scene units
+    normals: np.ndarray  # (N, 3) float32, unit
+    uvs: np.ndarray  # (N, 2) float32, v up
+    indices: np.ndarray  # (M, 3) uint32, counter-clockwise from outside
+    tangents: np.ndarray | None = None  # (N, 4) float32, w = handedness
+    source: str = "<mesh>"
+
+    def validate(self) -> "Mesh":
+        n = len(self.positions)
+        if n == 0 or len(self.indices) == 0:
+            raise DermisError(f"{self.source}: mesh has no triangles")
+        for name in ("positions", "normals", "uvs"):
+            a = getattr(self, name)
+            if a is None:
+                raise DermisError(f"{self.source}: mesh has no {name}" + (" (texture coordinates are required)" if name == "uvs" else ""))
+            if len(a) != n:
+                raise DermisError(f"{self.source}: mesh {name} count {len(a)} != vertex count {n}")
+            if not np.all(np.isfinite(a)):
+                raise DermisError(f"{self.source}: mesh {name} contain NaN or infinite values")
+        if self.indices.min() < 0 or self.indices.max() >= n:
+            raise DermisError(f"{self.source}: mesh indices out of range")
+        return self
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.positions.min(axis=0), self.positions.max(axis=0)
+
+
+@dataclass
+class Texture:
+    """An image held in memory: float32 (H, W, C), linear unless it is data (normals, masks)."""
+
+    data: np.ndarray
+    source: str = "<texture>"
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.data.shape[1], self.data.shape[0]
+
+
+@dataclass
+class SkinMaterial:
+    albedo: Texture | None = None  # linear RGB; None = albedo_color
+    albedo_color: tuple = (0.62, 0.42, 0.33)  # linear RGB when there is no map
+    normal_map: Texture | None = None  # tangent space, OpenGL (+y = +v), encoded n*0.5+0.5
+    normal_strength: float = 1.0
+    specular_map: Texture | None = None  # intensity in [0,1] scaling rho_s
+    roughness: float = 0.3  # Beckmann m (d'Eon 2007: 0.3 for skin)
+    rho_s: float = 0.18  # specular intensity (d'Eon 2007)
+    # rho_s at a texel = rho_s * (specular_map_bias + specular_map_scale * map): the seed used
+    # 0.18 + 0.16 * spec, i.e. bias 1.0, scale 0.89 with rho_s = 0.18.
+    specular_map_bias: float = 1.0
+    specular_map_scale: float = 0.89
+    mix: float = 0.5  # albedo^mix before scattering, albedo^(1-mix) after (d'Eon 2007 sec 14.5.2)
+    pore_scale_mm: float = 0.5  # spacing of procedural pore-detail normals in the final pass
+    pore_strength: float = 0.15  # 0 disables procedural pore detail
+
+
+@dataclass
+class Light:
+    kind: str = "directional"  # directional | point | spot
+    color: tuple = (1.0, 1.0, 1.0)  # linear RGB
+    intensity: float = 3.0  # irradiance (directional, W/m^2-like units) or intensity (point/spot, per sr)
+    direction: tuple = (0.0, 0.0, -1.0)  # direction the light TRAVELS (directional, spot)
+    position: tuple = (0.0, 0.0, 10.0)  # scene units (point, spot)
+    spot_angle_deg: float = 30.0  # half-angle of the full cone (spot)
+    spot_blend: float = 0.15  # fraction of the cone that fades out
+    cast_shadows: bool = True
+    shadow_softness: float = 1.5  # PCF kernel radius in shadow-map texels
+    shadow_bias: float = 0.0015
+
+    def radiance_rgb(self) -> np.ndarray:
+        return np.asarray(self.color, np.float32) * np.float32(self.intensity)
+
+
+@dataclass
+class Camera:
+    position: tuple = (0.0, 0.0, 10.0)
+    target: tuple = (0.0, 0.0, 0.0)
+    up: tuple = (0.0, 1.0, 0.0)
+    fov_deg: float = 30.0  # vertical field of view
+    near: float | None = None  # None: derived from the scene bounds
+    far: float | None = None
+
+
+@dataclass
+class Environment:
+    """Ambient light: a constant linear colour, or an equirectangular HDR image."""
+
+    color: tuple = (0.03, 0.03, 0.035)
+    image: Texture | None = None  # linear equirect; projected to 9 SH coefficients
+    intensity: float = 1.0
+
+
+@dataclass
+class Output:
+    exposure: float = 0.0  # stops
+    tonemap: str = "aces"  # aces | linear
+    background: tuple = (0.02, 0.02, 0.025)  # linear RGB
+
+
+@dataclass
+class Scene:
+    mesh: Mesh
+    material: SkinMaterial = field(default_factory=SkinMaterial)
+    lights: list = field(default_factory=list)
+    camera: Camera = field(default_factory=Camera)
+    environment: Environment = field(default_factory=Environment)
+    output: Output = field(default_factory=Output)
+    mm_per_unit: float = 1.0
+    profile: SumOfGaussians = field(default_factory=deon_skin)
+    technique: str = "tsd"
+    source: str = "<scene>"
+    name: str = "scene"
+
+    def bounds(self):
+        return self.mesh.bounds

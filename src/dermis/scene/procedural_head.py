@@ -1,0 +1,273 @@
+"""The built-in default scene's geometry and textures: a procedural head-and-neck bust.
+
+Everything here is generated from code (numpy/scipy only, no files, no GL), deterministically for
+a given seed, so that ``dermis render`` with no arguments gives a meaningful skin image anywhere.
+
+Geometry (scene units are centimetres, ``mm_per_unit = 10``; y up, the face looks toward +z, the
+subject's left is +x):
+
+* The head and neck are one smooth implicit surface: smooth unions of ellipsoids / capsules
+  (cranium, forehead, cheeks, jaw, chin, lips, nose, brow ridge, sterno-cleido-mastoid muscles,
+  neck) minus smooth subtractions (eye sockets, nostrils, mouth corners), with closed eyelids
+  (eyeball spheres) and a flat cut at the bottom of the neck.  It is star-shaped around a centre
+  ``C`` inside the head, so it is meshed by casting rays from ``C``.
+* Meshing avoids poles and grazing rays: a *ring* grid (columns at fixed azimuth, denser on the
+  face; rows re-sampled per column at equal weighted arc length, denser on the face) from the
+  hairline down to the neck cut, a *top cap* and a flat *bottom cap* triangulated (Delaunay) in a
+  normalised disc whose boundary is exactly the ring's first / last row.
+* The ears are separate, genuinely thin closed shells (about 2.6 mm thick flap, up to ~4 mm at
+  the helix rim and lobe, rounded edges) whose front edge is buried in the side of the head (they
+  interpenetrate it, like a sculpt base mesh), so they transmit light when back-lit.
+* Concave parts: eye sockets (closed lids sit about 1 cm behind brow and cheek), nostrils
+  (tunnels toward ``C``, about 5 mm deep), mouth corners.
+
+UV layout (unique, for texture-space diffusion): seven islands -- the ring (cut once, down the
+back of the head and neck), the top cap, the bottom cap, and the front / back sheet of each ear
+(seam along the ear rim) -- each flattened with least-squares conformal maps (LSCM; conformal, so
+dP/du and dP/dv are orthogonal and equally long and the MikkTSpace-like tangent frame is
+consistent with the normal map), scaled to one common texel density (the bottom cut face, which
+is never seen, gets half), oriented so that every UV triangle is counter-clockwise (tangent
+handedness w = +1 everywhere) and packed into [0, 1]^2 with gutters of at least
+``GUTTER_UV`` (>= 10 texels at 1024^2).  The gutters of every texture are filled with the colour
+of the nearest island texel (dilation), so bilinear filtering and blurs never pick up black.
+
+Textures (row 0 = top of the image, i.e. texel (row, col) is at u = (col + .5) / W,
+v = 1 - (row + .5) / H; v = 0 is the bottom row, the OpenGL convention used by the UVs):
+
+* ``albedo``: linear RGB, fair skin (mean ~ (0.45, 0.25, 0.17)) with low-frequency melanin and
+  redness blotches (3-D noise, so they are continuous across UV seams), redness on cheeks, nose
+  and ears, freckles (1-2 mm spots, mostly on nose and cheeks), eyebrows, closed eyelids with a
+  dark lash line, darker nostrils, red lips (~(0.45, 0.12, 0.10)).
+* ``normal_map``: tangent-space (OpenGL: +x along +u, +y along +v, encoded n * 0.5 + 0.5) from a
+  height field in millimetres: pores (dimples on a jittered grid ``pore_spacing_mm`` = 1.0 mm apart,
+  ~100 per cm^2 -- the density of visible facial pores; at 1024^2 the layout has ~0.5 mm texels, so
+  finer spacings could not be represented), fine micro-relief noise, forehead lines, crow's feet,
+  lip lines, the eyelid closure groove and a soft naso-labial fold.
+* ``specular``: intensity in [0, 1]: oily T-zone (forehead, nose, chin) and lips brighter,
+  eyebrows and pores duller.
+
+``build_default_head`` is cached (``functools.lru_cache``); the arrays it returns are read-only,
+copy them before modifying.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage, sparse, spatial
+from scipy.sparse.linalg import spsolve
+
+MM_PER_UNIT = 10.0
+PORE_SPACING_MM = 1.0
+GUTTER_UV = 12.0 / 1024.0  # minimum distance between UV islands (packing target)
+MARGIN_UV = 6.0 / 1024.0  # minimum distance of an island from the border of [0, 1]^2
+
+
+@dataclass
+class ProceduralHead:
+    positions: np.ndarray  # (N, 3) float32, centimetres, y up, face toward +z
+    normals: np.ndarray  # (N, 3) float32, unit, outward, smooth
+    uvs: np.ndarray  # (N, 2) float32, v = 0 is the bottom row of the textures
+    indices: np.ndarray  # (M, 3) uint32, counter-clockwise seen from outside
+    albedo: np.ndarray  # (H, W, 3) float32 linear RGB in [0, 1], row 0 = top
+    normal_map: np.ndarray  # (H, W, 3) float32 tangent space, n * 0.5 + 0.5, OpenGL (+y = +v)
+    specular: np.ndarray  # (H, W) float32 in [0, 1]
+    mm_per_unit: float = MM_PER_UNIT
+    pore_spacing_mm: float = PORE_SPACING_MM
+    landmarks: dict = field(default_factory=dict)  # name -> (3,) float32 point, scene units
+    islands: np.ndarray | None = None  # (M,) int8 UV island of each triangle (see ISLANDS)
+    texel_mm: float = 0.0  # mean millimetres per texel of the skin islands at this texture size
+
+
+ISLANDS = ("ring", "top_cap", "bottom_cap", "left_ear_front", "left_ear_back", "right_ear_front", "right_ear_back")
+
+
+# ----------------------------------------------------------------------------------------------
+# implicit surface
+# ----------------------------------------------------------------------------------------------
+
+
+def _smin(a, b, k):
+    h = np.maximum(k - np.abs(a - b), 0.0) / k
+    return np.minimum(a, b) - h * h * (k * 0.25)
+
+
+def _smax(a, b, k):
+    h = np.maximum(k - np.abs(a - b), 0.0) / k
+    return np.maximum(a, b) + h * h * (k * 0.25)
+
+
+def _rot(yaw=0.0, pitch=0.0, roll=0.0):
+    """Rotation matrix (world -> local rows): local axes as rows."""
+    cy, sy, cp, sp, cr, sr = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rx = np.array([[1, 0, 0], [0, cp, -sp], [0, sp, cp]])
+    rz = np.array([[cr, -sr, 0], [sr, cr, 0], [0, 0, 1]])
+    return (ry @ rx @ rz).T
+
+
+class _Ellipsoid:
+    def __init__(self, c, r, R=None):
+        self.c = np.asarray(c, float)
+        self.r = np.asarray(r, float)
+        self.R = None if R is None else np.asarray(R, float)
+        self.bound = float(np.max(self.r))
+
+    def __call__(self, p):
+        q = p - self.c
+        if self.R is not None:
+            q = q @ self.R.T
+        q0 = q / self.r
+        q1 = q0 / self.r
+        k0 = np.sqrt(np.einsum("ij,ij->i", q0, q0))
+        k1 = np.sqrt(np.einsum("ij,ij->i", q1, q1))
+        return k0 * (k0 - 1.0) / np.maximum(k1, 1e-12)
+
+
+class _Capsule:
+    """Segment a-b with a radius varying linearly from ra to rb (a round cone, approximately)."""
+
+    def __init__(self, a, b, ra, rb=None, scale=(1.0, 1.0, 1.0)):
+        self.a = np.asarray(a, float)
+        self.b = np.asarray(b, float)
+        self.ra = float(ra)
+        self.rb = float(ra if rb is None else rb)
+        self.s = np.asarray(scale, float)
+        self.c = 0.5 * (self.a + self.b)
+        self.bound = 0.5 * float(np.linalg.norm(self.b - self.a)) + max(self.ra, self.rb) * float(self.s.max())
+
+    def __call__(self, p):
+        ba = self.b - self.a
+        pa = p - self.a
+        h = np.clip(pa @ ba / (ba @ ba), 0.0, 1.0)
+        d = (pa - h[:, None] * ba) / self.s
+        return np.sqrt(np.einsum("ij,ij->i", d, d)) * self.s.min() - (self.ra + (self.rb - self.ra) * h)
+
+
+class _Shape:
+    """The head-and-neck implicit surface (negative inside), in centimetres."""
+
+    # ray centre, neck cut
+    C = np.array([0.0, 0.8, -0.3])
+    Y_CUT = -21.0
+    # features shared by the geometry and the texture masks
+    EYE = np.array([3.15, 1.55, 6.95])  # eyeball centre (x mirrored)
+    EYE_R = 1.28
+    STOMION_Y = -4.78
+    NOSTRIL = np.array([0.62, -2.72, 9.85])
+
+    def __init__(self):
+        E, Cap = _Ellipsoid, _Capsule
+        self.ops = []  # (op, primitive, k)
+        add = lambda prim, k: self.ops.append(("u", prim, k))  # noqa: E731
+        sub = lambda prim, k: self.ops.append(("s", prim, k))  # noqa: E731
+        for s in (1, -1):
+            pass
+        # --- masses
+        self.base = E((0, 3.4, -0.5), (7.35, 9.5, 9.3))  # cranium
+        add(E((0, 4.8, 3.2), (6.3, 6.2, 5.9)), 2.0)  # forehead
+        add(E((0, 5.5, -1.5), (7.0, 7.2, 8.0)), 1.5)  # parietal fullness
+        add(E((0, -1.0, 3.0), (5.9, 5.6, 6.2)), 2.0)  # mid-face
+        add(E((0, -4.6, 3.6), (4.7, 4.2, 4.9)), 2.0)  # lower face
+        # neck (slightly elliptic, leaning a little) and the sterno-cleido-mastoid muscles
+        add(Cap((0, -4.0, -1.6), (0, -30.0, -0.9), 5.5, 5.75, scale=(1.0, 1.0, 1.04)), 3.0)
+        for s in (1, -1):
+            add(Cap((s * 4.6, -3.2, -2.6), (s * 1.3, -20.5, 3.4), 1.25, 1.45), 1.6)
+        for s in (1, -1):
+            # jaw line (gonion -> chin) and ramus
+            add(Cap((s * 4.85, -6.4, 0.2), (s * 1.6, -8.9, 6.4), 1.25, 1.2), 1.6)
+            add(Cap((s * 5.2, -6.0, 0.1), (s * 5.35, -1.8, -0.8), 1.15), 1.3)
+            # cheekbones and cheeks
+            add(E((s * 4.75, 0.35, 5.3), (1.7, 1.15, 1.9)), 1.2)
+            add(E((s * 3.7, -1.9, 6.3), (2.3, 2.3, 2.1)), 1.4)
+            # brow ridge
+            add(E((s * 2.55, 3.05, 7.85), (2.35, 0.85, 1.3), _rot(yaw=s * 0.35)), 1.0)
+        # chin
+        add(E((0, -8.25, 7.25), (2.3, 1.8, 1.7)), 1.3)
+        # mouth: muzzle and lips
+        add(E((0, -4.4, 6.9), (3.2, 2.4, 2.6)), 1.4)
+        add(E((0, -4.15, 8.45), (2.35, 0.68, 1.05)), 0.5)
+        add(E((0, -5.4, 8.3), (2.1, 0.72, 1.0)), 0.45)
+        # nose: bridge, tip, wings, base
+        add(Cap((0, 2.2, 8.35), (0, -1.45, 10.25), 0.5, 0.72, scale=(1.0, 1.0, 1.0)), 0.6)
+        add(E((0, -1.8, 10.35), (0.85, 0.78, 0.85)), 0.5)
+        for s in (1, -1):
+            add(E((s * 1.15, -2.15, 9.25), (0.72, 0.62, 0.85)), 0.45)
+        add(E((0, -0.9, 8.4), (1.35, 2.1, 1.35)), 0.8)
+        # eye sockets, then the closed eyes
+        for s in (1, -1):
+            sub(E((s * 3.15, 1.75, 8.7), (1.95, 1.4, 1.55), _rot(yaw=s * 0.3)), 0.8)
+        for s in (1, -1):
+            add(E((s * self.EYE[0], self.EYE[1], self.EYE[2]), (self.EYE_R,) * 3), 0.35)
+        # nostrils: tunnels toward the ray centre (so the surface stays star-shaped)
+        for s in (1, -1):
+            n = np.array([s * self.NOSTRIL[0], self.NOSTRIL[1], self.NOSTRIL[2]])
+            ax = self.C - n
+            ax /= np.linalg.norm(ax)
+            R = _frame_from_axis(ax)
+            sub(E(n + 0.35 * ax, (0.32, 0.2, 0.62), R), 0.12)
+        # mouth line and mouth corners
+        sub(E((0, self.STOMION_Y, 9.35), (2.25, 0.07, 0.75)), 0.12)
+        for s in (1, -1):
+            sub(E((s * 2.45, -4.85, 8.15), (0.35, 0.35, 0.6)), 0.35)
+
+    def sdf(self, p):
+        d = self.base(p)
+        for op, prim, k in self.ops:
+            # primitives only matter within their bound + k (+ a margin: the ellipsoid distance
+            # is approximate)
+            dist = np.linalg.norm(p - prim.c, axis=1)
+            if op == "u":
+                m = dist - 1.3 * prim.bound < d + k
+            else:
+                m = dist - 1.3 * prim.bound < k - d
+            if not np.any(m):
+                continue
+            idx = np.nonzero(m)[0]
+            e = prim(p[idx])
+            if op == "u":
+                d[idx] = _smin(d[idx], e, k)
+            else:
+                d[idx] = _smax(d[idx], -e, k)
+        return np.maximum(d, self.Y_CUT - p[:, 1])
+
+
+def _frame_from_axis(ax):
+    """Rows: two perpendicular axes then ``ax`` (a world -> local rotation with local z = ax)."""
+    ax = np.asarray(ax, float)
+    h = np.array([1.0, 0, 0]) if abs(ax[0]) < 0.9 else np.array([0, 1.0, 0])
+    a = np.cross(h, ax)
+    a /= np.linalg.norm(a)
+    b = np.cross(ax, a)
+    return np.stack([a, b, ax])
+
+
+def _raycast(shape, origin, dirs, t_lo=0.2, t_hi=32.0, iters=14):
+    """First crossing of the surface along origin + t * dirs (surface assumed star-shaped).
+
+    Illinois false position on the bracket [t_lo, t_hi]; returns t (n,)."""
+    origin = np.broadcast_to(np.asarray(origin, float), dirs.shape)
+    n = len(dirs)
+    a = np.full(n, t_lo) if np.isscalar(t_lo) else np.asarray(t_lo, float).copy()
+    b = np.full(n, t_hi) if np.isscalar(t_hi) else np.asarray(t_hi, float).copy()
+    fa = shape.sdf(origin + a[:, None] * dirs)
+    fb = shape.sdf(origin + b[:, None] * dirs)
+    side = np.zeros(n, np.int8)
+    for _ in range(iters):
+        t = (a * fb - b * fa) / (fb - fa)
+        # keep a minimum of bisection progress
+        w = b - a
+        t = np.clip(t, a + 0.02 * w, b - 0.02 * w)
+        ft = shape.sdf(origin + t[:, None] * dirs)
+        neg = ft < 0
+        a = np.where(neg, t, a)
+        fa = np.where(neg, ft, fa)
+        b = np.where(neg, b, t)
+        fb = np.where(neg, fb, ft)
+        # Illinois: halve the value at the endpoint that stayed twice in a row
+        fb = np.where(neg & (side == 1), fb * 0.5, fb)
+        fa = np.where(~neg & (side == -1), fa * 0.5, fa)
+        side = np.where(neg, 1, -1).astype(np.int8)
+    return (a * fb - b * fa) / (fb - fa)

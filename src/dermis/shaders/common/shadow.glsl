@@ -1,0 +1,71 @@
+// Shadow maps for all lights, packed in one atlas: tile i holds light i's depth map.
+// uShadowAtlas is a depth texture sampled with hardware comparison (each tap is itself a
+// bilinear 2x2 PCF); uShadowAux holds, per texel, the (u, v) of the lit surface and its distance
+// to the light in mm (the translucent shadow map of d'Eon & Luebke 2007, sec. 14.5.3).
+#include "common/lights.glsl"
+
+uniform mat4 uLightViewProj[MAX_LIGHTS];
+uniform vec4 uShadowTile[MAX_LIGHTS];   // xy atlas offset, zw scale (atlas uv = off + uv * scale)
+uniform vec4 uShadowParams[MAX_LIGHTS]; // x soft radius (texels), y depth bias, z normal offset (scene units), w = 1/tile size
+uniform sampler2DShadow uShadowAtlas;
+uniform sampler2D uShadowAux;
+
+// Light-space coordinates: xy tile uv in [0,1], z depth in [0,1]; returns false outside the map.
+bool shadow_coords(int i, vec3 P, vec3 N, out vec3 c) {
+    vec4 q = uLightViewProj[i] * vec4(P + N * uShadowParams[i].z, 1.0);
+    c = q.xyz / q.w * 0.5 + 0.5;
+    return all(greaterThanEqual(c, vec3(0.0))) && all(lessThanEqual(c, vec3(1.0)));
+}
+
+float shadow_tap(int i, vec2 uv, float z) {
+    vec2 h = vec2(0.5 * uShadowParams[i].w);  // stay half a texel inside the tile
+    uv = clamp(uv, h, 1.0 - h);
+    return texture(uShadowAtlas, vec3(uShadowTile[i].xy + uv * uShadowTile[i].zw, z - uShadowParams[i].y));
+}
+
+// Sharp shadow (one bilinear-compare tap): for specular, d'Eon 2007 sec. 14.3.
+float shadow_sharp(int i, vec3 P, vec3 N) {
+    if (uLightRadiance[i].w < 0.5) return 1.0;
+    vec3 c;
+    if (!shadow_coords(i, P, N, c)) return 1.0;
+    return shadow_tap(i, c.xy, c.z);
+}
+
+// Soft shadow: percentage-closer filtering over a disc of uShadowParams.x texels (Reeves 1987),
+// 16 rotated Poisson taps, each a hardware 2x2 compare.
+const vec2 POISSON16[16] = vec2[](
+    vec2(-0.94201624, -0.39906216), vec2(0.94558609, -0.76890725), vec2(-0.09418410, -0.92938870),
+    vec2(0.34495938, 0.29387760), vec2(-0.91588581, 0.45771432), vec2(-0.81544232, -0.87912464),
+    vec2(-0.38277543, 0.27676845), vec2(0.97484398, 0.75648379), vec2(0.44323325, -0.97511554),
+    vec2(0.53742981, -0.47373420), vec2(-0.26496911, -0.41893023), vec2(0.79197514, 0.19090188),
+    vec2(-0.24188840, 0.99706507), vec2(-0.81409955, 0.91437590), vec2(0.19984126, 0.78641367),
+    vec2(0.14383161, -0.14100790));
+
+float shadow_soft(int i, vec3 P, vec3 N) {
+    if (uLightRadiance[i].w < 0.5) return 1.0;
+    vec3 c;
+    if (!shadow_coords(i, P, N, c)) return 1.0;
+    float radius = uShadowParams[i].x * uShadowParams[i].w;
+    if (radius <= 0.0) return shadow_tap(i, c.xy, c.z);
+    float sum = 0.0;
+    for (int k = 0; k < 16; ++k) sum += shadow_tap(i, c.xy + POISSON16[k] * radius, c.z);
+    return sum / 16.0;
+}
+
+// Translucent shadow map lookup: (u, v) of the surface nearest the light and its distance to
+// the light in mm, at the projection of P. Returns false where the map has no surface.
+bool tsm_lookup(int i, vec3 P, out vec2 uv_near, out float dist_near_mm) {
+    vec3 c;
+    if (!shadow_coords(i, P, vec3(0.0), c)) return false;
+    vec4 a = texture(uShadowAux, uShadowTile[i].xy + c.xy * uShadowTile[i].zw);
+    uv_near = a.xy;
+    dist_near_mm = a.z;
+    return a.w > 0.5;
+}
+
+// Distance from P to the light along the light's depth axis, in mm (matches uShadowAux.z).
+float light_distance_mm(int i, vec3 P) {
+    int type = int(uLightPosType[i].w + 0.5);
+    if (type == LIGHT_DIRECTIONAL) return dot(P - uLightPosType[i].xyz, uLightDir[i].xyz) * uMmPerUnit;
+    return length(P - uLightPosType[i].xyz) * uMmPerUnit;
+}

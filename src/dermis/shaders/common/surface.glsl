@@ -1,0 +1,22 @@
+// Surface attributes shared by techniques: tangent-space normal mapping and material lookups.
+uniform sampler2D uAlbedoMap;     // linear RGB (sRGB decoded on load)
+uniform sampler2D uNormalMap;     // tangent space, OpenGL convention (+y = +v), encoded n*0.5+0.5
+uniform sampler2D uSpecularMap;   // intensity in [0,1]
+uniform float uNormalStrength;
+uniform float uRhoS;              // Kelemen/Szirmay-Kalos specular intensity (d'Eon 2007: 0.18)
+uniform float uRoughness;         // Beckmann m (d'Eon 2007: 0.3)
+uniform vec2 uSpecMapBiasScale;   // rho_s(x) = rho_s * (bias + scale * specMap(x))
+
+// MikkTSpace tangent frame: B = w * cross(N, T); the map's normal is taken to world space.
+vec3 perturb_normal(vec3 N, vec4 T, vec2 uv) {
+    vec3 n = normalize(N);
+    vec3 t = normalize(T.xyz - n * dot(n, T.xyz));
+    vec3 b = T.w * cross(n, t);
+    vec3 m = texture(uNormalMap, uv).xyz * 2.0 - 1.0;
+    m.xy *= uNormalStrength;
+    return normalize(mat3(t, b, n) * m);
+}
+
+float specular_intensity(vec2 uv) {
+    return uRhoS * (uSpecMapBiasScale.x + uSpecMapBiasScale.y * texture(uSpecularMap, uv).r);
+}

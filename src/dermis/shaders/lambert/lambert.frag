@@ -1,0 +1,40 @@
+// Baseline: Lambert diffuse + normalised Blinn-Phong specular, soft (PCF) shadows.
+// The "hard, dry" look every skin technique must visibly beat. Radiance is physical:
+// diffuse = albedo / pi * E * N.L (Lambert 1760); specular from common/brdf.glsl.
+#include "common/shadow.glsl"
+#include "common/surface.glsl"
+#include "common/environment.glsl"
+#include "common/brdf.glsl"
+
+uniform vec3 uCameraPos;
+in vec3 v_world;
+in vec3 v_normal;
+in vec2 v_uv;
+in vec4 v_tangent;
+out vec4 f_color;
+
+const float INV_PI = 0.31830988618;
+
+void main() {
+    vec3 Ng = normalize(v_normal);
+    vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
+    vec3 V = normalize(uCameraPos - v_world);
+    vec3 albedo = texture(uAlbedoMap, v_uv).rgb;
+    float rho_s = specular_intensity(v_uv);
+    // Beckmann m -> Blinn-Phong exponent with the same highlight width (Walter et al. 2007, eq. 30)
+    float shininess = max(2.0 / (uRoughness * uRoughness) - 2.0, 1.0);
+    // Like-for-like with the skin specular: ks chosen so the normalised lobe's peak at normal
+    // incidence equals KS_Skin_Specular's, rho_s F0 / (4 m^2 pi) (d'Eon 2007, 14.3), i.e.
+    // ks (n + 8) / (8 pi) = rho_s F0 / (4 m^2 pi). No Fresnel: the baseline's highlight is flat.
+    float ks = rho_s * 0.028 * 2.0 / (uRoughness * uRoughness * (shininess + 8.0));
+    vec3 color = albedo * INV_PI * environment_irradiance(N);
+    for (int i = 0; i < uLightCount; ++i) {
+        vec3 L;
+        vec3 E = light_incident(i, v_world, L);
+        float ndl = dot(N, L);
+        if (ndl <= 0.0 || dot(Ng, L) <= -0.05) continue;
+        float s = shadow_soft(i, v_world, Ng);
+        color += E * s * (albedo * INV_PI * ndl + vec3(blinn_phong_specular(N, L, V, shininess, ks)));
+    }
+    f_color = vec4(color, 1.0);
+}

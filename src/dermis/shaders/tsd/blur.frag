@@ -1,0 +1,54 @@
+// One direction (U or V) of one chained Gaussian blur in texture space (d'Eon & Luebke 2007,
+// 14.4.2-14.4.3): I_k = I_(k-1) * G(v_k - v_(k-1)), separable, tap spacing from the stretch map.
+// Taps sit at integer multiples of a step of >= 1 texel, each weighted by the Gaussian integrated
+// over its bin (d'Eon's 7 weights are this with step = sigma); with step = 1 texel the discrete
+// kernel has exactly the intended variance plus the texel's own footprint.
+// Seams: colour is a NORMALISED convolution over covered texels (alpha = coverage), so empty
+// gutters never darken an island's edge; alpha returns the blurred coverage; where nothing is
+// covered the (dilated) input colour passes through.
+uniform sampler2D uSource;    // rgb colour, a = coverage
+uniform sampler2D uStretch;   // xy = texels per mm along u, v at level 0
+uniform vec2 uDirection;      // (1, 0) = U pass, (0, 1) = V pass
+uniform float uSigmaMm;       // this step's standard deviation, mm
+uniform float uLevelScale;    // texels of this level per level-0 texel (2^-level)
+uniform int uMaxTaps;         // taps per side at most
+in vec2 v_uv;
+out vec4 f_color;
+
+// Abramowitz & Stegun 1964, 7.1.26: |error| < 1.5e-7.
+float erf_as(float x) {
+    float s = sign(x);
+    x = abs(x);
+    float t = 1.0 / (1.0 + 0.3275911 * x);
+    float y = 1.0 - (((((1.061405429 * t - 1.453152027) * t) + 1.421413741) * t - 0.284496736) * t + 0.254829592) * t * exp(-x * x);
+    return s * y;
+}
+float bin_weight(float a, float b, float sigma) {  // integral of the unit-area Gaussian over [a, b]
+    return 0.5 * (erf_as(b / (sigma * 1.41421356)) - erf_as(a / (sigma * 1.41421356)));
+}
+
+void main() {
+    vec2 size = vec2(textureSize(uSource, 0));
+    vec4 center = texture(uSource, v_uv);
+    vec2 st = texture(uStretch, v_uv).xy;
+    float sigma = uSigmaMm * dot(st, uDirection) * uLevelScale;  // texels of this level
+    if (sigma < 0.05) { f_color = center; return; }
+    float step_ = max(1.0, 3.0 * sigma / float(uMaxTaps));
+    int n = int(min(ceil(3.0 * sigma / step_ - 0.001), float(uMaxTaps)));
+    vec2 dt = uDirection / size * step_;
+    float w0 = bin_weight(-0.5 * step_, 0.5 * step_, sigma);
+    vec3 sum = center.rgb * center.a * w0;
+    float sum_a = center.a * w0;
+    float sum_w = w0;
+    for (int j = 1; j <= n; ++j) {
+        float w = bin_weight((float(j) - 0.5) * step_, (float(j) + 0.5) * step_, sigma);
+        if (j == n) w += 0.5 - bin_weight(0.0, (float(j) + 0.5) * step_, sigma);  // fold the tail in
+        vec4 a = texture(uSource, v_uv + dt * float(j));
+        vec4 b = texture(uSource, v_uv - dt * float(j));
+        sum += w * (a.rgb * a.a + b.rgb * b.a);
+        sum_a += w * (a.a + b.a);
+        sum_w += 2.0 * w;
+    }
+    vec3 rgb = sum_a > 1e-6 ? sum / sum_a : center.rgb;
+    f_color = vec4(rgb, sum_a / sum_w);
+}

@@ -1,0 +1,23 @@
+// Gutter dilation: texels outside every UV island (coverage 0) take the coverage-weighted mean
+// colour of their 3x3 neighbours, so bilinear lookups at island borders (and MSAA samples that
+// fall just outside a triangle's UVs) never read black. Coverage (alpha) is left as it was.
+uniform sampler2D uSource;
+in vec2 v_uv;
+out vec4 f_color;
+void main() {
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    vec4 c = texelFetch(uSource, p, 0);
+    if (c.a >= 0.999) { f_color = c; return; }
+    ivec2 size = textureSize(uSource, 0);
+    vec3 sum = vec3(0.0);
+    float wsum = 0.0;
+    for (int y = -1; y <= 1; ++y)
+        for (int x = -1; x <= 1; ++x) {
+            ivec2 q = clamp(p + ivec2(x, y), ivec2(0), size - 1);
+            vec4 n = texelFetch(uSource, q, 0);
+            float w = n.a > 0.0 ? n.a : (dot(n.rgb, n.rgb) > 0.0 ? 0.05 : 0.0);  // earlier dilation counts a little
+            sum += n.rgb * w;
+            wsum += w;
+        }
+    f_color = vec4(wsum > 0.0 ? sum / wsum : c.rgb, c.a);
+}

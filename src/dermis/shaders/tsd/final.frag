@@ -1,0 +1,53 @@
+// Final pass of texture-space diffusion (d'Eon & Luebke 2007, 14.4.4 and 14.5), in screen space:
+// diffuse = (sum_k w_k I_k(uv) + translucency) * albedo^(1 - mix) / pi * (1 - rho_s a(N.V, m) / pi)
+// specular = sum_lights E_i * sharp shadow * KS_Skin_Specular / pi, on pore-detailed normals.
+// Radiance is physical (d'Eon's BRDFs carry no 1/pi; dermis divides both terms by pi).
+#include "common/shadow.glsl"
+#include "common/surface.glsl"
+#include "common/environment.glsl"
+#include "common/brdf.glsl"
+#include "common/noise.glsl"
+#include "tsd/energy.glsl"
+#include "tsd/gaussians.glsl"
+
+uniform sampler2D uBeckmannTex;
+uniform sampler2D uTranslucency;
+uniform float uMix;
+uniform float uPoreScaleMm;
+uniform float uPoreStrength;
+uniform vec3 uCameraPos;
+uniform int uOutputMode;  // 0 diffuse + specular, 1 diffuse only, 2 specular only
+in vec3 v_world;
+in vec3 v_normal;
+in vec2 v_uv;
+in vec4 v_tangent;
+out vec4 f_color;
+
+const float INV_PI = 0.31830988618;
+
+void main() {
+    vec3 Ng = normalize(v_normal);
+    vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
+    vec3 V = normalize(uCameraPos - v_world);
+    float m = uRoughness;
+    float rho_s = specular_intensity(v_uv);
+    vec3 Ns = pore_normal(N, v_world * uMmPerUnit, uPoreScaleMm, uPoreStrength);
+    float ndv = clamp(dot(Ns, V), 0.0, 1.0);
+
+    vec3 E = diffuse_irradiance(v_uv) + texture(uTranslucency, v_uv).rgb;
+    vec3 albedo = texture(uAlbedoMap, v_uv).rgb;
+    vec3 diffuse = E * pow(max(albedo, vec3(0.0)), vec3(1.0 - uMix)) * INV_PI * energy_transmitted(rho_s, ndv, m);
+
+    vec3 spec = vec3(0.0);
+    for (int i = 0; i < uLightCount; ++i) {
+        vec3 L;
+        vec3 Ei = light_incident(i, v_world, L);
+        if (dot(Ng, L) <= 0.0) continue;
+        spec += Ei * shadow_sharp(i, v_world, Ng) * ks_skin_specular(Ns, L, V, m, rho_s, uBeckmannTex) * INV_PI;
+    }
+    // the environment's specular: its mean radiance (E / pi) times the specular albedo a / pi
+    spec += environment_irradiance(reflect(-V, Ns)) * INV_PI * rho_s * rho_dt_lookup(uRhoDtTex, ndv, m) * INV_PI;
+
+    vec3 color = uOutputMode == 1 ? diffuse : uOutputMode == 2 ? spec : diffuse + spec;
+    f_color = vec4(color, 1.0);
+}

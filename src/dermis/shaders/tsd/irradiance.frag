@@ -1,0 +1,33 @@
+// Irradiance texture (d'Eon & Luebke 2007, 14.4.1 and 14.5.2), in UV space, linear float:
+// E = sum_lights E_i max(N.L, 0) shadow_soft (1 - rho_s a(N.L, m) / pi) + ambient, times albedo^mix.
+// Alpha is coverage (1 on the mesh), for the normalised blurs that hide seams.
+#include "common/shadow.glsl"
+#include "common/surface.glsl"
+#include "common/environment.glsl"
+#include "common/brdf.glsl"
+#include "tsd/energy.glsl"
+
+uniform float uMix;
+in vec3 v_world;
+in vec3 v_normal;
+in vec2 v_uv;
+in vec4 v_tangent;
+out vec4 f_irradiance;
+
+void main() {
+    vec3 Ng = normalize(v_normal);
+    vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
+    float rho_s = specular_intensity(v_uv);
+    vec3 E = vec3(0.0);
+    for (int i = 0; i < uLightCount; ++i) {
+        vec3 L;
+        vec3 Ei = light_incident(i, v_world, L);
+        float ndl = dot(N, L);
+        if (ndl <= 0.0) continue;
+        E += Ei * ndl * shadow_soft(i, v_world, Ng) * energy_transmitted(rho_s, ndl, uRoughness);
+    }
+    // ambient: the environment's irradiance, less the average energy the specular takes (cos 0.5)
+    E += environment_irradiance(N) * energy_transmitted(rho_s, 0.5, uRoughness);
+    vec3 albedo = texture(uAlbedoMap, v_uv).rgb;
+    f_irradiance = vec4(E * pow(max(albedo, vec3(0.0)), vec3(uMix)), 1.0);
+}

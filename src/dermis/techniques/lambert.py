@@ -1,0 +1,36 @@
+"""Baseline technique ``lambert``: Lambert diffuse + normalised Blinn-Phong specular.
+
+What it approximates: nothing of subsurface scattering: light leaves where it enters, so skin looks
+hard and dry (sharp shadow edges, no red bleeding, no translucency). It exists as the baseline every
+skin technique must visibly beat, and it exercises the shared machinery: shadow atlas with PCF soft
+shadows, normal mapping, lights, environment (SH irradiance) and the output transform.
+Inputs: the scene's albedo (linear), normal map, specular map, roughness m (mapped to a Blinn-Phong
+exponent), rho_s. Shader: shaders/lambert/lambert.frag.
+"""
+
+from __future__ import annotations
+
+import moderngl
+
+from dermis.gl.shaders import program
+from dermis.techniques.base import Frame, Technique, draw_mesh
+
+
+class Lambert(Technique):
+    name = "lambert"
+    description = "Lambert diffuse + Blinn-Phong specular, PCF soft shadows (baseline, no scattering)"
+
+    def __init__(self, renderer):
+        super().__init__(renderer)
+        self.prog = program(self.ctx, "common/mesh.vert", "lambert/lambert.frag")
+
+    def render(self, frame: Frame) -> None:
+        with frame.timer("lambert"):
+            frame.target.use()
+            self.ctx.enable(moderngl.DEPTH_TEST)
+            self.ctx.disable(moderngl.CULL_FACE)
+            draw_mesh(frame, self.prog)
+        frame.passes_run.append("lambert")
+
+    def release(self):
+        self.prog.release()

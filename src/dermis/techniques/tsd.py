@@ -1,0 +1,362 @@
+"""Texture-space diffusion (``tsd``): d'Eon, Luebke & Enderton 2007 / GPU Gems 3 chapter 14.
+
+What it approximates: subsurface scattering in skin as a convolution of the irradiance over the
+surface with a radial diffusion profile R(r), represented as a sum of Gaussians sum_k w_k G(v_k, r)
+(variances in mm^2, RGB weights; dermis.profiles). The convolution is done in the mesh's UV layout:
+
+  shadow atlas + translucent shadow maps   (shared, gl/shadows.py)
+  stretch map S_0 (texels per mm)           once per mesh / scale / resolution
+  irradiance I_0 = E * albedo^mix           E from all lights with soft shadows, ambient, energy
+                                             conservation (1 - rho_s a(N.L, m)/pi)
+  dilate I_0 into the UV gutters
+  for k = 1..K:  I_k = I_(k-1) * G(v_k - v_(k-1)) as a U then a V pass (chained: G(a)*G(b) = G(a+b)),
+                 tap spacing from S_k, the stretch blurred by the same chain; wide Gaussians run at
+                 half or quarter resolution (they hold no fine detail)
+  translucency T from the TSM: sum over wide k of w_k exp(-d^2 / 2 v_k) I_k(uv of the lit side)
+  final (screen space): (sum_k w_k I_k + T) * albedo^(1-mix)/pi * (1 - rho_s a(N.V, m)/pi) + specular
+
+Everything before the final pass is view-independent and cached on the renderer's lighting key:
+a camera move re-runs only the final pass (``frame.passes_run`` says what ran).
+Inputs and units: the scene's mm_per_unit; a unique UV layout (overlapping UVs are refused).
+Known failure modes: UV seams (mitigated by coverage-normalised blurs and gutter dilation; light
+does not cross a seam), stretch varying faster than the blur width, translucency sums all lights'
+irradiance at the lit side for each light that shadows the point.
+Shaders: shaders/tsd/*.glsl; specular in shaders/common/brdf.glsl.
+"""
+
+from __future__ import annotations
+
+import math
+
+import moderngl
+import numpy as np
+
+from dermis.errors import DermisError
+from dermis.gl.resources import set_uniform
+from dermis.gl.shaders import program
+from dermis.gl.tables import upload_specular_tables
+from dermis.techniques.base import Frame, Technique, draw_mesh
+
+MAX_GAUSSIANS = 8
+TRANSLUCENCY_MIN_VARIANCE_MM2 = 0.15  # d'Eon uses Gaussians 3..6 of the skin table (v >= 0.187)
+
+
+OVERLAP_TOLERANCE = 0.01  # fraction of covered texels a UV layout may cover twice
+
+
+class TextureSpaceDiffusion(Technique):
+    name = "tsd"
+    description = "texture-space diffusion (d'Eon, Luebke & Enderton 2007): chained UV-space Gaussian blurs"
+
+    def __init__(self, renderer, *, multires: bool = True, max_taps: int = 8, translucency: bool = True):
+        super().__init__(renderer)
+        ctx = self.ctx
+        defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
+        self.p_stretch = program(ctx, "tsd/uv_space.vert", "tsd/stretch.frag", defines)
+        self.p_irradiance = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines)
+        self.p_blur = program(ctx, "tsd/fullscreen.vert", "tsd/blur.frag", defines)
+        self.p_dilate = program(ctx, "tsd/fullscreen.vert", "tsd/dilate.frag", defines)
+        self.p_down = program(ctx, "tsd/fullscreen.vert", "tsd/downsample.frag", defines)
+        self.p_trans = program(ctx, "tsd/uv_space.vert", "tsd/translucency.frag", defines)
+        self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag", defines)
+        self.empty_vao = ctx.vertex_array(self.p_blur, [])
+        self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_blur, self.p_dilate, self.p_down)}
+        self.tables = upload_specular_tables(ctx)
+        self.multires = multires
+        self.max_taps = int(max_taps)
+        self.translucency = translucency
+        self.translucency_strength = 1.0
+        self._cache_key = None
+        self._stretch_key = None
+        self._size = None
+        self.tex = {}
+        self.levels = []
+        self.median_stretch = None
+        self.last_output_mode = 0
+
+    # ------------------------------------------------------------------ resources
+    def _texture(self, key, size, components=4, dtype="f2"):
+        t = self.tex.get(key)
+        if t is not None and t.size == size:
+            return t
+        if t is not None:
+            t.release()
+        t = self.ctx.texture(size, components, dtype=dtype)
+        t.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        t.repeat_x = t.repeat_y = False
+        self.tex[key] = t
+        return t
+
+    def _fbo(self, tex):
+        key = ("fbo", id(tex))
+        f = self.tex.get(key)
+        if f is None:
+            f = self.ctx.framebuffer(color_attachments=[tex])
+            self.tex[key] = f
+        return f
+
+    def release_textures(self):
+        for k, o in list(self.tex.items()):
+            if isinstance(k, tuple) and k[0] == "fbo":
+                o.release()
+        for k, o in list(self.tex.items()):
+            if not (isinstance(k, tuple) and k[0] == "fbo"):
+                o.release()
+        self.tex = {}
+
+    def scene_changed(self):
+        self._cache_key = None
+        self._stretch_key = None
+
+    # ------------------------------------------------------------------ passes
+    def _fullscreen(self, prog, target_tex):
+        fbo = self._fbo(target_tex)
+        fbo.use()
+        fbo.viewport = (0, 0, *target_tex.size)
+        self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
+
+    def _uv_pass(self, frame, prog, target_tex, clear=True):
+        fbo = self._fbo(target_tex)
+        fbo.use()
+        fbo.viewport = (0, 0, *target_tex.size)
+        if clear:
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        frame.gpu.vao(prog).render(moderngl.TRIANGLES)
+
+    def _bind(self, prog, name, tex, unit):
+        if name in prog:
+            tex.use(unit)
+            prog[name].value = unit
+
+    def _stretch(self, frame):
+        """S_0: texels per mm along u, v; gutters filled with the nearest island's value (CPU, once)."""
+        from scipy import ndimage
+
+        S = self.renderer.irradiance_size
+        raw = self._texture("stretch_raw", (S, S), 4, "f4")
+        set_uniform(self.p_stretch, "uMmPerUnit", float(frame.scene.mm_per_unit))
+        self._uv_pass(frame, self.p_stretch, raw)
+        data = np.frombuffer(raw.read(), np.float32).reshape(S, S, 4).copy()
+        cov = data[:, :, 3] > 0.5
+        if not cov.any():
+            raise DermisError(f"{frame.scene.mesh.source}: mesh covers no texel of its UV layout (all UVs outside [0, 1]?)")
+        # texture space needs a unique layout: count coverage with additive blending
+        count = self._texture("uv_count", (S, S), 4, "f4")
+        self.ctx.enable(moderngl.BLEND)
+        self.ctx.blend_func = moderngl.ONE, moderngl.ONE
+        self._uv_pass(frame, self.p_stretch, count)
+        self.ctx.disable(moderngl.BLEND)
+        counts = np.frombuffer(count.read(), np.float32).reshape(S, S, 4)[:, :, 3]
+        overlap = float((counts > 1.5).sum() / max(cov.sum(), 1))
+        self.uv_overlap = overlap
+        if overlap > OVERLAP_TOLERANCE:
+            raise DermisError(f"{frame.scene.mesh.source}: UV layout overlaps itself ({overlap:.1%} of covered texels are "
+                              f"covered twice); technique '{self.name}' needs a unique UV layout (try --technique ssss or lambert)")
+        # one-texel islands' edges: derivatives are unreliable at triangle borders; take the median
+        vals = data[cov][:, :2]
+        self.median_stretch = float(np.median(vals))
+        idx = ndimage.distance_transform_edt(~cov, return_distances=False, return_indices=True)
+        filled = data[idx[0], idx[1]]
+        filled[:, :, 3] = cov.astype(np.float32)
+        s0 = self._texture("stretch_0", (S, S), 4, "f4")
+        s0.write(np.ascontiguousarray(filled).tobytes())
+
+    def _plan_levels(self, profile, S):
+        """Resolution level of each blur: the step's sigma should be 1-2 texels at its level."""
+        sig = profile.chain_sigmas_mm()
+        levels, prev = [], 0
+        max_level = max(0, int(math.log2(max(S, 64) / 64)))
+        for s in sig:
+            lvl = 0
+            if self.multires and self.median_stretch:
+                st = s * self.median_stretch
+                lvl = int(max(0, math.floor(math.log2(max(st, 1e-9) / 1.0)))) if st > 2.0 else 0
+            lvl = int(min(max(lvl, prev), max_level, 3))
+            levels.append(lvl)
+            prev = lvl
+        return levels
+
+    def _step_variances(self, profile, levels):
+        """Per-step variances, less what the 2x2 reductions between levels already added."""
+        v = np.concatenate([[0.0], profile.variances_mm2])
+        steps = np.diff(v)
+        prev = 0
+        out = []
+        for k, lvl in enumerate(levels):
+            added = 0.0
+            for l in range(prev + 1, lvl + 1):
+                texel_mm = (2 ** (l - 1)) / max(self.median_stretch or 1.0, 1e-9)
+                added += 0.25 * texel_mm ** 2
+            out.append(max(steps[k] - added, 0.0))
+            prev = lvl
+        return np.array(out)
+
+    def _down(self, src, key, level):
+        size = (max(1, src.size[0] // 2), max(1, src.size[1] // 2))
+        dst = self._texture(key, size)
+        self._bind(self.p_down, "uSource", src, 0)
+        self._fullscreen(self.p_down, dst)
+        return dst
+
+    def _blur(self, src, stretch, sigma_mm, level, out_key):
+        size = src.size
+        tmp = self._texture(("tmp", out_key), size)
+        out = self._texture(out_key, size)
+        prog = self.p_blur
+        set_uniform(prog, "uSigmaMm", float(sigma_mm))
+        set_uniform(prog, "uLevelScale", float(2.0 ** -level))
+        set_uniform(prog, "uMaxTaps", self.max_taps)
+        self._bind(prog, "uStretch", stretch, 1)
+        set_uniform(prog, "uDirection", (1.0, 0.0))
+        self._bind(prog, "uSource", src, 0)
+        self._fullscreen(prog, tmp)
+        set_uniform(prog, "uDirection", (0.0, 1.0))
+        self._bind(prog, "uSource", tmp, 0)
+        self._fullscreen(prog, out)
+        return out
+
+    def _profile_uniforms(self, prog, profile, first_unit):
+        K = profile.k
+        w = profile.normalized().weights.astype(np.float32)
+        weights = np.zeros((MAX_GAUSSIANS, 3), np.float32)
+        weights[:K] = w
+        var = np.zeros(MAX_GAUSSIANS, np.float32)
+        var[:K] = profile.variances_mm2
+        set_uniform(prog, "uGaussianCount", K)
+        set_uniform(prog, "uWeights", weights)
+        set_uniform(prog, "uVariances", var)
+        if "uBlur" in prog:
+            units = []
+            for k in range(MAX_GAUSSIANS):
+                t = self.tex[("blur", min(k, K - 1))]
+                t.use(first_unit + k)
+                units.append(first_unit + k)
+            n = prog["uBlur"].array_length
+            prog["uBlur"].value = units[:n] if n > 1 else units[0]
+
+    def texture_space(self, frame: Frame):
+        scene = frame.scene
+        profile = scene.profile
+        if profile.k > MAX_GAUSSIANS:
+            raise DermisError(f"profile '{profile.name}' has {profile.k} Gaussians; tsd supports at most {MAX_GAUSSIANS}")
+        S = self.renderer.irradiance_size
+        timer = frame.timer
+        stretch_key = (id(scene.mesh), scene.mm_per_unit, S)
+        if stretch_key != self._stretch_key:
+            with timer("tsd_stretch"):
+                self._stretch(frame)
+            self._stretch_key = stretch_key
+            self._stretch_chain_key = None
+            frame.passes_run.append("tsd_stretch")
+        levels = self._plan_levels(profile, S)
+        steps = self._step_variances(profile, levels)
+        self.levels = levels
+        # irradiance
+        with timer("tsd_irradiance"):
+            irr = self._texture("irradiance", (S, S))
+            prog = self.p_irradiance
+            frame.lights.apply(prog)
+            frame.shadows.bind(prog, 0, 1)
+            frame.gpu.material_uniforms(prog, {"uAlbedoMap": 2, "uNormalMap": 3, "uSpecularMap": 4})
+            self._bind(prog, "uRhoDtTex", self.tables["rho_dt"], 5)
+            self._uv_pass(frame, prog, irr)
+            dil = self._texture("irradiance_dilated", (S, S))
+            self._bind(self.p_dilate, "uSource", irr, 0)
+            self._fullscreen(self.p_dilate, dil)
+        frame.passes_run.append("tsd_irradiance")
+        # chained blurs of the irradiance and (once per mesh) of the stretch
+        chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12)))
+        redo_stretch = chain_key != getattr(self, "_stretch_chain_key", None)
+        src, st = dil, self.tex["stretch_0"]
+        level = 0
+        with timer("tsd_blur"):
+            for k, (lvl, var) in enumerate(zip(levels, steps)):
+                while level < lvl:
+                    level += 1
+                    src = self._down(src, ("down", k, level), level)
+                    if redo_stretch:
+                        st = self._down(st, ("stretch_down", k, level), level)
+                    else:
+                        st = self.tex[("stretch_down", k, level)]
+                sigma = math.sqrt(var)
+                if redo_stretch:
+                    st = self._blur(st, st, sigma, level, ("stretch", k))
+                else:
+                    st = self.tex[("stretch", k)]
+                src = self._blur(src, st, sigma, level, ("blur", k))
+        self._stretch_chain_key = chain_key
+        frame.passes_run.append("tsd_blur")
+        # translucency (texture space, half resolution)
+        trans = self._texture("translucency", (max(S // 2, 1), max(S // 2, 1)))
+        if self.translucency and any(L.cast_shadows for L in scene.lights):
+            with timer("tsd_translucency"):
+                prog = self.p_trans
+                frame.lights.apply(prog)
+                frame.shadows.bind(prog, 0, 1)
+                set_uniform(prog, "uMmPerUnit", float(scene.mm_per_unit))
+                set_uniform(prog, "uTranslucencyMinVariance", TRANSLUCENCY_MIN_VARIANCE_MM2)
+                set_uniform(prog, "uTranslucencyStrength", float(self.translucency_strength))
+                self._profile_uniforms(prog, profile, 4)
+                self._uv_pass(frame, prog, trans)
+            frame.passes_run.append("tsd_translucency")
+        else:
+            self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)
+
+    def render(self, frame: Frame, output_mode: int = 0) -> None:
+        key = (frame.lighting_key, self.translucency, self.translucency_strength, self.multires, self.max_taps)
+        if key != self._cache_key:
+            self.texture_space(frame)
+            self._cache_key = key
+        with frame.timer("tsd_final"):
+            frame.target.use()
+            self.ctx.enable(moderngl.DEPTH_TEST)
+            self.ctx.disable(moderngl.CULL_FACE)
+            prog = self.p_final
+            self._bind(prog, "uBeckmannTex", self.tables["beckmann"], 5)
+            self._bind(prog, "uRhoDtTex", self.tables["rho_dt"], 6)
+            self._bind(prog, "uTranslucency", self.tex["translucency"], 7)
+            self._profile_uniforms(prog, frame.scene.profile, 8)
+            m = frame.scene.material
+            set_uniform(prog, "uPoreScaleMm", float(m.pore_scale_mm))
+            set_uniform(prog, "uPoreStrength", float(m.pore_strength))
+            set_uniform(prog, "uOutputMode", int(output_mode))
+            draw_mesh(frame, prog)
+        frame.passes_run.append("tsd_final")
+
+    # ------------------------------------------------------------------ inspection
+    def read_texture(self, tex) -> np.ndarray:
+        w, h = tex.size
+        dt = {"f2": np.float16, "f4": np.float32}[tex.dtype]
+        data = np.frombuffer(tex.read(), dt).reshape(h, w, tex.components).astype(np.float32)
+        return data[::-1].copy()
+
+    def debug_buffers(self) -> dict:
+        out = {}
+        if "irradiance" not in self.tex:
+            return out
+        out["irradiance"] = self.read_texture(self.tex["irradiance"])
+        out["stretch"] = self.read_texture(self.tex["stretch_0"])
+        k = 0
+        while ("blur", k) in self.tex:
+            out[f"blur_{k + 1}"] = self.read_texture(self.tex[("blur", k)])
+            k += 1
+        out["translucency"] = self.read_texture(self.tex["translucency"])
+        frame = self.renderer.last_frame
+        if frame is not None:
+            sh = frame.shadows
+            out["shadow_tsm"] = self.read_texture(sh.aux)
+            d = np.frombuffer(sh.depth.read(), np.float32).reshape(sh.depth.size[1], sh.depth.size[0])[::-1]
+            out["shadow_depth"] = np.repeat(d[:, :, None], 3, axis=2).copy()
+            out["specular"] = self.renderer.render_mode(self.name, output_mode=2)
+        return out
+
+    def release(self):
+        self.release_textures()
+        for t in self.tables.values():
+            t.release()
+        for v in self.vaos.values():
+            v.release()
+        self.empty_vao.release()
+        for p in (self.p_stretch, self.p_irradiance, self.p_blur, self.p_dilate, self.p_down, self.p_trans, self.p_final):
+            p.release()
