@@ -17,7 +17,7 @@ from dermis.camera import camera_matrices
 from dermis.errors import DermisError
 from dermis.gl.context import create_context, gl_info, is_software
 from dermis.gl.resources import GpuScene, LightUniforms
-from dermis.gl.shadows import ShadowAtlas
+from dermis.gl.shadows import ShadowAtlas, normal_offset
 from dermis.techniques import technique_class
 from dermis.techniques.base import Frame, PassTimer
 
@@ -56,6 +56,7 @@ class Renderer:
 
     def __init__(self, scene=None, size=(512, 512), *, device: int | None = None, samples: int = 4,
                  shadow_size: int = 1024, irradiance_size: int = 1024, ctx=None, timing: bool = True):
+        self._owns_ctx = ctx is None
         self.ctx = ctx or create_context(device)
         self.info = gl_info(self.ctx)
         cap = 4 if is_software(self.ctx) else self.ctx.max_samples
@@ -203,7 +204,8 @@ class Renderer:
         for i, L in enumerate(lights.lights):
             c, r = i % cols, i // cols
             self.shadows.tiles[i] = (c / cols, r / rows, 1.0 / cols, 1.0 / rows)
-            self.shadows.params[i] = (L.shadow_softness, L.shadow_bias, 1.5 * 2.0 * radius / self.shadows.tile_size,
+            self.shadows.params[i] = (L.shadow_softness, L.shadow_bias,
+                                      normal_offset(L.shadow_softness, radius, self.shadows.tile_size),
                                       1.0 / self.shadows.tile_size)
 
     def debug_buffers(self, technique: str | None = None) -> dict:
@@ -219,7 +221,8 @@ class Renderer:
         if self.gpu is not None:
             self.gpu.release()
         self.shadows.release()
-        self.ctx.release()
+        if self._owns_ctx:
+            self.ctx.release()
 
     def __enter__(self):
         return self

@@ -43,14 +43,18 @@ _TO_UNIT = 1.0 / 9007199254740992.0  # 2^-53
 
 
 @njit(cache=True, inline="always")
+def _mix64(z):
+    """SplitMix64's output function (a bijective 64-bit hash)."""
+    z = (z ^ (z >> np.uint64(30))) * _MIX_1
+    z = (z ^ (z >> np.uint64(27))) * _MIX_2
+    return z ^ (z >> np.uint64(31))
+
+
+@njit(cache=True, inline="always")
 def _splitmix64_uniform(state):
     """Next number in (0, 1] of the SplitMix64 stream held in state[0]."""
     state[0] += _GOLDEN
-    z = state[0]
-    z = (z ^ (z >> np.uint64(30))) * _MIX_1
-    z = (z ^ (z >> np.uint64(27))) * _MIX_2
-    z = z ^ (z >> np.uint64(31))
-    return float((z >> np.uint64(11)) + np.uint64(1)) * _TO_UNIT
+    return float((_mix64(state[0]) >> np.uint64(11)) + np.uint64(1)) * _TO_UNIT
 
 
 @njit(cache=True, inline="always")
@@ -191,9 +195,8 @@ def _run_streams(seed, first_stream, photon_counts, mu_a, mu_s, g, n_layer, z_to
     totals = np.zeros((streams, 4))
     for i in prange(streams):
         state = np.empty(1, dtype=np.uint64)
-        # Decorrelate streams: hash (seed, stream index) through one SplitMix64 step
-        state[0] = np.uint64(seed) * _MIX_1 + np.uint64(first_stream + i + 1) * _GOLDEN
-        _splitmix64_uniform(state)
+        # Each stream starts at a hashed point of the 2^64 cycle: hash(seed, stream index)
+        state[0] = _mix64(_mix64(np.uint64(seed) + _GOLDEN) ^ _mix64(np.uint64(first_stream + i + 1)))
         _run_stream(state, photon_counts[i], mu_a, mu_s, g, n_layer, z_top, z_bottom, n_above, n_below, edges,
                     sums[i], sums_sq[i], totals[i])
     return sums.sum(axis=0), sums_sq.sum(axis=0), totals.sum(axis=0)
@@ -311,9 +314,7 @@ def annulus_average(profile, bin_edges_mm, order: int = 24) -> np.ndarray:
     lo, hi = edges[:-1, None], edges[1:, None]
     radius = 0.5 * (hi - lo) * nodes + 0.5 * (hi + lo)  # (B, order)
     values = np.asarray(profile(radius), dtype=np.float64)
-    ring = 2.0 * np.pi * radius * 0.5 * (hi - lo) * weights
-    if values.ndim == 3:
-        ring = ring[..., None]
-    area = np.pi * (edges[1:] ** 2 - edges[:-1] ** 2)
-    area = area[:, None] if values.ndim == 3 else area
+    extra = (1,) * (values.ndim - 2)  # trailing axes (wavelengths) of the profile
+    ring = (2.0 * np.pi * radius * 0.5 * (hi - lo) * weights).reshape(radius.shape + extra)
+    area = (np.pi * (edges[1:] ** 2 - edges[:-1] ** 2)).reshape((-1,) + extra)
     return (values * ring).sum(axis=1) / area

@@ -174,7 +174,7 @@ class _Shape:
         # neck (slightly elliptic, leaning a little) and the sterno-cleido-mastoid muscles
         add(Cap((0, -4.0, -1.6), (0, -30.0, -0.9), 5.5, 5.75, scale=(1.0, 1.0, 1.04)), 3.0)
         for s in (1, -1):
-            add(Cap((s * 4.6, -3.2, -2.6), (s * 1.3, -20.5, 3.4), 1.25, 1.45), 1.6)
+            add(Cap((s * 4.6, -3.2, -2.6), (s * 1.8, -24.0, 1.9), 1.25, 1.4), 1.6)
         for s in (1, -1):
             # jaw line (gonion -> chin) and ramus
             add(Cap((s * 4.85, -6.4, 0.2), (s * 1.6, -8.9, 6.4), 1.25, 1.2), 1.6)
@@ -189,7 +189,7 @@ class _Shape:
         # mouth: muzzle and lips
         add(E((0, -4.4, 6.9), (3.2, 2.4, 2.6)), 1.4)
         add(E((0, -4.15, 8.45), (2.35, 0.68, 1.05)), 0.5)
-        add(E((0, -5.4, 8.3), (2.1, 0.72, 1.0)), 0.45)
+        add(E((0, -5.4, 8.3), (2.1, 0.72, 1.0)), 0.7)
         # nose: bridge, tip, wings, base
         add(Cap((0, 2.2, 8.35), (0, -1.45, 10.25), 0.5, 0.72, scale=(1.0, 1.0, 1.0)), 0.6)
         add(E((0, -1.8, 10.35), (0.85, 0.78, 0.85)), 0.5)
@@ -208,30 +208,54 @@ class _Shape:
             ax /= np.linalg.norm(ax)
             R = _frame_from_axis(ax)
             sub(E(n + 0.35 * ax, (0.32, 0.2, 0.62), R), 0.12)
-        # mouth line and mouth corners
-        sub(E((0, self.STOMION_Y, 9.35), (2.25, 0.07, 0.75)), 0.12)
+        # mouth line (a thin slit pitched along the rays from C) and mouth corners (dents
+        # elongated toward C)
+        m = np.array([0.0, self.STOMION_Y, 9.3])
+        ax = (m - self.C) / np.linalg.norm(m - self.C)
+        pitch = np.arcsin(-ax[1])
+        sub(E(m, (2.25, 0.06, 0.7), _rot(pitch=pitch)), 0.12)
         for s in (1, -1):
-            sub(E((s * 2.45, -4.85, 8.15), (0.35, 0.35, 0.6)), 0.35)
+            mc = np.array([s * 2.4, -4.85, 8.3])
+            ax = (self.C - mc) / np.linalg.norm(self.C - mc)
+            sub(E(mc, (0.3, 0.3, 0.7), _frame_from_axis(ax)), 0.3)
 
     def sdf(self, p):
         d = self.base(p)
-        for op, prim, k in self.ops:
-            # primitives only matter within their bound + k (+ a margin: the ellipsoid distance
-            # is approximate)
-            dist = np.linalg.norm(p - prim.c, axis=1)
-            if op == "u":
-                m = dist - 1.3 * prim.bound < d + k
-            else:
-                m = dist - 1.3 * prim.bound < k - d
+        if not hasattr(self, "_groups"):
+            self._make_groups()
+        for gc, gr, gk, ops in self._groups:
+            q = p - gc
+            m = np.einsum("ij,ij->i", q, q) < (gr + gk + np.abs(d)) ** 2
+            if gr > 1e3:
+                m[:] = True
             if not np.any(m):
                 continue
             idx = np.nonzero(m)[0]
-            e = prim(p[idx])
-            if op == "u":
-                d[idx] = _smin(d[idx], e, k)
-            else:
-                d[idx] = _smax(d[idx], -e, k)
+            pi, di = p[idx], d[idx]
+            for op, prim, k in ops:
+                q = pi - prim.c
+                lim = 1.3 * prim.bound + k + np.abs(di)
+                mm = np.einsum("ij,ij->i", q, q) < lim * lim
+                if not np.any(mm):
+                    continue
+                j = np.nonzero(mm)[0]
+                e = prim(pi[j])
+                di[j] = _smin(di[j], e, k) if op == "u" else _smax(di[j], -e, k)
+            d[idx] = di
         return np.maximum(d, self.Y_CUT - p[:, 1])
+
+    def _make_groups(self):
+        """Two-level culling: the face features form one group with a bounding sphere."""
+        face_c = np.array([0.0, -1.5, 8.0])
+        glob, face = [], []
+        for op in self.ops:
+            prim = op[1]
+            if np.linalg.norm(prim.c - face_c) + 1.3 * prim.bound < 8.5:
+                face.append(op)
+            else:
+                glob.append(op)
+        kmax = max(op[2] for op in face)
+        self._groups = [(np.zeros(3), 1e9, 0.0, glob), (face_c, 8.5, kmax, face)]
 
 
 def _frame_from_axis(ax):
@@ -271,3 +295,198 @@ def _raycast(shape, origin, dirs, t_lo=0.2, t_hi=32.0, iters=14):
         fa = np.where(~neg & (side == -1), fa * 0.5, fa)
         side = np.where(neg, 1, -1).astype(np.int8)
     return (a * fb - b * fa) / (fb - fa)
+
+
+def _raycast_bracketed(shape, origin, dirs, t_guess, half=0.4, iters=6):
+    """Ray cast with a bracket around a guess; rays whose bracket has no sign change fall back
+    to the full bracket."""
+    origin = np.broadcast_to(np.asarray(origin, float), dirs.shape)
+    lo, hi = np.maximum(t_guess - half, 0.2), t_guess + half
+    flo = shape.sdf(origin + lo[:, None] * dirs)
+    fhi = shape.sdf(origin + hi[:, None] * dirs)
+    ok = (flo < 0) & (fhi > 0)
+    t = np.empty(len(dirs))
+    if np.any(ok):
+        t[ok] = _raycast(shape, origin[ok], dirs[ok], lo[ok], hi[ok], iters)
+    if not np.all(ok):
+        bad = ~ok
+        t[bad] = _raycast(shape, origin[bad], dirs[bad], iters=14)
+    return t
+
+
+# ----------------------------------------------------------------------------------------------
+# meshing
+# ----------------------------------------------------------------------------------------------
+
+N_COLS = 176  # ring columns (azimuth), denser on the face
+N_ROWS = 112  # ring rows (hairline -> neck cut), denser on the face
+CAP_POLAR = np.radians(40.0)  # the top cap covers directions within this angle of +y (from C)
+
+
+def _azimuth_warp(s):
+    """s in [0, 1] -> azimuth in [-pi, pi] (0 = front, +x side positive), denser on the face."""
+    phi = np.linspace(-np.pi, np.pi, 4097)
+    dens = 1.0 + 1.15 * np.exp(-((phi / 0.95) ** 2))
+    cum = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(phi))])
+    cum /= cum[-1]
+    return np.interp(s, cum, phi)
+
+
+def _dirs(phi, elev):
+    ce = np.cos(elev)
+    return np.stack([ce * np.sin(phi), np.sin(elev), ce * np.cos(phi)], -1)
+
+
+def _face_weight(p):
+    """Row density weight: about 2.2x on the face."""
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    front = np.clip((z - 3.0) / 3.0, 0.0, 1.0)
+    front = front * front * (3 - 2 * front)
+    return 1.0 + 1.2 * np.exp(-((x / 4.8) ** 2) - ((y + 2.0) / 6.5) ** 2) * front
+
+
+def _grid_tris(rows, cols, base=0):
+    """Triangles of a (rows+1) x (cols+1) vertex grid, indexed [i, j] -> base + i*(cols+1) + j."""
+    idx = base + np.arange((rows + 1) * (cols + 1)).reshape(rows + 1, cols + 1)
+    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]
+    return a, b, c, d
+
+
+def _split_quads(P, a, b, c, d):
+    """Split quads a-b-c-d along the shorter diagonal; returns (n, 3) triangles (a, d, c) order
+    convention: a -> d -> c -> b is the intended counter-clockwise order of the quad."""
+    a, b, c, d = (x.ravel() for x in (a, b, c, d))
+    ac = np.linalg.norm(P[a] - P[c], axis=1)
+    bd = np.linalg.norm(P[b] - P[d], axis=1)
+    use_ac = ac <= bd
+    t1 = np.where(use_ac[:, None], np.stack([a, d, c], 1), np.stack([a, d, b], 1))
+    t2 = np.where(use_ac[:, None], np.stack([a, c, b], 1), np.stack([d, c, b], 1))
+    return np.concatenate([t1, t2])
+
+
+def _orient_outward(P, tris, ref):
+    """Flip the winding of all triangles if most face normals point toward ``ref`` (a point or
+    a direction function)."""
+    n = np.cross(P[tris[:, 1]] - P[tris[:, 0]], P[tris[:, 2]] - P[tris[:, 0]])
+    cen = P[tris].mean(1)
+    out = cen - ref if not callable(ref) else ref(cen)
+    if np.sum(np.einsum("ij,ij->i", n, out)) < 0:
+        tris = tris[:, ::-1].copy()
+    return tris
+
+
+def _disc_points(n_boundary_phis, K, scale_fn=None, warp=True):
+    """Concentric rings in the unit disc (boundary excluded) for a cap triangulation."""
+    pts = [np.zeros((1, 2))]
+    nb = len(n_boundary_phis)
+    for k in range(1, K):
+        r = k / K
+        m = max(6, int(round(nb * (scale_fn(r) if scale_fn else r))))
+        s = (np.arange(m) + 0.5 * (k % 2)) / m
+        ph = _azimuth_warp(s) if warp else s * 2 * np.pi - np.pi
+        pts.append(np.stack([r * np.sin(ph), r * np.cos(ph)], 1))
+    return np.concatenate(pts)
+
+
+def _build_head_surface(shape):
+    """Ring + top cap + bottom cap of the head-and-neck surface.
+
+    Returns dict of parts: name -> (positions, triangles) (triangles index the part's own
+    vertices, counter-clockwise from outside); the ring has a duplicated seam column."""
+    C = shape.C
+    Nc, Nr = N_COLS, N_ROWS
+    phis = _azimuth_warp(np.arange(Nc + 1) / Nc)  # column Nc repeats column 0 (seam at the back)
+    e0 = np.pi / 2 - CAP_POLAR
+
+    # reference profile (radius from the axis, height) relative to C: an arc, then down the neck
+    arc_e = np.linspace(e0, np.radians(-40), 200)
+    ref = np.stack([9.5 * np.cos(arc_e), 9.5 * np.sin(arc_e)], 1)
+    ref = np.concatenate([ref, np.linspace(ref[-1], [5.8, shape.Y_CUT - C[1] - 1.5], 120)[1:]])
+    seg = np.linalg.norm(np.diff(ref, axis=0), axis=1)
+    cum = np.concatenate([[0], np.cumsum(seg)])
+    M = int(Nr * 1.6)
+    s = np.linspace(0, cum[-1], M)
+    refp = np.stack([np.interp(s, cum, ref[:, 0]), np.interp(s, cum, ref[:, 1])], 1)
+    elev = np.arctan2(refp[:, 1], refp[:, 0])  # decreasing
+
+    # fine samples
+    PH, EL = np.meshgrid(phis[:Nc], elev, indexing="ij")  # (Nc, M)
+    D = _dirs(PH, EL).reshape(-1, 3)
+    t_f = _raycast(shape, C, D, iters=9).reshape(Nc, M)
+    P_f = C + t_f[..., None] * D.reshape(Nc, M, 3)
+
+    # corner with the neck cut: last sample above the cut, then bisect the elevation
+    above = P_f[..., 1] > shape.Y_CUT + 0.01
+    k_last = M - 1 - np.argmax(above[:, ::-1], axis=1)
+    e_hi, e_lo = elev[k_last], elev[np.minimum(k_last + 1, M - 1)]
+    for _ in range(16):
+        em = 0.5 * (e_hi + e_lo)
+        dm = _dirs(phis[:Nc], em)
+        tm = _raycast(shape, C, dm, iters=9)
+        up = (C + tm[:, None] * dm)[:, 1] > shape.Y_CUT + 1e-4
+        e_hi = np.where(up, em, e_hi)
+        e_lo = np.where(up, e_lo, em)
+    dc = _dirs(phis[:Nc], e_hi)
+    tc = _raycast(shape, C, dc, iters=12)
+    corner = C + tc[:, None] * dc
+    corner[:, 1] = shape.Y_CUT
+
+    # per-column weighted arc length -> row elevations
+    rows_e = np.empty((Nc, Nr))
+    rows_tg = np.empty((Nc, Nr))
+    targets = np.arange(Nr + 1) / Nr
+    for j in range(Nc):
+        k = k_last[j]
+        pts = np.concatenate([P_f[j, : k + 1], corner[j : j + 1]])
+        ee = np.concatenate([elev[: k + 1], [e_hi[j]]])
+        tt = np.concatenate([t_f[j, : k + 1], [tc[j]]])
+        mid = 0.5 * (pts[1:] + pts[:-1])
+        L = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1) * _face_weight(mid))])
+        L /= L[-1]
+        rows_e[j] = np.interp(targets[:-1], L, ee)
+        rows_tg[j] = np.interp(targets[:-1], L, tt)
+    PH2 = np.broadcast_to(phis[:Nc, None], (Nc, Nr))
+    D2 = _dirs(PH2, rows_e).reshape(-1, 3)
+    t2 = _raycast_bracketed(shape, C, D2, rows_tg.ravel(), half=0.5, iters=7)
+    ring = np.empty((Nr + 1, Nc + 1, 3))
+    ring[:Nr, :Nc] = (C + t2[:, None] * D2).reshape(Nc, Nr, 3).transpose(1, 0, 2)
+    ring[Nr, :Nc] = corner
+    ring[:, Nc] = ring[:, 0]
+    ringP = ring.reshape(-1, 3)
+    a, b, c, d = _grid_tris(Nr, Nc)
+    ringT = _split_quads(ringP, a, b, c, d)
+    ringT = _orient_outward(ringP, ringT, C)
+
+    # top cap: boundary = ring row 0 (directions at polar angle CAP_POLAR around +y)
+    Kt = 22
+    sin0 = np.sin(CAP_POLAR)
+    inner = _disc_points(phis[:Nc], Kt, scale_fn=lambda r: np.sin(r * CAP_POLAR) / sin0)
+    bnd = np.stack([np.sin(phis[:Nc]), np.cos(phis[:Nc])], 1)
+    q = np.concatenate([bnd, inner])
+    capT = spatial.Delaunay(q).simplices
+    r = np.linalg.norm(inner, axis=1)
+    ph = np.arctan2(inner[:, 0], inner[:, 1])
+    g = r * CAP_POLAR
+    di = np.stack([np.sin(g) * np.sin(ph), np.cos(g), np.sin(g) * np.cos(ph)], 1)
+    ti = _raycast(shape, C, di, iters=11)
+    capP = np.concatenate([ring[0, :Nc], C + ti[:, None] * di])
+    capT = _orient_outward(capP, capT, C)
+
+    # bottom cap: flat, boundary = ring row Nr
+    cen = corner.mean(0)
+    rel = corner - cen
+    ang = np.arctan2(rel[:, 0], rel[:, 2])
+    rad = np.hypot(rel[:, 0], rel[:, 2])
+    order = np.argsort(ang)
+    Kb = 13
+    innerb = _disc_points(phis[:Nc], Kb, warp=False)
+    bndb = np.stack([np.sin(ang), np.cos(ang)], 1)
+    qb = np.concatenate([bndb, innerb])
+    botT = spatial.Delaunay(qb).simplices
+    rb = np.linalg.norm(innerb, axis=1)
+    ab = np.arctan2(innerb[:, 0], innerb[:, 1])
+    radi = np.interp(ab, ang[order], rad[order], period=2 * np.pi)
+    pb = np.stack([cen[0] + rb * radi * np.sin(ab), np.full_like(rb, shape.Y_CUT), cen[2] + rb * radi * np.cos(ab)], 1)
+    botP = np.concatenate([corner, pb])
+    botT = _orient_outward(botP, botT, lambda c_: np.tile([0.0, -1.0, 0.0], (len(c_), 1)))
+    return {"ring": (ringP, ringT), "top_cap": (capP, capT), "bottom_cap": (botP, botT)}, ring

@@ -48,7 +48,7 @@ class TextureSpaceDiffusion(Technique):
     name = "tsd"
     description = "texture-space diffusion (d'Eon, Luebke & Enderton 2007): chained UV-space Gaussian blurs"
 
-    def __init__(self, renderer, *, multires: bool = True, max_taps: int = 8, translucency: bool = True):
+    def __init__(self, renderer, *, multires: bool = True, max_taps: int = 12, translucency: bool = True):
         super().__init__(renderer)
         ctx = self.ctx
         defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
@@ -59,8 +59,8 @@ class TextureSpaceDiffusion(Technique):
         self.p_down = program(ctx, "tsd/fullscreen.vert", "tsd/downsample.frag", defines)
         self.p_trans = program(ctx, "tsd/uv_space.vert", "tsd/translucency.frag", defines)
         self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag", defines)
-        self.empty_vao = ctx.vertex_array(self.p_blur, [])
-        self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_blur, self.p_dilate, self.p_down)}
+        self.p_combine = program(ctx, "tsd/fullscreen.vert", "tsd/combine.frag", defines)
+        self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_blur, self.p_dilate, self.p_down, self.p_combine)}
         self.tables = upload_specular_tables(ctx)
         self.multires = multires
         self.max_taps = int(max_taps)
@@ -163,16 +163,20 @@ class TextureSpaceDiffusion(Technique):
         s0.write(np.ascontiguousarray(filled).tobytes())
 
     def _plan_levels(self, profile, S):
-        """Resolution level of each blur: the step's sigma should be 1-2 texels at its level."""
+        """Resolution level of each blur step. A step whose sigma exceeds 2 * TARGET texels at full
+        resolution runs at the coarsest level where it is still > TARGET texels (so at most
+        3 * 2 * TARGET = max_taps taps per side at 1-texel spacing): wide Gaussians hold no fine
+        detail (d'Eon & Luebke 2007, 14.4.3), and each level divides a pass's texels by 4."""
         sig = profile.chain_sigmas_mm()
         levels, prev = [], 0
-        max_level = max(0, int(math.log2(max(S, 64) / 64)))
+        max_level = max(0, int(math.log2(max(S, 16) / 16)))
+        target = self.max_taps / 6.0
         for s in sig:
             lvl = 0
             if self.multires and self.median_stretch:
                 st = s * self.median_stretch
-                lvl = int(max(0, math.floor(math.log2(max(st, 1e-9) / 1.0)))) if st > 2.0 else 0
-            lvl = int(min(max(lvl, prev), max_level, 3))
+                lvl = max(0, math.ceil(math.log2(max(st, 1e-9) / (2.0 * target))))
+            lvl = int(min(max(lvl, prev), max_level))
             levels.append(lvl)
             prev = lvl
         return levels
@@ -199,7 +203,7 @@ class TextureSpaceDiffusion(Technique):
         self._fullscreen(self.p_down, dst)
         return dst
 
-    def _blur(self, src, stretch, sigma_mm, level, out_key):
+    def _blur(self, src, stretch, sigma_mm, level, out_key, footprint=False):
         size = src.size
         tmp = self._texture(("tmp", out_key), size)
         out = self._texture(out_key, size)
@@ -207,6 +211,7 @@ class TextureSpaceDiffusion(Technique):
         set_uniform(prog, "uSigmaMm", float(sigma_mm))
         set_uniform(prog, "uLevelScale", float(2.0 ** -level))
         set_uniform(prog, "uMaxTaps", self.max_taps)
+        set_uniform(prog, "uFootprint", 1.0 if footprint else 0.0)
         self._bind(prog, "uStretch", stretch, 1)
         set_uniform(prog, "uDirection", (1.0, 0.0))
         self._bind(prog, "uSource", src, 0)
@@ -235,7 +240,9 @@ class TextureSpaceDiffusion(Technique):
             n = prog["uBlur"].array_length
             prog["uBlur"].value = units[:n] if n > 1 else units[0]
 
-    def texture_space(self, frame: Frame):
+    def texture_space(self, frame: Frame, irradiance: np.ndarray | None = None):
+        """Run the view-independent passes. ``irradiance`` (S, S, 4) float, row 0 = top (v = 1),
+        replaces the rendered irradiance (rgb, alpha = coverage): used by the numeric tests."""
         scene = frame.scene
         profile = scene.profile
         if profile.k > MAX_GAUSSIANS:
@@ -260,7 +267,13 @@ class TextureSpaceDiffusion(Technique):
             frame.shadows.bind(prog, 0, 1)
             frame.gpu.material_uniforms(prog, {"uAlbedoMap": 2, "uNormalMap": 3, "uSpecularMap": 4})
             self._bind(prog, "uRhoDtTex", self.tables["rho_dt"], 5)
-            self._uv_pass(frame, prog, irr)
+            if irradiance is None:
+                self._uv_pass(frame, prog, irr)
+            else:
+                a = np.ascontiguousarray(np.asarray(irradiance, np.float32)[::-1])
+                if a.shape != (S, S, 4):
+                    raise ValueError(f"irradiance override must be {(S, S, 4)}, got {a.shape}")
+                irr.write(a.astype(np.float16).tobytes())
             dil = self._texture("irradiance_dilated", (S, S))
             self._bind(self.p_dilate, "uSource", irr, 0)
             self._fullscreen(self.p_dilate, dil)
@@ -284,7 +297,7 @@ class TextureSpaceDiffusion(Technique):
                     st = self._blur(st, st, sigma, level, ("stretch", k))
                 else:
                     st = self.tex[("stretch", k)]
-                src = self._blur(src, st, sigma, level, ("blur", k))
+                src = self._blur(src, st, sigma, level, ("blur", k), footprint=(k == 0))
         self._stretch_chain_key = chain_key
         frame.passes_run.append("tsd_blur")
         # translucency (texture space, half resolution)
@@ -324,6 +337,21 @@ class TextureSpaceDiffusion(Technique):
             draw_mesh(frame, prog)
         frame.passes_run.append("tsd_final")
 
+    def combined(self, frame: Frame) -> np.ndarray:
+        """sum_k w_k I_k in texture space at the irradiance resolution, (S, S, 3), row 0 = top."""
+        S = self.renderer.irradiance_size
+        out = self._texture("combined", (S, S), 4, "f4")
+        self._profile_uniforms(self.p_combine, frame.scene.profile, 0)
+        self._fullscreen(self.p_combine, out)
+        return self.read_texture(out)[:, :, :3]
+
+    def blur_direct(self, frame: Frame, variance_mm2: float) -> np.ndarray:
+        """The dilated raw irradiance blurred once with the full variance (level 0, unchained):
+        the reference the chained I_k must equal."""
+        out = self._blur(self.tex["irradiance_dilated"], self.tex["stretch_0"], math.sqrt(variance_mm2), 0, "direct",
+                         footprint=True)
+        return self.read_texture(out)
+
     # ------------------------------------------------------------------ inspection
     def read_texture(self, tex) -> np.ndarray:
         w, h = tex.size
@@ -344,6 +372,7 @@ class TextureSpaceDiffusion(Technique):
         out["translucency"] = self.read_texture(self.tex["translucency"])
         frame = self.renderer.last_frame
         if frame is not None:
+            out["diffuse_texture_space"] = self.combined(frame)
             sh = frame.shadows
             out["shadow_tsm"] = self.read_texture(sh.aux)
             d = np.frombuffer(sh.depth.read(), np.float32).reshape(sh.depth.size[1], sh.depth.size[0])[::-1]
@@ -357,6 +386,6 @@ class TextureSpaceDiffusion(Technique):
             t.release()
         for v in self.vaos.values():
             v.release()
-        self.empty_vao.release()
-        for p in (self.p_stretch, self.p_irradiance, self.p_blur, self.p_dilate, self.p_down, self.p_trans, self.p_final):
+        for p in (self.p_stretch, self.p_irradiance, self.p_blur, self.p_dilate, self.p_down, self.p_trans, self.p_final,
+                  self.p_combine):
             p.release()

@@ -1,8 +1,12 @@
 // One direction (U or V) of one chained Gaussian blur in texture space (d'Eon & Luebke 2007,
 // 14.4.2-14.4.3): I_k = I_(k-1) * G(v_k - v_(k-1)), separable, tap spacing from the stretch map.
-// Taps sit at integer multiples of a step of >= 1 texel, each weighted by the Gaussian integrated
-// over its bin (d'Eon's 7 weights are this with step = sigma); with step = 1 texel the discrete
-// kernel has exactly the intended variance plus the texel's own footprint.
+// Taps sit at integer multiples of a step of >= 1 texel, each weighted by a Gaussian integrated
+// over its bin (d'Eon's 7 weights are this with step = sigma). Binning adds step^2 / 12 to the
+// kernel's variance (Sheppard's correction), so the bins integrate a Gaussian of variance
+// sigma^2 - step^2 / 12: the discrete kernel then has the intended variance, and a chain of K
+// blurs adds up to v_K exactly instead of v_K + K / 12 texel^2. The chain's first step keeps one
+// bin (uFootprint = 1): each output texel then holds the light landing on its footprint, i.e. the
+// profile integrated over the texel, exactly once.
 // Seams: colour is a NORMALISED convolution over covered texels (alpha = coverage), so empty
 // gutters never darken an island's edge; alpha returns the blurred coverage; where nothing is
 // covered the (dilated) input colour passes through.
@@ -12,6 +16,7 @@ uniform vec2 uDirection;      // (1, 0) = U pass, (0, 1) = V pass
 uniform float uSigmaMm;       // this step's standard deviation, mm
 uniform float uLevelScale;    // texels of this level per level-0 texel (2^-level)
 uniform int uMaxTaps;         // taps per side at most
+uniform float uFootprint;     // 1: integrate over the receiving texel (first step), 0: exact variance
 in vec2 v_uv;
 out vec4 f_color;
 
@@ -36,6 +41,8 @@ void main() {
     float step_ = max(1.0, 3.0 * sigma / float(uMaxTaps));
     int n = int(min(ceil(3.0 * sigma / step_ - 0.001), float(uMaxTaps)));
     vec2 dt = uDirection / size * step_;
+    float sb = sqrt(max(sigma * sigma - (1.0 - uFootprint) * step_ * step_ / 12.0, 0.0025));  // Sheppard
+    sigma = sb;
     float w0 = bin_weight(-0.5 * step_, 0.5 * step_, sigma);
     vec3 sum = center.rgb * center.a * w0;
     float sum_a = center.a * w0;

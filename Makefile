@@ -1,0 +1,42 @@
+# The two commands a fresh machine needs (see README.md):
+#   make demo   set up .venv, install dermis, render the built-in scene to out/demo.png
+#   make test   the same set-up, then the whole test suite
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+GL_PACKAGES := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri
+# the viewer's window tests run under a virtual X server
+TEST_PACKAGES := xvfb xauth
+
+.PHONY: demo test sysdeps test-sysdeps install bench clean
+
+sysdeps:
+	@scripts/ensure-system-packages.sh $(GL_PACKAGES)
+
+test-sysdeps:
+	@scripts/ensure-system-packages.sh $(GL_PACKAGES) $(TEST_PACKAGES)
+
+$(VENV)/bin/python:
+	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "dermis needs Python 3.11+"'
+	$(PYTHON) -m venv $(VENV)
+
+$(VENV)/.installed: $(VENV)/bin/python pyproject.toml
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e ".[test]"
+	@touch $@
+
+install: $(VENV)/.installed
+
+demo: sysdeps install
+	@mkdir -p out
+	$(VENV)/bin/dermis render --out out/demo.png --size 768x768
+	@echo "demo image: $(CURDIR)/out/demo.png"
+
+test: test-sysdeps install
+	$(PY) -m pytest -q -ra
+
+bench: sysdeps install
+	$(VENV)/bin/dermis bench
+
+clean:
+	rm -rf out .pytest_cache build *.egg-info src/*.egg-info

@@ -1,0 +1,37 @@
+"""Shared fixtures. Tests render small (256-512 px) so they stay fast on Mesa llvmpipe."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+SHARED_HEAD = REPO.parent / "shared" / "assets" / "lee-perry-smith"
+
+
+@pytest.fixture(scope="session")
+def lee_perry_smith() -> Path:
+    """The real head scan in ../shared; skipped when absent, a failure under CI=true."""
+    if not (SHARED_HEAD / "LeePerrySmith.glb").is_file():
+        msg = f"the Lee Perry-Smith head is not at {SHARED_HEAD} (../shared beside the repository)"
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail(msg + "; CI must have it")
+        pytest.skip(msg)
+    return SHARED_HEAD
+
+
+@pytest.fixture(scope="session")
+def gl_ctx():
+    """One EGL context for the session (creating one costs ~50 ms, compiling programs more)."""
+    from dermis.gl.context import create_context
+
+    ctx = create_context()
+    yield ctx
+    ctx.release()
+
+
+@pytest.fixture(scope="session")
+def example_head_toml(lee_perry_smith) -> Path:
+    return REPO / "examples" / "lee-perry-smith.toml"
