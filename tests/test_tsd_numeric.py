@@ -9,7 +9,7 @@ import pytest
 from dermis.profiles import SumOfGaussians, deon_skin
 from dermis.renderer import Renderer
 from dermis.specular import rho_dt_table, roughness_axis
-from tsd_harness import impulse_reference, quad_scene, rweighted_error
+from dermis.verification import impulse_reference, quad_scene, rweighted_error
 
 
 def _impulse(S, shape_mm, gl_ctx, multires=True, profile=None):

@@ -116,7 +116,7 @@ class GltfAsset:
                     raise ValueError("not a binary glTF (bad magic)")
                 self.gltf = pygltflib.GLTF2.load_from_bytes(raw)
             else:
-                self.gltf = pygltflib.GLTF2.load_json(self.path.read_text(encoding="utf-8"))
+                self.gltf = pygltflib.GLTF2.gltf_from_json(self.path.read_text(encoding="utf-8"))
         except DermisError:
             raise
         except Exception as exc:

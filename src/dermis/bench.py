@@ -1,0 +1,129 @@
+"""``dermis bench``: frame times of every technique on the real head, as ratios to ``lambert``
+measured in one run (absolute times depend on the machine and its load; ratios much less).
+
+Two workloads per technique, the same for all:
+- lights moving: the key light turns a little every frame, so shadow maps and every
+  view-independent (texture-space) pass re-run;
+- camera moving: the camera orbits, lights fixed: texture-space results are reused.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+import statistics
+from pathlib import Path
+
+import click
+import numpy as np
+
+from dermis.errors import DermisError
+
+HEAD_TOML = Path(__file__).resolve().parents[2] / "examples" / "lee-perry-smith.toml"
+
+
+def _rotate(v, angle):
+    c, s = math.cos(angle), math.sin(angle)
+    x, y, z = v
+    return (c * x + s * z, y, -s * x + c * z)
+
+
+def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames=5, progress=None, device=None):
+    from dermis.renderer import Renderer
+
+    results = {}
+    with Renderer(scene, size, irradiance_size=irradiance_size, device=device) as r:
+        info = dict(r.info)
+        base_light = [tuple(L.direction) for L in scene.lights]
+        base_cam = tuple(scene.camera.position)
+        target = np.asarray(scene.camera.target, float)
+        for name in techniques:
+            r.render(name)  # compile, first-frame work (stretch map etc.)
+            res = {}
+            for mode in ("lights", "camera"):
+                times, passes = [], {}
+                for f in range(frames):
+                    if mode == "lights":
+                        for L, d in zip(scene.lights, base_light):
+                            L.direction = _rotate(d, 0.02 * (f + 1))
+                    else:
+                        off = np.asarray(base_cam, float) - target
+                        scene.camera.position = tuple(target + np.asarray(_rotate(off, 0.03 * (f + 1))))
+                    r.render(name)
+                    times.append(r.stats["frame_ms"])
+                    for k, v in r.stats["passes_ms"].items():
+                        passes.setdefault(k, []).append(v)
+                    if progress:
+                        progress()
+                for L, d in zip(scene.lights, base_light):
+                    L.direction = d
+                scene.camera.position = base_cam
+                res[mode] = {"frame_ms": statistics.median(times),
+                             "passes_ms": {k: statistics.median(v) for k, v in passes.items()},
+                             "passes_run": list(r.stats["passes_run"])}
+            results[name] = res
+    return info, results
+
+
+def markdown_table(info, results, size, irradiance_size):
+    base = results.get("lambert")
+    lines = [f"Renderer: {info['renderer']} ({info['version']}); output {size[0]}x{size[1]}, irradiance {irradiance_size}^2; "
+             f"machine: {platform.machine()}, {platform.system()}, Python {platform.python_version()}", "",
+             "| technique | lights moving (ms) | ratio to lambert | camera moving (ms) | ratio to lambert | passes (lights moving, ms) |",
+             "|---|---|---|---|---|---|"]
+    for name, res in results.items():
+        lm, cm = res["lights"]["frame_ms"], res["camera"]["frame_ms"]
+        rl = f"{lm / base['lights']['frame_ms']:.2f}x" if base else "-"
+        rc = f"{cm / base['camera']['frame_ms']:.2f}x" if base else "-"
+        passes = ", ".join(f"{k} {v:.0f}" for k, v in res["lights"]["passes_ms"].items())
+        lines.append(f"| {name} | {lm:.0f} | {rl} | {cm:.0f} | {rc} | {passes} |")
+    return "\n".join(lines)
+
+
+@click.command("bench")
+@click.argument("scene", required=False)
+@click.option("--techniques", default=None, help="Comma-separated (default: all available).")
+@click.option("--size", default="1024x1024", show_default=True)
+@click.option("--irradiance-size", type=int, default=1024, show_default=True)
+@click.option("--frames", type=int, default=5, show_default=True, help="Timed frames per workload (median).")
+@click.option("--json", "json_out", default=None, help="Write the results as JSON.")
+@click.option("--markdown", default=None, help="Write the table as Markdown.")
+@click.option("--accuracy/--no-accuracy", default=True, help="Also measure tsd's impulse error with and without reduced-resolution blurs.")
+@click.option("--device", type=int, default=None)
+def bench_cmd(scene, techniques, size, irradiance_size, frames, json_out, markdown, accuracy, device):
+    """Time every technique on the real head (default) relative to lambert."""
+    import dermis
+    import dermis.verification
+    from dermis.cli import parse_size, write_json_atomic
+    from dermis.techniques import technique_names
+
+    w, h = parse_size(size)
+    path = scene or HEAD_TOML
+    if scene is None and not Path(path).is_file():
+        raise DermisError(f"{path}: the benchmark scene is missing")
+    sc = dermis.load_scene(path)
+    names = techniques.split(",") if techniques else technique_names()
+    if "lambert" not in names:
+        names = ["lambert"] + names
+    from tqdm import tqdm
+
+    with tqdm(total=len(names) * 2 * frames, desc="bench", unit="frame") as bar:
+        info, results = run_bench(sc, names, (w, h), irradiance_size, frames, progress=bar.update, device=device)
+    table = markdown_table(info, results, (w, h), irradiance_size)
+    click.echo(table)
+    extra = {}
+    if accuracy and "tsd" in names:
+        full = dermis.verification.impulse_error(multires=False)
+        multi = dermis.verification.impulse_error(multires=True)
+        extra = {"impulse_error_full_res": full.tolist(), "impulse_error_multires": multi.tolist()}
+        click.echo(f"\ntsd impulse response, r-weighted L2 error per channel (RGB): full-resolution blurs "
+                   f"{np.round(full * 100, 3).tolist()} %, reduced-resolution wide blurs {np.round(multi * 100, 3).tolist()} %")
+    if json_out:
+        write_json_atomic(json_out, {"info": info, "size": [w, h], "irradiance_size": irradiance_size,
+                                     "results": results, **extra})
+    if markdown:
+        from dermis.images import _atomic_write
+
+        text = table + ("\n\n" + json.dumps(extra) if extra else "") + "\n"
+        _atomic_write(markdown, lambda tmp: Path(tmp).write_text(text))
