@@ -103,7 +103,8 @@ def render(scene, technique, size, out, exr, stats, exposure, tonemap, samples, 
         if not np.isfinite(img).all():
             raise DermisError(f"{sc.source}: the render produced NaN or infinite values (bad scene values?)")
         o = sc.output
-        write_png(out, output_transform(img, exposure if exposure is not None else o.exposure, tonemap or o.tonemap))
+        write_png(out, output_transform(img, exposure if exposure is not None else o.exposure, tonemap or o.tonemap,
+                                        o.bloom, o.bloom_radius))
         if exr:
             write_exr(exr, img)
         if stats:

@@ -19,9 +19,25 @@ def aces_narkowicz(x):
     return np.clip((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
 
 
-def output_transform(linear_rgb, exposure: float = 0.0, tonemap: str = "aces") -> np.ndarray:
-    """Linear HDR (H, W, 3) -> display-encoded sRGB values in [0, 1]."""
-    x = np.asarray(linear_rgb, np.float32) * np.float32(2.0 ** exposure)
+def bloom(linear_rgb, strength: float, radius: float) -> np.ndarray:
+    """Bloom, the glow of bright light scattered in the eye and the lens (Spencer et al. 1995,
+    "Physically-based glare effects"): a fraction ``strength`` of the linear image is spread by a
+    Gaussian of standard deviation ``radius`` x the image height. Energy is conserved."""
+    from scipy.ndimage import gaussian_filter
+
+    x = np.asarray(linear_rgb, np.float32)
+    if strength <= 0:
+        return x
+    sigma = radius * x.shape[0]
+    spread = np.stack([gaussian_filter(x[:, :, c], sigma, mode="nearest") for c in range(x.shape[2])], axis=2)
+    return (1.0 - strength) * x + strength * spread
+
+
+def output_transform(linear_rgb, exposure: float = 0.0, tonemap: str = "aces", bloom_strength: float = 0.0,
+                     bloom_radius: float = 0.015) -> np.ndarray:
+    """Linear HDR (H, W, 3) -> display-encoded sRGB values in [0, 1]: bloom (optional), exposure,
+    tone map, sRGB encoding."""
+    x = bloom(linear_rgb, bloom_strength, bloom_radius) * np.float32(2.0 ** exposure)
     if tonemap == "aces":
         y = aces_narkowicz(x)
     elif tonemap == "linear":

@@ -91,7 +91,8 @@ class Renderer:
 
     def _material_state(self):
         m = self.scene.material
-        return (id(m.albedo), id(m.normal_map), id(m.specular_map), m.albedo_color)
+        return (id(m.albedo), id(m.normal_map), id(m.specular_map), id(m.roughness_map), m.albedo_color,
+                m.roughness if m.roughness_map is None else None)
 
     def lighting_key(self) -> str:
         """Everything the view-independent (texture-space) passes depend on."""

@@ -12,6 +12,8 @@ from dermis.camera import light_matrices
 from dermis.environment import environment_sh
 
 VERTEX_FORMAT = "3f 3f 2f 4f"
+# default texture units of the material maps (0-1 shadows; techniques use 5-15 for their own)
+MATERIAL_UNITS = {"uAlbedoMap": 2, "uNormalMap": 3, "uSpecularMap": 4, "uRoughnessMap": 16}
 VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent")
 
 
@@ -111,17 +113,23 @@ class GpuScene:
             self.textures["specular"] = upload_texture(self.ctx, np.array([[[1.0]]], np.float32), mipmaps=False)
             # no map: rho_s as given (bias + scale * 1 would rescale it)
         self.has_specular_map = mat.specular_map is not None
+        if mat.roughness_map is not None:
+            self.textures["roughness"] = upload_texture(self.ctx, mat.roughness_map.data[:, :, :1], components=1, dtype="f2")
+        else:
+            self.textures["roughness"] = upload_texture(self.ctx, np.array([[[mat.roughness]]], np.float32), mipmaps=False)
 
     def material_uniforms(self, prog, units: dict):
         mat = self.scene.material
-        for name, key in (("uAlbedoMap", "albedo"), ("uNormalMap", "normal"), ("uSpecularMap", "specular")):
+        for name, key in (("uAlbedoMap", "albedo"), ("uNormalMap", "normal"), ("uSpecularMap", "specular"),
+                          ("uRoughnessMap", "roughness")):
             if name in prog:
-                unit = units[name]
+                unit = units.get(name, MATERIAL_UNITS[name])
                 self.textures[key].use(unit)
                 prog[name].value = unit
         set_uniform(prog, "uNormalStrength", float(mat.normal_strength))
         set_uniform(prog, "uRhoS", float(mat.rho_s))
         set_uniform(prog, "uRoughness", float(mat.roughness))
+        set_uniform(prog, "uHasRoughnessMap", 1.0 if mat.roughness_map is not None else 0.0)
         bias_scale = (mat.specular_map_bias, mat.specular_map_scale) if self.has_specular_map else (1.0, 0.0)
         set_uniform(prog, "uSpecMapBiasScale", tuple(float(x) for x in bias_scale))
         set_uniform(prog, "uMix", float(mat.mix))

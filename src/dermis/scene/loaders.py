@@ -328,6 +328,12 @@ def load_obj(path: Path, uv_convention: str = "v-up", max_pixels: int = MAX_IMAG
         raise DermisError(f"{path}: mesh file not found")
     folder = path.resolve().parent
     try:
+        path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        # trimesh would guess the encoding with charset_normalizer (not a dependency) and fail with
+        # a misleading ModuleNotFoundError; OBJ is ASCII text, like the TOML scenes (UTF-8)
+        raise DermisError(f"{path}: cannot parse OBJ (not UTF-8 text; corrupt or binary file?)") from None
+    try:
         loaded = trimesh.load(str(path), file_type="obj", process=False, maintain_order=True, force="mesh",
                               resolver=_safe_resolver(folder, path, max_pixels))
     except DermisError:

@@ -69,6 +69,7 @@ class SkinMaterial:
     normal_strength: float = 1.0
     specular_map: Texture | None = None  # intensity in [0,1] scaling rho_s
     roughness: float = 0.3  # Beckmann m (d'Eon 2007: 0.3 for skin)
+    roughness_map: Texture | None = None  # Beckmann m per texel (linear data); overrides roughness
     rho_s: float = 0.18  # specular intensity (d'Eon 2007)
     # rho_s at a texel = rho_s * (specular_map_bias + specular_map_scale * map): the seed used
     # 0.18 + 0.16 * spec, i.e. bias 1.0, scale 0.89 with rho_s = 0.18.
@@ -120,6 +121,8 @@ class Output:
     exposure: float = 0.0  # stops
     tonemap: str = "aces"  # aces | linear
     background: tuple = (0.02, 0.02, 0.025)  # linear RGB
+    bloom: float = 0.0  # fraction of the image's energy spread by bloom (0 = off)
+    bloom_radius: float = 0.015  # bloom Gaussian's standard deviation, fraction of image height
 
 
 @dataclass

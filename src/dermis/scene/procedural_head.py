@@ -161,10 +161,15 @@ class _Shape:
     def __init__(self):
         E, Cap = _Ellipsoid, _Capsule
         self.ops = []  # (op, primitive, k)
-        add = lambda prim, k: self.ops.append(("u", prim, k))  # noqa: E731
-        sub = lambda prim, k: self.ops.append(("s", prim, k))  # noqa: E731
-        for s in (1, -1):
-            pass
+
+        def add(prim, k):
+            self.ops.append(("u", prim, k))
+            self.__dict__.pop("_groups", None)
+
+        def sub(prim, k):
+            self.ops.append(("s", prim, k))
+            self.__dict__.pop("_groups", None)
+
         # --- masses
         self.base = E((0, 3.4, -0.5), (7.35, 9.5, 9.3))  # cranium
         add(E((0, 4.8, 3.2), (6.3, 6.2, 5.9)), 2.0)  # forehead
@@ -201,23 +206,22 @@ class _Shape:
             sub(E((s * 3.15, 1.75, 8.7), (1.95, 1.4, 1.55), _rot(yaw=s * 0.3)), 0.8)
         for s in (1, -1):
             add(E((s * self.EYE[0], self.EYE[1], self.EYE[2]), (self.EYE_R,) * 3), 0.35)
-        # nostrils: tunnels toward the ray centre (so the surface stays star-shaped)
-        for s in (1, -1):
-            n = np.array([s * self.NOSTRIL[0], self.NOSTRIL[1], self.NOSTRIL[2]])
-            ax = self.C - n
+        # Cavities are carved with ellipsoids elongated toward the ray centre C and centred on
+        # the surface (so their walls widen toward the opening and the surface stays
+        # star-shaped around C): nostrils, mouth line (a thin slit) and mouth corners.
+        def cavity(target, radii, k):
+            target = np.asarray(target, float)
+            ax = self.C - target
             ax /= np.linalg.norm(ax)
-            R = _frame_from_axis(ax)
-            sub(E(n + 0.35 * ax, (0.32, 0.2, 0.62), R), 0.12)
-        # mouth line (a thin slit pitched along the rays from C) and mouth corners (dents
-        # elongated toward C)
-        m = np.array([0.0, self.STOMION_Y, 9.3])
-        ax = (m - self.C) / np.linalg.norm(m - self.C)
-        pitch = np.arcsin(-ax[1])
-        sub(E(m, (2.25, 0.06, 0.7), _rot(pitch=pitch)), 0.12)
+            t = _raycast(self, self.C, -ax[None], iters=30)[0]
+            sub(E(self.C - t * ax, radii, _frame_from_axis(ax)), k)
+
+        # nostrils, mouth line, mouth corners
         for s in (1, -1):
-            mc = np.array([s * 2.4, -4.85, 8.3])
-            ax = (self.C - mc) / np.linalg.norm(self.C - mc)
-            sub(E(mc, (0.3, 0.3, 0.7), _frame_from_axis(ax)), 0.3)
+            cavity((s * self.NOSTRIL[0], self.NOSTRIL[1], self.NOSTRIL[2]), (0.3, 0.2, 0.7), 0.12)
+        cavity((0.0, self.STOMION_Y, 9.3), (2.25, 0.06, 0.7), 0.12)
+        for s in (1, -1):
+            cavity((s * 2.4, -4.85, 8.3), (0.28, 0.28, 0.6), 0.3)
 
     def sdf(self, p):
         d = self.base(p)
@@ -259,10 +263,11 @@ class _Shape:
 
 
 def _frame_from_axis(ax):
-    """Rows: two perpendicular axes then ``ax`` (a world -> local rotation with local z = ax)."""
+    """Rows: x' (as close to world x as possible), y', then ``ax`` (a world -> local rotation
+    with local z = ax)."""
     ax = np.asarray(ax, float)
     h = np.array([1.0, 0, 0]) if abs(ax[0]) < 0.9 else np.array([0, 1.0, 0])
-    a = np.cross(h, ax)
+    a = h - (h @ ax) * ax
     a /= np.linalg.norm(a)
     b = np.cross(ax, a)
     return np.stack([a, b, ax])

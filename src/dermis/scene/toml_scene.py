@@ -22,14 +22,14 @@ _SCHEMA = {
     "scene": {"name": str, "mm_per_unit": float, "technique": str},
     "mesh": {"file": str, "builtin": str, "uv_convention": str},
     "material": {"albedo": str, "albedo_color": "rgb", "normal_map": str, "normal_strength": float,
-                 "specular_map": str, "roughness": float, "rho_s": float, "specular_map_bias": float,
+                 "specular_map": str, "roughness": float, "roughness_map": str, "rho_s": float, "specular_map_bias": float,
                  "specular_map_scale": float, "mix": float, "pore_scale_mm": float, "pore_strength": float},
     "light": {"type": str, "color": "rgb", "intensity": float, "direction": "vec3", "position": "vec3",
               "target": "vec3", "spot_angle_deg": float, "spot_blend": float, "cast_shadows": bool,
               "shadow_softness": float, "shadow_bias": float},
     "camera": {"position": "vec3", "target": "vec3", "up": "vec3", "fov_deg": float, "near": float, "far": float},
     "environment": {"color": "rgb", "image": str, "intensity": float},
-    "output": {"exposure": float, "tonemap": str, "background": "rgb"},
+    "output": {"exposure": float, "tonemap": str, "background": "rgb", "bloom": float, "bloom_radius": float},
 }
 _TOP = {"scene", "mesh", "material", "lights", "camera", "environment", "output", "skin"}
 TONEMAPS = ("aces", "linear")
@@ -140,9 +140,9 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
             mat.albedo = _texture(folder, v, True, path, max_pixels)
         elif k == "normal_map":
             mat.normal_map = _texture(folder, v, False, path, max_pixels)
-        elif k == "specular_map":
+        elif k in ("specular_map", "roughness_map"):
             t = _texture(folder, v, False, path, max_pixels)
-            mat.specular_map = Texture(t.data[:, :, :1], t.source)
+            setattr(mat, k, Texture(t.data[:, :, :1], t.source))
         else:
             setattr(mat, k, v)
     _positive(mat.roughness, "[material] roughness", path, 0.0, 1.0)
@@ -165,6 +165,8 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
     if "image" in env_t:
         env.image = _texture(folder, env_t["image"], True, path, max_pixels)
     out = Output(**_check(doc.get("output", {}), "output", path))
+    if not 0.0 <= out.bloom <= 1.0 or not 0.0 < out.bloom_radius <= 0.5:
+        raise DermisError(f"{path}: [output] bloom must be in [0, 1] and bloom_radius in (0, 0.5]")
     if out.tonemap not in TONEMAPS:
         raise DermisError(f"{path}: [output] tonemap must be one of {', '.join(TONEMAPS)}, got '{out.tonemap}'")
 

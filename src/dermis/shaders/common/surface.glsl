@@ -4,7 +4,9 @@ uniform sampler2D uNormalMap;     // tangent space, OpenGL convention (+y = +v),
 uniform sampler2D uSpecularMap;   // intensity in [0,1]
 uniform float uNormalStrength;
 uniform float uRhoS;              // Kelemen/Szirmay-Kalos specular intensity (d'Eon 2007: 0.18)
-uniform float uRoughness;         // Beckmann m (d'Eon 2007: 0.3)
+uniform float uRoughness;         // Beckmann m (d'Eon 2007: 0.3), used where there is no map
+uniform sampler2D uRoughnessMap;  // optional: Beckmann m per texel (linear data)
+uniform float uHasRoughnessMap;   // 1 when uRoughnessMap holds a map
 uniform vec2 uSpecMapBiasScale;   // rho_s(x) = rho_s * (bias + scale * specMap(x))
 
 // MikkTSpace tangent frame: B = w * cross(N, T); the map's normal is taken to world space.
@@ -19,4 +21,11 @@ vec3 perturb_normal(vec3 N, vec4 T, vec2 uv) {
 
 float specular_intensity(vec2 uv) {
     return uRhoS * (uSpecMapBiasScale.x + uSpecMapBiasScale.y * texture(uSpecularMap, uv).r);
+}
+
+// Beckmann roughness m at uv: the map when the scene has one, else the scene's constant
+// (Weyrich et al. 2006 measured m per face region: 0.2-0.5). Clamped to the tables' range.
+float roughness_at(vec2 uv) {
+    float m = uHasRoughnessMap > 0.5 ? texture(uRoughnessMap, uv).r : uRoughness;
+    return clamp(m, 0.05, 1.0);
 }

@@ -22,11 +22,12 @@ void main() {
     vec3 albedo = texture(uAlbedoMap, v_uv).rgb;
     float rho_s = specular_intensity(v_uv);
     // Beckmann m -> Blinn-Phong exponent with the same highlight width (Walter et al. 2007, eq. 30)
-    float shininess = max(2.0 / (uRoughness * uRoughness) - 2.0, 1.0);
+    float m = roughness_at(v_uv);
+    float shininess = max(2.0 / (m * m) - 2.0, 1.0);
     // Like-for-like with the skin specular: ks chosen so the normalised lobe's peak at normal
     // incidence equals KS_Skin_Specular's, rho_s F0 / (4 m^2 pi) (d'Eon 2007, 14.3), i.e.
     // ks (n + 8) / (8 pi) = rho_s F0 / (4 m^2 pi). No Fresnel: the baseline's highlight is flat.
-    float ks = rho_s * 0.028 * 2.0 / (uRoughness * uRoughness * (shininess + 8.0));
+    float ks = rho_s * 0.028 * 2.0 / (m * m * (shininess + 8.0));
     vec3 color = albedo * INV_PI * environment_irradiance(N);
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;

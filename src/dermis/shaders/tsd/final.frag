@@ -29,7 +29,7 @@ void main() {
     vec3 Ng = normalize(v_normal);
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     vec3 V = normalize(uCameraPos - v_world);
-    float m = uRoughness;
+    float m = roughness_at(v_uv);
     float rho_s = specular_intensity(v_uv);
     vec3 Ns = pore_normal(N, v_world * uMmPerUnit, uPoreScaleMm, uPoreStrength);
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);

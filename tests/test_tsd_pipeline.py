@@ -1,0 +1,115 @@
+"""Texture-space diffusion: caching, inspection, material inputs and refusals (issue 3)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from dermis.environment import equirect_directions, irradiance_sh_eval, sh_irradiance_from_equirect
+from dermis.errors import DermisError
+from dermis.output import bloom
+from dermis.renderer import Renderer
+from dermis.scene.model import Texture
+from dermis.verification import quad_scene
+
+
+def test_camera_move_reuses_texture_space_passes(gl_ctx):
+    sc = quad_scene(40.0, 40.0)
+    with Renderer(sc, (48, 48), irradiance_size=128, ctx=gl_ctx, samples=0) as r:
+        a = r.render("tsd")
+        first = set(r.stats["passes_run"])
+        assert {"shadow", "tsd_stretch", "tsd_irradiance", "tsd_blur", "tsd_final"} <= first
+        sc.camera.position = (5.0, 3.0, 110.0)
+        b = r.render("tsd")
+        assert r.stats["passes_run"] == ["tsd_final"], r.stats["passes_run"]
+        assert not np.allclose(a, b)  # the view did change
+        sc.lights[0].intensity *= 2.0  # light changes re-run irradiance and blurs, not the stretch map
+        c = r.render("tsd")
+        ran = r.stats["passes_run"]
+        assert "tsd_irradiance" in ran and "tsd_blur" in ran and "tsd_stretch" not in ran
+        np.testing.assert_allclose(c[20:28, 20:28], 2 * b[20:28, 20:28], rtol=2e-3, atol=1e-5)
+
+
+def test_roughness_map_changes_the_highlight(gl_ctx):
+    sc = quad_scene(40.0, 40.0)
+    sc.material.rho_s = 0.5
+    sc.camera.position = (0.0, 0.0, 120.0)
+    sc.lights[0].direction = (0.0, 0.0, -1.0)
+    with Renderer(sc, (32, 32), irradiance_size=64, ctx=gl_ctx, samples=0) as r:
+        spec_const = r.render("tsd", output_mode=2)[16, 16, 0]
+        sc.material.roughness_map = Texture(np.full((4, 4, 1), 0.15, np.float32), "test:rough")
+        spec_map = r.render("tsd", output_mode=2)[16, 16, 0]
+    # peak of KSK at normal incidence ~ rho_s F0 / (4 m^2) / pi: scales as 1 / m^2
+    assert spec_map / spec_const == pytest.approx((0.3 / 0.15) ** 2, rel=0.08)
+
+
+def test_overlapping_uvs_are_refused_by_tsd_but_not_lambert(tmp_path):
+    obj = tmp_path / "mirror.obj"
+    obj.write_text(
+        "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nv 2 -1 0\nv 4 -1 0\nv 4 1 0\nv 2 1 0\n"
+        "vt 0.1 0.1\nvt 0.9 0.1\nvt 0.9 0.9\nvt 0.1 0.9\n"
+        "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 5/1 6/2 7/3\nf 5/1 7/3 8/4\n")
+    out = tmp_path / "x.png"
+    cmd = [sys.executable, "-m", "dermis.cli", "render", str(obj), "--size", "32x32", "--out", str(out)]
+    res = subprocess.run(cmd + ["--technique", "tsd"], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2
+    lines = [l for l in res.stderr.splitlines() if l.strip()]
+    assert len(lines) == 1 and "overlaps" in lines[0] and "mirror.obj" in lines[0], res.stderr
+    assert not out.exists() and not list(tmp_path.glob(".x.png*"))
+    res = subprocess.run(cmd + ["--technique", "lambert"], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0 and out.exists(), res.stderr
+
+
+def test_debug_buffers_and_stats_from_cli(tmp_path):
+    import json
+
+    import OpenEXR
+
+    out, stats, dbg = tmp_path / "a.png", tmp_path / "s.json", tmp_path / "buffers"
+    scene = tmp_path / "sphere.toml"
+    scene.write_text('[scene]\nmm_per_unit = 30.0\n[mesh]\nbuiltin = "sphere"\n')
+    res = subprocess.run([sys.executable, "-m", "dermis.cli", "render", str(scene), "--size", "64x64", "--out", str(out),
+                          "--stats", str(stats), "--irradiance-size", "128", "--debug-buffers", str(dbg)],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    s = json.loads(stats.read_text())
+    assert s["technique"] == "tsd" and "tsd_blur" in s["passes_ms"] and "tsd_final" in s["passes_run"]
+    names = {p.stem for p in dbg.glob("*.exr")}
+    assert {"irradiance", "stretch", "blur_1", "blur_6", "translucency", "shadow_depth", "shadow_tsm", "specular"} <= names
+    with OpenEXR.File(str(dbg / "irradiance.exr")) as f:
+        rgb = f.channels()["RGB"].pixels
+    assert rgb.shape == (128, 128, 3) and np.isfinite(rgb).all() and rgb.max() > 0
+
+
+def test_sh_irradiance_matches_brute_force_integration():
+    """The environment's 9-coefficient irradiance against direct numerical integration of
+    radiance x max(cos, 0) over the sphere, for a smooth HDR sky (order-2 SH is accurate to a few %
+    for irradiance: Ramamoorthi & Hanrahan 2001 report < 3% average error)."""
+    h, w = 32, 64
+    d, dw = equirect_directions(h, w)
+    sky = np.stack([1.0 + 0.8 * d[..., 1], 0.6 + 0.3 * d[..., 0], 0.4 + 0.2 * np.maximum(d[..., 2], 0)], -1)
+    coeffs = sh_irradiance_from_equirect(sky)
+    rng = np.random.default_rng(1)
+    normals = rng.normal(size=(40, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    brute = np.einsum("nhw,hwc->nc", np.maximum(np.einsum("nk,hwk->nhw", normals, d), 0) * dw, sky)
+    sh = irradiance_sh_eval(coeffs, normals)
+    assert np.abs(sh / brute - 1).mean() < 0.03
+    assert np.abs(sh / brute - 1).max() < 0.08
+
+
+def test_bloom_conserves_energy_and_spreads():
+    img = np.zeros((64, 64, 3), np.float32)
+    img[32, 32] = 100.0
+    out = bloom(img, 0.1, 0.05)
+    assert out.sum() == pytest.approx(img.sum(), rel=1e-4)
+    from scipy.special import erf
+
+    s = 0.05 * 64  # the peak keeps 90% plus 10% of the Gaussian's mass in its own pixel
+    own = erf(0.5 / (s * np.sqrt(2))) ** 2
+    assert out[32, 32, 0] == pytest.approx(90.0 + 10.0 * own, rel=1e-3)
+    assert out[32, 40, 0] > 0 and out[32, 32, 0] < 100.0
+    np.testing.assert_array_equal(bloom(img, 0.0, 0.05), img)
