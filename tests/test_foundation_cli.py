@@ -16,8 +16,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from test_foundation_loaders import gltf_document, png_bytes, small_grid, texture_u8, write_glb, write_gltf
-from test_foundation_output import aces_narkowicz, read_exr, srgb_encode
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the helpers below, under any import mode
+
+from test_foundation_loaders import gltf_document, png_bytes, small_grid, texture_u8, write_glb, write_gltf  # noqa: E402
+from test_foundation_output import aces_narkowicz, read_exr, srgb_encode  # noqa: E402
 
 DERMIS_SCRIPT = Path(sys.executable).parent / "dermis"
 

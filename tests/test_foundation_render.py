@@ -211,11 +211,12 @@ def test_renderer_reuses_shadow_pass_until_a_light_moves(gl_ctx):
     with Renderer(scene, size, ctx=gl_ctx, samples=0) as r:
         first = r.render("lambert")
         assert "shadow" in r.stats["passes_run"]
-        gpu, depth = r.gpu, r.shadows.depth
+        gpu, depth, albedo_tex = r.gpu, r.shadows.depth, r.gpu.textures["albedo"]
         second = r.render("lambert")
         assert "shadow" not in r.stats["passes_run"]
         assert "lambert" in r.stats["passes_run"]
-        assert r.gpu is gpu and r.shadows.depth is depth  # same GPU objects, nothing re-uploaded
+        # the same GPU objects: mesh buffers, shadow map and material textures are not re-created
+        assert r.gpu is gpu and r.shadows.depth is depth and r.gpu.textures["albedo"] is albedo_tex
         np.testing.assert_array_equal(first, second)
         # move the light to the other side: the old map would shadow the newly lit half
         scene.lights[0].direction = tuple(unit((-0.5, 0.3, -0.8)))

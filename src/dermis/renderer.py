@@ -103,7 +103,7 @@ class Renderer:
         env = (s.environment.color, s.environment.intensity, id(s.environment.image))
         mat = (self._material_state(), m.normal_strength, m.roughness, m.rho_s, m.specular_map_bias,
                m.specular_map_scale, m.mix)
-        return _key(id(s.mesh), s.mm_per_unit, lights, env, mat, s.profile.variances_mm2, s.profile.weights,
+        return _key(id(s.mesh), s.mm_per_unit, lights, env, mat, s.skin_color, s.profile.variances_mm2, s.profile.weights,
                     self.irradiance_size)
 
     # ------------------------------------------------------------------ targets

@@ -133,7 +133,23 @@ class GpuScene:
         bias_scale = (mat.specular_map_bias, mat.specular_map_scale) if self.has_specular_map else (1.0, 0.0)
         set_uniform(prog, "uSpecMapBiasScale", tuple(float(x) for x in bias_scale))
         set_uniform(prog, "uMix", float(mat.mix))
+        set_uniform(prog, "uAlbedoScale", tuple(float(x) for x in self.albedo_scale()))
         set_uniform(prog, "uMmPerUnit", float(self.scene.mm_per_unit))
+
+    def albedo_scale(self) -> np.ndarray:
+        """uAlbedoScale: 1, or (with scene.skin_color == "profile") the profile's total diffuse
+        reflectance over the albedo map's mean on the skin (texels brighter than 2%)."""
+        sc = self.scene
+        if getattr(sc, "skin_color", "albedo") != "profile":
+            return np.ones(3)
+        mat = sc.material
+        if mat.albedo is not None:
+            a = mat.albedo.data[:, :, :3].reshape(-1, 3)
+            a = a[a.mean(axis=1) > 0.02]
+            mean = a.mean(axis=0) if len(a) else np.ones(3)
+        else:
+            mean = np.asarray(mat.albedo_color, np.float64)
+        return sc.profile.total_reflectance / np.maximum(mean, 1e-4)
 
     def release(self):
         for v, _ in self._vaos.values():

@@ -136,6 +136,9 @@ class Scene:
     mm_per_unit: float = 1.0
     profile: SumOfGaussians = field(default_factory=deon_skin)
     technique: str = "tsd"
+    # "albedo": the albedo map/colour is the skin colour (profile weights renormalised per channel);
+    # "profile": the profile's total diffuse reflectance is, and the map keeps its variation
+    skin_color: str = "albedo"
     source: str = "<scene>"
     name: str = "scene"
 

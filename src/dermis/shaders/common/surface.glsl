@@ -1,5 +1,6 @@
 // Surface attributes shared by techniques: tangent-space normal mapping and material lookups.
 uniform sampler2D uAlbedoMap;     // linear RGB (sRGB decoded on load)
+uniform vec3 uAlbedoScale;        // 1, or the skin colour of a physical profile over the map's mean
 uniform sampler2D uNormalMap;     // tangent space, OpenGL convention (+y = +v), encoded n*0.5+0.5
 uniform sampler2D uSpecularMap;   // intensity in [0,1]
 uniform float uNormalStrength;
@@ -28,4 +29,10 @@ float specular_intensity(vec2 uv) {
 float roughness_at(vec2 uv) {
     float m = uHasRoughnessMap > 0.5 ? texture(uRoughnessMap, uv).r : uRoughness;
     return clamp(m, 0.05, 1.0);
+}
+
+// Diffuse albedo at uv (linear). With a physical skin profile the total diffuse reflectance comes
+// from the profile, and the map keeps only its relative variation (uAlbedoScale).
+vec3 albedo_at(vec2 uv) {
+    return max(texture(uAlbedoMap, uv).rgb * uAlbedoScale, vec3(0.0));
 }

@@ -19,7 +19,7 @@ void main() {
     vec3 Ng = normalize(v_normal);
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     vec3 V = normalize(uCameraPos - v_world);
-    vec3 albedo = texture(uAlbedoMap, v_uv).rgb;
+    vec3 albedo = albedo_at(v_uv);
     float rho_s = specular_intensity(v_uv);
     // Beckmann m -> Blinn-Phong exponent with the same highlight width (Walter et al. 2007, eq. 30)
     float m = roughness_at(v_uv);

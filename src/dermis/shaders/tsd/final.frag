@@ -35,7 +35,7 @@ void main() {
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
 
     vec3 E = diffuse_irradiance(v_uv) + texture(uTranslucency, v_uv).rgb;
-    vec3 albedo = texture(uAlbedoMap, v_uv).rgb;
+    vec3 albedo = albedo_at(v_uv);
     vec3 diffuse = E * pow(max(albedo, vec3(0.0)), vec3(1.0 - uMix)) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
     vec3 spec = vec3(0.0);

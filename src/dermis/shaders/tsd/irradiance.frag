@@ -29,6 +29,6 @@ void main() {
     }
     // ambient: the environment's irradiance, less the average energy the specular takes (cos 0.5)
     E += environment_irradiance(N) * energy_transmitted(rho_s, 0.5, m);
-    vec3 albedo = texture(uAlbedoMap, v_uv).rgb;
+    vec3 albedo = albedo_at(v_uv);
     f_irradiance = vec4(E * pow(max(albedo, vec3(0.0)), vec3(uMix)), 1.0);
 }
