@@ -60,7 +60,7 @@ def gl_info(ctx) -> dict:
         "renderer": info.get("GL_RENDERER", "?"),
         "vendor": info.get("GL_VENDOR", "?"),
         "version": info.get("GL_VERSION", "?"),
-        "glsl": info.get("GL_SHADING_LANGUAGE_VERSION", "?"),
+        "glsl": "4.50 core (shaders are #version 450 core)",
         "version_code": ctx.version_code,
         "max_texture_size": info.get("GL_MAX_TEXTURE_SIZE"),
         "max_samples": ctx.max_samples,

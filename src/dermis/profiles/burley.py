@@ -7,7 +7,7 @@ plane is exactly the surface albedo A:
     R(r) = A s (e^(-s r / l) + e^(-s r / (3 l))) / (8 pi l r)          (1/mm^2)
 
 with l the mean free path (mm) and s the scaling factor fitted to Monte Carlo for the
-"diffuse surface transmission" configuration, s = 1.9 - A + 3.5 (A - 0.8)^2 (memo, eq. 5).
+"diffuse surface transmission" configuration, s = 1.9 - A + 3.5 (A - 0.8)^2 (the memo's fit for that configuration).
 Artists set A (colour) and l (scattering distance) directly; Unity HDRP, Unreal and Blender
 ship it. It is singular (~1/r) at r = 0 but integrable. Its mean radius is 2.5 l / s, which
 ``burley_mean_free_path_for_mean_radius`` inverts to match another profile's width.
@@ -21,7 +21,7 @@ from dermis.errors import DermisError
 
 
 def burley_scaling_factor(albedo) -> np.ndarray:
-    """s(A) = 1.9 - A + 3.5 (A - 0.8)^2 (Christensen & Burley 2015, eq. 5, diffuse transmission)."""
+    """s(A) = 1.9 - A + 3.5 (A - 0.8)^2 (Christensen & Burley 2015, diffuse surface transmission fit)."""
     a = np.asarray(albedo, dtype=np.float64)
     return 1.9 - a + 3.5 * (a - 0.8) ** 2
 

@@ -18,7 +18,7 @@ from dermis.profiles.medium import Medium, squeeze_wavelengths
 
 
 def dipole_source_depths_mm(medium: Medium, eta: float | None = None):
-    """(z_r, z_v): real source depth and virtual source height (mm), Jensen et al. 2001 eq. 4-6."""
+    """(z_r, z_v): real source depth and virtual source height (mm), Jensen et al. 2001."""
     eta = medium.n if eta is None else eta
     z_real = 1.0 / medium.reduced_sigma_t_per_mm
     z_virtual = z_real + 4.0 * boundary_coefficient_a(eta) * medium.diffusion_coefficient_mm
@@ -26,7 +26,7 @@ def dipole_source_depths_mm(medium: Medium, eta: float | None = None):
 
 
 def dipole_reflectance(radius_mm, medium: Medium, eta: float | None = None) -> np.ndarray:
-    """R(r) of the dipole, Jensen et al. 2001 eq. 4 (1/mm^2); shape r.shape (+ wavelengths).
+    """R(r) of the dipole, Jensen et al. 2001 (1/mm^2); shape r.shape (+ wavelengths).
 
     R(r) = alpha'/(4 pi) [ z_r (1 + sigma_tr d_r) e^(-sigma_tr d_r) / d_r^3
                          + z_v (1 + sigma_tr d_v) e^(-sigma_tr d_v) / d_v^3 ],
@@ -44,7 +44,7 @@ def dipole_reflectance(radius_mm, medium: Medium, eta: float | None = None) -> n
 
 def dipole_total_reflectance(medium: Medium, eta: float | None = None) -> np.ndarray:
     """Total diffuse reflectance R_d = integral of R(r) over the plane, in closed form
-    (Jensen et al. 2001 eq. 7):  R_d = alpha'/2 (1 + e^(-4/3 A sqrt(3(1 - alpha')))) e^(-sqrt(3(1 - alpha'))).
+    (Jensen et al. 2001):  R_d = alpha'/2 (1 + e^(-4/3 A sqrt(3(1 - alpha')))) e^(-sqrt(3(1 - alpha'))).
     """
     eta = medium.n if eta is None else eta
     alpha = medium.reduced_albedo

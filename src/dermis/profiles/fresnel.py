@@ -30,7 +30,7 @@ def fresnel_dielectric(cos_theta_incident, n_incident: float, n_transmitted: flo
 
 
 def diffuse_fresnel_reflectance(eta: float) -> float:
-    """F_dr(eta): the rational fit of Egan & Hilgeman 1973 used by Jensen et al. 2001 (eq. 5).
+    """F_dr(eta): the rational fit of Egan & Hilgeman 1973 used by Jensen et al. 2001.
 
     The internal diffuse reflectance of a boundary with relative index eta = n_inside/n_outside.
     An index-matched boundary (eta = 1) reflects nothing.
@@ -44,7 +44,7 @@ def diffuse_fresnel_reflectance(eta: float) -> float:
 
 
 def boundary_coefficient_a(eta: float) -> float:
-    """A = (1 + F_dr) / (1 - F_dr) (Jensen et al. 2001, eq. 6): 3.251 at eta = 1.4, 1 when matched."""
+    """A = (1 + F_dr) / (1 - F_dr) (Jensen et al. 2001): 3.251 at eta = 1.4, 1 when matched."""
     f_dr = diffuse_fresnel_reflectance(eta)
     return (1.0 + f_dr) / (1.0 - f_dr)
 

@@ -26,7 +26,7 @@ class LogRadialGrid:
         self.points = int(points)
         self.radius_mm = np.geomspace(r_min_mm, r_max_mm, self.points)
         self.log_step = float(np.log(r_max_mm / r_min_mm) / (self.points - 1))
-        # Low-ringing offset: k_c r_c = e^offset with r_c, k_c the grid centres (Hamilton 2000, eq. B4)
+        # Low-ringing offset: k_c r_c = e^offset with r_c, k_c the grid centres (Hamilton 2000, appendix B)
         self.offset = float(scipy_fft.fhtoffset(self.log_step, mu=0.0))
         center = np.arange(self.points) - 0.5 * (self.points - 1)
         r_center = np.sqrt(r_min_mm * r_max_mm)

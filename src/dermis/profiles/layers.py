@@ -1,5 +1,5 @@
 """Layered media: combining the profiles of slabs in the frequency domain (Donner & Jensen 2005,
-"Light Diffusion in Multi-Layered Translucent Materials", section 4, eq. 14-15).
+"Light Diffusion in Multi-Layered Translucent Materials", section 4).
 
 Light that crosses layer 1 (transmittance T1), is reflected by layer 2 (R2) and comes back
 through layer 1 (T1) is a chain of 2-D convolutions; bouncing between the layers adds a geometric
@@ -53,7 +53,7 @@ class LayeredReflectance:
 
 
 def combine_layers(responses: Sequence[LayerResponse], grid: LogRadialGrid) -> LayeredReflectance:
-    """Reflectance of a stack (top layer first) by Donner & Jensen 2005 eq. 14, bottom up."""
+    """Reflectance of a stack (top layer first) by Donner & Jensen 2005, bottom up."""
     if not responses:
         raise ValueError("a stack needs at least one layer")
     bottom = responses[-1]

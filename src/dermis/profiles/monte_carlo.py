@@ -3,10 +3,10 @@ Zheng 1995, "MCML - Monte Carlo modeling of light transport in multi-layered tis
 Methods and Programs in Biomedicine 47, 131-146).
 
 The rules of MCML: a normally incident pencil beam at the origin; step lengths -ln(xi)/mu_t in
-dimensionless units that carry across layer boundaries (section 3.3-3.6); implicit capture (each
-interaction deposits mu_a/mu_t of the photon's weight); Henyey-Greenstein scattering (eq. 3.12);
+dimensionless units that carry across layer boundaries; implicit capture (each
+interaction deposits mu_a/mu_t of the photon's weight); Henyey-Greenstein scattering;
 at every boundary the unpolarised Fresnel reflectance decides, all or none, whether the photon is
-reflected or refracted by Snell's law (section 3.7); Russian roulette below weight 1e-4 with
+reflected or refracted by Snell's law; Russian roulette below weight 1e-4 with
 survival chance 0.1; escapes through the top face scored in radial bins.
 
 Convention shared with the diffusion models: photons are launched INSIDE the top layer with
@@ -124,7 +124,7 @@ def _run_stream(state, photons, mu_a, mu_s, g, n_layer, z_top, z_bottom, n_above
                     n_2 = n_layer[next_layer]
                 reflectance, cos_transmitted = _fresnel(n_1, n_2, abs(uz))
                 if _splitmix64_uniform(state) <= reflectance:
-                    uz = -uz  # internal reflection (all or none, MCML section 3.7)
+                    uz = -uz  # internal reflection (all or none, as MCML)
                 elif next_layer < 0:
                     # Escaped through the top face: score it at its radius
                     radius = math.sqrt(x * x + y * y)
@@ -153,7 +153,7 @@ def _run_stream(state, photons, mu_a, mu_s, g, n_layer, z_top, z_bottom, n_above
             deposit = weight * mu_a[layer] / mu_t
             weight -= deposit
             totals[3] += deposit
-            # Scatter: Henyey-Greenstein deflection (MCML eq. 3.12) and uniform azimuth
+            # Scatter: Henyey-Greenstein deflection (MCML's Spin) and uniform azimuth
             anisotropy = g[layer]
             xi = _splitmix64_uniform(state)
             if anisotropy == 0.0:
@@ -177,7 +177,7 @@ def _run_stream(state, photons, mu_a, mu_s, g, n_layer, z_top, z_bottom, n_above
                 uz = -sin_theta * cos_psi * root + uz * cos_theta
                 ux = new_ux
                 uy = new_uy
-            # Russian roulette (MCML section 3.10)
+            # Russian roulette
             if weight < ROULETTE_THRESHOLD:
                 if _splitmix64_uniform(state) <= ROULETTE_SURVIVAL:
                     weight /= ROULETTE_SURVIVAL

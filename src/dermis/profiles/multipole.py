@@ -9,7 +9,7 @@ mirrored about both extrapolated boundaries again and again: for i = -n..n
 
 (positions measured downwards from the top surface; real sources positive, virtual negative).
 The reflectance sums the flux of every pole through the top surface, the transmittance through
-the bottom one (Donner & Jensen 2005, eq. 8 and 9):
+the bottom one (Donner & Jensen 2005, section 3):
 
     R(r) = alpha'/(4 pi) sum_i [ z_r,i (1 + sigma_tr d_r,i) e^(-sigma_tr d_r,i) / d_r,i^3
                                - z_v,i (1 + sigma_tr d_v,i) e^(-sigma_tr d_v,i) / d_v,i^3 ]
@@ -56,7 +56,7 @@ def plane_flux_and_fluence(radius_mm, plane_depth_mm: float, pole_depths_mm, cha
     For a pole at signed depth z, at horizontal distance r from it on the plane z = z_plane:
     flux = (1/4 pi) s (1 + sigma_tr rho) e^(-sigma_tr rho) / rho^3 with s = z (top plane,
     outward = up) or s = z_plane - z (lower plane, outward = down), and
-    D phi = (1/4 pi) e^(-sigma_tr rho) / rho, rho = sqrt(r^2 + s^2) (Farrell et al. 1992, eq. 5).
+    D phi = (1/4 pi) e^(-sigma_tr rho) / rho, rho = sqrt(r^2 + s^2) (Farrell, Patterson & Wilson 1992).
 
     ``radius_mm``: (N,); ``pole_depths_mm``: (..., L, M); returns (..., N, L) arrays.
     """
@@ -86,7 +86,7 @@ def default_pair_count(thickness_mm: float, sigma_tr_per_mm, extrapolation_top_m
 
 def multipole_profiles(radius_mm, medium: Medium, thickness_mm: float, eta_top: float | None = None,
                        eta_bottom: float | None = None, pair_count: int | None = None, from_below: bool = False):
-    """(R(r), T(r)) of a slab, Donner & Jensen 2005 eq. 8-9 (1/mm^2; shape r.shape (+ wavelengths)).
+    """(R(r), T(r)) of a slab, Donner & Jensen 2005 (1/mm^2; shape r.shape (+ wavelengths)).
 
     ``eta_top``/``eta_bottom``: n_slab / n_neighbour at each boundary (default: the slab's n against
     air). ``from_below``: light enters through the BOTTOM boundary (source l above it); R is then

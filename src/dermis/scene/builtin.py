@@ -83,7 +83,7 @@ def box(center, half, uv_origin=(0.0, 0.0), uv_cell=0.25, n=8, gutter=0.02):
 
 
 def box_over_plane():
-    """A 2x2 plane at z = 0 facing +z and a 0.5 x 0.5 x 0.2 box centred 0.5 above it."""
+    """A 4x4 plane at z = 0 facing +z and a 0.5 x 0.5 x 0.2 box centred 0.5 above it."""
     plane = plane_xy(4.0, 64, uv_rect=(0.02, 0.02, 0.48, 0.98))
     b = box((0.0, 0.0, 0.5), (0.25, 0.25, 0.1), uv_origin=(0.5, 0.0), uv_cell=1 / 6)
     return merge([plane, b])
