@@ -11,7 +11,10 @@ Error: the r-weighted relative L2 error of each channel (as the integral over th
 sqrt( integral r (fit - R)^2 dr / integral r R^2 dr ), on a uniform radius grid of ``points``
 midpoints from 0 to r_max (the radius holding 99.9 % of every channel's energy, times 1.5,
 clamped to [4, 60] mm). By default the weights are also held (softly, to ~1e-4) to sum to the
-profile's total diffuse reflectance, so a fit keeps the skin's colour.
+profile's total diffuse reflectance (an extra least-squares row), so a fit keeps the skin's
+colour. Variances are kept between (grid step / 2)^2 and (r_99.9 / 2)^2, r_99.9 the radius
+holding 99.9 % of the energy, so that energy the grid cannot resolve (a single-scattering peak
+within a few um of the entry point) is not spread over a wide Gaussian instead.
 """
 
 from __future__ import annotations
@@ -53,8 +56,8 @@ def relative_l2_error(radius_mm, fitted, target) -> np.ndarray:
     return np.sqrt(np.sum(r * (fitted - target) ** 2, axis=0) / np.where(norm > 0, norm, 1.0))
 
 
-def fit_radius_max_mm(profile) -> float:
-    """r_max of the fit grid: 1.5 x the radius holding 99.9 % of every channel's energy, in [4, 60] mm."""
+def energy_radius_mm(profile, fraction: float = 0.999) -> float:
+    """The radius within which every channel holds ``fraction`` of its energy (on its samples)."""
     r = profile.radius_mm
     ring = 2.0 * np.pi * r[:, None] * np.maximum(profile.rgb_per_mm2, 0.0)
     cumulative = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (ring[1:] + ring[:-1]) * np.diff(r)[:, None], 0)])
@@ -62,8 +65,13 @@ def fit_radius_max_mm(profile) -> float:
     radius_999 = 0.0
     for c in range(3):
         if total[c] > 0:
-            radius_999 = max(radius_999, float(np.interp(0.999 * total[c], cumulative[:, c], r)))
-    return float(np.clip(1.5 * radius_999, 4.0, 60.0))
+            radius_999 = max(radius_999, float(np.interp(fraction * total[c], cumulative[:, c], r)))
+    return radius_999
+
+
+def fit_radius_max_mm(profile) -> float:
+    """r_max of the fit grid: 1.5 x the radius holding 99.9 % of every channel's energy, in [4, 60] mm."""
+    return float(np.clip(1.5 * energy_radius_mm(profile), 4.0, 60.0))
 
 
 def _check_k(k) -> int:
@@ -96,7 +104,8 @@ def fit_sum_of_gaussians(profile, k: int = 6, *, variances_mm2=None, total_refle
     if not np.all(np.isfinite(target)) or np.all(norms == 0):
         raise DermisError("cannot fit Gaussians to an empty or non-finite profile")
     energy_rows = ENERGY_WEIGHT * norms / np.where(totals > 0, totals, 1.0) if conserve_energy else np.zeros(3)
-    min_variance, max_variance = (0.5 * step) ** 2, (0.5 * r_max) ** 2
+    min_variance = (0.5 * step) ** 2
+    max_variance = max((0.5 * min(energy_radius_mm(profile), r_max)) ** 2, 16 * min_variance)
 
     def solve(variances):
         design = sqrt_r * gaussian_2d(variances[None, :], radius[:, None])  # (P, K)

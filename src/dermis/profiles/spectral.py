@@ -23,7 +23,7 @@ sigma_s = sigma_s' (the similarity relation; ``anisotropy`` g = 0). The diffusio
 sigma_s'; g changes the single-scattering term and the Monte Carlo. Measured against the Monte
 Carlo with the real anisotropy of skin (g = 0.8, van Gemert et al. 1989), the totals of the g = 0
 model are closer (within about 5 %) than those of photon beam diffusion run with g = 0.8 (about
-11 % low), see tests/test_profiles_layers.py and the module docstring of skin_profile.py.
+11 % low), see tests/test_profiles_layers.py and the module docstring of models.py.
 
 RGB: a spectral profile R(r, lambda) is integrated against an illuminant S (default D65) and the
 CIE 1931 2-degree colour matching functions (tables from colour-science, not typed here), then

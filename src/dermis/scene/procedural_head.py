@@ -151,11 +151,11 @@ class _Shape:
 
     # ray centre, neck cut
     C = np.array([0.0, 0.8, -0.3])
-    Y_CUT = -21.0
+    Y_CUT = -19.0
     # features shared by the geometry and the texture masks
-    EYE = np.array([3.15, 1.55, 6.95])  # eyeball centre (x mirrored)
-    EYE_R = 1.28
-    STOMION_Y = -4.78
+    EYE = np.array([3.2, 1.55, 6.95])  # eyeball centre (x mirrored)
+    EYE_R = 1.25
+    STOMION_Y = -4.9
     NOSTRIL = np.array([0.62, -2.72, 9.85])
 
     def __init__(self):
@@ -170,42 +170,42 @@ class _Shape:
             self.ops.append(("s", prim, k))
             self.__dict__.pop("_groups", None)
 
-        # --- masses
-        self.base = E((0, 3.4, -0.5), (7.35, 9.5, 9.3))  # cranium
-        add(E((0, 4.8, 3.2), (6.3, 6.2, 5.9)), 2.0)  # forehead
-        add(E((0, 5.5, -1.5), (7.0, 7.2, 8.0)), 1.5)  # parietal fullness
-        add(E((0, -1.0, 3.0), (5.9, 5.6, 6.2)), 2.0)  # mid-face
-        add(E((0, -4.6, 3.6), (4.7, 4.2, 4.9)), 2.0)  # lower face
-        # neck (slightly elliptic, leaning a little) and the sterno-cleido-mastoid muscles
-        add(Cap((0, -4.0, -1.6), (0, -30.0, -0.9), 5.5, 5.75, scale=(1.0, 1.0, 1.04)), 3.0)
+        # --- masses (centimetres; tragion ~ (±7, 0, 0), eyes at y ~ 1.6, chin at y ~ -10)
+        self.base = E((0, 3.5, -0.6), (7.2, 8.9, 9.4))  # cranium
+        add(E((0, 5.0, 3.4), (6.3, 6.0, 5.9)), 2.0)  # forehead
+        add(E((0, 6.0, -2.4), (7.3, 6.2, 7.4)), 2.0)  # parietal eminences
+        add(E((0, -0.6, 3.0), (6.75, 5.2, 6.3)), 2.4)  # mid-face (zygomatic width)
+        add(E((0, -5.2, 2.9), (5.0, 3.6, 5.6), _rot(pitch=0.3)), 2.2)  # jaw mass
+        # neck (slightly elliptic, widening a little toward the base) and the
+        # sterno-cleido-mastoid muscles
+        add(Cap((0, -4.0, -1.7), (0, -30.0, -0.6), 5.35, 6.5, scale=(1.0, 1.0, 1.07)), 3.0)
         for s in (1, -1):
-            add(Cap((s * 4.6, -3.2, -2.6), (s * 1.8, -24.0, 1.9), 1.25, 1.4), 1.6)
+            add(Cap((s * 4.7, -3.0, -2.6), (s * 1.9, -24.0, 2.0), 1.2, 1.5), 1.8)
         for s in (1, -1):
-            # jaw line (gonion -> chin) and ramus
-            add(Cap((s * 4.85, -6.4, 0.2), (s * 1.6, -8.9, 6.4), 1.25, 1.2), 1.6)
-            add(Cap((s * 5.2, -6.0, 0.1), (s * 5.35, -1.8, -0.8), 1.15), 1.3)
+            # jaw line (gonion -> chin)
+            add(Cap((s * 4.8, -6.9, -0.4), (s * 1.4, -9.1, 6.6), 0.9, 0.9), 1.6)
             # cheekbones and cheeks
-            add(E((s * 4.75, 0.35, 5.3), (1.7, 1.15, 1.9)), 1.2)
-            add(E((s * 3.7, -1.9, 6.3), (2.3, 2.3, 2.1)), 1.4)
+            add(E((s * 4.8, 0.4, 5.2), (1.8, 1.2, 2.0)), 1.6)
+            add(E((s * 3.6, -2.3, 5.9), (2.6, 2.6, 2.6)), 2.4)
             # brow ridge
-            add(E((s * 2.55, 3.05, 7.85), (2.35, 0.85, 1.3), _rot(yaw=s * 0.35)), 1.0)
+            add(E((s * 2.5, 3.15, 7.9), (2.4, 0.9, 1.4), _rot(yaw=s * 0.35)), 1.2)
         # chin
-        add(E((0, -8.25, 7.25), (2.3, 1.8, 1.7)), 1.3)
+        add(E((0, -8.4, 7.7), (1.95, 1.75, 1.8)), 1.4)
         # mouth: muzzle and lips
-        add(E((0, -4.4, 6.9), (3.2, 2.4, 2.6)), 1.4)
-        add(E((0, -4.15, 8.45), (2.35, 0.68, 1.05)), 0.5)
-        add(E((0, -5.4, 8.3), (2.1, 0.72, 1.0)), 0.7)
+        add(E((0, -4.6, 6.75), (3.1, 2.6, 2.3)), 1.6)
+        add(E((0, -4.3, 8.62), (2.15, 0.56, 1.05), _rot(pitch=-0.25)), 0.55)
+        add(E((0, -5.5, 8.48), (1.95, 0.6, 0.92), _rot(pitch=0.2)), 0.45)
         # nose: bridge, tip, wings, base
-        add(Cap((0, 2.2, 8.35), (0, -1.45, 10.25), 0.5, 0.72, scale=(1.0, 1.0, 1.0)), 0.6)
-        add(E((0, -1.8, 10.35), (0.85, 0.78, 0.85)), 0.5)
+        add(Cap((0, 2.3, 8.45), (0, -1.45, 10.3), 0.45, 0.68), 0.7)
+        add(E((0, -1.8, 10.45), (0.75, 0.7, 0.78)), 0.5)
         for s in (1, -1):
-            add(E((s * 1.15, -2.15, 9.25), (0.72, 0.62, 0.85)), 0.45)
-        add(E((0, -0.9, 8.4), (1.35, 2.1, 1.35)), 0.8)
-        # eye sockets, then the closed eyes
+            add(E((s * 1.1, -2.15, 9.25), (0.62, 0.58, 0.8), _rot(yaw=s * 0.5)), 0.6)
+        add(E((0, -0.9, 8.45), (1.35, 2.1, 1.35)), 0.8)
+        # eye sockets, then the closed eyes (eyeball spheres)
         for s in (1, -1):
-            sub(E((s * 3.15, 1.75, 8.7), (1.95, 1.4, 1.55), _rot(yaw=s * 0.3)), 0.8)
+            sub(E((s * 3.0, 2.15, 9.05), (1.7, 1.0, 1.1), _rot(yaw=s * 0.3)), 1.0)
         for s in (1, -1):
-            add(E((s * self.EYE[0], self.EYE[1], self.EYE[2]), (self.EYE_R,) * 3), 0.35)
+            add(E((s * self.EYE[0], self.EYE[1], self.EYE[2]), (self.EYE_R,) * 3), 0.8)
         # Cavities are carved with ellipsoids elongated toward the ray centre C and centred on
         # the surface (so their walls widen toward the opening and the surface stays
         # star-shaped around C): nostrils, mouth line (a thin slit) and mouth corners.
@@ -218,10 +218,7 @@ class _Shape:
 
         # nostrils, mouth line, mouth corners
         for s in (1, -1):
-            cavity((s * self.NOSTRIL[0], self.NOSTRIL[1], self.NOSTRIL[2]), (0.3, 0.2, 0.7), 0.12)
-        cavity((0.0, self.STOMION_Y, 9.3), (2.25, 0.06, 0.7), 0.12)
-        for s in (1, -1):
-            cavity((s * 2.4, -4.85, 8.3), (0.28, 0.28, 0.6), 0.3)
+            cavity((s * self.NOSTRIL[0], self.NOSTRIL[1], self.NOSTRIL[2]), (0.27, 0.17, 0.7), 0.12)
 
     def sdf(self, p):
         d = self.base(p)
@@ -273,33 +270,43 @@ def _frame_from_axis(ax):
     return np.stack([a, b, ax])
 
 
-def _raycast(shape, origin, dirs, t_lo=0.2, t_hi=32.0, iters=14):
+def _raycast(shape, origin, dirs, t_lo=0.2, t_hi=32.0, iters=14, tol=2e-4):
     """First crossing of the surface along origin + t * dirs (surface assumed star-shaped).
 
-    Illinois false position on the bracket [t_lo, t_hi]; returns t (n,)."""
+    Illinois false position on the bracket [t_lo, t_hi], with a bisection step every third
+    iteration; rays stop once the bracket is narrower than ``tol`` or after ``iters`` false-
+    position steps (+ up to 3x as many for slowly converging, e.g. grazing, rays)."""
+    dirs = np.asarray(dirs, float)
     origin = np.broadcast_to(np.asarray(origin, float), dirs.shape)
     n = len(dirs)
-    a = np.full(n, t_lo) if np.isscalar(t_lo) else np.asarray(t_lo, float).copy()
-    b = np.full(n, t_hi) if np.isscalar(t_hi) else np.asarray(t_hi, float).copy()
+    a = np.full(n, t_lo, float) if np.isscalar(t_lo) else np.asarray(t_lo, float).copy()
+    b = np.full(n, t_hi, float) if np.isscalar(t_hi) else np.asarray(t_hi, float).copy()
     fa = shape.sdf(origin + a[:, None] * dirs)
     fb = shape.sdf(origin + b[:, None] * dirs)
     side = np.zeros(n, np.int8)
-    for _ in range(iters):
-        t = (a * fb - b * fa) / (fb - fa)
-        # keep a minimum of bisection progress
-        w = b - a
-        t = np.clip(t, a + 0.02 * w, b - 0.02 * w)
-        ft = shape.sdf(origin + t[:, None] * dirs)
+    act = np.arange(n)
+    for it in range(4 * iters):
+        if it >= iters:
+            act = act[(b[act] - a[act]) > tol]
+            if len(act) == 0:
+                break
+        A, B, FA, FB = a[act], b[act], fa[act], fb[act]
+        if it % 3 == 2:
+            t = 0.5 * (A + B)
+        else:
+            t = (A * FB - B * FA) / (FB - FA)
+            w = B - A
+            t = np.clip(t, A + 0.01 * w, B - 0.01 * w)
+        ft = shape.sdf(origin[act] + t[:, None] * dirs[act])
         neg = ft < 0
-        a = np.where(neg, t, a)
-        fa = np.where(neg, ft, fa)
-        b = np.where(neg, b, t)
-        fb = np.where(neg, fb, ft)
-        # Illinois: halve the value at the endpoint that stayed twice in a row
-        fb = np.where(neg & (side == 1), fb * 0.5, fb)
-        fa = np.where(~neg & (side == -1), fa * 0.5, fa)
-        side = np.where(neg, 1, -1).astype(np.int8)
-    return (a * fb - b * fa) / (fb - fa)
+        sd = side[act]
+        a[act] = np.where(neg, t, A)
+        fa[act] = np.where(neg, ft, np.where(sd == -1, FA * 0.5, FA))
+        b[act] = np.where(neg, B, t)
+        fb[act] = np.where(neg, np.where(sd == 1, FB * 0.5, FB), ft)
+        side[act] = np.where(neg, 1, -1)
+    t = (a * fb - b * fa) / (fb - fa)
+    return np.clip(t, a, b)
 
 
 def _raycast_bracketed(shape, origin, dirs, t_guess, half=0.4, iters=6):
@@ -406,7 +413,7 @@ def _build_head_surface(shape):
     # reference profile (radius from the axis, height) relative to C: an arc, then down the neck
     arc_e = np.linspace(e0, np.radians(-40), 200)
     ref = np.stack([9.5 * np.cos(arc_e), 9.5 * np.sin(arc_e)], 1)
-    ref = np.concatenate([ref, np.linspace(ref[-1], [5.8, shape.Y_CUT - C[1] - 1.5], 120)[1:]])
+    ref = np.concatenate([ref, np.linspace(ref[-1], [4.5, shape.Y_CUT - C[1] - 6.0], 120)[1:]])
     seg = np.linalg.norm(np.diff(ref, axis=0), axis=1)
     cum = np.concatenate([[0], np.cumsum(seg)])
     M = int(Nr * 1.6)
@@ -423,6 +430,7 @@ def _build_head_surface(shape):
     # corner with the neck cut: last sample above the cut, then bisect the elevation
     above = P_f[..., 1] > shape.Y_CUT + 0.01
     k_last = M - 1 - np.argmax(above[:, ::-1], axis=1)
+    assert np.all(k_last < M - 1) and np.all(above[:, 0]), "ring sampling misses the neck cut"
     e_hi, e_lo = elev[k_last], elev[np.minimum(k_last + 1, M - 1)]
     for _ in range(16):
         em = 0.5 * (e_hi + e_lo)
@@ -436,20 +444,24 @@ def _build_head_surface(shape):
     corner = C + tc[:, None] * dc
     corner[:, 1] = shape.Y_CUT
 
-    # per-column weighted arc length -> row elevations
-    rows_e = np.empty((Nc, Nr))
-    rows_tg = np.empty((Nc, Nr))
-    targets = np.arange(Nr + 1) / Nr
+    # per-column weighted arc length -> row elevations.  The arc length is measured on the
+    # column profile smoothed along the column (small cavities such as the nostrils must not
+    # shift all the rows below them) and the resulting row fractions are smoothed across
+    # columns, so that rows stay aligned between neighbouring columns (no sheared slivers).
+    lam = np.empty((Nc, Nr))
+    targets = np.arange(Nr) / Nr
+    Ps = ndimage.gaussian_filter1d(P_f, 2.0, axis=1, mode="nearest")
     for j in range(Nc):
         k = k_last[j]
-        pts = np.concatenate([P_f[j, : k + 1], corner[j : j + 1]])
+        pts = np.concatenate([Ps[j, : k + 1], corner[j : j + 1]])
         ee = np.concatenate([elev[: k + 1], [e_hi[j]]])
-        tt = np.concatenate([t_f[j, : k + 1], [tc[j]]])
         mid = 0.5 * (pts[1:] + pts[:-1])
         L = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1) * _face_weight(mid))])
         L /= L[-1]
-        rows_e[j] = np.interp(targets[:-1], L, ee)
-        rows_tg[j] = np.interp(targets[:-1], L, tt)
+        lam[j] = (e0 - np.interp(targets, L, ee)) / (e0 - e_hi[j])
+    lam = ndimage.gaussian_filter1d(lam, 2.0, axis=0, mode="wrap")
+    rows_e = e0 - lam * (e0 - e_hi[:, None])
+    rows_tg = np.stack([np.interp(-rows_e[j], -elev, t_f[j]) for j in range(Nc)])
     PH2 = np.broadcast_to(phis[:Nc, None], (Nc, Nr))
     D2 = _dirs(PH2, rows_e).reshape(-1, 3)
     t2 = _raycast_bracketed(shape, C, D2, rows_tg.ravel(), half=0.5, iters=7)
@@ -495,3 +507,127 @@ def _build_head_surface(shape):
     botP = np.concatenate([corner, pb])
     botT = _orient_outward(botP, botT, lambda c_: np.tile([0.0, -1.0, 0.0], (len(c_), 1)))
     return {"ring": (ringP, ringT), "top_cap": (capP, capT), "bottom_cap": (botP, botT)}, ring
+
+
+# ----------------------------------------------------------------------------------------------
+# ears: thin closed shells
+# ----------------------------------------------------------------------------------------------
+
+# outline of the (subject's left, +x) ear flap in its own plane: a = backward along the flap,
+# b = up along the ear, centimetres from the root point (which is buried in the head).
+_EAR_OUTLINE = np.array([
+    (-0.35, 2.3), (0.45, 3.25), (1.5, 3.55), (2.55, 3.15), (3.2, 2.1), (3.2, 0.8), (2.75, -0.45),
+    (2.15, -1.6), (1.5, -2.55), (0.75, -2.8), (0.1, -2.4), (-0.45, -1.4), (-0.8, 0.0),
+    (-0.75, 1.3),
+])
+EAR_HALF_THICKNESS = 0.13  # cm: the flap is 2.6 mm thick
+EAR_PROTRUSION = np.radians(27.0)
+EAR_TILT = np.radians(12.0)
+N_EAR_THETA = 72
+N_EAR_IN = 14
+N_EAR_RIM = 5
+EAR_RIM_RADIUS = 0.15  # rounding of the rim, cm
+
+
+def _smoothstep(e0, e1, x):
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3 - 2 * t)
+
+
+def _ear_outline(n):
+    """n points on the closed outline at equal arc length (periodic Catmull-Rom spline)."""
+    c = _EAR_OUTLINE
+    m = len(c)
+    u = np.linspace(0, m, 40 * m, endpoint=False)
+    i = np.floor(u).astype(int)
+    t = (u - i)[:, None]
+    p0, p1, p2, p3 = c[(i - 1) % m], c[i % m], c[(i + 1) % m], c[(i + 2) % m]
+    fine = 0.5 * ((2 * p1) + (-p0 + p2) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t**2 + (-p0 + 3 * p1 - 3 * p2 + p3) * t**3)
+    seg = np.linalg.norm(np.diff(np.concatenate([fine, fine[:1]]), axis=0), axis=1)
+    cum = np.concatenate([[0], np.cumsum(seg)])
+    s = np.arange(n) / n * cum[-1]
+    closed = np.concatenate([fine, fine[:1]])
+    return np.stack([np.interp(s, cum, closed[:, 0]), np.interp(s, cum, closed[:, 1])], 1)
+
+
+def _ear_frame(shape):
+    """Root point and axes (e_a backward along the flap, e_b up, e_n outward) of the +x ear."""
+    o = np.array([0.0, 0.45, -0.75])
+    t = _raycast(shape, o, np.array([[1.0, 0.0, 0.0]]), iters=30)[0]
+    root = o + (t - 0.3) * np.array([1.0, 0.0, 0.0])
+    ps, tau = EAR_PROTRUSION, EAR_TILT
+    ea0 = np.array([np.sin(ps), 0.0, -np.cos(ps)])
+    y = np.array([0.0, 1.0, 0.0])
+    eb = np.cos(tau) * y + np.sin(tau) * ea0
+    ea = np.cos(tau) * ea0 - np.sin(tau) * y
+    en = np.cross(ea, eb)
+    return root, ea, eb, en
+
+
+def _ear_mid(a, b):
+    """Out-of-plane offset of the flap's mid-surface (flare away from the head) and its
+    derivatives."""
+    ap = np.maximum(a, 0.0)
+    w = 0.08 * ap**2
+    return w, 0.16 * ap, np.zeros_like(b)
+
+
+def _ear_thickness(a, b, d_edge):
+    """Half thickness (front = lateral side, back = medial side) in cm of the flap at local
+    (a, b) and distance ``d_edge`` from the outline: 1.3 mm each side, a rolled helix rim on the
+    front along the upper and back edge, a thicker lobe."""
+    h = EAR_HALF_THICKNESS
+    helix = _smoothstep(-1.6, -0.6, b) * np.exp(-(((d_edge - 0.32) / 0.2) ** 2))
+    lobe = _smoothstep(-1.2, -2.0, b)
+    front = h + 0.11 * helix + 0.05 * lobe
+    back = h + 0.04 * helix + 0.05 * lobe
+    return front, back
+
+
+def _build_ear(shape):
+    """Closed thin shell for the +x ear: front (lateral) and back (medial) sheets joined at the
+    rounded rim.  Returns (front_P, front_T, back_P, back_T, info)."""
+    root, ea, eb, en = _ear_frame(shape)
+    L = _ear_outline(N_EAR_THETA)  # (nt, 2)
+    R = np.linalg.norm(L, axis=1)
+    rho0 = 1.0 - EAR_RIM_RADIUS / R
+    sig = np.arange(1, N_EAR_IN + 1) / N_EAR_IN
+    psi = np.arange(1, N_EAR_RIM + 1) / N_EAR_RIM * (np.pi / 2)
+    rho = np.concatenate([sig[:, None] * rho0[None, :], rho0[None, :] + (1 - rho0)[None, :] * np.sin(psi)[:, None]])
+    fade = np.concatenate([np.ones(N_EAR_IN), np.cos(psi)])[:, None] * np.ones_like(rho)
+    fade[-1] = 0.0
+    a = rho * L[None, :, 0]
+    b = rho * L[None, :, 1]
+    d_edge = np.maximum((1 - rho) * R[None, :], EAR_RIM_RADIUS)
+    w, wa, wb = _ear_mid(a, b)
+    mid = root + a[..., None] * ea + b[..., None] * eb + w[..., None] * en
+    nm = en - wa[..., None] * ea - wb[..., None] * eb
+    nm /= np.linalg.norm(nm, axis=-1, keepdims=True)
+    hf, hb = _ear_thickness(a, b, d_edge)
+    front = mid + (hf * fade)[..., None] * nm
+    back = mid - (hb * fade)[..., None] * nm
+    hf0, hb0 = _ear_thickness(np.zeros(1), np.zeros(1), np.full(1, 3.0))
+    pole_f = root + hf0[0] * en
+    pole_b = root - hb0[0] * en
+    nr, nt = rho.shape
+    # triangles: pole fan + quads between rings (ring r vertex j -> 1 + r * nt + j)
+    j = np.arange(nt)
+    j1 = (j + 1) % nt
+    fan = np.stack([np.zeros(nt, int), 1 + j, 1 + j1], 1)
+    r = np.arange(nr - 1)[:, None]
+    a_, b_ = 1 + r * nt + j, 1 + r * nt + j1
+    c_, d_ = 1 + (r + 1) * nt + j1, 1 + (r + 1) * nt + j
+    quads = np.concatenate([np.stack([a_, d_, c_], -1).reshape(-1, 3), np.stack([a_, c_, b_], -1).reshape(-1, 3)])
+    T = np.concatenate([fan, quads])
+    Pf = np.concatenate([pole_f[None], front.reshape(-1, 3)])
+    Pb = np.concatenate([pole_b[None], back.reshape(-1, 3)])
+    Tf = _orient_outward(Pf, T, lambda c_: np.tile(en, (len(c_), 1)))
+    Tb = _orient_outward(Pb, T, lambda c_: np.tile(-en, (len(c_), 1)))
+    info = dict(root=root, ea=ea, eb=eb, en=en)
+    return Pf, Tf, Pb, Tb, info
+
+
+def _ear_point(info, a, b):
+    """Mid-surface point of the +x ear at local (a, b)."""
+    w, _, _ = _ear_mid(np.asarray(a, float), np.asarray(b, float))
+    return info["root"] + a * info["ea"] + b * info["eb"] + w * info["en"]

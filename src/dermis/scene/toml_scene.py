@@ -170,10 +170,10 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
     if out.tonemap not in TONEMAPS:
         raise DermisError(f"{path}: [output] tonemap must be one of {', '.join(TONEMAPS)}, got '{out.tonemap}'")
 
-    profile = resolve_profile_section(doc.get("skin", {}), folder, path)
+    profile, skin_color = resolve_profile_section(doc.get("skin", {}), folder, path)
     technique = sc.get("technique", "tsd")
     scene = Scene(mesh=mesh, material=mat, lights=lights, camera=cam, environment=env, output=out,
-                  mm_per_unit=mm_per_unit, profile=profile, technique=technique, source=str(path),
+                  mm_per_unit=mm_per_unit, profile=profile, skin_color=skin_color, technique=technique, source=str(path),
                   name=sc.get("name", path.stem))
     if not lights_t and not doc.get("camera"):
         from dermis.scene.builtin import frame_scene
@@ -189,18 +189,23 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
 MAX_LIGHTS = 8
 
 
+SKIN_COLORS = ("albedo", "profile")
+
+
 def resolve_profile_section(section: dict, folder: Path, source):
+    """[skin] -> (SumOfGaussians, skin_color). ``color`` says where the skin's total diffuse
+    colour comes from: "albedo" (the map; default for "deon" and profile files) or "profile" (the
+    physical profile's total reflectance; default for presets and physical parameters, so that
+    melanin darkens the skin)."""
     if not isinstance(section, dict):
         raise DermisError(f"{source}: [skin] must be a table")
     from dermis import profiles
 
-    resolver = getattr(profiles, "resolve_skin_profile", None)
-    if resolver is not None:
-        return resolver(section, folder, str(source))
-    # minimal fallback before the physical profiles exist
-    unknown = set(section) - {"profile"}
-    if unknown:
-        raise DermisError(f"{source}: unknown key '{sorted(unknown)[0]}' in [skin]")
-    if section.get("profile", "deon") != "deon":
-        raise DermisError(f"{source}: [skin] profile '{section['profile']}' is unknown")
-    return profiles.deon_skin()
+    section = dict(section)
+    color = section.pop("color", None)
+    kind = section.get("profile", "deon")
+    if color is None:
+        color = "profile" if kind in ("fair", "asian", "dark", "physical") else "albedo"
+    if color not in SKIN_COLORS:
+        raise DermisError(f"{source}: [skin] color must be one of {', '.join(SKIN_COLORS)}, got {color!r}")
+    return profiles.resolve_skin_profile(section, folder, str(source)), color

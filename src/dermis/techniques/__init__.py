@@ -5,18 +5,26 @@ from __future__ import annotations
 from dermis.errors import DermisError
 
 
-def _registry():
-    from dermis.techniques.lambert import Lambert
+TECHNIQUE_MODULES = ("lambert", "tsd", "ssss", "preintegrated")
 
-    reg = {"lambert": Lambert}
-    for mod, cls in (("tsd", "TextureSpaceDiffusion"), ("ssss", "ScreenSpaceSSS"), ("preintegrated", "PreintegratedSkin")):
+
+def _registry():
+    """Technique classes by name: each module dermis.techniques.<name> holds a Technique subclass
+    whose ``name`` is <name>."""
+    from dermis.techniques.base import Technique
+
+    reg = {}
+    for mod in TECHNIQUE_MODULES:
         try:
-            m = __import__(f"dermis.techniques.{mod}", fromlist=[cls])
+            m = __import__(f"dermis.techniques.{mod}", fromlist=["_"])
         except ModuleNotFoundError as exc:
             if exc.name == f"dermis.techniques.{mod}":
                 continue
             raise
-        reg[mod] = getattr(m, cls)
+        for obj in vars(m).values():
+            if isinstance(obj, type) and issubclass(obj, Technique) and getattr(obj, "name", None) == mod:
+                reg[mod] = obj
+                break
     return reg
 
 

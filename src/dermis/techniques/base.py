@@ -99,8 +99,28 @@ class Technique:
         pass
 
 
-def draw_mesh(frame: Frame, prog, units: dict | None = None):
-    """Bind the shared scene state (camera, lights, shadows, material) and draw the mesh."""
+def set_profile_uniforms(prog, profile, max_gaussians: int = 8):
+    """The uniforms of shaders/common/profile.glsl: the profile's K variances (mm^2) and its weights
+    normalised per channel (sum_k w_k = 1), zero-padded to ``max_gaussians``."""
+    from dermis.errors import DermisError
+    from dermis.gl.resources import set_uniform
+
+    K = profile.k
+    if K > max_gaussians:
+        raise DermisError(f"profile '{profile.name}' has {K} Gaussians; at most {max_gaussians} are supported")
+    weights = np.zeros((max_gaussians, 3), np.float32)
+    weights[:K] = profile.normalized().weights
+    variances = np.ones(max_gaussians, np.float32)
+    variances[:K] = profile.variances_mm2
+    set_uniform(prog, "uGaussianCount", K)
+    for name, arr in (("uWeights", weights), ("uVariances", variances)):
+        if name in prog:  # the compiler may trim an array's unused tail
+            prog[name].write(np.ascontiguousarray(arr[: getattr(prog[name], "array_length", 1)]).tobytes())
+
+
+def draw_mesh(frame: Frame, prog, units: dict | None = None, vao=None):
+    """Bind the shared scene state (camera, lights, shadows, material) and draw the mesh
+    (with ``frame.gpu.vao(prog)``, or ``vao``: one that adds a technique's own attributes)."""
     from dermis.gl.resources import mat_bytes, set_uniform
 
     units = units or {}
@@ -111,4 +131,4 @@ def draw_mesh(frame: Frame, prog, units: dict | None = None):
     frame.shadows.bind(prog, units.get("uShadowAtlas", 0), units.get("uShadowAux", 1))
     frame.gpu.material_uniforms(prog, {"uAlbedoMap": units.get("uAlbedoMap", 2), "uNormalMap": units.get("uNormalMap", 3),
                                        "uSpecularMap": units.get("uSpecularMap", 4)})
-    frame.gpu.vao(prog).render(moderngl.TRIANGLES)
+    (vao or frame.gpu.vao(prog)).render(moderngl.TRIANGLES)

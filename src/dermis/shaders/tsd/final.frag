@@ -7,7 +7,8 @@
 #include "common/environment.glsl"
 #include "common/brdf.glsl"
 #include "common/noise.glsl"
-#include "tsd/energy.glsl"
+#include "common/energy.glsl"
+#include "common/skin_specular.glsl"
 #include "tsd/gaussians.glsl"
 
 uniform sampler2D uBeckmannTex;
@@ -38,15 +39,7 @@ void main() {
     vec3 albedo = albedo_at(v_uv);
     vec3 diffuse = E * pow(max(albedo, vec3(0.0)), vec3(1.0 - uMix)) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
-    vec3 spec = vec3(0.0);
-    for (int i = 0; i < uLightCount; ++i) {
-        vec3 L;
-        vec3 Ei = light_incident(i, v_world, L);
-        if (dot(Ng, L) <= 0.0) continue;
-        spec += Ei * shadow_sharp(i, v_world, Ng) * ks_skin_specular(Ns, L, V, m, rho_s, uBeckmannTex) * INV_PI;
-    }
-    // the environment's specular: its mean radiance (E / pi) times the specular albedo a / pi
-    spec += environment_irradiance(reflect(-V, Ns)) * INV_PI * rho_s * rho_dt_lookup(uRhoDtTex, ndv, m) * INV_PI;
+    vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uBeckmannTex);
 
     vec3 color = uOutputMode == 1 ? diffuse : uOutputMode == 2 ? spec : diffuse + spec;
     f_color = vec4(color, 1.0);

@@ -1,7 +1,2 @@
-// A triangle covering the viewport, for texture-space image passes.
-out vec2 v_uv;
-void main() {
-    vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);
-    v_uv = p;
-    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-}
+// Moved to common/fullscreen.vert (shared by tsd and ssss); kept so tsd.py's path still works.
+#include "common/fullscreen.vert"

@@ -5,7 +5,8 @@
 #include "common/surface.glsl"
 #include "common/environment.glsl"
 #include "common/brdf.glsl"
-#include "tsd/energy.glsl"
+#include "common/energy.glsl"
+#include "common/skin_irradiance.glsl"
 
 uniform float uMix;
 in vec3 v_world;
@@ -19,16 +20,7 @@ void main() {
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     float rho_s = specular_intensity(v_uv);
     float m = roughness_at(v_uv);
-    vec3 E = vec3(0.0);
-    for (int i = 0; i < uLightCount; ++i) {
-        vec3 L;
-        vec3 Ei = light_incident(i, v_world, L);
-        float ndl = dot(N, L);
-        if (ndl <= 0.0) continue;
-        E += Ei * ndl * shadow_soft(i, v_world, Ng) * energy_transmitted(rho_s, ndl, m);
-    }
-    // ambient: the environment's irradiance, less the average energy the specular takes (cos 0.5)
-    E += environment_irradiance(N) * energy_transmitted(rho_s, 0.5, m);
+    vec3 E = skin_irradiance(v_world, Ng, N, rho_s, m);  // lights, soft shadows, ambient, energy
     vec3 albedo = albedo_at(v_uv);
     f_irradiance = vec4(E * pow(max(albedo, vec3(0.0)), vec3(uMix)), 1.0);
 }

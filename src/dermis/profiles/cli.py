@@ -1,0 +1,170 @@
+"""``dermis profile``: compute a skin diffusion profile, fit Gaussians, plot it, write it as JSON.
+
+    dermis profile --preset fair --fit 6 --plot p.png --json p.json
+    dermis profile --model multipole --melanin 0.1 --melanin-blend 0.5 --hemoglobin 0.02 --fit 4
+    dermis profile --model mc --preset dark --photons 200000 --json dark-mc.json
+    dermis profile --model deon --fit 4
+
+The plot shows r R(r) (the energy per unit radius, 1/mm) per linear-sRGB channel against log
+radius, with the fitted Gaussians dashed on top. The JSON (profile_json.py) holds the radii, the
+RGB profile, the fitted variances and weights, the fit error and the total reflectance; a
+scene's [skin] section can load it (profile = "file.json").
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import click
+import numpy as np
+
+from dermis.errors import DermisError
+
+MODEL_HELP = ("dipole | multipole | pbd (photon beam diffusion, default) | burley (Christensen-Burley) | "
+              "mc (Monte Carlo, slow) | deon (d'Eon 2007's six Gaussians)")
+
+
+def _parameters(preset, overrides: dict):
+    from dermis.profiles.presets import skin_preset
+    from dermis.profiles.spectral import SkinParameters
+
+    if preset is None:
+        missing = [flag for flag, key in (("--melanin", "melanin_fraction"), ("--hemoglobin", "hemoglobin_fraction"))
+                   if key not in overrides]
+        if missing:
+            raise click.UsageError(f"give --preset NAME or skin parameters ({' and '.join(missing)} missing)")
+        base = SkinParameters(0.0, 0.7, 0.0)
+    else:
+        base = skin_preset(preset)
+    return replace(base, **overrides)
+
+
+def _plot(path, profile, fit, title: str) -> None:
+    """r R(r) per channel on a log radius axis, the fit dashed; written atomically as PNG."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from dermis.profiles.profile_json import write_atomic
+
+    r_low = max(1e-3, float(profile.radius_mm[0]))
+    r_high = float(min(profile.radius_mm[-1], 60.0))
+    radius = np.geomspace(r_low, r_high, 400)
+    values = radius[:, None] * profile.evaluate(radius)
+    figure = Figure(figsize=(7.5, 4.5), dpi=120)
+    FigureCanvasAgg(figure)
+    axes = figure.add_subplot(1, 1, 1)
+    colours = ("#d62728", "#2ca02c", "#1f77b4")
+    for c, (label, colour) in enumerate(zip("RGB", colours)):
+        axes.plot(radius, values[:, c], color=colour, lw=1.8, label=f"{label} profile")
+        if fit is not None:
+            fitted = radius * fit.profile.evaluate(radius)[:, c]
+            axes.plot(radius, fitted, color=colour, lw=1.2, ls="--",
+                      label=f"{label} fit, K={fit.profile.k}, error {100 * fit.relative_error_rgb[c]:.2f} %")
+    axes.set_xscale("log")
+    axes.set_xlabel("radius r (mm)")
+    axes.set_ylabel("r R(r)  (1/mm)")
+    axes.set_title(title, fontsize=10)
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend(fontsize=7, ncol=2 if fit is not None else 1)
+    figure.tight_layout()
+    write_atomic(path, lambda stream: figure.savefig(stream, format="png"))
+
+
+def _check_output(path, suffix: str, option: str):
+    if path is None:
+        return None
+    target = Path(path)
+    if target.suffix.lower() != suffix:
+        raise click.UsageError(f"{option} {path}: the file name must end in {suffix}")
+    if not (target.parent if str(target.parent) else Path(".")).is_dir():
+        raise click.UsageError(f"{option} {path}: folder '{target.parent}' does not exist")
+    return target
+
+
+@click.command("profile")
+@click.option("--model", type=click.Choice(["dipole", "multipole", "pbd", "burley", "mc", "deon"]), default=None,
+              help=MODEL_HELP)
+@click.option("--preset", default=None, help="fair | asian | dark (Donner & Jensen 2006) | deon")
+@click.option("--melanin", type=float, default=None, help="melanin volume fraction C_m, 0..1")
+@click.option("--melanin-blend", type=float, default=None, help="eumelanin share of the melanin beta_m, 0..1 [0.7]")
+@click.option("--hemoglobin", type=float, default=None, help="blood volume fraction C_h, 0..1")
+@click.option("--oxygenation", type=float, default=None, help="oxygenated share of haemoglobin, 0..1 [0.75]")
+@click.option("--epidermis-mm", type=float, default=None, help="epidermis thickness in mm [0.25]")
+@click.option("--fit", "fit_k", type=int, default=None, help="fit K Gaussians with shared variances")
+@click.option("--plot", "plot_path", default=None, help="write a PNG of r R(r) with the fit")
+@click.option("--json", "json_path", default=None, help="write the profile (and fit) as JSON")
+@click.option("--photons", type=int, default=100_000, show_default=True, help="Monte Carlo photons per wavelength")
+@click.option("--seed", type=int, default=0, show_default=True, help="Monte Carlo seed")
+@click.option("--illuminant", default="D65", show_default=True, help="CIE illuminant for the RGB integration")
+@click.option("--wavelength-step", type=int, default=10, show_default=True,
+              help="nm between the wavelengths sampled in 400-700 nm")
+def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, epidermis_mm, fit_k, plot_path,
+                json_path, photons, seed, illuminant, wavelength_step):
+    """Compute a skin diffusion profile from physics, fit Gaussians to it, plot it, save it."""
+    from dermis.profiles.fit import fit_sum_of_gaussians
+    from dermis.profiles.presets import PRESETS
+    from dermis.profiles.profile_json import profile_document, write_profile_json
+    from dermis.profiles.models import deon_profile, skin_profile
+
+    plot_target = _check_output(plot_path, ".png", "--plot")
+    json_target = _check_output(json_path, ".json", "--json")
+    if fit_k is not None and not 1 <= fit_k <= 16:
+        raise click.UsageError(f"--fit {fit_k}: the number of Gaussians must lie in 1..16")
+    if photons < 100:
+        raise click.UsageError(f"--photons {photons}: use at least 100")
+    if not 1 <= wavelength_step <= 100:
+        raise click.UsageError(f"--wavelength-step {wavelength_step}: use 1..100 nm")
+    wavelength = np.arange(400.0, 700.0 + 0.5, wavelength_step)
+    if preset is not None:
+        preset = preset.strip().lower()
+        if preset not in PRESETS:
+            raise click.UsageError(f"--preset {preset}: unknown (known: {', '.join(PRESETS)})")
+    overrides = {key: value for key, value in (
+        ("melanin_fraction", melanin), ("melanin_blend", melanin_blend), ("hemoglobin_fraction", hemoglobin),
+        ("oxygenation", oxygenation), ("epidermis_thickness_mm", epidermis_mm)) if value is not None}
+
+    if preset == "deon" and model not in (None, "deon"):
+        raise click.UsageError(f"--preset deon is d'Eon's Gaussian table; it cannot be computed with --model {model}")
+    parameters = None
+    try:
+        if model == "deon" or preset == "deon":
+            if overrides or (preset not in (None, "deon")):
+                raise click.UsageError("--model deon is a fixed table: it takes no preset or skin parameters")
+            model, profile = "deon", deon_profile()
+        else:
+            model = model or "pbd"
+            parameters = _parameters(preset, overrides)
+            profile = skin_profile(parameters, model, wavelength_nm=wavelength, illuminant=illuminant,
+                                   photons=photons, seed=seed,
+                                   progress=model == "mc", name=preset or "physical")
+        fit = fit_sum_of_gaussians(profile, fit_k) if fit_k is not None else None
+    except DermisError as exc:
+        raise click.ClickException(str(exc)) from None
+
+    label = profile.name if model != "deon" else "deon"
+    click.echo(f"profile: {label}, model {model}")
+    if parameters is not None:
+        click.echo("  melanin %.4g, blend %.3g, hemoglobin %.4g, oxygenation %.3g, epidermis %.3g mm"
+                   % (parameters.melanin_fraction, parameters.melanin_blend, parameters.hemoglobin_fraction,
+                      parameters.oxygenation, parameters.epidermis_thickness_mm))
+    click.echo("  total diffuse reflectance (linear sRGB): " + " ".join(f"{v:.4f}" for v in profile.total_reflectance_rgb))
+    click.echo("  mean radius (mm): " + " ".join(f"{v:.3f}" for v in profile.mean_radius_mm()))
+    if fit is not None:
+        click.echo(f"  fit: {fit.profile.k} Gaussians, r-weighted relative L2 error "
+                   + " ".join(f"{100 * v:.2f}%" for v in fit.relative_error_rgb))
+        for v, w in zip(fit.profile.variances_mm2, fit.profile.weights):
+            click.echo(f"    variance {v:9.5f} mm^2   weights {w[0]:.4f} {w[1]:.4f} {w[2]:.4f}")
+
+    document = profile_document(profile, fit, parameters.to_dict() if parameters is not None else None,
+                                illuminant if model != "deon" else None)
+    try:
+        if json_target is not None:
+            write_profile_json(json_target, document)
+            click.echo(f"wrote {json_target}")
+        if plot_target is not None:
+            title = f"{label} skin, {model} model" + (f", {fit.profile.k}-Gaussian fit" if fit is not None else "")
+            _plot(plot_target, profile, fit, title)
+            click.echo(f"wrote {plot_target}")
+    except (OSError, DermisError) as exc:
+        raise click.ClickException(f"cannot write output: {exc}") from None

@@ -1,0 +1,185 @@
+"""A scene's [skin] section -> the SumOfGaussians every technique blurs with.
+
+    [skin]
+    profile = "deon"            # default: d'Eon et al. 2007's six Gaussians
+    profile = "fair"            # a preset of Donner & Jensen 2006: fair, asian, dark
+    profile = "physical"        # skin parameters:
+    melanin = 0.05              #   C_m, melanin volume fraction      (required)
+    hemoglobin = 0.01           #   C_h, blood volume fraction        (required)
+    melanin_blend = 0.7         #   beta_m, eumelanin share           (default 0.7)
+    oxygenation = 0.75          #   gamma, oxy-haemoglobin share      (default 0.75)
+    epidermis_mm = 0.25         #   epidermis thickness               (default 0.25)
+    model = "pbd"               #   dipole, multipole, pbd or burley  (default pbd)
+    gaussians = 6               #   K, the number of Gaussians        (default 6)
+    profile = "skin.json"       # a file written by `dermis profile --json` (relative to the scene)
+
+A preset accepts the physical keys too, as overrides of its values. The weights of the result
+carry colour: per channel they split the total diffuse reflectance among the Gaussians (the
+renderer may normalise them). Results are cached in memory and on disk (under
+$DERMIS_CACHE_DIR, else $XDG_CACHE_HOME/dermis, else ~/.cache/dermis; DERMIS_CACHE_DIR=off
+disables the disk cache); a physical profile and its fit take about 1 s when not cached.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import replace
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from dermis.errors import DermisError
+from dermis.profiles.gaussians import SumOfGaussians, deon_skin
+
+PHYSICAL_KEYS = {"melanin": "melanin_fraction", "melanin_blend": "melanin_blend",
+                 "hemoglobin": "hemoglobin_fraction", "oxygenation": "oxygenation",
+                 "epidermis_mm": "epidermis_thickness_mm"}
+SKIN_KEYS = ("profile", *PHYSICAL_KEYS, "model", "gaussians")
+SCENE_MODELS = ("dipole", "multipole", "pbd", "burley")
+CACHE_VERSION = 1  # bump when a model's numbers change
+
+
+def _cache_folder() -> Path | None:
+    setting = os.environ.get("DERMIS_CACHE_DIR")
+    if setting is not None:
+        return None if setting.strip().lower() in ("", "0", "off", "none") else Path(setting)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "dermis"
+
+
+def _disk_cache_path(key: str) -> Path | None:
+    folder = _cache_folder()
+    if folder is None:
+        return None
+    return folder / "profiles" / (hashlib.sha256(key.encode()).hexdigest()[:32] + ".json")
+
+
+@lru_cache(maxsize=64)
+def _fitted_physical(model: str, parameters: tuple, k: int):
+    """(variances, weights, relative error) of a physical profile's K-Gaussian fit, cached."""
+    from dermis.profiles import models
+    from dermis.profiles.fit import fit_sum_of_gaussians
+    from dermis.profiles.spectral import DEFAULT_WAVELENGTHS_NM, SkinParameters
+
+    key = json.dumps([CACHE_VERSION, model, parameters, k, DEFAULT_WAVELENGTHS_NM.tolist()])
+    path = _disk_cache_path(key)
+    if path is not None and path.is_file():
+        try:
+            stored = json.loads(path.read_text())
+            if stored.get("key") == key:
+                return tuple(stored["variances_mm2"]), tuple(map(tuple, stored["weights_rgb"])), stored["error"]
+        except (OSError, ValueError, KeyError, TypeError):
+            pass  # a damaged cache entry is recomputed
+    profile = models.skin_profile(SkinParameters(*parameters), model)
+    fit = fit_sum_of_gaussians(profile, k)
+    result = (tuple(fit.profile.variances_mm2.tolist()), tuple(map(tuple, fit.profile.weights.tolist())),
+              fit.relative_error)
+    if path is not None:
+        try:
+            from dermis.profiles.profile_json import write_atomic
+
+            path.parent.mkdir(parents=True, exist_ok=True)
+            text = json.dumps({"key": key, "variances_mm2": result[0], "weights_rgb": result[1],
+                               "error": result[2]}).encode()
+            write_atomic(path, lambda stream: stream.write(text))
+        except (OSError, DermisError):
+            pass  # the cache is an optimisation only
+    return result
+
+
+def physical_gaussians(parameters, model: str = "pbd", k: int = 6, name: str = "physical") -> SumOfGaussians:
+    """The K-Gaussian fit of the skin profile of ``parameters`` (SkinParameters), cached."""
+    from dermis.profiles.fit import _check_k
+
+    if model not in SCENE_MODELS:
+        raise DermisError(f"model '{model}' is not available here (use {', '.join(SCENE_MODELS)})")
+    k = _check_k(k)
+    fields = (parameters.melanin_fraction, parameters.melanin_blend, parameters.hemoglobin_fraction,
+              parameters.oxygenation, parameters.epidermis_thickness_mm, parameters.refractive_index,
+              parameters.anisotropy)
+    variances, weights, _ = _fitted_physical(model, tuple(float(v) for v in fields), k)
+    return SumOfGaussians(np.array(variances), np.array(weights), name)
+
+
+@lru_cache(maxsize=8)
+def _refit_deon(k: int):
+    from dermis.profiles.fit import fit_sum_of_gaussians
+    from dermis.profiles.models import deon_profile
+
+    fit = fit_sum_of_gaussians(deon_profile(), k)
+    return fit.profile.variances_mm2.tolist(), fit.profile.weights.tolist()
+
+
+def _number(section, key, source):
+    value = section[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise DermisError(f"{source}: [skin] {key} must be a number, got {value!r}")
+    return float(value)
+
+
+def resolve_skin_profile(section: dict, base_dir: Path, source: str) -> SumOfGaussians:
+    """The SumOfGaussians of a scene's [skin] table (see the module docstring for the keys)."""
+    from dermis.profiles.presets import SKIN_PRESETS, PRESETS
+    from dermis.profiles.spectral import SkinParameters
+
+    if not isinstance(section, dict):
+        raise DermisError(f"{source}: [skin] must be a table")
+    for key in section:
+        if key not in SKIN_KEYS:
+            raise DermisError(f"{source}: unknown key '{key}' in [skin] (known: {', '.join(SKIN_KEYS)})")
+    profile = section.get("profile", "deon")
+    if not isinstance(profile, str) or not profile.strip():
+        raise DermisError(f"{source}: [skin] profile must be a name or a file, got {profile!r}")
+    k = section.get("gaussians")
+    if k is not None and (isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= 16):
+        raise DermisError(f"{source}: [skin] gaussians must be an integer in 1..16, got {k!r}")
+    physical = {key: _number(section, key, source) for key in PHYSICAL_KEYS if key in section}
+    model = section.get("model")
+    name = profile.strip().lower()
+
+    if name in SKIN_PRESETS or name == "physical":
+        if model is not None and model not in SCENE_MODELS:
+            raise DermisError(f"{source}: [skin] model '{model}' is unknown (use {', '.join(SCENE_MODELS)})")
+        if name == "physical":
+            missing = [key for key in ("melanin", "hemoglobin") if key not in physical]
+            if missing:
+                raise DermisError(f"{source}: [skin] profile = \"physical\" needs '{missing[0]}'")
+        try:
+            base = SkinParameters(0.0, 0.7, 0.0) if name == "physical" else SKIN_PRESETS[name]
+            parameters = replace(base, **{PHYSICAL_KEYS[key]: value for key, value in physical.items()})
+        except DermisError as exc:
+            raise DermisError(f"{source}: [skin] {exc}") from None
+        return physical_gaussians(parameters, model or "pbd", k or 6, name)
+
+    extras = [key for key in (*PHYSICAL_KEYS, "model") if key in section]
+    if name == "deon":
+        if extras:
+            raise DermisError(f"{source}: [skin] '{extras[0]}' does not apply to profile = \"deon\"")
+        if k is None or k == 6:
+            return deon_skin()
+        variances, weights = _refit_deon(k)
+        return SumOfGaussians(np.array(variances), np.array(weights), f"deon-{k}")
+
+    # A profile file written by `dermis profile --json`, relative to the scene's folder
+    if not profile.lower().endswith(".json"):
+        raise DermisError(f"{source}: [skin] profile '{profile}' is unknown "
+                          f"(use {', '.join(PRESETS)}, physical, or a profile .json file)")
+    if extras:
+        raise DermisError(f"{source}: [skin] '{extras[0]}' does not apply to a profile file")
+    base = Path(base_dir).resolve()
+    path = (base / profile).resolve()
+    if not path.is_relative_to(base):
+        raise DermisError(f"{source}: [skin] profile file '{profile}' lies outside the scene's folder {base}")
+    if not path.is_file():
+        raise DermisError(f"{source}: [skin] profile file '{profile}' does not exist")
+    from dermis.profiles.profile_json import read_profile_json
+
+    radial, gaussians = read_profile_json(path)
+    if gaussians is not None and (k is None or k == gaussians.k):
+        return gaussians
+    from dermis.profiles.fit import fit_sum_of_gaussians
+
+    return fit_sum_of_gaussians(radial, k or 6, name=path.stem).profile

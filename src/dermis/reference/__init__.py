@@ -1,0 +1,1 @@
+"""Offline reference renderer (see render.py)."""

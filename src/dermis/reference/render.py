@@ -1,0 +1,251 @@
+"""The offline reference renderer: the same skin model as the real-time techniques, integrated
+directly over the surface instead of in texture or screen space.
+
+For each pixel, camera rays (dermis.camera's matrices; ``spp`` sub-pixel positions, 4 = the
+standard 4x MSAA pattern the real-time renderer resolves) find the visible points x by ray casting
+(raycast.Bvh). There the renderer evaluates, as tsd/final.frag does,
+
+    L_o(x) = [sum_k w_k(rgb) sum_y A_y G(v_k, |x - y|) E'(y)] albedo(x)^(1 - mix) / pi (1 - rho_s a(N.V, m) / pi)
+             + specular(x)
+
+where y runs over area-weighted surface samples (sampling.surface_samples, A_y their area in
+mm^2), E'(y) is the irradiance that scatters (shading.scattered_irradiance: exact ray-cast
+shadows, energy left by the specular, unoccluded SH ambient, times albedo^mix), |x - y| is the
+true 3-D distance in mm (integrate.py: KD-tree, per-Gaussian cutoff at 1e-4 of its peak, so light
+through ears and nostrils is part of the same integral), w_k the profile's weights normalised
+per channel (as tsd's), and the specular is KS_Skin_Specular with the same hard shadow and the
+same environment term (shading.specular_and_exit). The procedural pore normals of the real-time
+final pass are not reproduced: compare with ``pore_strength = 0`` (``dermis validate`` does).
+
+Output: as Renderer.render, linear float32 (H, W, 3), row 0 = top, the scene's background where
+no sub-pixel ray hits the mesh (sub-pixel results averaged, like an MSAA resolve).
+Deterministic for a given seed. Cost grows with the visible area / min_spacing^2.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from dermis.camera import camera_matrices
+from dermis.errors import DermisError
+from dermis.reference.integrate import gather, plan_levels
+from dermis.reference.raycast import Bvh
+from dermis.reference.sampling import SurfaceModel, surface_samples
+from dermis.reference.shading import LightRig, scattered_irradiance, specular_and_exit
+
+MSAA4 = np.array([(-2, -6), (6, -2), (-6, 2), (2, 6)], np.float64) / 16.0
+"""The standard 4x multisample positions (offsets from the pixel centre, in pixels, y down)."""
+DEFAULT_MAX_SPACING_MM = 0.25
+"""Upper bound of the automatic finest sample spacing (mm)."""
+SPACING_PER_PIXEL = 0.35
+"""Automatic finest sample spacing: this fraction of the median pixel footprint on the surface."""
+IRRADIANCE_CHUNK = 200_000
+
+
+@dataclass
+class ReferenceResult:
+    image: np.ndarray  # (H, W, 3) float32 linear radiance, background where nothing is hit
+    coverage: np.ndarray  # (H, W) float32: fraction of sub-pixel rays that hit the mesh
+    diffuse: np.ndarray  # (H, W, 3) float32, mean over the hitting sub-pixel rays (0 elsewhere)
+    specular: np.ndarray  # (H, W, 3) float32, likewise
+    stats: dict = field(default_factory=dict)
+
+
+def subpixel_offsets(spp: int) -> np.ndarray:
+    """(spp, 2) offsets from the pixel centre in pixels (x right, y down)."""
+    if spp == 1:
+        return np.zeros((1, 2))
+    if spp == 4:
+        return MSAA4.copy()
+    n = int(round(math.sqrt(spp)))
+    if n * n != spp:
+        raise DermisError(f"--spp must be 1, 4 or a square number, got {spp}")
+    g = (np.arange(n) + 0.5) / n - 0.5
+    xx, yy = np.meshgrid(g, g)
+    return np.stack([xx.ravel(), yy.ravel()], 1)
+
+
+def camera_rays(scene, size, spp: int = 1, camera=None):
+    """World-space rays (scene units) through the sub-pixel positions of every pixel.
+
+    Returns (origins (H*W*spp, 3), unit directions, tmax along them, eye); ray p*spp + s belongs to
+    pixel p = row * W + col (row 0 = top), sub-pixel s. Origins lie on the near plane.
+    """
+    w, h = size
+    cam = camera or scene.camera
+    lo, hi = scene.bounds()
+    view, proj, eye, near, far = camera_matrices(cam, w / h, lo, hi)
+    inv = np.linalg.inv(proj @ view)
+    offs = subpixel_offsets(spp)
+    cols, rows = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    px = (cols.reshape(-1, 1) + 0.5 + offs[None, :, 0]).reshape(-1)
+    py = (rows.reshape(-1, 1) + 0.5 + offs[None, :, 1]).reshape(-1)
+    ndc_x = px / w * 2.0 - 1.0
+    ndc_y = 1.0 - py / h * 2.0
+
+    def unproject(z):
+        q = np.stack([ndc_x, ndc_y, np.full_like(ndc_x, z), np.ones_like(ndc_x)], 1) @ inv.T
+        return q[:, :3] / q[:, 3:4]
+
+    a, b = unproject(-1.0), unproject(1.0)
+    d = b - a
+    length = np.linalg.norm(d, axis=1)
+    return a, d / length[:, None], length, eye
+
+
+class _Progress:
+    def __init__(self, enabled, total):
+        self.bar = None
+        if enabled:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=int(total), unit="pt", unit_scale=True, desc="reference", leave=True, dynamic_ncols=True)
+
+    def stage(self, name):
+        if self.bar is not None:
+            self.bar.set_description(name)
+
+    def __call__(self, n):
+        if self.bar is not None:
+            self.bar.update(int(n))
+
+    def add_total(self, n):
+        if self.bar is not None:
+            self.bar.total += int(n)
+            self.bar.refresh()
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: float | None = None, seed: int = 0,
+                     progress: bool = True, camera=None) -> ReferenceResult:
+    """Render ``scene`` offline; see the module docstring. ``min_spacing_mm``: the finest surface
+    sample spacing (default: SPACING_PER_PIXEL of the median pixel footprint, at most 0.25 mm)."""
+    from dermis.renderer import check_size
+
+    w, h = check_size(size)
+    if spp < 1:
+        raise DermisError(f"--spp must be >= 1, got {spp}")
+    if len(scene.lights) > LightRig.MAX_LIGHTS:
+        raise DermisError(f"{scene.source}: the reference handles at most {LightRig.MAX_LIGHTS} lights, as the techniques do")
+    t_start = time.perf_counter()
+    timings = {}
+    mm = float(scene.mm_per_unit)
+    t0 = time.perf_counter()
+    surface = SurfaceModel(scene)
+    bvh = Bvh(surface.positions_mm, surface.indices)
+    rig = LightRig(scene, surface, bvh)
+    timings["setup_s"] = time.perf_counter() - t0
+
+    # visible points
+    t0 = time.perf_counter()
+    origins, dirs, tmax, eye = camera_rays(scene, (w, h), spp, camera)
+    t_hit, tri, bary = bvh.closest_hit(origins * mm, dirs, 0.0, tmax * mm)
+    hit = tri >= 0
+    hit_idx = np.nonzero(hit)[0]
+    timings["camera_rays_s"] = time.perf_counter() - t0
+    n_hits = len(hit_idx)
+    eye_mm = np.asarray(eye, np.float64) * mm
+    profile = scene.profile.normalized()
+    stats = {"size": [w, h], "spp": spp, "camera_rays": int(len(tri)), "visible_points": n_hits, "seed": seed,
+             "triangles": int(len(surface.indices)), "bvh_nodes": int(bvh.node_count)}
+
+    diffuse = np.zeros((n_hits, 3))
+    specular = np.zeros((n_hits, 3))
+    if n_hits:
+        attrs_x = surface.interpolate(tri[hit_idx], bary[hit_idx])
+        xq = attrs_x["position"]
+        # finest spacing from the pixel footprint: distance * (2 tan(fov/2) / H)
+        cam = camera or scene.camera
+        foot = t_hit[hit_idx] * 2.0 * math.tan(math.radians(cam.fov_deg) / 2.0) / h
+        pixel_mm = float(np.median(foot))
+        if min_spacing_mm is None:
+            min_spacing_mm = min(DEFAULT_MAX_SPACING_MM, SPACING_PER_PIXEL * pixel_mm)
+        if not min_spacing_mm > 0:
+            raise DermisError(f"--spacing must be > 0 mm, got {min_spacing_mm}")
+        levels, sets = plan_levels(profile, min_spacing_mm)
+        stats.update({"pixel_footprint_mm": pixel_mm, "min_spacing_mm": float(min_spacing_mm),
+                      "gaussians": [{"variance_mm2": l.variance_mm2, "integrated_variance_mm2": l.effective_variance_mm2,
+                                     "cutoff_mm": l.cutoff_mm, "sample_set": l.set_index} for l in levels]})
+        # triangles each set must cover: within its cutoff of a visible point
+        t0 = time.perf_counter()
+        vis_tree = cKDTree(xq)
+        plans = []
+        for s in sets:
+            dist, _ = vis_tree.query(surface.centroids, k=1, distance_upper_bound=s.cutoff_mm + float(surface.radii.max()))
+            near = np.isfinite(dist) & (dist <= s.cutoff_mm + surface.radii)
+            tris_s = np.nonzero(near)[0]
+            st, sb, sw = surface_samples(surface.v0, surface.v1, surface.v2, tris_s, s.spacing_mm, seed=seed * 7919 + len(plans))
+            plans.append((s, st, sb, sw))
+        timings["sampling_s"] = time.perf_counter() - t0
+        total_samples = sum(len(p[1]) for p in plans)
+        bar = _Progress(progress, total_samples + n_hits * len(plans) + n_hits)
+        try:
+            set_stats = []
+            C = np.zeros((n_hits, profile.k, 3))
+            t_irr = t_gather = 0.0
+            pairs_total = 0
+            for si, (s, st, sb, sw) in enumerate(plans):
+                bar.stage(f"irradiance {si + 1}/{len(plans)}")
+                t0 = time.perf_counter()
+                pos = np.empty((len(st), 3))
+                val = np.empty((len(st), 3))
+                for c0 in range(0, len(st), IRRADIANCE_CHUNK):
+                    c1 = min(len(st), c0 + IRRADIANCE_CHUNK)
+                    a = surface.interpolate(st[c0:c1], sb[c0:c1])
+                    pos[c0:c1] = a["position"]
+                    val[c0:c1] = scattered_irradiance(surface, rig, a)
+                    bar(c1 - c0)
+                t_irr += time.perf_counter() - t0
+                bar.stage(f"profile integral {si + 1}/{len(plans)}")
+                t0 = time.perf_counter()
+                ks = [l.index for l in s.levels]
+                out, pairs, _ = gather(xq, pos, sw, val, [l.effective_variance_mm2 for l in s.levels],
+                                       [l.cutoff_mm for l in s.levels], progress=bar)
+                C[:, ks, :] = out
+                pairs_total += pairs
+                t_gather += time.perf_counter() - t0
+                set_stats.append({"spacing_mm": s.spacing_mm, "cutoff_mm": s.cutoff_mm, "gaussians": ks,
+                                  "triangles": int(len(np.unique(st))), "samples": int(len(st)),
+                                  "area_mm2": float(sw.sum()), "pairs": int(pairs)})
+            timings["irradiance_s"] = t_irr
+            timings["profile_integral_s"] = t_gather
+            bar.stage("specular")
+            t0 = time.perf_counter()
+            spec, exit_factor = specular_and_exit(surface, rig, attrs_x, eye_mm)
+            bar(n_hits)
+            timings["specular_s"] = time.perf_counter() - t0
+        finally:
+            bar.close()
+        scattered = np.einsum("nkc,kc->nc", C, profile.weights)
+        diffuse = scattered * exit_factor
+        specular = spec
+        stats["sample_sets"] = set_stats
+        stats["samples"] = int(total_samples)
+        stats["pairs"] = int(pairs_total)
+
+    # resolve sub-pixel samples into pixels
+    bg = np.asarray(scene.output.background, np.float64)
+    rad = np.broadcast_to(bg, (len(tri), 3)).copy()
+    rad[hit_idx] = diffuse + specular
+    image = rad.reshape(h, w, spp, 3).mean(axis=2)
+    cov = hit.reshape(h, w, spp).mean(axis=2)
+    dsum = np.zeros((len(tri), 3))
+    ssum = np.zeros((len(tri), 3))
+    dsum[hit_idx] = diffuse
+    ssum[hit_idx] = specular
+    nh = np.maximum(hit.reshape(h, w, spp).sum(axis=2), 1)[:, :, None]
+    stats["timings_s"] = {k: round(v, 3) for k, v in timings.items()}
+    stats["total_s"] = round(time.perf_counter() - t_start, 3)
+    if not np.all(np.isfinite(image)):
+        raise DermisError(f"{scene.source}: the reference produced NaN or infinite values (bad scene values?)")
+    return ReferenceResult(image=image.astype(np.float32), coverage=cov.astype(np.float32),
+                           diffuse=(dsum.reshape(h, w, spp, 3).sum(axis=2) / nh).astype(np.float32),
+                           specular=(ssum.reshape(h, w, spp, 3).sum(axis=2) / nh).astype(np.float32), stats=stats)

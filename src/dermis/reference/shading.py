@@ -1,0 +1,144 @@
+"""Lighting for the offline reference: the real-time shaders' formulas with exact ray-cast shadows.
+
+Numpy twins of common/lights.glsl (light_incident), tsd/irradiance.frag (the irradiance that
+scatters) and the specular of tsd/final.frag. The one intended difference: visibility is a
+ray cast against the mesh through a BVH (hard, exact shadows, both faces occlude) where the
+real-time techniques look up PCF-filtered shadow maps; the specular uses the same hard shadow
+(the real-time "sharp" lookup approximates it). A point whose interpolated normal faces away
+from a light (Ng . L <= 0) is in its own shadow, as the real-time shadow maps make it.
+
+Environment light is the same unoccluded spherical-harmonic irradiance the real-time techniques
+use (common/environment.glsl), so a comparison isolates the scattering and the shadows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dermis.specular import ksk_specular
+
+INV_PI = 1.0 / np.pi
+SHADOW_EPSILON_REL = 1e-6
+"""Shadow-ray origin offset along the face normal, relative to the mesh's bounding diagonal."""
+
+
+def _smoothstep(e0, e1, x):
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+class LightRig:
+    """The scene's lights (at most 8, as the real-time techniques) in millimetres."""
+
+    MAX_LIGHTS = 8
+
+    def __init__(self, scene, surface, bvh):
+        self.surface = surface
+        self.bvh = bvh
+        mm = float(scene.mm_per_unit)
+        self.lights = []
+        for L in scene.lights[: self.MAX_LIGHTS]:
+            d = np.asarray(L.direction, np.float64)
+            d = d / max(np.linalg.norm(d), 1e-300)
+            outer = np.cos(np.radians(L.spot_angle_deg))
+            inner = max(np.cos(np.radians(L.spot_angle_deg * (1 - L.spot_blend))), outer + 1e-4)
+            self.lights.append({"kind": L.kind, "direction": d, "position_mm": np.asarray(L.position, np.float64) * mm,
+                                "radiance": np.asarray(L.radiance_rgb(), np.float64), "cast_shadows": bool(L.cast_shadows),
+                                "spot": (outer, inner)})
+        lo, hi = scene.bounds()
+        self.epsilon_mm = SHADOW_EPSILON_REL * float(np.linalg.norm((hi - lo) * mm)) + 1e-9
+
+    def incident(self, i, p_mm):
+        """light_incident() of common/lights.glsl: (L (n, 3) unit, E (n, 3) irradiance at normal
+        incidence, distance to the light in mm (inf for directional))."""
+        lt = self.lights[i]
+        n = len(p_mm)
+        if lt["kind"] == "directional":
+            L = np.broadcast_to(-lt["direction"], (n, 3)).copy()
+            return L, np.broadcast_to(lt["radiance"], (n, 3)).copy(), np.full(n, np.inf)
+        d = lt["position_mm"] - p_mm
+        dist = np.linalg.norm(d, axis=1)
+        L = d / np.maximum(dist, 1e-300)[:, None]
+        dist_m = np.maximum(dist * 1e-3, 1e-4)
+        E = lt["radiance"][None, :] / (dist_m * dist_m)[:, None]
+        if lt["kind"] == "spot":
+            c = np.sum(-L * lt["direction"], axis=1)
+            E = E * _smoothstep(lt["spot"][0], lt["spot"][1], c)[:, None]
+        return L, E, dist
+
+    def visibility(self, i, attrs, L, dist, origins=None):
+        """1 where light i reaches the point unoccluded (exact ray cast), else 0."""
+        ng = attrs["normal_geo"]
+        facing = np.sum(ng * L, axis=1) > 0.0
+        vis = facing.astype(np.float64)
+        if not self.lights[i]["cast_shadows"]:
+            return vis
+        idx = np.nonzero(facing)[0]
+        if len(idx) == 0:
+            return vis
+        s = self.surface
+        o = s.shadow_origin(attrs) if origins is None else origins
+        fn = s.face_normals[attrs["tri"]]
+        fn = np.where((np.sum(fn * ng, axis=1) < 0)[:, None], -fn, fn)
+        o = o[idx] + fn[idx] * self.epsilon_mm
+        tmax = dist[idx] - self.epsilon_mm
+        occ = self.bvh.occluded(o, L[idx], 0.0, tmax, skip=attrs["tri"][idx])
+        vis[idx[occ]] = 0.0
+        return vis
+
+
+def scattered_irradiance(surface, rig, attrs):
+    """tsd/irradiance.frag with exact shadows: the light that enters the skin and scatters,
+    sum_i E_i max(N.L, 0) V_i (1 - rho_s a(N.L, m)/pi) + E_env(N) (1 - rho_s a(0.5, m)/pi),
+    times albedo^mix. Returns (n, 3)."""
+    n_map = surface.shading_normal(attrs)
+    rho_s = surface.rho_s(attrs)
+    E = np.zeros((len(n_map), 3))
+    p = attrs["position"]
+    origins = None
+    for i in range(len(rig.lights)):
+        L, Ei, dist = rig.incident(i, p)
+        ndl = np.sum(n_map * L, axis=1)
+        lit = ndl > 0.0
+        if not lit.any():
+            continue
+        if origins is None and rig.lights[i]["cast_shadows"]:
+            origins = surface.shadow_origin(attrs)
+        vis = rig.visibility(i, attrs, L, dist, origins)
+        f = np.where(lit, ndl, 0.0) * vis * surface.energy_transmitted(rho_s, np.clip(ndl, 0.0, 1.0))
+        E += Ei * f[:, None]
+    E += surface.ambient(n_map) * surface.energy_transmitted(rho_s, np.full(len(rho_s), 0.5))[:, None]
+    mix = float(surface.material.mix)
+    return E * surface.albedo(attrs) ** mix
+
+
+def specular_and_exit(surface, rig, attrs, eye_mm):
+    """At visible points: (specular (n, 3), exit factor albedo^(1 - mix) / pi * (1 - rho_s a(N.V, m)/pi)
+    (n, 3)), as tsd/final.frag computes them (without the procedural pore normals)."""
+    p = attrs["position"]
+    ng = attrs["normal_geo"]
+    n_map = surface.shading_normal(attrs)
+    rho_s = surface.rho_s(attrs)
+    m = float(surface.material.roughness)
+    V = eye_mm[None, :] - p
+    V /= np.maximum(np.linalg.norm(V, axis=1, keepdims=True), 1e-300)
+    ndv = np.clip(np.sum(n_map * V, axis=1), 0.0, 1.0)
+    spec = np.zeros((len(p), 3))
+    origins = None
+    for i in range(len(rig.lights)):
+        L, Ei, dist = rig.incident(i, p)
+        front = np.sum(ng * L, axis=1) > 0.0
+        if not front.any():
+            continue
+        if origins is None and rig.lights[i]["cast_shadows"]:
+            origins = surface.shadow_origin(attrs)
+        vis = rig.visibility(i, attrs, L, dist, origins)
+        ks = ksk_specular(n_map, L, V, m, rho_s)
+        spec += Ei * (np.where(front, vis * ks, 0.0) * INV_PI)[:, None]
+    # the environment's specular: mean radiance E(R)/pi times the specular albedo rho_s a / pi
+    R = 2.0 * np.sum(n_map * V, axis=1, keepdims=True) * n_map - V
+    a = surface.specular_albedo(ndv, m)
+    spec += surface.ambient(R) * (INV_PI * rho_s * a * INV_PI)[:, None]
+    mix = float(surface.material.mix)
+    exit_factor = surface.albedo(attrs) ** (1.0 - mix) * INV_PI * surface.energy_transmitted(rho_s, ndv)[:, None]
+    return spec, exit_factor

@@ -1,0 +1,29 @@
+// Separable SSS, pass 1 (Jimenez et al. 2009, 2015): the light that enters the skin, in screen
+// space, into a non-multisampled float target of the frame's size:
+//   rgb = (E + T) * albedo^mix   E from common/skin_irradiance.glsl (lights, soft shadows, ambient,
+//                                energy conservation), T the light transmitted through thin parts
+//                                (common/transmittance.glsl, Jimenez et al. 2010)
+//   a   = view-space depth in mm (> 0; the target is cleared to 0 = no surface)
+// The blur passes scale their kernels by this depth and compare depths to follow the surface.
+#include "common/surface.glsl"
+#include "common/skin_irradiance.glsl"
+#include "common/transmittance.glsl"
+
+uniform float uMix;
+uniform vec4 uViewZ;  // third row of the view matrix: view-space z = dot(uViewZ, (P, 1)), < 0 in front
+in vec3 v_world;
+in vec3 v_normal;
+in vec2 v_uv;
+in vec4 v_tangent;
+out vec4 f_irradiance;
+
+void main() {
+    vec3 Ng = normalize(v_normal);
+    vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
+    float rho_s = specular_intensity(v_uv);
+    float m = roughness_at(v_uv);
+    vec3 E = skin_irradiance(v_world, Ng, N, rho_s, m) + transmitted_irradiance(v_world, Ng);
+    vec3 albedo = albedo_at(v_uv);
+    float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
+    f_irradiance = vec4(E * pow(albedo, vec3(uMix)), depth_mm);
+}

@@ -1,0 +1,238 @@
+"""Pre-integrated skin (``preintegrated``): Penner & Borshukov 2011, "Pre-Integrated Skin Shading"
+(GPU Pro 2, ch. II.1; SIGGRAPH 2011 course "Pre-Integrated Skin Rendering"); NVIDIA FaceWorks.
+
+What it approximates: the diffusion profile's convolution of the light, WITHOUT any blur pass,
+from three local quantities looked up in tables computed at start-up from the active profile
+(the same Gaussians as every other technique, weights normalised per channel):
+
+* curvature: the surface near a point is taken as a ring of radius r = 1 / curvature; light
+  scattered from around the ring wraps past the terminator and reddens it (Penner eq. 1):
+      D(theta, r) = int_{-pi}^{pi} max(cos(theta + x), 0) R(2 r sin(x / 2)) dx
+                    / int_{-pi}^{pi} R(2 r sin(x / 2)) dx              per channel, theta = acos(N.L)
+  At zero curvature D is max(N.L, 0); for every curvature its integral over the light angle is
+  that of max(N.L, 0) (the ring only moves light around). Curvature is precomputed per vertex
+  from the mesh (the mean of the normal curvatures along the edges, 1/mm through mm_per_unit) and
+  falls back to length(fwidth(N)) / length(fwidth(P)) (Penner) when ``curvature_source`` is
+  "derivatives".
+* shadows: a soft (PCF) shadow value s in [0, 1] is a position across the penumbra; Penner's
+  second table scatters a shadow edge with the profile: the edge, sharpened to
+  ``PENUMBRA_SHARPEN`` of the penumbra's width w (mm on the surface, from the shadow map's texel
+  size, the PCF radius and N.L), convolved with the profile across the edge (its 1-D marginal:
+  the same Gaussians in 1-D) and rescaled to [0, 1] over the penumbra, per channel: red wraps
+  further into the shadow than green and blue.
+* surface detail: the normal map is read per channel at the mip level whose texel footprint
+  matches that channel's scattering radius (Penner's "blurred normals": red uses the blurriest).
+
+Everything else is shared with the other techniques: lights, shadows, environment, specular
+(common/skin_specular.glsl), energy conservation (N.L in, N.V out) and the translucency of thin
+parts from the shadow map's thickness (common/transmittance.glsl, Jimenez et al. 2010).
+Known failure modes: light crosses no geometry (nothing bleeds around a nostril's edge or into
+a crease's shadow beyond the penumbra; the shadow table only reshapes the PCF penumbra), the
+ring model assumes one curvature at a scale of the profile's width (mesh curvature finer than
+that is meaningless, a coarse mesh blurs it), and saddle points read as flat (mean curvature).
+Shaders: shaders/preintegrated/skin.frag.
+"""
+
+from __future__ import annotations
+
+import math
+
+import moderngl
+import numpy as np
+
+from dermis.gl.resources import VERTEX_ATTRS, VERTEX_FORMAT, set_uniform
+from dermis.gl.shaders import program
+from dermis.gl.tables import upload_specular_tables
+from dermis.techniques.base import Frame, Technique, draw_mesh, set_profile_uniforms
+from dermis.techniques.ssss import MAX_GAUSSIANS, translucency_uniforms
+
+# The diffuse table: N.L along s (odd, so N.L = 0 is a texel centre and max(N.L, 0) interpolates
+# exactly), curvature along t on a square-root axis (fine steps where faces mostly are).
+DIFFUSE_TABLE_SIZE = (257, 64)  # (N.L, curvature)
+CURVATURE_MAX_PER_MM = 1.0  # r = 1 mm: thinner than an ear's rim; higher curvatures clamp
+# The penumbra table: shadow value along s, penumbra width along t (log axis).
+PENUMBRA_TABLE_SIZE = (129, 64)  # (shadow value, width)
+PENUMBRA_WIDTH_RANGE_MM = (0.05, 100.0)
+PENUMBRA_SHARPEN_MIN = 0.5  # the sharpened edge keeps at least this fraction of the PCF penumbra
+RING_PROFILE = "line"  # the ring's kernel: "line" (the profile integrated across the ring) or "radial" (Penner)
+
+UNIT_RHO_DT, UNIT_BECKMANN, UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE = 5, 6, 7, 8
+
+_TABLE_CACHE: dict = {}
+
+
+# ---------------------------------------------------------------------- tables (numpy)
+def ndotl_axis(n: int = DIFFUSE_TABLE_SIZE[0]) -> np.ndarray:
+    """N.L at the table's columns: -1 .. 1 at texel centres."""
+    return np.linspace(-1.0, 1.0, n)
+
+
+def curvature_axis(n: int = DIFFUSE_TABLE_SIZE[1]) -> np.ndarray:
+    """Curvature (1/mm) at the table's rows: CURVATURE_MAX * (j / (n - 1))^2."""
+    return CURVATURE_MAX_PER_MM * np.linspace(0.0, 1.0, n) ** 2
+
+
+def shadow_axis(n: int = PENUMBRA_TABLE_SIZE[0]) -> np.ndarray:
+    return np.linspace(0.0, 1.0, n)
+
+
+def penumbra_width_axis(n: int = PENUMBRA_TABLE_SIZE[1]) -> np.ndarray:
+    """Penumbra widths (mm) at the table's rows, log-spaced over PENUMBRA_WIDTH_RANGE_MM."""
+    lo, hi = PENUMBRA_WIDTH_RANGE_MM
+    return lo * (hi / lo) ** np.linspace(0.0, 1.0, n)
+
+
+def _profile_key(profile, *extra):
+    return (np.asarray(profile.variances_mm2, np.float64).tobytes(), np.asarray(profile.weights, np.float64).tobytes(), extra)
+
+
+def ring_kernel(profile, distance_mm, ring_profile: str = "line") -> np.ndarray:
+    """The weight, per channel, of ring points at chord distance d (mm): (len(d), 3).
+
+    "radial": Penner's literal R(d), the 2-D radial profile. "line" (dermis's default): the
+    profile integrated across the ring, sum_k w_k exp(-d^2 / 2 v_k) / sqrt(2 pi v_k) (a 2-D
+    Gaussian's line integral is the 1-D Gaussian of the same variance). A ring stands for a
+    curved surface, and integrating R over a CYLINDER's surface (ring angle x, axis y) gives
+    exactly the ring integral with this kernel, since chord^2 = (2 r sin(x/2))^2 + y^2. With the
+    radial kernel each Gaussian counts w_k / sqrt(2 pi v_k) instead of w_k: the narrow ones dominate
+    and the wrap past the terminator is 3-7x weaker than on a sphere of the same radius (d'Eon's
+    red at 1/r = 0.1-0.3 /mm, N.L = 0); the line kernel is within 10% of the sphere there."""
+    prof = profile.normalized()
+    d = np.asarray(distance_mm, np.float64)
+    v = prof.variances_mm2
+    if ring_profile == "radial":
+        return prof.evaluate(d)
+    if ring_profile != "line":
+        raise ValueError(f"ring_profile must be 'line' or 'radial', got {ring_profile!r}")
+    g = np.exp(-(d[:, None] ** 2) / (2.0 * v[None, :])) / np.sqrt(2.0 * np.pi * v[None, :])
+    return g @ prof.weights
+
+
+def ring_diffuse(profile, ndotl, curvature_per_mm, ring_profile: str = "line", samples: int = 8193) -> np.ndarray:
+    """Penner's D(N.L, 1/r) for one curvature, per channel: (len(ndotl), 3).
+
+    D(theta) = int max(cos(theta + x), 0) K(2 r sin(x/2)) dx / int K(2 r sin(x/2)) dx over the
+    ring angle x, K from :func:`ring_kernel`. The lit arc is |theta + x| < pi/2, where
+    cos(theta + x) = cos(theta) cos(x) - sin(theta) sin(x): D is read off the running integrals of
+    K cos x and K sin x (trapezoid rule, |x| <= min(pi, 10 sigma_max / r): beyond, the chord
+    exceeds 6 sigma_max), interpolated at the arc's ends: O(samples) per curvature.
+    """
+    ndotl = np.clip(np.asarray(ndotl, np.float64), -1.0, 1.0)
+    if curvature_per_mm <= 0.0:
+        return np.repeat(np.maximum(ndotl, 0.0)[:, None], 3, axis=1)
+    r = 1.0 / curvature_per_mm
+    x_max = min(math.pi, 10.0 * math.sqrt(float(np.max(profile.variances_mm2))) / r)
+    x = np.linspace(-x_max, x_max, samples)
+    k = ring_kernel(profile, 2.0 * r * np.abs(np.sin(x / 2.0)), ring_profile)  # (samples, 3)
+    h = x[1] - x[0]
+
+    def running(f):  # running trapezoid integral of f (samples, 3) from -x_max, at each x
+        return np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * h * (f[1:] + f[:-1]), axis=0)])
+
+    total = running(k)[-1]
+    run_cos, run_sin = running(k * np.cos(x)[:, None]), running(k * np.sin(x)[:, None])
+    theta = np.arccos(ndotl)
+    a = -0.5 * math.pi - theta  # lit arc [a, b] in x, a in [-3pi/2, -pi/2]
+    b = 0.5 * math.pi - theta
+    full_ring = x_max >= math.pi
+    arcs = [(np.clip(a, -x_max, x_max), np.clip(b, -x_max, x_max))]
+    if full_ring:  # the part of the arc below -pi is the part above pi - (a + 2 pi) on the ring
+        arcs.append((np.where(a < -math.pi, a + 2.0 * math.pi, math.pi), np.full_like(a, math.pi)))
+    out = np.zeros((len(ndotl), 3))
+    for c in range(3):
+        for lo, hi in arcs:
+            ic = np.interp(hi, x, run_cos[:, c]) - np.interp(lo, x, run_cos[:, c])
+            is_ = np.interp(hi, x, run_sin[:, c]) - np.interp(lo, x, run_sin[:, c])
+            out[:, c] += (np.cos(theta) * ic - np.sin(theta) * is_) / total[c]
+    return np.maximum(out, 0.0)
+
+
+def diffuse_table(profile, size=DIFFUSE_TABLE_SIZE, ring_profile: str = RING_PROFILE) -> np.ndarray:
+    """(rows = curvature, cols = N.L, 3) float32 table of D; row 0 is max(N.L, 0)."""
+    key = _profile_key(profile, "diffuse", tuple(size), ring_profile)
+    if key not in _TABLE_CACHE:
+        nl = ndotl_axis(size[0])
+        rows = [ring_diffuse(profile, nl, k, ring_profile) for k in curvature_axis(size[1])]
+        _TABLE_CACHE[key] = np.stack(rows).astype(np.float32)
+    return _TABLE_CACHE[key]
+
+
+def _ramp_convolved(x, width, variance):
+    """A linear ramp from 0 at x = -width/2 to 1 at +width/2, convolved with a 1-D Gaussian of the
+    given variance (closed form: (F(x + a/2) - F(x - a/2)) / a, F(y) = y Phi(y/s) + s phi(y/s))."""
+    from scipy.special import ndtr
+
+    s = math.sqrt(variance)
+
+    def F(y):
+        return y * ndtr(y / s) + s * np.exp(-0.5 * (y / s) ** 2) / math.sqrt(2.0 * math.pi)
+
+    if width <= 1e-9:
+        return ndtr(x / s)
+    return (F(x + width / 2) - F(x - width / 2)) / width
+
+
+def scattering_width_mm(profile) -> float:
+    """How much the profile widens a sharp shadow edge: twice the rms radius along one axis of
+    its widest channel, 2 sqrt(max_c sum_k w_kc v_k) (2.35 mm for d'Eon's red)."""
+    prof = profile.normalized()
+    return float(2.0 * np.sqrt(np.max(prof.weights.T @ prof.variances_mm2)))
+
+
+def sharp_edge_width_mm(profile, width_mm):
+    """The light's own edge under a PCF penumbra of width w: what is left once the scattering's
+    widening is taken out (Penner's "sharpening"), w - scattering width, but at least
+    PENUMBRA_SHARPEN_MIN w: wide penumbras keep their width, narrow ones are sharpened."""
+    w = np.asarray(width_mm, np.float64)
+    return np.maximum(w - scattering_width_mm(profile), PENUMBRA_SHARPEN_MIN * w)
+
+
+def scattered_shadow(profile, shadow, width_mm) -> np.ndarray:
+    """Penner's penumbra scattering for one penumbra width, per channel: (len(shadow), 3).
+
+    The soft shadow s sits at x = (s - 1/2) w across a penumbra of width w (mm). The light's own
+    edge there is a linear ramp of width :func:`sharp_edge_width_mm`; the light under it,
+    scattered across the edge, is that ramp convolved with the profile's 1-D marginal
+    sum_k w_k g(v_k, x) (the line integral of a 2-D Gaussian is the 1-D Gaussian of the same
+    variance), rescaled to 0 at s = 0 and 1 at s = 1: the table cannot light what the shadow map
+    calls fully shadowed, nor darken what it calls fully lit. Odd about s = 1/2, so the light
+    summed across the penumbra is that of the PCF ramp: the table moves light, red furthest."""
+    prof = profile.normalized()
+    s = np.asarray(shadow, np.float64)
+    edge = float(sharp_edge_width_mm(profile, width_mm))
+    xs = np.concatenate([(s - 0.5) * width_mm, [-0.5 * width_mm, 0.5 * width_mm]])
+    out = np.zeros((len(xs), 3))
+    for v, w in zip(prof.variances_mm2, prof.weights):
+        out += _ramp_convolved(xs, edge, v)[:, None] * w[None, :]
+    lo, hi = out[-2], out[-1]
+    return np.clip((out[:-2] - lo) / np.maximum(hi - lo, 1e-12), 0.0, 1.0)
+
+
+def penumbra_table(profile, size=PENUMBRA_TABLE_SIZE) -> np.ndarray:
+    """(rows = penumbra width, cols = shadow value, 3) float32 table of the scattered shadow."""
+    key = _profile_key(profile, "penumbra", tuple(size), PENUMBRA_SHARPEN_MIN)
+    if key not in _TABLE_CACHE:
+        s = shadow_axis(size[0])
+        _TABLE_CACHE[key] = np.stack([scattered_shadow(profile, s, w) for w in penumbra_width_axis(size[1])]).astype(np.float32)
+    return _TABLE_CACHE[key]
+
+
+# ---------------------------------------------------------------------- curvature (numpy)
+def vertex_curvature(positions, normals, indices, mm_per_unit: float = 1.0) -> np.ndarray:
+    """Mean curvature per vertex in 1/mm: the mean over the vertex's edges (i, j) of the normal
+    curvature along the edge, (n_j - n_i).(p_j - p_i) / |p_j - p_i|^2 (exact on a sphere: 1/R;
+    positive where convex, negative where concave, 0 on planes and across split normals)."""
+    p = np.asarray(positions, np.float64)
+    n = np.asarray(normals, np.float64)
+    t = np.asarray(indices, np.int64).reshape(-1, 3)
+    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    e = np.unique(np.sort(e, axis=1), axis=0)
+    d = p[e[:, 1]] - p[e[:, 0]]
+    dn = n[e[:, 1]] - n[e[:, 0]]
+    len2 = np.einsum("ij,ij->i", d, d)
+    ok = len2 > 0
+    k = np.zeros(len(e))
+    k[ok] = np.einsum("ij,ij->i", dn[ok], d[ok]) / len2[ok]
+    sums = np.bincount(e[ok].ravel(), weights=np.repeat(k[ok], 2), minlength=len(p))
+    counts = np.bincount(e[ok].ravel(), minlength=len(p))
+    return (sums / np.maximum(counts, 1) / float(mm_per_unit)).astype(np.float32)

@@ -1,0 +1,247 @@
+"""Separable screen-space subsurface scattering (``ssss``).
+
+Jimenez, Sundstedt & Gutierrez 2009, "Screen-Space Perceptual Rendering of Human Skin" (ACM TAP
+6(4)); Jimenez, Zsolnai, Jarabo et al. 2015, "Separable Subsurface Scattering" (CGF 34(6));
+transmittance: Jimenez, Whelan, Sundstedt & Gutierrez 2010, "Real-Time Realistic Skin
+Translucency" (IEEE CG&A 30(4)).
+
+What it approximates: the same convolution of the irradiance with the diffusion profile
+R(r) = sum_k w_k G(v_k, r) as texture-space diffusion, done on the IMAGE instead of the UV layout,
+with each pixel's kernel scaled to millimetres by its depth:
+
+  ssss_irradiance  mesh -> non-multisampled RGBA32F of the frame's size: (E + T) * albedo^mix and the
+                   view depth in mm (E: lights, soft shadows, ambient, energy conservation, shared
+                   with tsd; T: light through thin parts from the shadow map's thickness)
+  ssss_blur        horizontal pass: one image per Gaussian (g_k(x) * E); vertical pass:
+                   sum_k w_k g_k(y) * (g_k(x) * E). Exact for a sum of Gaussians, where a single
+                   separable kernel (Jimenez 2015's rank-1 kernel) is 15% off for skin's red.
+                   Pixels per mm = size / (2 tan(fov/2) depth_mm); taps follow the surface (weight
+                   of the 3-D distance, taps across a depth jump > depth_cutoff_mm rejected).
+  ssss_final       the mesh into the frame's target: scattered * albedo^(1-mix) / pi
+                   * (1 - rho_s a(N.V, m) / pi) + specular (added after the blur)
+
+Inputs and units: the scene's mm_per_unit, the camera's projection (widths in pixels come from
+depth and field of view), the profile's Gaussians (any K <= 8, weights normalised per channel).
+Nothing is cached between frames: screen-space results depend on the view.
+Known failure modes: light only comes from what the camera sees (none from behind an ear's
+rim, none from off-screen; kernels are cut at the frame's edge); two surfaces touching at about
+the same depth (lips, eyelids) still exchange light; when 3 sigma of the widest Gaussian exceeds
+``max_taps`` pixels, taps are spread over integer steps and thin features alias slightly; the
+horizontal-then-vertical split follows the surface only along the axes (as in Jimenez 2015).
+Shaders: shaders/ssss/*; shared: common/skin_irradiance.glsl, common/transmittance.glsl,
+common/skin_specular.glsl.
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from dermis.gl.resources import set_uniform
+from dermis.gl.shaders import program
+from dermis.gl.tables import upload_specular_tables
+from dermis.techniques.base import Frame, Technique, draw_mesh, set_profile_uniforms
+
+MAX_GAUSSIANS = 8  # the horizontal pass writes one target per Gaussian (GL guarantees 8)
+DEPTH_CUTOFF_MM = 5.0  # a tap this much nearer or further than the pixel is another surface
+MAX_TAPS = 48  # taps per side: impulse-exact while 3 sigma of the widest Gaussian < 48 px
+
+# texture units (0-1 shadows, 2-4 and 16 material maps; see dermis.gl.resources.MATERIAL_UNITS)
+UNIT_RHO_DT, UNIT_BECKMANN, UNIT_SCATTERED = 5, 6, 7
+
+
+def translucency_min_variance_mm2() -> float:
+    """The narrowest Gaussian that carries light through thin parts: tsd's, so both agree."""
+    try:
+        from dermis.techniques.tsd import TRANSLUCENCY_MIN_VARIANCE_MM2
+    except ImportError:  # pragma: no cover - tsd is part of every build
+        return 0.15
+    return float(TRANSLUCENCY_MIN_VARIANCE_MM2)
+
+
+def translucency_uniforms(prog, enabled: bool, strength: float = 1.0):
+    """Uniforms of shaders/common/transmittance.glsl."""
+    set_uniform(prog, "uTranslucencyMinVariance", translucency_min_variance_mm2())
+    set_uniform(prog, "uTranslucencyStrength", float(strength) if enabled else 0.0)
+
+
+def view_z_row(view: np.ndarray) -> tuple:
+    """Third row of the view matrix: view-space z = row . (P, 1) (negative in front)."""
+    return tuple(float(x) for x in np.asarray(view, np.float64)[2])
+
+
+class ScreenSpaceSSS(Technique):
+    name = "ssss"
+    description = "separable screen-space SSS (Jimenez et al. 2009/2015): per-Gaussian depth-aware blurs of the image"
+
+    def __init__(self, renderer, *, max_taps: int = MAX_TAPS, depth_cutoff_mm: float = DEPTH_CUTOFF_MM,
+                 follow_surface: bool = True, translucency: bool = True):
+        super().__init__(renderer)
+        ctx = self.ctx
+        defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
+        self.p_irradiance = program(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines)
+        self.p_horizontal = program(ctx, "common/fullscreen.vert", "ssss/blur_horizontal.frag", defines)
+        self.p_vertical = program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines)
+        self.p_final = program(ctx, "common/mesh.vert", "ssss/final.frag", defines)
+        self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_horizontal, self.p_vertical)}
+        self.tables = upload_specular_tables(ctx)
+        self.max_taps = int(max_taps)
+        self.depth_cutoff_mm = float(depth_cutoff_mm)
+        self.follow_surface = bool(follow_surface)
+        self.translucency = bool(translucency)
+        self.translucency_strength = 1.0
+        self.tex = {}
+        self._targets_key = None
+
+    # ------------------------------------------------------------------ resources
+    def _ensure_targets(self, size, k):
+        if self._targets_key == (size, k):
+            return
+        self._release_targets()
+        ctx = self.ctx
+
+        def tex(dtype):
+            t = ctx.texture(size, 4, dtype=dtype)
+            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            t.repeat_x = t.repeat_y = False
+            return t
+
+        irradiance = tex("f4")  # a = depth in mm: needs float32 (half: 0.25 mm steps at 500 mm)
+        depth = ctx.depth_renderbuffer(size)
+        gaussians = [tex("f2") for _ in range(k)]
+        scattered = tex("f4")
+        self.tex = {"irradiance": irradiance, "depth": depth, "gaussians": gaussians, "scattered": scattered,
+                    "fbo_irradiance": ctx.framebuffer(color_attachments=[irradiance], depth_attachment=depth),
+                    "fbo_horizontal": ctx.framebuffer(color_attachments=gaussians),
+                    "fbo_vertical": ctx.framebuffer(color_attachments=[scattered])}
+        self._targets_key = (size, k)
+
+    def _release_targets(self):
+        for key in ("fbo_irradiance", "fbo_horizontal", "fbo_vertical", "irradiance", "depth", "scattered"):
+            if key in self.tex:
+                self.tex[key].release()
+        for t in self.tex.get("gaussians", []):
+            t.release()
+        self.tex = {}
+        self._targets_key = None
+
+    def scene_changed(self):
+        pass  # nothing is cached across frames
+
+    # ------------------------------------------------------------------ passes
+    def _kernel_uniforms(self, prog, frame: Frame, axis: int):
+        size = frame.size
+        set_profile_uniforms(prog, frame.scene.profile, MAX_GAUSSIANS)
+        # pixels per mm at a view depth of 1 mm along this axis: size / 2 * P[axis][axis]
+        set_uniform(prog, "uPixelsPerMmAtUnitDepth", float(0.5 * size[axis] * frame.proj[axis, axis]))
+        set_uniform(prog, "uDirection", (1, 0) if axis == 0 else (0, 1))
+        set_uniform(prog, "uMaxTaps", int(max(self.max_taps, 1)))
+        set_uniform(prog, "uDepthCutoffMm", float(self.depth_cutoff_mm) if self.follow_surface else 1e30)
+        set_uniform(prog, "uFollowSurface", 1.0 if self.follow_surface else 0.0)
+
+    def screen_space(self, frame: Frame, irradiance: np.ndarray | None = None):
+        """Passes 1-3: the pre-scatter irradiance and depth, then the two blurs. ``irradiance``
+        (H, W, 3), row 0 = top, replaces the rendered light (depth kept): used by the tests."""
+        scene = frame.scene
+        profile = scene.profile
+        self._ensure_targets(tuple(frame.size), profile.k)
+        t = self.tex
+        with frame.timer("ssss_irradiance"):
+            fbo = t["fbo_irradiance"]
+            fbo.use()
+            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            self.ctx.enable(moderngl.DEPTH_TEST)
+            self.ctx.disable(moderngl.CULL_FACE)
+            prog = self.p_irradiance
+            set_uniform(prog, "uViewZ", view_z_row(frame.view))
+            set_profile_uniforms(prog, profile, MAX_GAUSSIANS)
+            translucency_uniforms(prog, self.translucency and any(L.cast_shadows for L in scene.lights),
+                                  self.translucency_strength)
+            self._bind(prog, "uRhoDtTex", self.tables["rho_dt"], UNIT_RHO_DT)
+            draw_mesh(frame, prog)
+            if irradiance is not None:
+                a = self.read_texture(t["irradiance"])
+                rgb = np.asarray(irradiance, np.float32)
+                if rgb.shape[:2] != a.shape[:2]:
+                    raise ValueError(f"irradiance override must be {a.shape[:2]} (H, W), got {rgb.shape[:2]}")
+                a[:, :, :3] = rgb[:, :, :3]
+                t["irradiance"].write(np.ascontiguousarray(a[::-1]).tobytes())
+        frame.passes_run.append("ssss_irradiance")
+        self.ctx.disable(moderngl.DEPTH_TEST)
+        with frame.timer("ssss_blur"):
+            prog = self.p_horizontal
+            self._kernel_uniforms(prog, frame, 0)
+            self._bind(prog, "uIrradiance", t["irradiance"], 0)
+            t["fbo_horizontal"].use()
+            self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
+            prog = self.p_vertical
+            self._kernel_uniforms(prog, frame, 1)
+            self._bind(prog, "uIrradiance", t["irradiance"], 0)
+            if "uGaussian" in prog:
+                units = []
+                for k in range(MAX_GAUSSIANS):
+                    t["gaussians"][min(k, profile.k - 1)].use(1 + k)
+                    units.append(1 + k)
+                n = prog["uGaussian"].array_length
+                prog["uGaussian"].value = units[:n] if n > 1 else units[0]
+            t["fbo_vertical"].use()
+            self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
+        frame.passes_run.append("ssss_blur")
+
+    def render(self, frame: Frame, output_mode: int = 0) -> None:
+        self.screen_space(frame)
+        with frame.timer("ssss_final"):
+            frame.target.use()
+            self.ctx.enable(moderngl.DEPTH_TEST)
+            self.ctx.disable(moderngl.CULL_FACE)
+            prog = self.p_final
+            set_uniform(prog, "uViewZ", view_z_row(frame.view))
+            self._bind(prog, "uRhoDtTex", self.tables["rho_dt"], UNIT_RHO_DT)
+            self._bind(prog, "uBeckmannTex", self.tables["beckmann"], UNIT_BECKMANN)
+            self._bind(prog, "uScattered", self.tex["scattered"], UNIT_SCATTERED)
+            m = frame.scene.material
+            set_uniform(prog, "uPoreScaleMm", float(m.pore_scale_mm))
+            set_uniform(prog, "uPoreStrength", float(m.pore_strength))
+            set_uniform(prog, "uOutputMode", int(output_mode))
+            draw_mesh(frame, prog)
+        frame.passes_run.append("ssss_final")
+
+    @staticmethod
+    def _bind(prog, name, tex, unit):
+        if name in prog:
+            tex.use(unit)
+            prog[name].value = unit
+
+    # ------------------------------------------------------------------ inspection
+    @staticmethod
+    def read_texture(tex) -> np.ndarray:
+        """A texture as float32 (H, W, C), row 0 = top."""
+        w, h = tex.size
+        dt = {"f2": np.float16, "f4": np.float32}[tex.dtype]
+        data = np.frombuffer(tex.read(), dt).reshape(h, w, tex.components).astype(np.float32)
+        return data[::-1].copy()
+
+    def scattered(self) -> np.ndarray:
+        """The last frame's scattered light before albedo^(1-mix) / pi: (H, W, 3), row 0 = top."""
+        return self.read_texture(self.tex["scattered"])[:, :, :3]
+
+    def debug_buffers(self) -> dict:
+        if "irradiance" not in self.tex:
+            return {}
+        irr = self.read_texture(self.tex["irradiance"])
+        out = {"ssss_irradiance": irr[:, :, :3].copy(), "ssss_depth_mm": np.repeat(irr[:, :, 3:4], 3, axis=2)}
+        for k, g in enumerate(self.tex["gaussians"]):
+            out[f"ssss_horizontal_{k + 1}"] = self.read_texture(g)[:, :, :3]
+        out["ssss_scattered"] = self.scattered()
+        if self.renderer.last_frame is not None:
+            out["specular"] = self.renderer.render_mode(self.name, output_mode=2)
+        return out
+
+    def release(self):
+        self._release_targets()
+        for t in self.tables.values():
+            t.release()
+        for v in self.vaos.values():
+            v.release()
+        for p in (self.p_irradiance, self.p_horizontal, self.p_vertical, self.p_final):
+            p.release()

@@ -1,0 +1,509 @@
+"""The viewer's window and event loop: ``dermis view``.
+
+One GLFW window with an OpenGL 4.5 core context; moderngl wraps that context and the Renderer
+draws into it (``Renderer(scene, size, ctx=ctx)``), so there is one context and no copies
+between contexts. Each frame: events -> scripted actions -> parameters into the scene -> render
+(only the final pass when just the camera moved: texture-space passes are cached on the
+renderer's lighting key) -> show the linear image through the GPU output transform -> panel.
+
+Mouse: left-drag orbits, shift+left or middle-drag pans, wheel zooms, right-drag moves the
+selected light. Keys: S screenshot, R reset camera, Tab panel on/off, Esc or Q quit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from dermis.errors import DermisError
+from dermis.viewer.camera_controls import LightOrbit, OrbitCamera
+from dermis.viewer.params import SceneEditor, SkinProfileWorker, ViewerParams
+
+NO_DISPLAY_HINT = "run under xvfb-run: xvfb-run -a dermis view ..."
+IDLE_WAIT_S = 0.05  # when nothing changes, wait this long for input before redrawing the panel
+
+
+def check_display():
+    """Raise a one-line DermisError when no window system is reachable (Linux/BSD: X11 or Wayland)."""
+    if sys.platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):
+        if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+            raise DermisError(f"no display available (DISPLAY is not set); {NO_DISPLAY_HINT}")
+
+
+def _import_glfw():
+    try:
+        import glfw
+    except ImportError as exc:  # the wheel ships libglfw; a failure here is an install problem
+        raise DermisError(f"cannot load GLFW ({exc}); reinstall dermis (pip install glfw)") from None
+    return glfw
+
+
+def _glfw_error(glfw, what: str) -> DermisError:
+    code, desc = glfw.get_error()
+    detail = desc.decode(errors="replace") if isinstance(desc, bytes) else str(desc or "")
+    if code in (getattr(glfw, "PLATFORM_UNAVAILABLE", -1), getattr(glfw, "PLATFORM_ERROR", -1)) or "display" in detail.lower():
+        display = os.environ.get("DISPLAY", "")
+        return DermisError(f"no display available ({what}: {detail or 'no window system'}; DISPLAY={display!r}); "
+                           f"{NO_DISPLAY_HINT}")
+    return DermisError(f"{what}: {detail or 'GLFW error ' + str(code)} (an OpenGL 4.5 core driver is needed)")
+
+
+class Viewer:
+    """The interactive viewer. ``run()`` loops until the window closes (or a script ends) and
+    returns a report: frames drawn, frame times, screenshots written, GPU object counts."""
+
+    def __init__(self, scene, size=(960, 640), *, irradiance_size: int = 512, samples: int = 4, script=None,
+                 show_gui: bool = True, screenshot_dir=".", title: str | None = None, vsync: bool | None = None):
+        from dermis.renderer import Renderer, check_size
+
+        check_display()
+        self.size = check_size(size)
+        self.script = script
+        self.scene = scene
+        glfw = self.glfw = _import_glfw()
+        glfw.ERROR_REPORTING = "ignore"  # errors are read with get_error() and raised as DermisError
+        if not glfw.init():
+            raise _glfw_error(glfw, "cannot start GLFW")
+        try:
+            glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 4)
+            glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 5)
+            glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
+            glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
+            glfw.window_hint(glfw.DEPTH_BITS, 0)  # the renderer draws offscreen; the window only shows it
+            glfw.window_hint(glfw.SAMPLES, 0)
+            self.window = glfw.create_window(self.size[0], self.size[1], title or f"dermis - {scene.name}", None, None)
+            if not self.window:
+                raise _glfw_error(glfw, "cannot open an OpenGL 4.5 core window")
+            glfw.make_context_current(self.window)
+            glfw.swap_interval(0 if (script is not None or vsync is False) else 1)
+            import moderngl
+
+            try:
+                self.ctx = moderngl.create_context(require=450)
+            except Exception as exc:
+                raise DermisError(f"the window's OpenGL context is not 4.5 core ({str(exc).splitlines()[0]})") from None
+            from dermis.viewer.gpu_objects import GpuObjectTracker
+            from dermis.viewer.present import Presenter
+
+            self.gpu_objects = GpuObjectTracker(self.ctx).install()
+            self.params = ViewerParams.from_scene(scene, irradiance_size)
+            self.params.validate("viewer")
+            self.renderer = Renderer(scene, self.framebuffer_size(), ctx=self.ctx, samples=samples,
+                                     irradiance_size=self.params.irradiance_size)
+            self.presenter = Presenter(self.ctx)
+        except BaseException:
+            self._terminate()
+            raise
+        lo, hi = scene.bounds()
+        self.scene_center = (np.asarray(lo, np.float64) + hi) / 2
+        self.scene_radius = float(np.linalg.norm(np.asarray(hi, np.float64) - lo) / 2)
+        self.orbit = OrbitCamera.from_camera(scene.camera, self.scene_radius)
+        self.editor = SceneEditor(scene)
+        self.profiles = SkinProfileWorker(scene.profile)
+        self._light_orbit = None
+        self._light_orbit_index = None
+        self.screenshot_dir = Path(screenshot_dir)
+        self.show_gui = show_gui
+        self.gui = None
+        self.panel = None
+        self.input = None
+        if show_gui:
+            self._start_gui()
+        self._drag = None  # (mode, last_x, last_y)
+        self._want_screenshot = False
+        self._message = ""
+        self._buffers_cache = (None, {})
+        self._profile_note = ""
+        self.frames_drawn = 0
+        self._idle = False
+        self._view_key = None
+        self._last_stats = {}
+        self.report = {"frames": 0, "frame_ms": [], "render_ms": [], "passes_run": [], "screenshots": [],
+                       "resources": [], "renderer": self.renderer.info.get("renderer")}
+        self.last_image = None  # what the window shows, linear (H, W, 3)
+        self._install_callbacks()
+
+    # ------------------------------------------------------------------ set-up
+    def _start_gui(self):
+        from dermis.techniques import technique_names
+        from dermis.viewer.gui import GlfwInput, ImguiRenderer, Panel
+
+        self.gui = ImguiRenderer(self.ctx)
+        self.input = GlfwInput()
+        self.panel = Panel(technique_names(), len(self.scene.lights))
+
+    def framebuffer_size(self):
+        w, h = self.glfw.get_framebuffer_size(self.window)
+        return max(int(w), 1), max(int(h), 1)
+
+    def _install_callbacks(self):
+        glfw = self.glfw
+        glfw.set_cursor_pos_callback(self.window, lambda w, x, y: self.on_cursor(x, y))
+        glfw.set_mouse_button_callback(self.window, lambda w, b, a, m: self.on_mouse_button(b, a, m))
+        glfw.set_scroll_callback(self.window, lambda w, dx, dy: self.on_scroll(dx, dy))
+        glfw.set_key_callback(self.window, lambda w, k, s, a, m: self.on_key(k, a, m))
+        glfw.set_char_callback(self.window, lambda w, c: self.input.char(c) if self.input and self.show_gui else None)
+
+    def _gui_wants(self, what: str) -> bool:
+        if not (self.gui and self.show_gui):
+            return False
+        io = self.gui.imgui.get_io()
+        return io.want_capture_mouse if what == "mouse" else io.want_capture_keyboard
+
+    # ------------------------------------------------------------------ input (mouse, keys, scripts)
+    def on_cursor(self, x, y):
+        if self.input and self.show_gui:
+            self.input.mouse_pos(x, y)
+        if self._drag is not None:
+            mode, lx, ly = self._drag
+            self._drag = (mode, x, y)
+            self.drag(mode, x - lx, y - ly)
+
+    def on_mouse_button(self, button, action, mods):
+        glfw = self.glfw
+        if self.input and self.show_gui:
+            self.input.mouse_button(button, action)
+        if action == glfw.RELEASE:
+            self._drag = None
+            return
+        if self._gui_wants("mouse"):
+            return
+        x, y = glfw.get_cursor_pos(self.window)
+        if button == glfw.MOUSE_BUTTON_LEFT:
+            mode = "pan" if mods & glfw.MOD_SHIFT else "orbit"
+        elif button == glfw.MOUSE_BUTTON_MIDDLE:
+            mode = "pan"
+        elif button == glfw.MOUSE_BUTTON_RIGHT:
+            mode = "light"
+        else:
+            return
+        self._drag = (mode, x, y)
+
+    def on_scroll(self, dx, dy):
+        if self.input and self.show_gui:
+            self.input.scroll(dx, dy)
+        if not self._gui_wants("mouse"):
+            self.orbit.zoom(dy)
+
+    def on_key(self, key, action, mods):
+        glfw = self.glfw
+        if self.input and self.show_gui:
+            self.input.key(key, action, mods)
+        if action != glfw.PRESS or self._gui_wants("keyboard"):
+            return
+        if key in (glfw.KEY_ESCAPE, glfw.KEY_Q):
+            glfw.set_window_should_close(self.window, True)
+        elif key in (glfw.KEY_S, glfw.KEY_F12):
+            self._want_screenshot = True
+        elif key == glfw.KEY_R:
+            self.orbit.reset()
+        elif key == glfw.KEY_TAB:
+            self.show_gui = not self.show_gui
+            if self.show_gui and self.gui is None:
+                self._start_gui()
+
+    def drag(self, mode: str, dx: float, dy: float):
+        """A mouse drag of (dx, dy) window pixels: "orbit", "pan" or "light"."""
+        if mode == "orbit":
+            self.orbit.orbit(dx, dy)
+        elif mode == "pan":
+            self.orbit.pan(dx, dy, self.glfw.get_window_size(self.window)[1])
+        elif mode == "light" and self.scene.lights:
+            i = min(max(self.params.light_index, 0), len(self.scene.lights) - 1)
+            if self._light_orbit is None or self._light_orbit_index != i:
+                self._light_orbit = LightOrbit(self.scene_center, self.scene.lights[i], self.scene_radius)
+                self._light_orbit_index = i
+            self._light_orbit.drag(dx, dy)
+            self._light_orbit.apply(self.scene.lights[i])
+
+    def set_params(self, values: dict, source: str = "viewer"):
+        """Change parameters as the panel does (checked; an unknown name is a DermisError)."""
+        values = dict(values)
+        if "profile" in values and values["profile"] in ("fair", "asian", "dark"):
+            self.params.apply_preset(values.pop("profile"))
+        if "light_index" in values and self.scene.lights:
+            i = int(values["light_index"])
+            if 0 <= i < len(self.scene.lights):
+                L = self.scene.lights[i]
+                values.setdefault("light_color", tuple(L.color))
+                values.setdefault("light_intensity", float(L.intensity))
+        old_irr = self.params.irradiance_size
+        self.params.update(values, source)
+        if self.params.irradiance_size != old_irr:
+            self._set_irradiance_size(self.params.irradiance_size)
+
+    def _set_irradiance_size(self, n: int):
+        """A new texture-space resolution: free the techniques' texture-space targets (they are
+        re-made at the new size on the next frame) and invalidate their caches."""
+        r = self.renderer
+        r.irradiance_size = int(n)
+        for tech in getattr(r, "_techniques", {}).values():
+            if hasattr(tech, "release_textures"):
+                tech.release_textures()
+            if hasattr(tech, "scene_changed"):
+                tech.scene_changed()
+        self._buffers_cache = (None, {})
+
+    def _run_actions(self, actions):
+        for a in actions:
+            if "set" in a:
+                self.set_params(a["set"], self.script.source if self.script else "script")
+            if "preset" in a:
+                self.set_params({"profile": a["preset"]}, self.script.source if self.script else "script")
+            if "orbit" in a:
+                self.drag("orbit", *a["orbit"])
+            if "pan" in a:
+                self.drag("pan", *a["pan"])
+            if "light_drag" in a:
+                self.drag("light", *a["light_drag"])
+            if "zoom" in a:
+                self.orbit.zoom(a["zoom"])
+            if a.get("reset_camera"):
+                self.orbit.reset()
+
+    def _run_after_actions(self, actions):
+        for a in actions:
+            if "screenshot" in a:
+                self.save_screenshot(a["screenshot"])
+            if "window_screenshot" in a:
+                self.save_window_screenshot(a["window_screenshot"])
+            if a.get("resources"):
+                self.report["resources"].append({"frame": self.frames_drawn - 1, "counts": self.gpu_objects.counts()})
+            if a.get("quit"):
+                self.glfw.set_window_should_close(self.window, True)
+
+    # ------------------------------------------------------------------ output
+    def displayed_output(self) -> np.ndarray:
+        """The display-encoded image the window shows (before the panel), as ``dermis render``
+        would write it: (H, W, 3) in [0, 1]."""
+        from dermis.output import output_transform
+
+        exposure, tonemap = self._display_transform()
+        return output_transform(self.last_image, exposure, tonemap)
+
+    def save_screenshot(self, path=None) -> Path:
+        from dermis.images import write_png
+
+        if self.last_image is None:
+            raise DermisError("no frame to save yet")
+        if path is None:
+            self.screenshot_dir.mkdir(parents=True, exist_ok=True)
+            path = self.screenshot_dir / time.strftime("dermis-%Y%m%d-%H%M%S.png")
+            n = 1
+            while path.exists():
+                path = path.with_name(time.strftime("dermis-%Y%m%d-%H%M%S") + f"-{n}.png")
+                n += 1
+        write_png(path, self.displayed_output())
+        self.report["screenshots"].append(str(path))
+        self._message = f"saved {path}"
+        return Path(path)
+
+    def save_window_screenshot(self, path) -> Path:
+        """The window as shown, panel included (the front buffer's copy in the back buffer is
+        gone after the swap, so this reads what the last frame drew before swapping)."""
+        from PIL import Image
+
+        from dermis.images import _atomic_write
+
+        arr = self._last_window_pixels
+        _atomic_write(path, lambda tmp: Image.fromarray(arr).save(tmp, format="PNG"))
+        self.report["screenshots"].append(str(path))
+        return Path(path)
+
+    def _display_transform(self):
+        p = self.params
+        if p.buffer != "final" and p.buffer_scale == "auto":
+            return 0.0, "linear"
+        return p.exposure, p.tonemap
+
+    # ------------------------------------------------------------------ buffers
+    def _buffer_image(self, name: str):
+        r = self.renderer
+        key = (self.params.technique, r.lighting_key(), r.irradiance_size)
+        if name == "specular":
+            key = key + (self.orbit.state(), self.framebuffer_size())
+        cached_key, bufs = self._buffers_cache
+        if cached_key != key:
+            stats = dict(r.stats)
+            bufs = r.debug_buffers(self.params.technique)
+            r.stats = stats  # debug_buffers may render again (specular): keep the frame's numbers
+            self._buffers_cache = (key, bufs)
+        names = ["final"] + sorted(bufs)
+        if self.panel is not None:
+            self.panel.buffer_names = names
+        if name not in bufs:
+            return None
+        a = np.asarray(bufs[name], np.float32)
+        if a.shape[2] == 1:
+            a = np.repeat(a, 3, axis=2)
+        elif a.shape[2] == 2:
+            a = np.concatenate([a, np.zeros_like(a[:, :, :1])], axis=2)
+        a = a[:, :, :3]
+        if self.params.buffer_scale == "auto":
+            finite = a[np.isfinite(a)]
+            top = float(np.percentile(np.abs(finite), 99.5)) if finite.size else 1.0
+            a = np.nan_to_num(a / (top if top > 0 else 1.0))
+        return np.ascontiguousarray(a)
+
+    # ------------------------------------------------------------------ the loop
+    def _update_profile(self, wait: bool):
+        want = self.params.profile_request()
+        if want == self.editor.applied_profile_request:
+            return
+        res = self.profiles.get(self.params, wait=wait)
+        if res is not None:
+            self.editor.apply_profile(res)
+            self._profile_note = res.note
+
+    def frame(self):
+        """Draw one frame (the loop's body; scripts call it through run())."""
+        glfw = self.glfw
+        scripted = self.script is not None
+        if not scripted and self._idle and not self.profiles.busy:
+            glfw.wait_events_timeout(IDLE_WAIT_S)  # nothing moved last frame: sleep until input
+        else:
+            glfw.poll_events()
+        t0 = time.perf_counter()
+        if scripted:
+            self._run_actions(self.script.before(self.frames_drawn))
+        self.editor.apply(self.params)
+        self._update_profile(wait=scripted)
+        fb = self.framebuffer_size()
+        view_key = (self.orbit.state(), dataclasses.astuple(self.params), fb, self.renderer.lighting_key())
+        self._idle = view_key == self._view_key and self.last_image is not None
+        if self._idle:  # the same view: show the last image again (the panel may still change)
+            stats = dict(self._last_stats, passes_run=[])
+            shown = self.last_image
+        else:
+            img = self.renderer.render(self.params.technique, size=fb, camera=self.orbit.camera())
+            stats = dict(self.renderer.stats)
+            shown = img
+            if self.params.buffer != "final":
+                b = self._buffer_image(self.params.buffer)
+                if b is not None:
+                    shown = b
+                else:
+                    self._message = f"no buffer '{self.params.buffer}' in technique {self.params.technique}"
+            elif getattr(self.scene.output, "bloom", 0.0) > 0:
+                from dermis.output import bloom
+
+                shown = bloom(img, self.scene.output.bloom, self.scene.output.bloom_radius)
+            self.last_image = shown
+            self._view_key = view_key
+            self._last_stats = stats
+        # show it
+        screen = self.ctx.screen
+        screen.use()
+        screen.viewport = (0, 0, *fb)
+        self.ctx.scissor = None
+        screen.clear(0.08, 0.08, 0.09, 1.0)
+        from dermis.viewer.present import fit_rect
+
+        exposure, tonemap = self._display_transform()
+        if not self._idle:
+            self.presenter.upload(shown)
+        self.presenter.draw(screen, fit_rect((shown.shape[1], shown.shape[0]), (0, 0, *fb)), exposure, tonemap)
+        frame_ms = (time.perf_counter() - t0) * 1e3
+        if self.gui is not None and self.show_gui:
+            self._draw_gui(fb, stats, frame_ms)
+        wants_window_shot = scripted and any("window_screenshot" in a for a in self.script.after(self.frames_drawn))
+        if wants_window_shot:
+            data = screen.read(viewport=(0, 0, *fb), components=3, alignment=1)
+            self._last_window_pixels = np.frombuffer(data, np.uint8).reshape(fb[1], fb[0], 3)[::-1].copy()
+        glfw.swap_buffers(self.window)
+        self.frames_drawn += 1
+        frame_ms = (time.perf_counter() - t0) * 1e3
+        self.report["frames"] = self.frames_drawn
+        self.report["frame_ms"].append(round(frame_ms, 3))
+        self.report["render_ms"].append(round(float(stats.get("frame_ms", 0.0)), 3))
+        self.report["passes_run"].append(stats.get("passes_run", []))
+        if not self._idle:
+            self._last_frame_ms = frame_ms
+        if self._want_screenshot:
+            self._want_screenshot = False
+            self.save_screenshot()
+        if scripted:
+            self._run_after_actions(self.script.after(self.frames_drawn - 1))
+        if not (self.gui and self.show_gui) and self.frames_drawn % 15 == 1:
+            glfw.set_window_title(self.window, f"dermis - {self.params.technique} - {frame_ms:.1f} ms/frame "
+                                               f"(render {stats.get('frame_ms', 0):.1f} ms)")
+
+    def _draw_gui(self, fb, stats, frame_ms):
+        imgui = self.gui.imgui
+        imgui.set_current_context(self.gui.context)
+        io = imgui.get_io()
+        ww, wh = self.glfw.get_window_size(self.window)
+        io.display_size = imgui.ImVec2(max(ww, 1), max(wh, 1))
+        io.display_framebuffer_scale = imgui.ImVec2(fb[0] / max(ww, 1), fb[1] / max(wh, 1))
+        now = time.perf_counter()
+        io.delta_time = max(now - getattr(self, "_gui_time", now - 1 / 60), 1e-4)
+        self._gui_time = now
+        imgui.new_frame()
+        status = {"frame_ms": getattr(self, "_last_frame_ms", frame_ms), "render_ms": stats.get("frame_ms", 0.0),
+                  "passes_run": stats.get("passes_run", []), "gpu_objects": self.gpu_objects.total(),
+                  "profile_busy": self.profiles.busy, "profile_note": self._profile_note, "message": self._message}
+        changes, actions = self.panel.draw(self.params, status)
+        imgui.render()
+        self.gui.render(imgui.get_draw_data(), self.ctx.screen, fb)
+        if self.panel.wants_buffer_names and len(self.panel.buffer_names) <= 1:
+            self._buffer_image("")  # fills the panel's list of buffers
+        if changes:
+            try:
+                self.set_params(changes, "panel")
+            except DermisError as exc:
+                self._message = str(exc)
+        if "screenshot" in actions:
+            self._want_screenshot = True
+        if "reset_camera" in actions:
+            self.orbit.reset()
+
+    def run(self) -> dict:
+        try:
+            while not self.glfw.window_should_close(self.window):
+                if self.script is not None and self.script.done(self.frames_drawn):
+                    break
+                self.frame()
+        finally:
+            if self.script is not None and self.script.report is not None:
+                from dermis.cli import write_json_atomic
+
+                write_json_atomic(self.script.report, self.report)
+        return self.report
+
+    # ------------------------------------------------------------------ teardown
+    def _terminate(self):
+        try:
+            self.glfw.terminate()
+        except Exception:
+            pass
+
+    def close(self):
+        if getattr(self, "window", None) is None:
+            return
+        self.profiles.close()
+        self.glfw.make_context_current(self.window)
+        if self.gui is not None:
+            self.gui.release()
+        self.presenter.release()
+        self.renderer.release()
+        self.ctx.release()
+        self.glfw.destroy_window(self.window)
+        self.window = None
+        self._terminate()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def view(scene, size=(960, 640), **options) -> dict:
+    """Open the viewer on ``scene`` and run it until closed; returns the session report."""
+    with Viewer(scene, size, **options) as v:
+        return v.run()

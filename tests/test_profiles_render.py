@@ -1,0 +1,54 @@
+"""Physical skin profiles in the renderer (issue 4, item 6): presets change the head as skin does."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dermis
+from dermis.renderer import Renderer
+from dermis.scene.model import Environment, Light
+from dermis.scene.toml_scene import resolve_profile_section
+
+
+def test_skin_section_color_defaults(tmp_path):
+    p, c = resolve_profile_section({}, tmp_path, "t.toml")
+    assert p.name == "deon" and c == "albedo"
+    p, c = resolve_profile_section({"profile": "fair"}, tmp_path, "t.toml")
+    assert c == "profile" and np.all(p.total_reflectance < 1)
+    with pytest.raises(dermis.DermisError, match="color"):
+        resolve_profile_section({"profile": "fair", "color": "blue"}, tmp_path, "t.toml")
+
+
+def test_dark_preset_is_darker_and_bleeds_less_red_than_fair(example_head_toml, gl_ctx):
+    sc = dermis.load_scene(example_head_toml)
+    sc.lights = [Light(direction=(0.75, -0.25, -0.6), intensity=4.0, shadow_softness=2.0)]
+    sc.environment = Environment(color=(0.01, 0.01, 0.01))
+    out = {}
+    with Renderer(sc, (160, 160), irradiance_size=512, ctx=gl_ctx, samples=0) as r:
+        lit_mask = None
+        for preset in ("fair", "dark"):
+            sc.profile, sc.skin_color = resolve_profile_section({"profile": preset}, Path("."), "test")
+            tsd = r.render("tsd")
+            lam = r.render("lambert")
+            if lit_mask is None:
+                sc.lights[0].cast_shadows = False
+                noshadow = r.render("lambert")
+                sc.lights[0].cast_shadows = True
+                ratio = lam.sum(axis=2) / np.maximum(noshadow.sum(axis=2), 1e-9)
+                lit_mask = (noshadow.sum(axis=2) > 1e-3, (ratio > 0.1) & (ratio < 0.6))
+            out[preset] = (tsd, lam)
+    skin, penumbra = lit_mask
+    penumbra &= skin
+    lum = lambda im: (im[skin] @ [0.2126, 0.7152, 0.0722]).mean()
+    # darker: the dark preset's total reflectance is ~0.05 of fair's in green
+    assert lum(out["dark"][0]) < 0.3 * lum(out["fair"][0])
+    # red bleed: how much redder tsd's penumbra is than lambert's, fair vs dark
+    bleed = {}
+    for k, (tsd, lam) in out.items():
+        rg_t = tsd[penumbra, 0].sum() / tsd[penumbra, 1].sum()
+        rg_l = lam[penumbra, 0].sum() / lam[penumbra, 1].sum()
+        bleed[k] = rg_t / rg_l
+    assert bleed["fair"] > 1.02 and bleed["dark"] < bleed["fair"], bleed
