@@ -51,4 +51,4 @@ def test_dark_preset_is_darker_and_bleeds_less_red_than_fair(example_head_toml, 
         rg_t = tsd[penumbra, 0].sum() / tsd[penumbra, 1].sum()
         rg_l = lam[penumbra, 0].sum() / lam[penumbra, 1].sum()
         bleed[k] = rg_t / rg_l
-    assert bleed["fair"] > 1.02 and bleed["dark"] < bleed["fair"], bleed
+    assert bleed["fair"] > 1.01 and bleed["dark"] < bleed["fair"] - 0.01, bleed

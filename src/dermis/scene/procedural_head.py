@@ -631,3 +631,70 @@ def _ear_point(info, a, b):
     """Mid-surface point of the +x ear at local (a, b)."""
     w, _, _ = _ear_mid(np.asarray(a, float), np.asarray(b, float))
     return info["root"] + a * info["ea"] + b * info["eb"] + w * info["en"]
+
+
+# ----------------------------------------------------------------------------------------------
+# UV layout
+# ----------------------------------------------------------------------------------------------
+
+
+def _boundary_vertices(T):
+    e = np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]])
+    es = np.sort(e, axis=1)
+    u, c = np.unique(es, axis=0, return_counts=True)
+    return np.unique(u[c == 1])
+
+
+def _lscm(P, T):
+    """Least-squares conformal map (Levy et al. 2002) of a disc-like patch; orientation
+    preserving (UV triangles counter-clockwise when the 3-D triangles are counter-clockwise seen
+    along their normal).  Returns (n, 2) UVs in the units of P."""
+    n, m = len(P), len(T)
+    p0, p1, p2 = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
+    e1, e2 = p1 - p0, p2 - p0
+    nrm = np.cross(e1, e2)
+    a2 = np.linalg.norm(nrm, axis=1)  # twice the area
+    x = e1 / np.linalg.norm(e1, axis=1, keepdims=True)
+    y = np.cross(nrm / a2[:, None], x)
+    q = np.zeros((m, 3, 2))
+    q[:, 1, 0] = np.linalg.norm(e1, axis=1)
+    q[:, 2, 0] = np.einsum("ij,ij->i", e2, x)
+    q[:, 2, 1] = np.einsum("ij,ij->i", e2, y)
+    # gradients of the barycentric coordinates: ((y_j+1 - y_j+2), (x_j+2 - x_j+1)) / 2A
+    qa, qb = np.roll(q, -1, axis=1), np.roll(q, -2, axis=1)
+    gx = (qa[..., 1] - qb[..., 1]) / a2[:, None]
+    gy = (qb[..., 0] - qa[..., 0]) / a2[:, None]
+    w = np.sqrt(0.5 * a2)[:, None]
+    ar, ai = gx * w, gy * w  # c_j = a + i b ; residual sum_j c_j U_j
+    rows_r = np.repeat(np.arange(m), 3)
+    cols = T.ravel()
+    # real part: sum a u - b v ; imaginary part: sum b u + a v
+    data = np.concatenate([ar.ravel(), -ai.ravel(), ai.ravel(), ar.ravel()])
+    rr = np.concatenate([rows_r, rows_r, rows_r + m, rows_r + m])
+    cc = np.concatenate([cols, cols + n, cols, cols + n])
+    A = sparse.csr_matrix((data, (rr, cc)), shape=(2 * m, 2 * n))
+    # pins: two far-apart boundary vertices
+    bnd = _boundary_vertices(T)
+    bp = P[bnd]
+    i0 = bnd[np.argmax(np.linalg.norm(bp - bp.mean(0), axis=1))]
+    i1 = bnd[np.argmax(np.linalg.norm(bp - P[i0], axis=1))]
+    dist = float(np.linalg.norm(P[i1] - P[i0]))
+    pins = np.array([i0, i1, i0 + n, i1 + n])
+    pinv = np.array([0.0, dist, 0.0, 0.0])
+    free = np.setdiff1d(np.arange(2 * n), pins)
+    Af = A[:, free]
+    rhs = -(A[:, pins] @ pinv)
+    sol = spsolve((Af.T @ Af).tocsc(), Af.T @ rhs)
+    x_all = np.empty(2 * n)
+    x_all[free] = sol
+    x_all[pins] = pinv
+    return np.stack([x_all[:n], x_all[n:]], 1)
+
+
+def _signed_uv_area(uv, T):
+    a, b, c = uv[T[:, 0]], uv[T[:, 1]], uv[T[:, 2]]
+    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
+
+
+def _tri_areas(P, T):
+    return 0.5 * np.linalg.norm(np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]), axis=1)

@@ -69,7 +69,7 @@ class ImguiRenderer:
         self.prog = ctx.program(vertex_shader=_VERT, fragment_shader=_FRAG)
         self.vbo = ctx.buffer(reserve=64 * 1024, dynamic=True)
         self.ibo = ctx.buffer(reserve=32 * 1024, dynamic=True)
-        fmt = f"2f 2f 4f1"
+        fmt = "2f 2f 4f1"  # ImDrawVert: pos, uv, colour (4 normalised bytes)
         assert imgui.VERTEX_SIZE == 20, "unexpected ImDrawVert layout"
         self.vao = ctx.vertex_array(self.prog, [(self.vbo, fmt, "in_position", "in_uv", "in_color")], self.ibo,
                                     index_element_size=imgui.INDEX_SIZE)

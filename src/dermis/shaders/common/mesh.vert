@@ -3,6 +3,10 @@ layout(location = 0) in vec3 in_position;
 layout(location = 1) in vec3 in_normal;
 layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec4 in_tangent;
+#ifdef DERMIS_VERTEX_CURVATURE
+layout(location = 4) in float in_curvature;  // a technique's own per-vertex scalar (preintegrated: 1/mm)
+out float v_curvature;
+#endif
 uniform mat4 uViewProj;
 out vec3 v_world;
 out vec3 v_normal;
@@ -13,5 +17,8 @@ void main() {
     v_normal = in_normal;
     v_uv = in_uv;
     v_tangent = in_tangent;
+#ifdef DERMIS_VERTEX_CURVATURE
+    v_curvature = in_curvature;
+#endif
     gl_Position = uViewProj * vec4(in_position, 1.0);
 }

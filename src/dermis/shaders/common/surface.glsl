@@ -10,14 +10,23 @@ uniform sampler2D uRoughnessMap;  // optional: Beckmann m per texel (linear data
 uniform float uHasRoughnessMap;   // 1 when uRoughnessMap holds a map
 uniform vec2 uSpecMapBiasScale;   // rho_s(x) = rho_s * (bias + scale * specMap(x))
 
-// MikkTSpace tangent frame: B = w * cross(N, T); the map's normal is taken to world space.
-vec3 perturb_normal(vec3 N, vec4 T, vec2 uv) {
+// MikkTSpace tangent frame: B = w * cross(N, T); the map's normal m (decoded) is taken to world space.
+vec3 tangent_to_world(vec3 N, vec4 T, vec3 m) {
     vec3 n = normalize(N);
     vec3 t = normalize(T.xyz - n * dot(n, T.xyz));
     vec3 b = T.w * cross(n, t);
-    vec3 m = texture(uNormalMap, uv).xyz * 2.0 - 1.0;
     m.xy *= uNormalStrength;
     return normalize(mat3(t, b, n) * m);
+}
+
+vec3 perturb_normal(vec3 N, vec4 T, vec2 uv) {
+    return tangent_to_world(N, T, texture(uNormalMap, uv).xyz * 2.0 - 1.0);
+}
+
+// The normal map read at a given mip level: the normal averaged over 2^lod texels, a blurred
+// normal (pre-integrated skin reads one per colour channel, as wide as that channel scatters).
+vec3 perturb_normal_lod(vec3 N, vec4 T, vec2 uv, float lod) {
+    return tangent_to_world(N, T, textureLod(uNormalMap, uv, lod).xyz * 2.0 - 1.0);
 }
 
 float specular_intensity(vec2 uv) {
