@@ -6,7 +6,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 GL_PACKAGES := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri
 # the viewer's window tests run under a virtual X server
-TEST_PACKAGES := xvfb xauth
+TEST_PACKAGES := xvfb xauth libxrandr2 libxcursor1 libxi6 libxinerama1
 
 .PHONY: demo test sysdeps test-sysdeps install bench clean
 

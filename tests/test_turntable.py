@@ -58,7 +58,8 @@ def test_gif_has_n_frames_and_turns(scene_toml, tmp_path):
     assert _differ(frames[0], frames[FRAMES // 2]) > 0.01
     assert not list(tmp_path.glob(".spin.gif.*"))  # no temporary file left behind
     # lights fixed to the head: texture space ran once, then only the final pass
-    assert len(res["frame_ms"]) == FRAMES
+    assert "tsd_irradiance" in res["passes_run"][0]
+    assert all(p == ["tsd_final"] for p in res["passes_run"][1:])
 
 
 def test_mp4_through_the_cli_with_orbiting_light(scene_toml, tmp_path):

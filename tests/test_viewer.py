@@ -219,15 +219,28 @@ def test_viewer_params_are_checked():
     assert (p.profile, p.melanin, p.hemoglobin) == ("dark", 0.5, 0.05)
 
 
-def test_retint_albedo_moves_the_mean_and_keeps_the_variation():
-    from dermis.viewer.params import retint_albedo
+def test_scene_editor_colours_skin_only_with_spectral_profiles():
+    from dermis.scene.builtin import builtin_mesh
+    from dermis.scene.model import Scene
+    from dermis.viewer.params import ProfileResult, SceneEditor, ViewerParams
 
-    rng = np.random.default_rng(1)
-    base = np.clip(0.5 + 0.1 * rng.standard_normal((32, 32, 3)), 0, 1).astype(np.float32)
-    out = retint_albedo(base, (0.2, 0.1, 0.05))
-    np.testing.assert_allclose(out.reshape(-1, 3).mean(0), (0.2, 0.1, 0.05), rtol=1e-3)
-    corr = np.corrcoef(base[:, :, 0].ravel(), out[:, :, 0].ravel())[0, 1]
-    assert corr > 0.999
+    mesh, _, _ = builtin_mesh("sphere")
+    scene = Scene(mesh=mesh)
+    ed, p = SceneEditor(scene), ViewerParams.from_scene(scene)
+    ed.apply(p)
+    assert scene.skin_color == "albedo"  # the scene's own
+    from dermis.profiles import deon_skin
+
+    ed.apply_profile(ProfileResult(("fair", 0.005, 0.7, 0.005, 0.75, 0.25), deon_skin()))
+    ed.apply(p)
+    assert scene.skin_color == "profile"
+    p.skin_color = "albedo"
+    ed.apply(p)
+    assert scene.skin_color == "albedo"
+    p.skin_color = "profile"
+    ed.apply_profile(ProfileResult(("deon",), deon_skin()))
+    ed.apply(p)
+    assert scene.skin_color == "albedo"  # d'Eon's table carries no colour
 
 
 def test_gpu_output_transform_matches_numpy(gl_ctx):

@@ -113,6 +113,13 @@ class GpuScene:
             self.textures["specular"] = upload_texture(self.ctx, np.array([[[1.0]]], np.float32), mipmaps=False)
             # no map: rho_s as given (bias + scale * 1 would rescale it)
         self.has_specular_map = mat.specular_map is not None
+        # mean albedo on the skin (texels brighter than 2%), for profile-driven skin colour
+        if mat.albedo is not None:
+            a = mat.albedo.data[::4, ::4, :3].reshape(-1, 3)
+            a = a[a.mean(axis=1) > 0.02]
+            self.albedo_mean = a.mean(axis=0) if len(a) else np.ones(3)
+        else:
+            self.albedo_mean = np.asarray(mat.albedo_color, np.float64)
         if mat.roughness_map is not None:
             self.textures["roughness"] = upload_texture(self.ctx, mat.roughness_map.data[:, :, :1], components=1, dtype="f2")
         else:
@@ -142,14 +149,7 @@ class GpuScene:
         sc = self.scene
         if getattr(sc, "skin_color", "albedo") != "profile":
             return np.ones(3)
-        mat = sc.material
-        if mat.albedo is not None:
-            a = mat.albedo.data[:, :, :3].reshape(-1, 3)
-            a = a[a.mean(axis=1) > 0.02]
-            mean = a.mean(axis=0) if len(a) else np.ones(3)
-        else:
-            mean = np.asarray(mat.albedo_color, np.float64)
-        return sc.profile.total_reflectance / np.maximum(mean, 1e-4)
+        return sc.profile.total_reflectance / np.maximum(self.albedo_mean, 1e-4)
 
     def release(self):
         for v, _ in self._vaos.values():

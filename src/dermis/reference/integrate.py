@@ -1,12 +1,14 @@
 """The profile integral of the reference: diffuse light at x = integral over the surface of
 R(|x - y|) E(y) dA(y), with R = sum_k w_k G(v_k, r) and |x - y| the true 3-D distance.
 
-Quadrature: each Gaussian k is summed over its own set of area-weighted surface samples
-(sampling.surface_samples) of spacing h_k = max(sigma_k / 2, h_min): about 230 samples within
-its cutoff on a flat surface, whatever its width. Sets whose spacings are within 25% share one.
-Gaussians narrower than the finest set resolves (sigma_k < RESOLVED_RATIO * h_min) are widened
-to sigma = RESOLVED_RATIO * h_min; callers choose h_min below the pixel footprint so that this
-changes the image by less than the sampling noise (tests/test_reference.py measures both).
+Quadrature: the midpoint rule over an exact partition of the surface into lattice cells
+(sampling.surface_cells). Gaussian k is summed over cells of size h_k = m_k h_min, m_k the integer
+nearest sigma_k / (2 h_min) (at least 1): about 230 cells within its cutoff on a flat surface,
+whatever its width. Coarse cells are unions of the finest ones and carry their area-weighted
+mean irradiance (a cell average), so coarse sets neither alias texture or shadow detail nor blur
+beyond the Gaussian itself. Gaussians narrower than the finest cells resolve
+(sigma_k < RESOLVED_RATIO h_min) are widened to sigma = RESOLVED_RATIO h_min; callers choose h_min
+below the pixel footprint so that this costs less than the sampling noise (tests/test_reference.py).
 
 Cutoff: Gaussian k is cut where it falls below CUTOFF_RELATIVE (1e-4) of its peak,
 r_k = sigma_k sqrt(2 ln 1e4) = 4.29 sigma_k; for the widest skin Gaussian (v = 7.41 mm^2) that is
@@ -27,12 +29,10 @@ from scipy.spatial import cKDTree
 CUTOFF_RELATIVE = 1e-4
 """A Gaussian is truncated where it falls below this fraction of its peak."""
 SPACING_PER_SIGMA = 0.5
-"""Sample spacing of Gaussian k's set, in units of sigma_k (before the floor h_min)."""
+"""Cell size of Gaussian k's sample set, in units of sigma_k (rounded to a multiple of h_min)."""
 RESOLVED_RATIO = 0.7
-"""The narrowest sigma a set of spacing h integrates without aliasing: 0.7 h (a lattice sum of a
-Gaussian of that width deviates from its integral by 2 exp(-2 pi^2 0.49) = 1.2e-4)."""
-SHARE_RATIO = 1.25
-"""Gaussians whose spacings are within this factor share one sample set."""
+"""The narrowest sigma the finest cells (size h_min) integrate: 0.7 h_min (the midpoint rule on a
+square lattice sums a Gaussian of that width to its integral within 2 exp(-2 pi^2 0.49) = 1.2e-4)."""
 PAIRS_PER_CHUNK = 6_000_000
 
 
@@ -54,34 +54,34 @@ class Level:
 
 @dataclass
 class SampleSetPlan:
+    factor: int  # cell size in units of the finest cells
     spacing_mm: float
     cutoff_mm: float  # the largest cutoff of the Gaussians using it
     levels: list
 
 
 def plan_levels(profile, min_spacing_mm: float):
-    """Assign each Gaussian of ``profile`` a sample spacing; returns (levels, sample sets)."""
+    """Give each Gaussian of ``profile`` a cell size, an integer multiple m of ``min_spacing_mm``
+    near SPACING_PER_SIGMA sigma_k; Gaussians with the same m share a set. Returns (levels, sets)."""
     h_min = float(min_spacing_mm)
     variances = np.asarray(profile.variances_mm2, np.float64)
-    sets: list[SampleSetPlan] = []
+    sets: dict[int, SampleSetPlan] = {}
     levels: list[Level] = []
     for k in np.argsort(variances):
         v = float(variances[k])
-        sigma = math.sqrt(v)
-        h = max(SPACING_PER_SIGMA * sigma, h_min)
-        if sets and h <= sets[-1].spacing_mm * SHARE_RATIO:
-            s = len(sets) - 1
-        else:
-            sets.append(SampleSetPlan(h, 0.0, []))
-            s = len(sets) - 1
-        h_set = sets[s].spacing_mm
-        v_eff = max(v, (RESOLVED_RATIO * h_set) ** 2)
-        lvl = Level(int(k), v, v_eff, cutoff_radius(v_eff), s)
-        levels.append(lvl)
-        sets[s].levels.append(lvl)
-        sets[s].cutoff_mm = max(sets[s].cutoff_mm, lvl.cutoff_mm)
+        m = max(1, int(round(SPACING_PER_SIGMA * math.sqrt(v) / h_min)))
+        if m not in sets:
+            sets[m] = SampleSetPlan(m, m * h_min, 0.0, [])
+        v_eff = max(v, (RESOLVED_RATIO * h_min) ** 2) if m == 1 else v
+        levels.append(Level(int(k), v, v_eff, cutoff_radius(v_eff), -1))
+        sets[m].levels.append(levels[-1])
+        sets[m].cutoff_mm = max(sets[m].cutoff_mm, levels[-1].cutoff_mm)
+    ordered = [sets[m] for m in sorted(sets)]
+    for i, s in enumerate(ordered):
+        for lvl in s.levels:
+            lvl.set_index = i
     levels.sort(key=lambda l: l.index)
-    return levels, sets
+    return levels, ordered
 
 
 @numba.njit(cache=True)

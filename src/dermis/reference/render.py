@@ -8,8 +8,8 @@ standard 4x MSAA pattern the real-time renderer resolves) find the visible point
     L_o(x) = [sum_k w_k(rgb) sum_y A_y G(v_k, |x - y|) E'(y)] albedo(x)^(1 - mix) / pi (1 - rho_s a(N.V, m) / pi)
              + specular(x)
 
-where y runs over area-weighted surface samples (sampling.surface_samples, A_y their area in
-mm^2), E'(y) is the irradiance that scatters (shading.scattered_irradiance: exact ray-cast
+where y runs over area-weighted surface samples (sampling.surface_cells: the surface cut into
+lattice cells, A_y their area in mm^2), E'(y) is the irradiance that scatters (shading.scattered_irradiance: exact ray-cast
 shadows, energy left by the specular, unoccluded SH ambient, times albedo^mix), |x - y| is the
 true 3-D distance in mm (integrate.py: KD-tree, per-Gaussian cutoff at 1e-4 of its peak, so light
 through ears and nostrils is part of the same integral), w_k the profile's weights normalised
@@ -35,7 +35,7 @@ from dermis.camera import camera_matrices
 from dermis.errors import DermisError
 from dermis.reference.integrate import gather, plan_levels
 from dermis.reference.raycast import Bvh
-from dermis.reference.sampling import SurfaceModel, surface_samples
+from dermis.reference.sampling import SurfaceModel, coarsen, surface_cells
 from dermis.reference.shading import LightRig, scattered_irradiance, specular_and_exit
 
 MSAA4 = np.array([(-2, -6), (6, -2), (-6, 2), (2, 6)], np.float64) / 16.0
@@ -174,48 +174,50 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
         stats.update({"pixel_footprint_mm": pixel_mm, "min_spacing_mm": float(min_spacing_mm),
                       "gaussians": [{"variance_mm2": l.variance_mm2, "integrated_variance_mm2": l.effective_variance_mm2,
                                      "cutoff_mm": l.cutoff_mm, "sample_set": l.set_index} for l in levels]})
-        # triangles each set must cover: within its cutoff of a visible point
+        # the finest cells cover every triangle within the widest cutoff of a visible point
         t0 = time.perf_counter()
         vis_tree = cKDTree(xq)
-        plans = []
-        for s in sets:
-            dist, _ = vis_tree.query(surface.centroids, k=1, distance_upper_bound=s.cutoff_mm + float(surface.radii.max()))
-            near = np.isfinite(dist) & (dist <= s.cutoff_mm + surface.radii)
-            tris_s = np.nonzero(near)[0]
-            st, sb, sw = surface_samples(surface.v0, surface.v1, surface.v2, tris_s, s.spacing_mm, seed=seed * 7919 + len(plans))
-            plans.append((s, st, sb, sw))
+        reach = max(s.cutoff_mm for s in sets)
+        dist, _ = vis_tree.query(surface.centroids, k=1, distance_upper_bound=reach + float(surface.radii.max()))
+        tri_dist = np.where(np.isfinite(dist), dist - surface.radii, np.inf)  # a lower bound per triangle
+        near = np.nonzero(tri_dist <= reach)[0]
+        ct, cij, cb, ca = surface_cells(surface.v0, surface.v1, surface.v2, near, min_spacing_mm, seed=seed)
         timings["sampling_s"] = time.perf_counter() - t0
-        total_samples = sum(len(p[1]) for p in plans)
-        bar = _Progress(progress, total_samples + n_hits * len(plans) + n_hits)
+        n_cells = len(ct)
+        bar = _Progress(progress, n_cells + n_hits * len(sets) + n_hits)
         try:
+            bar.stage("irradiance")
+            t0 = time.perf_counter()
+            cpos = np.empty((n_cells, 3))
+            cval = np.empty((n_cells, 3))
+            for c0 in range(0, n_cells, IRRADIANCE_CHUNK):
+                c1 = min(n_cells, c0 + IRRADIANCE_CHUNK)
+                a = surface.interpolate(ct[c0:c1], cb[c0:c1])
+                cpos[c0:c1] = a["position"]
+                cval[c0:c1] = scattered_irradiance(surface, rig, a)
+                bar(c1 - c0)
+            timings["irradiance_s"] = time.perf_counter() - t0
             set_stats = []
             C = np.zeros((n_hits, profile.k, 3))
-            t_irr = t_gather = 0.0
+            t_gather = 0.0
             pairs_total = 0
-            for si, (s, st, sb, sw) in enumerate(plans):
-                bar.stage(f"irradiance {si + 1}/{len(plans)}")
+            for si, s in enumerate(sets):
+                bar.stage(f"profile integral {si + 1}/{len(sets)}")
                 t0 = time.perf_counter()
-                pos = np.empty((len(st), 3))
-                val = np.empty((len(st), 3))
-                for c0 in range(0, len(st), IRRADIANCE_CHUNK):
-                    c1 = min(len(st), c0 + IRRADIANCE_CHUNK)
-                    a = surface.interpolate(st[c0:c1], sb[c0:c1])
-                    pos[c0:c1] = a["position"]
-                    val[c0:c1] = scattered_irradiance(surface, rig, a)
-                    bar(c1 - c0)
-                t_irr += time.perf_counter() - t0
-                bar.stage(f"profile integral {si + 1}/{len(plans)}")
-                t0 = time.perf_counter()
+                use = np.nonzero(tri_dist[ct] <= s.cutoff_mm)[0]  # cells whose triangle can reach a visible point
+                group, n_groups = coarsen(ct[use], cij[use], s.factor)
+                area = np.bincount(group, weights=ca[use], minlength=n_groups)
+                inv = 1.0 / np.maximum(area, 1e-300)
+                pos = np.stack([np.bincount(group, weights=ca[use] * cpos[use, c], minlength=n_groups) for c in range(3)], 1) * inv[:, None]
+                val = np.stack([np.bincount(group, weights=ca[use] * cval[use, c], minlength=n_groups) for c in range(3)], 1) * inv[:, None]
                 ks = [l.index for l in s.levels]
-                out, pairs, _ = gather(xq, pos, sw, val, [l.effective_variance_mm2 for l in s.levels],
+                out, pairs, _ = gather(xq, pos, area, val, [l.effective_variance_mm2 for l in s.levels],
                                        [l.cutoff_mm for l in s.levels], progress=bar)
                 C[:, ks, :] = out
                 pairs_total += pairs
                 t_gather += time.perf_counter() - t0
-                set_stats.append({"spacing_mm": s.spacing_mm, "cutoff_mm": s.cutoff_mm, "gaussians": ks,
-                                  "triangles": int(len(np.unique(st))), "samples": int(len(st)),
-                                  "area_mm2": float(sw.sum()), "pairs": int(pairs)})
-            timings["irradiance_s"] = t_irr
+                set_stats.append({"cell_mm": s.spacing_mm, "cutoff_mm": s.cutoff_mm, "gaussians": ks,
+                                  "samples": int(n_groups), "area_mm2": float(area.sum()), "pairs": int(pairs)})
             timings["profile_integral_s"] = t_gather
             bar.stage("specular")
             t0 = time.perf_counter()
@@ -228,7 +230,8 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
         diffuse = scattered * exit_factor
         specular = spec
         stats["sample_sets"] = set_stats
-        stats["samples"] = int(total_samples)
+        stats["samples"] = int(n_cells)
+        stats["sampled_area_mm2"] = float(ca.sum())
         stats["pairs"] = int(pairs_total)
 
     # resolve sub-pixel samples into pixels

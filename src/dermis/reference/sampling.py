@@ -1,12 +1,13 @@
 """Surface samples and surface attributes for the offline reference (numpy + numba, no GL).
 
-* :func:`surface_samples` - area-weighted points on the mesh: per triangle, a square lattice of
-  spacing ``h`` mm in the triangle's plane with a random rotation and offset (seeded per triangle,
-  so the set does not depend on the order of processing). A triangle holding n lattice points
-  gives each the weight A / n mm^2, so the weights sum exactly to the sampled area; a triangle
-  smaller than the lattice gets one sample at its centroid with its whole area. This is stratified
-  (jittered-lattice) quadrature: the spacing is isotropic in millimetres, however stretched the
-  triangle or its UVs.
+* :func:`surface_cells` - area-weighted points on the mesh: each triangle is cut into the cells
+  of a square lattice of spacing ``h`` mm laid in its plane (random rotation and offset, seeded
+  per triangle, so the set does not depend on the order of processing), each cell clipped to the
+  triangle exactly. One sample per piece, at the piece's centroid, weighted by its area: an exact
+  partition of the surface, so the quadrature (the midpoint rule) has no density fluctuations at
+  triangle edges, is isotropic in millimetres however stretched the triangle or its UVs, and
+  coarser lattices (:func:`coarsen`, the same lattice ``m`` times wider) are unions of finer pieces:
+  their values are area-weighted means of the fine samples, i.e. cell averages, not point samples.
 * :class:`SurfaceModel` - the mesh in millimetres with the attributes the real-time shaders
   interpolate (position, normal, UV, MikkTSpace tangent), evaluated at (triangle, barycentric)
   points exactly as the rasteriser interpolates them (barycentric = perspective-correct), and the
@@ -40,95 +41,145 @@ def _hash_uniforms(seed, t):
     return out
 
 
+@numba.njit(cache=True, inline="always")
+def _clip(px, py, n, ax, ay, bx, by, qx, qy):
+    """Sutherland-Hodgman: clip polygon (px, py)[:n] to the left of edge a -> b; result in (qx, qy)."""
+    m = 0
+    ex, ey = bx - ax, by - ay
+    for k in range(n):
+        x0, y0 = px[k], py[k]
+        x1, y1 = px[(k + 1) % n], py[(k + 1) % n]
+        d0 = ex * (y0 - ay) - ey * (x0 - ax)
+        d1 = ex * (y1 - ay) - ey * (x1 - ax)
+        if d0 >= 0.0:
+            qx[m] = x0
+            qy[m] = y0
+            m += 1
+        if (d0 >= 0.0) != (d1 >= 0.0):
+            t = d0 / (d0 - d1)
+            qx[m] = x0 + t * (x1 - x0)
+            qy[m] = y0 + t * (y1 - y0)
+            m += 1
+    return m
+
+
 @numba.njit(cache=True)
-def _lattice(v0, v1, v2, tris, h, seed, write, counts, offsets, tri_out, bary_out, w_out):
-    """Pass 1 (write=False): count the lattice points inside each triangle. Pass 2: write them."""
+def _cells(v0, v1, v2, tris, h, seed, write, counts, offsets, tri_out, ij_out, bary_out, area_out):
+    """Pass 1 (write=False): count the lattice cells that overlap each triangle. Pass 2: write
+    each overlap (the square cell clipped to the triangle): its area and centroid."""
+    px = np.empty(8)
+    py = np.empty(8)
+    qx = np.empty(8)
+    qy = np.empty(8)
     for q in range(tris.shape[0]):
         t = tris[q]
-        ax, ay, az = v0[t, 0], v0[t, 1], v0[t, 2]
-        e1 = np.array([v1[t, 0] - ax, v1[t, 1] - ay, v1[t, 2] - az])
-        e2 = np.array([v2[t, 0] - ax, v2[t, 1] - ay, v2[t, 2] - az])
+        e1 = np.array([v1[t, 0] - v0[t, 0], v1[t, 1] - v0[t, 1], v1[t, 2] - v0[t, 2]])
+        e2 = np.array([v2[t, 0] - v0[t, 0], v2[t, 1] - v0[t, 1], v2[t, 2] - v0[t, 2]])
         l1 = np.sqrt(e1[0] ** 2 + e1[1] ** 2 + e1[2] ** 2)
         nx = e1[1] * e2[2] - e1[2] * e2[1]
         ny = e1[2] * e2[0] - e1[0] * e2[2]
         nz = e1[0] * e2[1] - e1[1] * e2[0]
         area = 0.5 * np.sqrt(nx * nx + ny * ny + nz * nz)
         if area <= 0.0 or l1 <= 0.0:
-            if write:
+            if not write:
                 counts[q] = 0
             continue
-        # 2-D frame in the plane: x along edge 1
-        bx = l1
+        # the triangle in its plane (x along edge 1), then in the lattice's rotated frame
         cx = (e2[0] * e1[0] + e2[1] * e1[1] + e2[2] * e1[2]) / l1
         cy = 2.0 * area / l1
         r = _hash_uniforms(seed, t)
         ang = r[0] * 2.0 * np.pi
         ca, sa = np.cos(ang), np.sin(ang)
-        # the triangle in the lattice's (rotated) frame: A = 0, B, C
-        pbx, pby = ca * bx, -sa * bx
-        pcx, pcy = ca * cx + sa * cy, -sa * cx + ca * cy
-        xmin, xmax = min(0.0, min(pbx, pcx)), max(0.0, max(pbx, pcx))
-        ymin, ymax = min(0.0, min(pby, pcy)), max(0.0, max(pby, pcy))
+        tx = np.array([0.0, ca * l1, ca * cx + sa * cy])
+        ty = np.array([0.0, -sa * l1, -sa * cx + ca * cy])
+        det = tx[1] * ty[2] - tx[2] * ty[1]  # = 2 area > 0 (counter-clockwise)
         ox, oy = r[1] * h, r[2] * h
-        i0 = int(np.floor((xmin - ox) / h))
-        i1 = int(np.ceil((xmax - ox) / h))
-        j0 = int(np.floor((ymin - oy) / h))
-        j1 = int(np.ceil((ymax - oy) / h))
-        det = pbx * pcy - pcx * pby
+        i0 = int(np.floor((tx.min() - ox) / h))
+        i1 = int(np.floor((tx.max() - ox) / h))
+        j0 = int(np.floor((ty.min() - oy) / h))
+        j1 = int(np.floor((ty.max() - oy) / h))
         n = 0
         base = offsets[q] if write else 0
         for i in range(i0, i1 + 1):
-            x = ox + i * h
             for j in range(j0, j1 + 1):
-                y = oy + j * h
-                # barycentrics of (x, y) w.r.t. A=0, B, C
-                b1 = (x * pcy - pcx * y) / det
-                b2 = (pbx * y - x * pby) / det
-                if b1 >= 0.0 and b2 >= 0.0 and b1 + b2 <= 1.0:
-                    if write:
-                        tri_out[base + n] = t
-                        bary_out[base + n, 0] = b1
-                        bary_out[base + n, 1] = b2
-                    n += 1
-        if n == 0:  # smaller than the lattice: one sample at the centroid
-            if write:
-                tri_out[base] = t
-                bary_out[base, 0] = 1.0 / 3.0
-                bary_out[base, 1] = 1.0 / 3.0
-                w_out[base] = area
-            else:
-                counts[q] = 1
-            continue
-        if write:
-            for k in range(n):
-                w_out[base + k] = area / n
-        else:
+                xa = ox + i * h
+                ya = oy + j * h
+                px[0], py[0] = xa, ya
+                px[1], py[1] = xa + h, ya
+                px[2], py[2] = xa + h, ya + h
+                px[3], py[3] = xa, ya + h
+                m = _clip(px, py, 4, tx[0], ty[0], tx[1], ty[1], qx, qy)
+                m = _clip(qx, qy, m, tx[1], ty[1], tx[2], ty[2], px, py)
+                m = _clip(px, py, m, tx[2], ty[2], tx[0], ty[0], qx, qy)
+                if m < 3:
+                    continue
+                a2 = 0.0
+                sx = 0.0
+                sy = 0.0
+                for k in range(m):
+                    x0, y0 = qx[k], qy[k]
+                    x1, y1 = qx[(k + 1) % m], qy[(k + 1) % m]
+                    c = x0 * y1 - x1 * y0
+                    a2 += c
+                    sx += (x0 + x1) * c
+                    sy += (y0 + y1) * c
+                if a2 <= 1e-12 * h * h:
+                    continue
+                if write:
+                    gx = sx / (3.0 * a2)
+                    gy = sy / (3.0 * a2)
+                    k = base + n
+                    tri_out[k] = t
+                    ij_out[k, 0] = i
+                    ij_out[k, 1] = j
+                    bary_out[k, 0] = (gx * ty[2] - tx[2] * gy) / det
+                    bary_out[k, 1] = (tx[1] * gy - gx * ty[1]) / det
+                    area_out[k] = 0.5 * a2
+                n += 1
+        if not write:
             counts[q] = n
 
 
-def surface_samples(v0, v1, v2, triangles, spacing_mm: float, seed: int = 0):
-    """Area-weighted samples on ``triangles`` (indices into the per-triangle corner arrays
-    ``v0, v1, v2`` (M, 3), in mm) at lattice spacing ``spacing_mm``.
-
-    Returns (triangle (n,) int64, barycentrics (n, 2) float64 of corners 1 and 2, weight (n,) mm^2).
-    Deterministic for a given seed.
+def surface_cells(v0, v1, v2, triangles, spacing_mm: float, seed: int = 0):
+    """An exact partition of ``triangles`` (indices into the per-triangle corner arrays
+    ``v0, v1, v2`` (M, 3), in mm) into pieces: a square lattice of spacing ``spacing_mm`` in each
+    triangle's plane (random rotation and offset, seeded per triangle), each cell clipped to the
+    triangle. Returns (triangle (n,), lattice index (n, 2), barycentrics of the piece's centroid
+    (n, 2) of corners 1 and 2, area (n,) mm^2). The areas sum to the triangles' areas (to
+    rounding). Deterministic for a given seed.
     """
     tris = np.ascontiguousarray(triangles, np.int64)
     h = float(spacing_mm)
     if not h > 0:
         raise ValueError("sample spacing must be > 0 mm")
     counts = np.zeros(len(tris), np.int64)
-    dummy_i = np.zeros(1, np.int64)
-    dummy_b = np.zeros((1, 2))
-    dummy_w = np.zeros(1)
-    _lattice(v0, v1, v2, tris, h, seed, False, counts, counts, dummy_i, dummy_b, dummy_w)
+    di = np.zeros(1, np.int64)
+    dij = np.zeros((1, 2), np.int64)
+    db = np.zeros((1, 2))
+    dw = np.zeros(1)
+    _cells(v0, v1, v2, tris, h, seed, False, counts, counts, di, dij, db, dw)
     offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
     total = int(counts.sum())
     tri_out = np.empty(total, np.int64)
+    ij_out = np.empty((total, 2), np.int64)
     bary_out = np.empty((total, 2))
-    w_out = np.empty(total)
-    _lattice(v0, v1, v2, tris, h, seed, True, counts, offsets, tri_out, bary_out, w_out)
-    return tri_out, bary_out, w_out
+    area_out = np.empty(total)
+    _cells(v0, v1, v2, tris, h, seed, True, counts, offsets, tri_out, ij_out, bary_out, area_out)
+    return tri_out, ij_out, bary_out, area_out
+
+
+def coarsen(tri, ij, factor: int):
+    """Group fine cells into the cells of the lattice ``factor`` times coarser (same rotation and
+    origin, so each coarse cell is exactly a union of fine ones). Returns (group (n,) index of
+    each fine cell's coarse cell, number of coarse cells)."""
+    if factor == 1:
+        return np.arange(len(tri)), len(tri)
+    ci = np.floor_divide(ij, factor)
+    if np.abs(ci).max(initial=0) >= 2 ** 15 or (len(tri) and tri.max() >= 2 ** 31):
+        raise ValueError("lattice too large to group (triangle over 32768 cells across)")
+    key = (tri.astype(np.int64) << 32) | ((ci[:, 0] + 2 ** 15) << 16) | (ci[:, 1] + 2 ** 15)
+    uniq, group = np.unique(key, return_inverse=True)
+    return group.reshape(-1), len(uniq)
 
 
 @numba.njit(cache=True, parallel=True)

@@ -57,7 +57,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage, sparse, spatial
-from scipy.sparse.linalg import spsolve
+from scipy.sparse.linalg import splu
 
 MM_PER_UNIT = 10.0
 PORE_SPACING_MM = 1.0
@@ -213,7 +213,7 @@ class _Shape:
             target = np.asarray(target, float)
             ax = self.C - target
             ax /= np.linalg.norm(ax)
-            t = _raycast(self, self.C, -ax[None], iters=30)[0]
+            t = _raycast(self, self.C, -ax[None], iters=12, tol=1e-4)[0]
             sub(E(self.C - t * ax, radii, _frame_from_axis(ax)), k)
 
         # nostrils, mouth line, mouth corners
@@ -221,6 +221,10 @@ class _Shape:
             cavity((s * self.NOSTRIL[0], self.NOSTRIL[1], self.NOSTRIL[2]), (0.27, 0.17, 0.7), 0.12)
 
     def sdf(self, p):
+        return np.maximum(self.sdf_body(p), self.Y_CUT - p[:, 1])
+
+    def sdf_body(self, p):
+        """The surface without the flat cut at the bottom of the neck."""
         d = self.base(p)
         if not hasattr(self, "_groups"):
             self._make_groups()
@@ -243,7 +247,7 @@ class _Shape:
                 e = prim(pi[j])
                 di[j] = _smin(di[j], e, k) if op == "u" else _smax(di[j], -e, k)
             d[idx] = di
-        return np.maximum(d, self.Y_CUT - p[:, 1])
+        return d
 
     def _make_groups(self):
         """Two-level culling: the face features form one group with a bounding sphere."""
@@ -424,25 +428,18 @@ def _build_head_surface(shape):
     # fine samples
     PH, EL = np.meshgrid(phis[:Nc], elev, indexing="ij")  # (Nc, M)
     D = _dirs(PH, EL).reshape(-1, 3)
-    t_f = _raycast(shape, C, D, iters=9).reshape(Nc, M)
+    t_f = _raycast(shape, C, D, iters=8, tol=1e-3).reshape(Nc, M)
     P_f = C + t_f[..., None] * D.reshape(Nc, M, 3)
 
-    # corner with the neck cut: last sample above the cut, then bisect the elevation
-    above = P_f[..., 1] > shape.Y_CUT + 0.01
-    k_last = M - 1 - np.argmax(above[:, ::-1], axis=1)
-    assert np.all(k_last < M - 1) and np.all(above[:, 0]), "ring sampling misses the neck cut"
-    e_hi, e_lo = elev[k_last], elev[np.minimum(k_last + 1, M - 1)]
-    for _ in range(16):
-        em = 0.5 * (e_hi + e_lo)
-        dm = _dirs(phis[:Nc], em)
-        tm = _raycast(shape, C, dm, iters=9)
-        up = (C + tm[:, None] * dm)[:, 1] > shape.Y_CUT + 1e-4
-        e_hi = np.where(up, em, e_hi)
-        e_lo = np.where(up, e_lo, em)
-    dc = _dirs(phis[:Nc], e_hi)
-    tc = _raycast(shape, C, dc, iters=12)
-    corner = C + tc[:, None] * dc
-    corner[:, 1] = shape.Y_CUT
+    # corner with the neck cut: a horizontal ray in the column's half-plane at the cut height
+    hd = np.stack([np.sin(phis[:Nc]), np.zeros(Nc), np.cos(phis[:Nc])], 1)
+    o = np.array([C[0], shape.Y_CUT, C[2]])
+    body = type("_Body", (), {"sdf": staticmethod(shape.sdf_body)})
+    tc = _raycast(body, o, hd, t_lo=0.5, t_hi=20.0, iters=10, tol=1e-4)
+    corner = o + tc[:, None] * hd
+    e_hi = np.arctan2(corner[:, 1] - C[1], np.hypot(corner[:, 0] - C[0], corner[:, 2] - C[2]))
+    k_last = np.sum(elev[None, :] > e_hi[:, None], axis=1) - 1
+    assert np.all(k_last < M - 1) and np.all(k_last > M // 2), "ring sampling misses the neck cut"
 
     # per-column weighted arc length -> row elevations.  The arc length is measured on the
     # column profile smoothed along the column (small cavities such as the nostrils must not
@@ -464,7 +461,7 @@ def _build_head_surface(shape):
     rows_tg = np.stack([np.interp(-rows_e[j], -elev, t_f[j]) for j in range(Nc)])
     PH2 = np.broadcast_to(phis[:Nc, None], (Nc, Nr))
     D2 = _dirs(PH2, rows_e).reshape(-1, 3)
-    t2 = _raycast_bracketed(shape, C, D2, rows_tg.ravel(), half=0.5, iters=7)
+    t2 = _raycast_bracketed(shape, C, D2, rows_tg.ravel(), half=0.4, iters=6)
     ring = np.empty((Nr + 1, Nc + 1, 3))
     ring[:Nr, :Nc] = (C + t2[:, None] * D2).reshape(Nc, Nr, 3).transpose(1, 0, 2)
     ring[Nr, :Nc] = corner
@@ -485,7 +482,7 @@ def _build_head_surface(shape):
     ph = np.arctan2(inner[:, 0], inner[:, 1])
     g = r * CAP_POLAR
     di = np.stack([np.sin(g) * np.sin(ph), np.cos(g), np.sin(g) * np.cos(ph)], 1)
-    ti = _raycast(shape, C, di, iters=11)
+    ti = _raycast(shape, C, di, iters=10)
     capP = np.concatenate([ring[0, :Nc], C + ti[:, None] * di])
     capT = _orient_outward(capP, capT, C)
 
@@ -684,7 +681,8 @@ def _lscm(P, T):
     free = np.setdiff1d(np.arange(2 * n), pins)
     Af = A[:, free]
     rhs = -(A[:, pins] @ pinv)
-    sol = spsolve((Af.T @ Af).tocsc(), Af.T @ rhs)
+    lu = splu((Af.T @ Af).tocsc(), permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True))
+    sol = lu.solve(Af.T @ rhs)
     x_all = np.empty(2 * n)
     x_all[free] = sol
     x_all[pins] = pinv
@@ -698,3 +696,353 @@ def _signed_uv_area(uv, T):
 
 def _tri_areas(P, T):
     return 0.5 * np.linalg.norm(np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]), axis=1)
+
+
+def _arap(P, T, uv0, iters=12):
+    """As-rigid-as-possible parameterisation (Liu et al. 2008), local/global iterations from
+    ``uv0``.  Keeps the triangles' orientation of ``uv0`` (which must be counter-clockwise)."""
+    n, m = len(P), len(T)
+    p0, p1, p2 = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
+    e1, e2 = p1 - p0, p2 - p0
+    nrm = np.cross(e1, e2)
+    a2 = np.linalg.norm(nrm, axis=1)
+    x = e1 / np.linalg.norm(e1, axis=1, keepdims=True)
+    y = np.cross(nrm / a2[:, None], x)
+    q = np.zeros((m, 3, 2))
+    q[:, 1, 0] = np.linalg.norm(e1, axis=1)
+    q[:, 2, 0] = np.einsum("ij,ij->i", e2, x)
+    q[:, 2, 1] = np.einsum("ij,ij->i", e2, y)
+    # cotangent of the angle at each corner
+    cot = np.empty((m, 3))
+    for k in range(3):
+        a = q[:, (k + 1) % 3] - q[:, k]
+        b = q[:, (k + 2) % 3] - q[:, k]
+        cot[:, k] = (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) / (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    # half-edges (i, j) opposite corner k
+    I = np.concatenate([T[:, 1], T[:, 2], T[:, 0]])
+    J = np.concatenate([T[:, 2], T[:, 0], T[:, 1]])
+    W = np.concatenate([cot[:, 0], cot[:, 1], cot[:, 2]])
+    Lm = sparse.coo_matrix((np.concatenate([W, W, -W, -W]), (np.concatenate([I, J, I, J]), np.concatenate([I, J, J, I]))), shape=(n, n)).tocsc()
+    # pin vertex 0 (fixes the translation)
+    keep = np.arange(1, n)
+    lu = splu(Lm[keep][:, keep].tocsc(), permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True))
+    qi = np.concatenate([q[:, 1], q[:, 2], q[:, 0]])
+    qj = np.concatenate([q[:, 2], q[:, 0], q[:, 1]])
+    dq = qi - qj  # (3m, 2)
+    Eq = np.stack([q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]], -1)  # (m, 2, 2) columns
+    Eq_inv = np.linalg.inv(Eq)
+    uv = uv0.copy()
+    col0 = np.asarray(Lm[keep][:, [0]].todense()).ravel()
+    for _ in range(iters):
+        Euv = np.stack([uv[T[:, 1]] - uv[T[:, 0]], uv[T[:, 2]] - uv[T[:, 0]]], -1)
+        Jt = Euv @ Eq_inv
+        th = np.arctan2(Jt[:, 1, 0] - Jt[:, 0, 1], Jt[:, 0, 0] + Jt[:, 1, 1])
+        c3, s3 = np.tile(np.cos(th), 3), np.tile(np.sin(th), 3)
+        rx = (c3 * dq[:, 0] - s3 * dq[:, 1]) * W
+        ry = (s3 * dq[:, 0] + c3 * dq[:, 1]) * W
+        bx = np.bincount(I, rx, n) - np.bincount(J, rx, n)
+        by = np.bincount(I, ry, n) - np.bincount(J, ry, n)
+        uv[keep, 0] = lu.solve(bx[keep] - col0 * uv[0, 0])
+        uv[keep, 1] = lu.solve(by[keep] - col0 * uv[0, 1])
+    return uv
+
+
+def _ring_init_uv(ring):
+    """Arc-length unrolling of the ring grid (rows x cols+1, seam column duplicated): u along
+    the rows from the front midline, v along the columns from the eye row."""
+    Nr1, Nc1 = ring.shape[:2]
+    jf = (Nc1 - 1) // 2  # front column (azimuth 0)
+    du = np.linalg.norm(np.diff(ring, axis=1), axis=2)
+    u = np.concatenate([np.zeros((Nr1, 1)), np.cumsum(du, axis=1)], 1)
+    u -= u[:, jf : jf + 1]
+    dv = np.linalg.norm(np.diff(ring, axis=0), axis=2)
+    v = -np.concatenate([np.zeros((1, Nc1)), np.cumsum(dv, axis=0)], 0)
+    iref = np.argmin(np.abs(ring[:, jf, 1] - 1.5))
+    v -= v[iref : iref + 1]
+    return np.stack([u, v], -1).reshape(-1, 2)
+
+
+def _rotate_uv(uv, ang):
+    c, s = np.cos(ang), np.sin(ang)
+    return uv @ np.array([[c, s], [-s, c]])
+
+
+def _min_bbox_angle(uv, angles):
+    best, best_a = np.inf, 0.0
+    for a in angles:
+        r = _rotate_uv(uv, a)
+        ext = r.max(0) - r.min(0)
+        if ext[0] * ext[1] < best:
+            best, best_a = ext[0] * ext[1], a
+    return best_a
+
+
+def _skyline_pack(sizes, W, H):
+    """Bottom-left skyline packing of rectangles (w, h) in order into [0, W] x [0, H] (y grows
+    downward from the top).  Returns positions or None if they do not fit."""
+    sky = [(0.0, W, 0.0)]  # segments (x, width, y)
+    out = []
+    for w, h in sizes:
+        best = None
+        for i, (x0, _, _) in enumerate(sky):
+            if x0 + w > W + 1e-12:
+                break
+            y, xe = 0.0, x0 + w
+            for x1, w1, y1 in sky[i:]:
+                if x1 >= xe - 1e-12:
+                    break
+                y = max(y, y1)
+            if y + h <= H + 1e-12 and (best is None or (y, x0) < (best[1], best[0])):
+                best = (x0, y)
+        if best is None:
+            return None
+        x0, y = best
+        out.append(best)
+        new = []
+        for x1, w1, y1 in sky:
+            a, b = x1, x1 + w1
+            if b <= x0 or a >= x0 + w:
+                new.append((x1, w1, y1))
+                continue
+            if a < x0:
+                new.append((a, x0 - a, y1))
+            if b > x0 + w:
+                new.append((x0 + w, b - x0 - w, y1))
+        new.append((x0, w, y + h))
+        new.sort()
+        merged = []
+        for seg in new:
+            if merged and abs(merged[-1][2] - seg[2]) < 1e-12 and abs(merged[-1][0] + merged[-1][1] - seg[0]) < 1e-12:
+                merged[-1] = (merged[-1][0], merged[-1][1] + seg[1], seg[2])
+            else:
+                merged.append(seg)
+        sky = merged
+    return out
+
+
+def _pack_islands(uvs, rel_density):
+    """Scale (common texel density times ``rel_density``), and pack islands (UVs in
+    centimetres, already oriented) into [0, 1]^2 with gutters; returns the packed UVs and the
+    scale (UV units per centimetre at relative density 1)."""
+    G, M = GUTTER_UV, MARGIN_UV
+    ext = [u.max(0) - u.min(0) for u in uvs]
+    order = sorted(range(len(uvs)), key=lambda i: -ext[i][1] * rel_density[i] if i else -np.inf)
+    scale = (1 - 2 * M) / max(e[0] * d for e, d in zip(ext, rel_density))
+    for _ in range(200):
+        sizes = [(ext[i][0] * rel_density[i] * scale + G, ext[i][1] * rel_density[i] * scale + G) for i in order]
+        pos = _skyline_pack(sizes, 1 - 2 * M + G, 1 - 2 * M + G)
+        if pos is not None:
+            break
+        scale *= 0.99
+    out = [None] * len(uvs)
+    for (x, y), i in zip(pos, order):
+        u = (uvs[i] - uvs[i].min(0)) * rel_density[i] * scale
+        hgt = ext[i][1] * rel_density[i] * scale
+        # image-style y (down from the top) -> v up
+        u[:, 0] += M - G / 2 + x + G / 2
+        u[:, 1] += 1 - (M - G / 2 + y + G / 2) - hgt
+        out[i] = u
+    return out, scale
+
+
+# ----------------------------------------------------------------------------------------------
+# mesh assembly
+# ----------------------------------------------------------------------------------------------
+
+
+def _vertex_normals(P, T, group):
+    """Angle-weighted vertex normals, shared by vertices with the same ``group`` id."""
+    fn = np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]])
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-30)
+    ng = group.max() + 1
+    acc = np.zeros((ng, 3))
+    for k in range(3):
+        a = P[T[:, (k + 1) % 3]] - P[T[:, k]]
+        b = P[T[:, (k + 2) % 3]] - P[T[:, k]]
+        cosang = np.einsum("ij,ij->i", a, b) / np.maximum(np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-30)
+        w = np.arccos(np.clip(cosang, -1, 1))
+        for c in range(3):
+            acc[:, c] += np.bincount(group[T[:, k]], fn[:, c] * w, ng)
+    n = acc[group]
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+
+
+@functools.lru_cache(maxsize=2)
+def _geometry():
+    """Mesh, packed UVs, islands and landmarks (independent of the texture size and seed)."""
+    shape = _Shape()
+    parts, ring = _build_head_surface(shape)
+    Pf, Tf, Pb, Tb, ear = _build_ear(shape)
+    mirror = np.array([-1.0, 1.0, 1.0])
+    parts["left_ear_front"] = (Pf, Tf)
+    parts["left_ear_back"] = (Pb, Tb)
+    parts["right_ear_front"] = (Pf * mirror, Tf[:, ::-1].copy())
+    parts["right_ear_back"] = (Pb * mirror, Tb[:, ::-1].copy())
+
+    # flatten the islands (centimetres), orient them (counter-clockwise, tight bounding box;
+    # the ring with the head's up along +v)
+    uvs = []
+    for name in ISLANDS:
+        P, T = parts[name]
+        if name == "ring":
+            uv = _ring_init_uv(ring)
+            if np.sum(_signed_uv_area(uv, T) < 0) > len(T) // 2:
+                uv[:, 0] *= -1
+            uv = _arap(P, T, uv, iters=8)
+            Nc1 = N_COLS + 1
+            top = uv[:Nc1].mean(0)
+            bot = uv[-Nc1:].mean(0)
+            d = top - bot
+            base = np.arctan2(d[0], d[1])  # rotating by this brings d onto +v
+            uv = _rotate_uv(uv, -base)
+            uv = _rotate_uv(uv, _min_bbox_angle(uv, np.radians(np.linspace(-6, 6, 25))))
+        else:
+            uv = _lscm(P, T)
+            uv = _rotate_uv(uv, _min_bbox_angle(uv, np.radians(np.arange(0, 180, 3.0))))
+        if np.sum(_signed_uv_area(uv, T) < 0) > len(T) // 2:  # mirrored solution: flip u
+            uv[:, 0] *= -1
+        uvs.append(uv)
+    # common density: every island gets the ring's UV-area / 3-D-area ratio
+    rel = []
+    for name, uv in zip(ISLANDS, uvs):
+        P, T = parts[name]
+        k = np.sqrt(_tri_areas(P, T).sum() / np.abs(_signed_uv_area(uv, T)).sum())
+        rel.append(k * (0.5 if name == "bottom_cap" else 1.0))
+    packed, scale = _pack_islands(uvs, rel)
+
+    # assemble
+    Ps, Ts, UVs, isl, groups = [], [], [], [], []
+    base = 0
+    for k, name in enumerate(ISLANDS):
+        P, T = parts[name]
+        Ps.append(P)
+        Ts.append(T + base)
+        UVs.append(packed[k])
+        isl.append(np.full(len(T), k, np.int8))
+        base += len(P)
+    P = np.concatenate(Ps)
+    T = np.concatenate(Ts)
+    UV = np.concatenate(UVs)
+    island = np.concatenate(isl)
+    # normals: smooth across UV seams (vertices at the same position share a normal), but the
+    # flat bottom cut keeps its own (sharp edge)
+    key = np.round(P, 6)
+    bottom = np.zeros(len(P), bool)
+    b0 = sum(len(parts[n][0]) for n in ISLANDS[:2])
+    bottom[b0 : b0 + len(parts["bottom_cap"][0])] = True
+    key = np.concatenate([key, bottom[:, None].astype(float)], 1)
+    _, group = np.unique(key, axis=0, return_inverse=True)
+    N = _vertex_normals(P, T, group.ravel())
+
+    # landmarks
+    C = shape.C
+    e = shape.EYE
+    targets = {
+        "crown": C + [0, 1, 0],
+        "forehead": [0, 6.0, 9.0],
+        "left_eye": [e[0], e[1], e[2] + shape.EYE_R],
+        "right_eye": [-e[0], e[1], e[2] + shape.EYE_R],
+        "left_eye_inner_socket": [1.75, 1.75, 8.0],
+        "right_eye_inner_socket": [-1.75, 1.75, 8.0],
+        "left_nostril": shape.NOSTRIL,
+        "right_nostril": shape.NOSTRIL * mirror,
+        "lips": [0, shape.STOMION_Y, 9.5],
+        "left_cheek": [4.0, -1.2, 7.0],
+        "right_cheek": [-4.0, -1.2, 7.0],
+        "chin": [0, -8.4, 9.5],
+        "neck": [0, -14.0, 5.0],
+    }
+    dirs = np.array([np.asarray(v, float) - C for v in targets.values()])
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    th = _raycast(shape, C, dirs, iters=12, tol=1e-5)
+    lm = {"head_centre": C.copy()}
+    lm.update({k: C + t * d for k, t, d in zip(targets, th, dirs)})
+    lm.update({
+        "nose_tip": P[np.argmax(np.where((np.abs(P[:, 0]) < 1) & (P[:, 1] > -3) & (P[:, 1] < 0), P[:, 2], -np.inf))],
+        "left_ear": _ear_point(ear, 2.2, 0.6),
+        "right_ear": _ear_point(ear, 2.2, 0.6) * mirror,
+        "left_ear_root": ear["root"].copy(),
+        "right_ear_root": ear["root"] * mirror,
+    })
+    lm = {k: np.asarray(v, np.float32) for k, v in lm.items()}
+    return dict(P=P, N=N, UV=UV, T=T, island=island, scale=scale, landmarks=lm, shape=shape, ear=ear)
+
+
+# ----------------------------------------------------------------------------------------------
+# texture space
+# ----------------------------------------------------------------------------------------------
+
+
+def _rasterize_uv(uv, T, W, H):
+    """Which triangle covers each texel centre, and its barycentric coordinates.
+
+    Texel (row, col) has its centre at u = (col + .5) / W, v = 1 - (row + .5) / H.  Returns
+    tri (H, W) int32 (-1: gutter) and bary (H, W, 3) float32."""
+    x = uv[:, 0] * W - 0.5  # texel-centre coordinates (col)
+    y = (1.0 - uv[:, 1]) * H - 0.5  # (row)
+    tx, ty = x[T], y[T]
+    c0 = np.clip(np.ceil(tx.min(1) - 1e-9).astype(int), 0, W - 1)
+    c1 = np.clip(np.floor(tx.max(1) + 1e-9).astype(int), 0, W - 1)
+    r0 = np.clip(np.ceil(ty.min(1) - 1e-9).astype(int), 0, H - 1)
+    r1 = np.clip(np.floor(ty.max(1) + 1e-9).astype(int), 0, H - 1)
+    nw, nh = c1 - c0 + 1, r1 - r0 + 1
+    tri = np.full(H * W, -1, np.int32)
+    bary = np.zeros((H * W, 3), np.float32)
+    ok = (nw > 0) & (nh > 0)
+    sz = np.maximum(nw, nh)
+    d = (tx[:, 1] - tx[:, 0]) * (ty[:, 2] - ty[:, 0]) - (tx[:, 2] - tx[:, 0]) * (ty[:, 1] - ty[:, 0])
+    for s in np.unique(sz[ok]):
+        sel = np.nonzero(ok & (sz == s))[0]
+        oy, ox = np.divmod(np.arange(s * s), s)
+        for ch in np.array_split(sel, max(1, len(sel) * s * s // 1_500_000 + 1)):
+            cx = c0[ch, None] + ox[None]
+            cy = r0[ch, None] + oy[None]
+            ax, ay = tx[ch, 0, None], ty[ch, 0, None]
+            dd = d[ch, None]
+            w1 = ((cx - ax) * (ty[ch, 2, None] - ay) - (tx[ch, 2, None] - ax) * (cy - ay)) / dd
+            w2 = ((tx[ch, 1, None] - ax) * (cy - ay) - (cx - ax) * (ty[ch, 1, None] - ay)) / dd
+            w0 = 1.0 - w1 - w2
+            ins = (w0 >= -1e-6) & (w1 >= -1e-6) & (w2 >= -1e-6) & (cx <= c1[ch, None]) & (cy <= r1[ch, None])
+            pix = (cy * W + cx)[ins]
+            tri[pix] = np.broadcast_to(ch[:, None], ins.shape)[ins]
+            bary[pix] = np.stack([w0[ins], w1[ins], w2[ins]], 1)
+    return tri.reshape(H, W), bary.reshape(H, W, 3)
+
+
+def _value_noise3(P, cell, rng, smooth=1.0):
+    """Smooth 3-D value noise (zero mean, ~unit std) at points P (n, 3), feature size ~cell."""
+    lo = P.min(0) - 2 * cell
+    dims = np.ceil((P.max(0) + 2 * cell - lo) / cell).astype(int) + 1
+    lat = rng.standard_normal(tuple(dims)).astype(np.float32)
+    if smooth > 0:
+        lat = ndimage.gaussian_filter(lat, smooth, mode="wrap")
+    lat /= lat.std() + 1e-12
+    coords = ((P - lo) / cell).T
+    return ndimage.map_coordinates(lat, coords, order=1, mode="nearest")
+
+
+def _splat(H, W, rows, cols, vals):
+    """Bilinear splat of point impulses into an (H, W) image."""
+    img = np.zeros(H * W, np.float64)
+    r0 = np.floor(rows).astype(int)
+    c0 = np.floor(cols).astype(int)
+    fr, fc = rows - r0, cols - c0
+    for dr, dc, w in ((0, 0, (1 - fr) * (1 - fc)), (0, 1, (1 - fr) * fc), (1, 0, fr * (1 - fc)), (1, 1, fr * fc)):
+        rr, cc = r0 + dr, c0 + dc
+        ok = (rr >= 0) & (rr < H) & (cc >= 0) & (cc < W)
+        img += np.bincount(rr[ok] * W + cc[ok], (vals * w)[ok], H * W)
+    return img.reshape(H, W)
+
+
+def _jittered_points(H, W, spacing, rng):
+    """One random point per (spacing x spacing)-texel cell."""
+    ny, nx = int(np.ceil(H / spacing)), int(np.ceil(W / spacing))
+    gy, gx = np.mgrid[0:ny, 0:nx]
+    rows = (gy.ravel() + rng.random(gy.size)) * spacing - 0.5
+    cols = (gx.ravel() + rng.random(gx.size)) * spacing - 0.5
+    keep = (rows >= 0) & (rows <= H - 1) & (cols >= 0) & (cols <= W - 1)
+    return rows[keep], cols[keep]
+
+
+def _sstep(e0, e1, x):
+    return _smoothstep(e0, e1, x)

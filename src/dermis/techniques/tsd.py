@@ -80,6 +80,9 @@ class TextureSpaceDiffusion(Technique):
         if t is not None and t.size == size:
             return t
         if t is not None:
+            f = self.tex.pop(("fbo", id(t)), None)
+            if f is not None:
+                f.release()
             t.release()
         t = self.ctx.texture(size, components, dtype=dtype)
         t.filter = (moderngl.LINEAR, moderngl.LINEAR)

@@ -371,8 +371,8 @@ class Viewer:
         t0 = time.perf_counter()
         if scripted:
             self._run_actions(self.script.before(self.frames_drawn))
-        self.editor.apply(self.params)
         self._update_profile(wait=scripted)
+        self.editor.apply(self.params)
         fb = self.framebuffer_size()
         view_key = (self.orbit.state(), dataclasses.astuple(self.params), fb, self.renderer.lighting_key())
         self._idle = view_key == self._view_key and self.last_image is not None

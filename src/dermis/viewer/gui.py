@@ -15,7 +15,7 @@ import moderngl
 import numpy as np
 
 from dermis.gl.resources import set_uniform
-from dermis.viewer.params import BUFFER_SCALES, ENVIRONMENTS, IRRADIANCE_SIZES, PROFILES, SKIN_COLOURS, TONEMAPS
+from dermis.viewer.params import BUFFER_SCALES, ENVIRONMENTS, IRRADIANCE_SIZES, PROFILES, SKIN_COLORS, TONEMAPS
 
 _VERT = """
 #version 450 core
@@ -270,7 +270,7 @@ class Panel:
             slider("haemoglobin", "hemoglobin", p.hemoglobin, 0.0, 0.2, "%.4f", log)
             slider("oxygenation", "oxygenation", p.oxygenation, 0.0, 1.0)
             slider("epidermis mm", "epidermis_mm", p.epidermis_mm, 0.05, 1.0)
-            combo("skin colour", "skin_colour", SKIN_COLOURS, p.skin_colour)
+            combo("skin colour", "skin_color", SKIN_COLORS, p.skin_color)
             if status.get("profile_busy"):
                 imgui.text_colored(imgui.ImVec4(1.0, 0.8, 0.3, 1.0), "computing profile...")
             if status.get("profile_note"):

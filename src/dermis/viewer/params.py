@@ -6,13 +6,13 @@ writes it into the Scene that the Renderer draws; the Renderer notices through i
 physics take about a second to compute, so :class:`SkinProfileWorker` computes them off the
 render thread and the viewer swaps the result in when it is ready.
 
-Skin colour from the physical model: a diffusion profile's total reflectance R_d (its integral
-over the plane, per channel) is the skin's diffuse colour. The techniques take their colour from
-the albedo map and use each profile's weights normalised to sum to 1, so in ``skin_colour =
-"model"`` mode the viewer recolours the albedo map: the map keeps its variation (lips, freckles,
-stubble) and its mean colour becomes the spectral model's R_d (Donner & Jensen 2006 parameters:
-melanin, melanin blend, haemoglobin, oxygenation, epidermis thickness). Without a map the
-material's flat colour becomes R_d.
+Skin colour from the physical model: a diffusion profile's total reflectance R_d (the sum of
+its Gaussians' weights, per channel) is the skin's diffuse colour. With ``skin_color =
+"profile"`` (the scene model's ``Scene.skin_color``, the default for spectral profiles as in a
+scene file's [skin] section) the renderer scales the albedo map so that its mean is R_d: the map
+keeps its variation (lips, freckles, stubble), the spectral model (Donner & Jensen 2006:
+melanin, melanin blend, haemoglobin, oxygenation, epidermis thickness) sets the colour, and more
+melanin darkens the skin. ``"albedo"`` keeps the map's own colour.
 """
 
 from __future__ import annotations
@@ -20,20 +20,18 @@ from __future__ import annotations
 import concurrent.futures
 import copy
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from dermis.errors import DermisError
 
 PROFILES = ("scene", "deon", "fair", "asian", "dark", "physical")
-SKIN_COLOURS = ("map", "model")
+SKIN_COLORS = ("albedo", "profile")  # Scene.skin_color
 ENVIRONMENTS = ("scene", "constant", "off")
 TONEMAPS = ("aces", "linear")
 IRRADIANCE_SIZES = (128, 256, 512, 1024, 2048)
 BUFFER_SCALES = ("auto", "exposure")
-#: luminance below which an albedo texel counts as background when its mean colour is measured
-ALBEDO_BACKGROUND_LUMINANCE = 0.02
 
 
 @dataclass
@@ -48,7 +46,7 @@ class ViewerParams:
     hemoglobin: float = 0.005  # C_h, blood volume fraction in the dermis
     oxygenation: float = 0.75  # oxy-haemoglobin share of the blood
     epidermis_mm: float = 0.25  # epidermis thickness, mm
-    skin_colour: str = "model"  # for physical profiles: "model" recolours the albedo to R_d, "map" keeps it
+    skin_color: str = "profile"  # spectral profiles: "profile" colours the skin with R_d, "albedo" keeps the map
     # material
     mix: float = 0.5
     roughness: float = 0.3
@@ -106,7 +104,7 @@ class ViewerParams:
         for k in ("melanin", "melanin_blend", "hemoglobin", "oxygenation", "mix"):
             need(0.0 <= getattr(self, k) <= 1.0, f"{k} must lie in [0, 1], got {getattr(self, k)}")
         need(0.0 < self.epidermis_mm <= 10.0, f"epidermis_mm must lie in (0, 10] mm, got {self.epidermis_mm}")
-        need(self.skin_colour in SKIN_COLOURS, f"skin_colour must be one of {', '.join(SKIN_COLOURS)}")
+        need(self.skin_color in SKIN_COLORS, f"skin_color must be one of {', '.join(SKIN_COLORS)}")
         need(0.01 <= self.roughness <= 1.0, f"roughness must lie in [0.01, 1], got {self.roughness}")
         need(0.0 <= self.rho_s <= 1.0, f"rho_s must lie in [0, 1], got {self.rho_s}")
         need(self.light_intensity >= 0.0, f"light_intensity must be >= 0, got {self.light_intensity}")
@@ -120,20 +118,12 @@ class ViewerParams:
             v = getattr(self, k)
             need(len(v) == 3 and all(np.isfinite(v)) and min(v) >= 0.0, f"{k} must be three numbers >= 0")
 
-    def skin_parameters(self):
-        """The Donner & Jensen 2006 parameters of the sliders (dermis.profiles.spectral)."""
-        from dermis.profiles.spectral import SkinParameters
-
-        return SkinParameters(melanin_fraction=self.melanin, melanin_blend=self.melanin_blend,
-                              hemoglobin_fraction=self.hemoglobin, oxygenation=self.oxygenation,
-                              epidermis_thickness_mm=self.epidermis_mm)
-
     def profile_request(self) -> tuple:
         """What the skin profile depends on (a hashable key)."""
         if self.profile in ("scene", "deon"):
             return (self.profile,)
         return (self.profile, round(self.melanin, 6), round(self.melanin_blend, 6), round(self.hemoglobin, 6),
-                round(self.oxygenation, 6), round(self.epidermis_mm, 6), self.skin_colour)
+                round(self.oxygenation, 6), round(self.epidermis_mm, 6))
 
     def apply_preset(self, name: str):
         """Choose a profile; a spectral preset also moves the sliders to its parameters."""
@@ -176,52 +166,26 @@ def _coerce(key, value, current, source):
 @dataclass
 class ProfileResult:
     request: tuple
-    profile: object  # SumOfGaussians, or None: keep the scene's
-    skin_rgb: np.ndarray | None  # R_d to recolour the albedo to, or None: keep the map
+    profile: object  # SumOfGaussians
     note: str = ""
 
 
-def retint_albedo(albedo: np.ndarray, target_rgb) -> np.ndarray:
-    """The map with its mean colour (over texels brighter than the background) moved to
-    ``target_rgb``, its variation kept: albedo * target / mean, clipped to [0, 1]."""
-    a = np.asarray(albedo, np.float32)[:, :, :3]
-    lum = a @ np.array([0.2126, 0.7152, 0.0722], np.float32)
-    skin = a[lum > ALBEDO_BACKGROUND_LUMINANCE]
-    mean = skin.mean(axis=0) if len(skin) else a.reshape(-1, 3).mean(axis=0)
-    scale = np.asarray(target_rgb, np.float32) / np.maximum(mean, 1e-6)
-    return np.clip(a * scale, 0.0, 1.0).astype(np.float32)
-
-
-def compute_profile(params_request: tuple, scene_profile, skin_parameters=None) -> ProfileResult:
-    """The skin profile and colour for a profile request (see ViewerParams.profile_request).
-
-    Spectral profiles come from ``dermis.profiles.resolve_skin_profile`` (what a scene's [skin]
-    section gives: the fitted Gaussians, whose weights per channel sum to the total diffuse
-    reflectance R_d); their R_d is the skin colour of ``skin_colour = "model"``.
-    """
+def compute_profile(params_request: tuple, scene_profile) -> ProfileResult:
+    """The skin profile for a profile request (see ViewerParams.profile_request): the scene's,
+    d'Eon's, or a spectral one through ``dermis.profiles.resolve_skin_profile`` (what a scene's
+    [skin] section gives: fitted Gaussians whose weights per channel sum to R_d)."""
     from dermis import profiles
-    from dermis.profiles.gaussians import deon_skin
 
     kind = params_request[0]
     if kind == "scene":
-        return ProfileResult(params_request, scene_profile, None)
+        return ProfileResult(params_request, scene_profile)
     if kind == "deon":
-        return ProfileResult(params_request, deon_skin(), None)
-    _, mel, blend, hb, oxy, epi, colour = params_request
-    try:
-        resolver = profiles.resolve_skin_profile
-    except AttributeError:
-        resolver = None
-    if resolver is None:  # an older build: colour from the spectral model, shape from the scene
-        r_d = np.asarray(profiles.skin_profile(skin_parameters, "pbd").total_reflectance_rgb, np.float32)
-        return ProfileResult(params_request, scene_profile, r_d if colour == "model" else None,
-                             "profile shape: the scene's (no dermis.profiles.resolve_skin_profile in this build)")
+        return ProfileResult(params_request, profiles.deon_skin())
+    _, mel, blend, hb, oxy, epi = params_request
     section = {"profile": kind, "melanin": mel, "melanin_blend": blend, "hemoglobin": hb, "oxygenation": oxy,
                "epidermis_mm": epi}
-    shape = resolver(section, ".", "viewer")
-    r_d = np.asarray(shape.total_reflectance, np.float32)
-    note = "R_d = " + ", ".join(f"{c:.3f}" for c in r_d)
-    return ProfileResult(params_request, shape, r_d if colour == "model" else None, note)
+    shape = profiles.resolve_skin_profile(section, ".", "viewer")
+    return ProfileResult(params_request, shape, "R_d = " + ", ".join(f"{c:.3f}" for c in shape.total_reflectance))
 
 
 class SkinProfileWorker:
@@ -238,10 +202,10 @@ class SkinProfileWorker:
         self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="dermis-profile")
         self._cache: dict[tuple, ProfileResult] = {}
         self._running: tuple | None = None  # (key, future)
-        self._next: tuple | None = None  # (key, SkinParameters or None)
+        self._next: tuple | None = None  # the request to compute when the running one ends
 
-    def _submit(self, key, skin):
-        self._running = (key, self._pool.submit(compute_profile, key, self.scene_profile, skin))
+    def _submit(self, key):
+        self._running = (key, self._pool.submit(compute_profile, key, self.scene_profile))
 
     def _collect(self):
         if self._running is not None and self._running[1].done():
@@ -249,32 +213,30 @@ class SkinProfileWorker:
             self._running = None
             try:
                 self._cache[key] = fut.result()
-            except DermisError as exc:
-                self._cache[key] = ProfileResult(key, None, None, f"profile error: {exc}")
+            except Exception as exc:  # shown in the panel; the scene keeps its profile
+                self._cache[key] = ProfileResult(key, None, f"profile error: {exc}")
             while len(self._cache) > self.CACHE_SIZE:
                 self._cache.pop(next(iter(self._cache)))
         if self._running is None and self._next is not None:
-            key, skin = self._next
-            self._next = None
+            key, self._next = self._next, None
             if key not in self._cache:
-                self._submit(key, skin)
+                self._submit(key)
 
     def get(self, params: ViewerParams, wait: bool = False) -> ProfileResult | None:
         """The result for ``params`` if ready (after waiting for it when ``wait``), else None."""
         key = params.profile_request()
         self._collect()
         if key not in self._cache:
-            skin = params.skin_parameters() if key[0] not in ("scene", "deon") else None
             if self._running is None:
-                self._submit(key, skin)
+                self._submit(key)
             elif self._running[0] != key:
-                self._next = (key, skin)
+                self._next = key
             while wait and key not in self._cache:
                 if self._running is not None:
                     concurrent.futures.wait([self._running[1]])
                 self._collect()
                 if key not in self._cache and self._running is None:
-                    self._submit(key, skin)
+                    self._submit(key)
         return self._cache.get(key)
 
     @property
@@ -288,11 +250,9 @@ class SkinProfileWorker:
 # ---------------------------------------------------------------------------------- the scene
 @dataclass
 class _Originals:
-    albedo: object
-    albedo_color: tuple
     profile: object
+    skin_color: str
     environment: object
-    light_colors: list = field(default_factory=list)
 
 
 class SceneEditor:
@@ -300,10 +260,8 @@ class SceneEditor:
 
     def __init__(self, scene):
         self.scene = scene
-        m = scene.material
-        self.orig = _Originals(m.albedo, tuple(m.albedo_color), scene.profile, copy.copy(scene.environment))
+        self.orig = _Originals(scene.profile, getattr(scene, "skin_color", "albedo"), copy.copy(scene.environment))
         self._applied_profile_request = ("scene",)
-        self._retinted: dict = {}
 
     def apply(self, p: ViewerParams):
         s = self.scene
@@ -322,24 +280,18 @@ class SceneEditor:
         else:
             env.image, env.color, env.intensity = None, (0.0, 0.0, 0.0), 0.0
         s.output.exposure, s.output.tonemap = float(p.exposure), p.tonemap
+        # where the skin's colour comes from: only a spectral profile has an R_d to colour it with
+        kind = self._applied_profile_request[0]
+        if kind == "scene":
+            s.skin_color = self.orig.skin_color
+        elif kind == "deon":
+            s.skin_color = "albedo"
+        else:
+            s.skin_color = p.skin_color
 
     def apply_profile(self, result: ProfileResult):
-        """Swap in a computed profile and the albedo it asks for."""
-        s, m = self.scene, self.scene.material
-        s.profile = result.profile if result.profile is not None else self.orig.profile
-        if result.skin_rgb is None:
-            m.albedo, m.albedo_color = self.orig.albedo, self.orig.albedo_color
-        elif self.orig.albedo is not None:
-            key = tuple(np.round(result.skin_rgb, 6))
-            tex = self._retinted.get(key)
-            if tex is None:
-                from dermis.scene.model import Texture
-
-                tex = Texture(retint_albedo(self.orig.albedo.data, result.skin_rgb), self.orig.albedo.source + " (recoloured)")
-                self._retinted = {key: tex}  # keep one: each is a full-size image
-            m.albedo = tex
-        else:
-            m.albedo, m.albedo_color = None, tuple(float(x) for x in result.skin_rgb)
+        """Swap in a computed profile (a failed one leaves the scene's)."""
+        self.scene.profile = result.profile if result.profile is not None else self.orig.profile
         self._applied_profile_request = result.request
 
     @property

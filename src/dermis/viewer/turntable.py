@@ -146,7 +146,8 @@ def turntable(scene, out, *, frames: int = 60, size=(512, 512), technique: str |
     """Render ``frames`` views around the scene into ``out`` (.mp4, .gif or a folder of PNGs).
 
     Frame i looks from the camera turned by ``degrees * i / frames`` (a full turn loops without
-    a repeated frame). Returns {"path", "frames", "size", "frame_ms" (per frame), "format"}.
+    a repeated frame). Returns {"path", "frames", "size", "format", "frame_ms" and "passes_run"
+    (per frame), "technique", "orbit_light"}.
     """
     from tqdm import tqdm
 
@@ -171,7 +172,7 @@ def turntable(scene, out, *, frames: int = 60, size=(512, 512), technique: str |
     tonemap = tonemap or o.tonemap
     base_camera = scene.camera
     base_lights = list(scene.lights)
-    times = []
+    times, passes = [], []
     writer = None
     ok = False
     try:
@@ -188,6 +189,7 @@ def turntable(scene, out, *, frames: int = 60, size=(512, 512), technique: str |
                 if not np.isfinite(img).all():
                     raise DermisError(f"{scene.source}: frame {i} has NaN or infinite values")
                 times.append(float(r.stats["frame_ms"]))
+                passes.append(list(r.stats.get("passes_run", [])))
                 display = output_transform(img, exposure, tonemap, getattr(o, "bloom", 0.0), getattr(o, "bloom_radius", 0.015))
                 writer.write(to_rgb8(display))
                 bar.update(1)
@@ -197,5 +199,5 @@ def turntable(scene, out, *, frames: int = 60, size=(512, 512), technique: str |
         scene.lights = base_lights
         if writer is not None:
             writer.close(ok)
-    return {"path": str(out), "frames": int(frames), "size": [w, h], "format": kind, "frame_ms": times,
+    return {"path": str(out), "frames": int(frames), "size": [w, h], "format": kind, "frame_ms": times, "passes_run": passes,
             "technique": name, "orbit_light": bool(orbit_light)}

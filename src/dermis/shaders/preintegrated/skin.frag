@@ -1,0 +1,119 @@
+// Pre-integrated skin (Penner & Borshukov 2011, GPU Pro 2 ch. II.1), in one mesh pass: the
+// profile's scattering comes from lookup tables built at start-up (dermis/techniques/preintegrated.py),
+//   diffuse = albedo / pi * (1 - rho_s a(N.V, m) / pi)
+//             * [ sum_lights E_i D(N_c.L, curvature)_c P(shadow_soft, penumbra width)_c (1 - rho_s a(N.L, m) / pi)
+//                 + ambient(N_c) + transmitted ]                                   per channel c
+//   specular = common/skin_specular.glsl (shared by every skin technique)
+// N_c: the normal map read at the mip level of channel c's scattering radius (Penner's blurred
+// normals, red blurriest); D: light wrapped around a ring of the local curvature; P: the soft
+// shadow's penumbra scattered with the profile (red reaches furthest into the shadow).
+#include "common/surface.glsl"
+#include "common/noise.glsl"
+#include "common/shadow.glsl"
+#include "common/environment.glsl"
+#include "common/energy.glsl"
+#include "common/skin_specular.glsl"
+#include "common/transmittance.glsl"
+
+uniform sampler2D uBeckmannTex;
+uniform sampler2D uDiffuseTable;   // D(N.L, curvature): s = N.L in [-1, 1], t = sqrt(curvature / max)
+uniform sampler2D uPenumbraTable;  // P(shadow, width): s = shadow in [0, 1], t = log-spaced width
+uniform float uCurvatureMaxPerMm;
+uniform vec2 uPenumbraWidthRangeMm;
+uniform float uCurvatureFromMesh;   // 1: the mesh's per-vertex curvature, 0: screen derivatives
+uniform vec3 uScatterRadiusMm;      // rms radius along one axis of each channel's profile
+uniform float uBlurredNormals;      // 1: per-channel blurred normals, 0: the detailed normal
+uniform float uPenumbraScattering;  // 1: scatter the penumbra through its table, 0: plain PCF
+uniform vec3 uCameraPos;
+uniform float uPoreScaleMm;
+uniform float uPoreStrength;
+uniform int uOutputMode;  // 0 diffuse + specular, 1 diffuse only, 2 specular only, 3 curvature (1/mm)
+in vec3 v_world;
+in vec3 v_normal;
+in vec2 v_uv;
+in vec4 v_tangent;
+in float v_curvature;
+out vec4 f_color;
+
+const float INV_PI = 0.31830988618;
+
+// Texel-centre coordinate: f = 0 and 1 land on the first and last texels' centres.
+vec2 table_coord(sampler2D table, vec2 f) {
+    vec2 size = vec2(textureSize(table, 0));
+    return (clamp(f, 0.0, 1.0) * (size - 1.0) + 0.5) / size;
+}
+
+// Penner's D per channel, each channel at its own N.L.
+vec3 diffuse_lookup(vec3 ndl, float curvature) {
+    float t = sqrt(clamp(curvature / uCurvatureMaxPerMm, 0.0, 1.0));
+    return vec3(textureLod(uDiffuseTable, table_coord(uDiffuseTable, vec2(ndl.r * 0.5 + 0.5, t)), 0.0).r,
+                textureLod(uDiffuseTable, table_coord(uDiffuseTable, vec2(ndl.g * 0.5 + 0.5, t)), 0.0).g,
+                textureLod(uDiffuseTable, table_coord(uDiffuseTable, vec2(ndl.b * 0.5 + 0.5, t)), 0.0).b);
+}
+
+vec3 penumbra_lookup(float shadow, float width_mm) {
+    float t = log(max(width_mm, 1e-6) / uPenumbraWidthRangeMm.x) / log(uPenumbraWidthRangeMm.y / uPenumbraWidthRangeMm.x);
+    return textureLod(uPenumbraTable, table_coord(uPenumbraTable, vec2(shadow, t)), 0.0).rgb;
+}
+
+// Width (mm) of light i's PCF penumbra on the surface at P: the filter's diameter,
+// 2 (softness + 1) texels (the Poisson disc and each tap's bilinear 2x2), in world units from the
+// light's projection (uv per world unit = |row 0| / 2w), stretched by 1 / N.L along the surface.
+float penumbra_width_mm(int i, vec3 P, float ndl_geometric) {
+    mat4 M = uLightViewProj[i];
+    float w = (M * vec4(P, 1.0)).w;
+    float row0 = length(vec3(M[0][0], M[1][0], M[2][0]));
+    float texel_world = uShadowParams[i].w * 2.0 * abs(w) / max(row0, 1e-12);
+    return 2.0 * (uShadowParams[i].x + 1.0) * texel_world * uMmPerUnit / max(ndl_geometric, 0.2);
+}
+
+void main() {
+    vec3 Ngeo = normalize(v_normal);
+    vec3 P_mm = v_world * uMmPerUnit;
+    // curvature (1/mm): the mesh's, or Penner's length(fwidth(N)) / length(fwidth(P))
+    float curvature_derivatives = length(fwidth(Ngeo)) / max(length(fwidth(P_mm)), 1e-9);
+    float curvature = uCurvatureFromMesh > 0.5 ? abs(v_curvature) : curvature_derivatives;
+    // the normal map's texels per mm (square root of the area ratio of a pixel's footprint)
+    vec2 tex = vec2(textureSize(uNormalMap, 0));
+    vec2 duvx = dFdx(v_uv) * tex, duvy = dFdy(v_uv) * tex;
+    float area_uv = abs(duvx.x * duvy.y - duvx.y * duvy.x);
+    float area_mm = length(cross(dFdx(P_mm), dFdy(P_mm)));
+    float texels_per_mm = sqrt(area_uv / max(area_mm, 1e-12));
+
+    vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
+    // blurred normals: mip level L averages 2^L texels, a box of standard deviation 2^L / sqrt(12);
+    // never finer than the pixel's own footprint (the level texture() would pick)
+    float footprint_lod = textureQueryLod(uNormalMap, v_uv).x;
+    vec3 lod = max(log2(max(uScatterRadiusMm * texels_per_mm * 3.4641016, vec3(1.0))) * uBlurredNormals,
+                   vec3(footprint_lod));
+    vec3 N_red = perturb_normal_lod(v_normal, v_tangent, v_uv, lod.r);
+    vec3 N_green = perturb_normal_lod(v_normal, v_tangent, v_uv, lod.g);
+    vec3 N_blue = perturb_normal_lod(v_normal, v_tangent, v_uv, lod.b);
+
+    vec3 V = normalize(uCameraPos - v_world);
+    float m = roughness_at(v_uv);
+    float rho_s = specular_intensity(v_uv);
+    vec3 Ns = pore_normal(N, P_mm, uPoreScaleMm, uPoreStrength);
+    float ndv = clamp(dot(Ns, V), 0.0, 1.0);
+
+    vec3 E = vec3(0.0);
+    for (int i = 0; i < uLightCount; ++i) {
+        vec3 L;
+        vec3 Ei = light_incident(i, v_world, L);
+        vec3 D = diffuse_lookup(vec3(dot(N_red, L), dot(N_green, L), dot(N_blue, L)), curvature);
+        if (max(D.r, max(D.g, D.b)) <= 0.0) continue;
+        float s = shadow_soft(i, v_world, Ngeo);
+        vec3 S = vec3(s);
+        if (uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0)
+            S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L)));
+        E += Ei * D * S * energy_transmitted(rho_s, clamp(dot(N, L), 0.0, 1.0), m);
+    }
+    vec3 ambient = vec3(environment_irradiance(N_red).r, environment_irradiance(N_green).g, environment_irradiance(N_blue).b);
+    E += ambient * energy_transmitted(rho_s, 0.5, m);
+    E += transmitted_irradiance(v_world, Ngeo);
+
+    vec3 diffuse = E * albedo_at(v_uv) * INV_PI * energy_transmitted(rho_s, ndv, m);
+    vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uBeckmannTex);
+    vec3 color = uOutputMode == 1 ? diffuse : uOutputMode == 2 ? spec : uOutputMode == 3 ? vec3(curvature) : diffuse + spec;
+    f_color = vec4(color, 1.0);
+}
