@@ -72,6 +72,7 @@ class Renderer:
         self.gpu = None
         self._shadow_key = None
         self._material_key = None
+        self._epoch = 0  # bumped by invalidate(): part of the lighting key
         self.stats = {}
         self.last_frame = None
         if scene is not None:
@@ -104,7 +105,14 @@ class Renderer:
         mat = (self._material_state(), m.normal_strength, m.roughness, m.rho_s, m.specular_map_bias,
                m.specular_map_scale, m.mix)
         return _key(id(s.mesh), s.mm_per_unit, lights, env, mat, s.skin_color, s.profile.variances_mm2, s.profile.weights,
-                    self.irradiance_size)
+                    self.irradiance_size, self._epoch)
+
+    def invalidate(self):
+        """Make the next frame re-run everything cached between frames (shadow maps and the
+        view-independent passes), as a frame with moving lights would: for timings that compare
+        techniques like for like (dermis compare). Once-per-mesh work (e.g. tsd's stretch map) stays."""
+        self._shadow_key = None
+        self._epoch += 1
 
     # ------------------------------------------------------------------ targets
     def _ensure_targets(self, size):

@@ -30,10 +30,15 @@ CUTOFF_RELATIVE = 1e-4
 """A Gaussian is truncated where it falls below this fraction of its peak."""
 SPACING_PER_SIGMA = 0.5
 """Cell size of Gaussian k's sample set, in units of sigma_k (rounded to a multiple of h_min)."""
-RESOLVED_RATIO = 0.7
-"""The narrowest sigma the finest cells (size h_min) integrate: 0.7 h_min (the midpoint rule on a
-square lattice sums a Gaussian of that width to its integral within 2 exp(-2 pi^2 0.49) = 1.2e-4)."""
+RESOLVED_RATIO = 1.5
+"""The narrowest sigma the finest cells (size h_min) integrate: 1.5 h_min. On an unbroken lattice
+0.7 h would do (the lattice sum of a Gaussian deviates by 2 exp(-2 pi^2 (sigma / h)^2)), but the
+cells clipped at triangle edges are irregular: under uniform light a plane's radiance deviates by
+up to 2.7% at 0.7 h, 1.1% at 1 h, 0.3% at 1.5 h, 0.15% at 2 h (measured, 5 mm triangles)."""
 PAIRS_PER_CHUNK = 6_000_000
+TISSUE_TAU = 0.5
+"""paths="tissue": a pair is skipped where the segment between the points leaves either of them
+into the air more than 30 degrees above its tangent plane (sin 30 = 0.5)."""
 
 
 def cutoff_radius(variance_mm2) -> float:
@@ -85,18 +90,31 @@ def plan_levels(profile, min_spacing_mm: float):
 
 
 @numba.njit(cache=True)
-def _accumulate(qi, sj, dist, weights, values, variances, cutoffs, out):
-    """out[q, k, :] += w_j G(v_k, d) E_j for every pair (q, j) at distance d < cutoff_k."""
+def _accumulate(qi, sj, dist, weights, values, variances, cutoffs, qpos, spos, qn, sn, tau, out):
+    """out[q, k, :] += w_j G(v_k, d) E_j for every pair (q, j) at distance d < cutoff_k; with
+    tau < 1, pairs whose segment leaves either end into the air (n . (other - self) > tau d) are
+    skipped (qn, sn: unit normals of the query points and samples)."""
     K = variances.shape[0]
     norm = np.empty(K)
     inv2v = np.empty(K)
     for k in range(K):
         norm[k] = 1.0 / (2.0 * np.pi * variances[k])
         inv2v[k] = 1.0 / (2.0 * variances[k])
+    check = tau < 1.0
     for p in range(qi.shape[0]):
         q = qi[p]
         j = sj[p]
         d = dist[p]
+        if check and d > 0.0:
+            # the segment q -> j as seen from each end (qn, sn point out of the skin)
+            a = 0.0
+            b = 0.0
+            for c in range(3):
+                e = spos[j, c] - qpos[q, c]
+                a += qn[q, c] * e
+                b -= sn[j, c] * e
+            if a > tau * d or b > tau * d:
+                continue
         d2 = d * d
         for k in range(K):
             if d < cutoffs[k]:
@@ -107,19 +125,21 @@ def _accumulate(qi, sj, dist, weights, values, variances, cutoffs, out):
 
 
 def gather(query_mm, sample_mm, sample_weights, sample_values, variances, cutoffs, progress=None,
-           query_tree=None):
+           query_normals=None, sample_normals=None, tissue_tau=None):
     """For each query point q and Gaussian k: sum_j w_j G(v_k, |q - y_j|) E_j over |q - y_j| < r_k.
 
     ``query_mm`` (n, 3), ``sample_mm`` (m, 3), ``sample_weights`` (m,) mm^2, ``sample_values``
-    (m, 3), ``variances``/``cutoffs`` (K,). Returns (n, K, 3) float64, the pairs visited and the
-    query tree (reusable). ``progress``: a callable taking the number of query points done.
+    (m, 3), ``variances``/``cutoffs`` (K,). Returns ((n, K, 3) float64, the number of pairs visited).
+    ``progress``: a callable taking the number of query points done. ``tissue_tau``: with unit
+    normals of both point sets, skip pairs whose straight segment leaves either end into the air
+    at more than asin(tau) above its tangent plane (None: every pair counts).
     """
     variances = np.asarray(variances, np.float64)
     cutoffs = np.asarray(cutoffs, np.float64)
     n = len(query_mm)
     out = np.zeros((n, len(variances), 3))
     if n == 0 or len(sample_mm) == 0:
-        return out, 0, query_tree
+        return out, 0
     r = float(cutoffs.max())
     stree = cKDTree(sample_mm)
     # expected neighbours per query: density (samples per mm^2 of surface) times the disc area
@@ -129,13 +149,24 @@ def gather(query_mm, sample_mm, sample_weights, sample_values, variances, cutoff
     pairs = 0
     w = np.ascontiguousarray(sample_weights, np.float64)
     vals = np.ascontiguousarray(sample_values, np.float64)
+    qpos = np.ascontiguousarray(query_mm, np.float64)
+    spos = np.ascontiguousarray(sample_mm, np.float64)
+    if tissue_tau is None:
+        tau = 2.0
+        qn = np.zeros((1, 3))
+        sn = np.zeros((1, 3))
+    else:
+        tau = float(tissue_tau)
+        qn = np.ascontiguousarray(query_normals, np.float64)
+        sn = np.ascontiguousarray(sample_normals, np.float64)
     for s in range(0, n, chunk):
         e = min(n, s + chunk)
         qtree = cKDTree(query_mm[s:e])
         m = qtree.sparse_distance_matrix(stree, r, output_type="ndarray")
         pairs += len(m)
         _accumulate(np.ascontiguousarray(m["i"], np.int64), np.ascontiguousarray(m["j"], np.int64),
-                    np.ascontiguousarray(m["v"], np.float64), w, vals, variances, cutoffs, out[s:e])
+                    np.ascontiguousarray(m["v"], np.float64), w, vals, variances, cutoffs, qpos[s:e], spos,
+                    qn[s:e] if tissue_tau is not None else qn, sn, tau, out[s:e])
         if progress is not None:
             progress(e - s)
-    return out, pairs, query_tree
+    return out, pairs

@@ -33,7 +33,7 @@ from scipy.spatial import cKDTree
 
 from dermis.camera import camera_matrices
 from dermis.errors import DermisError
-from dermis.reference.integrate import gather, plan_levels
+from dermis.reference.integrate import TISSUE_TAU, gather, plan_levels
 from dermis.reference.raycast import Bvh
 from dermis.reference.sampling import SurfaceModel, coarsen, surface_cells
 from dermis.reference.shading import LightRig, scattered_irradiance, specular_and_exit
@@ -53,6 +53,7 @@ class ReferenceResult:
     coverage: np.ndarray  # (H, W) float32: fraction of sub-pixel rays that hit the mesh
     diffuse: np.ndarray  # (H, W, 3) float32, mean over the hitting sub-pixel rays (0 elsewhere)
     specular: np.ndarray  # (H, W, 3) float32, likewise
+    positions_mm: np.ndarray | None = None  # (H, W, 3) mean visible point (mm, world axes), NaN where none
     stats: dict = field(default_factory=dict)
 
 
@@ -98,6 +99,21 @@ def camera_rays(scene, size, spp: int = 1, camera=None):
     return a, d / length[:, None], length, eye
 
 
+def _power_centroids(group, n_groups, area, position, power):
+    """Where a coarse cell's light is: the centroid of its fine pieces weighted by area x power
+    (sum of RGB), so the coarse sample keeps the first moment of the light it carries and a spot
+    smaller than the cell stays where it is; the area centroid where the cell is dark."""
+    w_area = area
+    w_power = area * np.maximum(power, 0.0)
+    tot_a = np.bincount(group, weights=w_area, minlength=n_groups)
+    tot_p = np.bincount(group, weights=w_power, minlength=n_groups)
+    lit = tot_p > 1e-12 * np.maximum(tot_a, 1e-300) * max(float(np.max(power, initial=0.0)), 1e-300)
+    w = np.where(lit[group], w_power, w_area)
+    tot = np.where(lit, tot_p, tot_a)
+    return np.stack([np.bincount(group, weights=w * position[:, c], minlength=n_groups) for c in range(3)], 1) / \
+        np.maximum(tot, 1e-300)[:, None]
+
+
 class _Progress:
     def __init__(self, enabled, total):
         self.bar = None
@@ -125,9 +141,18 @@ class _Progress:
 
 
 def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: float | None = None, seed: int = 0,
-                     progress: bool = True, camera=None) -> ReferenceResult:
+                     progress: bool = True, camera=None, paths: str = "straight") -> ReferenceResult:
     """Render ``scene`` offline; see the module docstring. ``min_spacing_mm``: the finest surface
-    sample spacing (default: SPACING_PER_PIXEL of the median pixel footprint, at most 0.25 mm)."""
+    sample spacing (default: SPACING_PER_PIXEL of the median pixel footprint, at most 0.25 mm).
+
+    ``paths``: "straight" (default) - every pair of points within the cutoff exchanges light by
+    their 3-D distance, as the model is defined; "tissue" - pairs whose straight segment leaves
+    either point into the air (integrate.TISSUE_TAU) are skipped, so no light crosses the air gap of
+    a crease (closed eyelids, lips, nostril and ear folds) while light through thin parts
+    (ears) still counts. The difference between the two bounds what creases mean for a technique.
+    """
+    if paths not in ("straight", "tissue"):
+        raise DermisError(f"paths must be 'straight' or 'tissue', got '{paths}'")
     from dermis.renderer import check_size
 
     w, h = check_size(size)
@@ -154,7 +179,7 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
     n_hits = len(hit_idx)
     eye_mm = np.asarray(eye, np.float64) * mm
     profile = scene.profile.normalized()
-    stats = {"size": [w, h], "spp": spp, "camera_rays": int(len(tri)), "visible_points": n_hits, "seed": seed,
+    stats = {"size": [w, h], "spp": spp, "paths": paths, "camera_rays": int(len(tri)), "visible_points": n_hits, "seed": seed,
              "triangles": int(len(surface.indices)), "bvh_nodes": int(bvh.node_count)}
 
     diffuse = np.zeros((n_hits, 3))
@@ -190,10 +215,13 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
             t0 = time.perf_counter()
             cpos = np.empty((n_cells, 3))
             cval = np.empty((n_cells, 3))
+            cnrm = np.empty((n_cells, 3)) if paths == "tissue" else None
             for c0 in range(0, n_cells, IRRADIANCE_CHUNK):
                 c1 = min(n_cells, c0 + IRRADIANCE_CHUNK)
                 a = surface.interpolate(ct[c0:c1], cb[c0:c1])
                 cpos[c0:c1] = a["position"]
+                if cnrm is not None:
+                    cnrm[c0:c1] = a["normal_geo"]
                 cval[c0:c1] = scattered_irradiance(surface, rig, a)
                 bar(c1 - c0)
             timings["irradiance_s"] = time.perf_counter() - t0
@@ -208,11 +236,16 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
                 group, n_groups = coarsen(ct[use], cij[use], s.factor)
                 area = np.bincount(group, weights=ca[use], minlength=n_groups)
                 inv = 1.0 / np.maximum(area, 1e-300)
-                pos = np.stack([np.bincount(group, weights=ca[use] * cpos[use, c], minlength=n_groups) for c in range(3)], 1) * inv[:, None]
                 val = np.stack([np.bincount(group, weights=ca[use] * cval[use, c], minlength=n_groups) for c in range(3)], 1) * inv[:, None]
+                pos = _power_centroids(group, n_groups, ca[use], cpos[use], cval[use].sum(axis=1))
+                nrm = None
+                if paths == "tissue":
+                    nrm = np.stack([np.bincount(group, weights=ca[use] * cnrm[use, c], minlength=n_groups) for c in range(3)], 1)
+                    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
                 ks = [l.index for l in s.levels]
-                out, pairs, _ = gather(xq, pos, area, val, [l.effective_variance_mm2 for l in s.levels],
-                                       [l.cutoff_mm for l in s.levels], progress=bar)
+                out, pairs = gather(xq, pos, area, val, [l.effective_variance_mm2 for l in s.levels],
+                                    [l.cutoff_mm for l in s.levels], progress=bar, query_normals=attrs_x["normal_geo"],
+                                    sample_normals=nrm, tissue_tau=TISSUE_TAU if paths == "tissue" else None)
                 C[:, ks, :] = out
                 pairs_total += pairs
                 t_gather += time.perf_counter() - t0
@@ -245,10 +278,16 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
     dsum[hit_idx] = diffuse
     ssum[hit_idx] = specular
     nh = np.maximum(hit.reshape(h, w, spp).sum(axis=2), 1)[:, :, None]
+    psum = np.zeros((len(tri), 3))
+    if n_hits:
+        psum[hit_idx] = xq
+    positions = psum.reshape(h, w, spp, 3).sum(axis=2) / nh
+    positions[cov == 0] = np.nan
     stats["timings_s"] = {k: round(v, 3) for k, v in timings.items()}
     stats["total_s"] = round(time.perf_counter() - t_start, 3)
     if not np.all(np.isfinite(image)):
         raise DermisError(f"{scene.source}: the reference produced NaN or infinite values (bad scene values?)")
     return ReferenceResult(image=image.astype(np.float32), coverage=cov.astype(np.float32),
                            diffuse=(dsum.reshape(h, w, spp, 3).sum(axis=2) / nh).astype(np.float32),
-                           specular=(ssum.reshape(h, w, spp, 3).sum(axis=2) / nh).astype(np.float32), stats=stats)
+                           specular=(ssum.reshape(h, w, spp, 3).sum(axis=2) / nh).astype(np.float32),
+                           positions_mm=positions.astype(np.float32), stats=stats)

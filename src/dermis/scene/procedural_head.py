@@ -8,7 +8,7 @@ subject's left is +x):
 
 * The head and neck are one smooth implicit surface: smooth unions of ellipsoids / capsules
   (cranium, forehead, cheeks, jaw, chin, lips, nose, brow ridge, sterno-cleido-mastoid muscles,
-  neck) minus smooth subtractions (eye sockets, nostrils, mouth corners), with closed eyelids
+  neck) minus smooth subtractions (eye sockets, nostrils), with closed eyelids
   (eyeball spheres) and a flat cut at the bottom of the neck.  It is star-shaped around a centre
   ``C`` inside the head, so it is meshed by casting rays from ``C``.
 * Meshing avoids poles and grazing rays: a *ring* grid (columns at fixed azimuth, denser on the
@@ -18,36 +18,47 @@ subject's left is +x):
 * The ears are separate, genuinely thin closed shells (about 2.6 mm thick flap, up to ~4 mm at
   the helix rim and lobe, rounded edges) whose front edge is buried in the side of the head (they
   interpenetrate it, like a sculpt base mesh), so they transmit light when back-lit.
-* Concave parts: eye sockets (closed lids sit about 1 cm behind brow and cheek), nostrils
-  (tunnels toward ``C``, about 5 mm deep), mouth corners.
+* Concave parts: eye sockets (the closed lids lie ~7 mm and the inner corners ~13 mm inside the
+  convex hull), nostrils (tunnels toward ``C``, ~6 mm deeper than their rim).
 
 UV layout (unique, for texture-space diffusion): seven islands -- the ring (cut once, down the
 back of the head and neck), the top cap, the bottom cap, and the front / back sheet of each ear
-(seam along the ear rim) -- each flattened with least-squares conformal maps (LSCM; conformal, so
-dP/du and dP/dv are orthogonal and equally long and the MikkTSpace-like tangent frame is
-consistent with the normal map), scaled to one common texel density (the bottom cut face, which
-is never seen, gets half), oriented so that every UV triangle is counter-clockwise (tangent
-handedness w = +1 everywhere) and packed into [0, 1]^2 with gutters of at least
-``GUTTER_UV`` (>= 10 texels at 1024^2).  The gutters of every texture are filled with the colour
-of the nearest island texel (dilation), so bilinear filtering and blurs never pick up black.
+(seam along the ear rim).  The ring is unrolled by arc length and relaxed with as-rigid-as-
+possible iterations (Liu et al. 2008: near-isometric, median shear ~3 deg, 99th percentile
+~15 deg, texel density within about +-25 %), the other islands with least-squares conformal maps
+(Levy et al. 2002).  All islands get one common texel density (the bottom cut face, which is
+never seen, gets half), every UV triangle is counter-clockwise (tangent handedness w = +1
+everywhere), the ring has the head's up along +v, and the islands are packed into [0, 1]^2 with
+gutters of at least ``GUTTER_UV`` (12 texels at 1024^2) and a ``MARGIN_UV`` border.  At 1024^2 a
+texel is ~0.52 mm of skin.  The gutters of every texture are filled with the value of the nearest
+island texel (dilation), so bilinear filtering and blurs never pick up black.
 
 Textures (row 0 = top of the image, i.e. texel (row, col) is at u = (col + .5) / W,
 v = 1 - (row + .5) / H; v = 0 is the bottom row, the OpenGL convention used by the UVs):
 
 * ``albedo``: linear RGB, fair skin (mean ~ (0.45, 0.25, 0.17)) with low-frequency melanin and
   redness blotches (3-D noise, so they are continuous across UV seams), redness on cheeks, nose
-  and ears, freckles (1-2 mm spots, mostly on nose and cheeks), eyebrows, closed eyelids with a
+  and ears, freckles (~1 mm spots, mostly on nose and cheeks), eyebrows, closed eyelids with a
   dark lash line, darker nostrils, red lips (~(0.45, 0.12, 0.10)).
 * ``normal_map``: tangent-space (OpenGL: +x along +u, +y along +v, encoded n * 0.5 + 0.5) from a
-  height field in millimetres: pores (dimples on a jittered grid ``pore_spacing_mm`` = 1.0 mm apart,
-  ~100 per cm^2 -- the density of visible facial pores; at 1024^2 the layout has ~0.5 mm texels, so
-  finer spacings could not be represented), fine micro-relief noise, forehead lines, crow's feet,
-  lip lines, the eyelid closure groove and a soft naso-labial fold.
+  height field in millimetres: pores (dimples ~0.06 mm deep on a jittered grid
+  ``pore_spacing_mm`` = 1.0 mm apart, ~100 per cm^2 -- the density of visible facial pores; at
+  1024^2 a texel is ~0.52 mm, so finer spacings could not be represented), band-limited
+  micro-relief (0.3-1 mm), forehead lines, crow's feet, lip lines, the closed-eyelid groove, the
+  mouth line, labio-mental and naso-labial folds.  The perturbation is expressed in the frame
+  the renderer rebuilds (dermis.scene.tangents: T = dP/du orthogonalised against N,
+  B = cross(N, T), w = +1), exactly, using each triangle's UV Jacobian.
 * ``specular``: intensity in [0, 1]: oily T-zone (forehead, nose, chin) and lips brighter,
   eyebrows and pores duller.
 
+Landmarks (scene units): head_centre, crown, forehead, left/right_eye (closed lid),
+left/right_eye_inner_socket, nose_tip, left/right_nostril (bottom of the nostril),
+lips (mouth line), upper_lip, lower_lip, left/right_cheek, chin, neck (front),
+left/right_ear (middle of the visible ear flap, inside it), left/right_ear_root (inside the head).
+
 ``build_default_head`` is cached (``functools.lru_cache``); the arrays it returns are read-only,
-copy them before modifying.
+copy them before modifying.  Building takes about 1-2 s at 1024^2 (geometry ~1 s, textures
+~1 s).
 """
 
 from __future__ import annotations
@@ -60,6 +71,15 @@ from scipy import ndimage, sparse, spatial
 from scipy.sparse.linalg import splu
 
 MM_PER_UNIT = 10.0
+LABIOMENTAL_Y = -6.75  # height of the labio-mental fold (normal map), cm
+
+
+def NASOLABIAL_X(y):
+    """|x| of the naso-labial fold (normal map) at height y, cm."""
+    t = np.clip((np.asarray(y, float) + 2.3) / -3.6, 0, 1)
+    return 1.75 + 1.1 * t + 0.25 * t * t
+
+
 PORE_SPACING_MM = 1.0
 GUTTER_UV = 12.0 / 1024.0  # minimum distance between UV islands (packing target)
 MARGIN_UV = 6.0 / 1024.0  # minimum distance of an island from the border of [0, 1]^2
@@ -109,41 +129,59 @@ def _rot(yaw=0.0, pitch=0.0, roll=0.0):
 
 
 class _Ellipsoid:
+    """Ellipsoid (optionally rotated: R = world -> local rows), approximate distance (Quilez)."""
+
     def __init__(self, c, r, R=None):
-        self.c = np.asarray(c, float)
-        self.r = np.asarray(r, float)
-        self.R = None if R is None else np.asarray(R, float)
+        self.c = np.asarray(c, np.float32)
+        self.r = np.asarray(r, np.float32)
+        self.R = None if R is None else np.asarray(R, np.float64)
         self.bound = float(np.max(self.r))
+        self._c = [float(v) for v in self.c]
+        self._ir = [1.0 / float(v) for v in self.r]
+        self._R = None if R is None else [[float(v) for v in row] for row in self.R]
 
     def __call__(self, p):
-        q = p - self.c
-        if self.R is not None:
-            q = q @ self.R.T
-        q0 = q / self.r
-        q1 = q0 / self.r
-        k0 = np.sqrt(np.einsum("ij,ij->i", q0, q0))
-        k1 = np.sqrt(np.einsum("ij,ij->i", q1, q1))
+        return self.xyz(p[:, 0], p[:, 1], p[:, 2])
+
+    def xyz(self, x, y, z):
+        cx, cy, cz = self._c
+        x, y, z = x - cx, y - cy, z - cz
+        if self._R is not None:
+            (a, b, c), (d, e, f), (g, h, i) = self._R
+            x, y, z = a * x + b * y + c * z, d * x + e * y + f * z, g * x + h * y + i * z
+        ix, iy, iz = self._ir
+        x, y, z = x * ix, y * iy, z * iz
+        k0 = np.sqrt(x * x + y * y + z * z)
+        x, y, z = x * ix, y * iy, z * iz
+        k1 = np.sqrt(x * x + y * y + z * z)
         return k0 * (k0 - 1.0) / np.maximum(k1, 1e-12)
 
 
 class _Capsule:
-    """Segment a-b with a radius varying linearly from ra to rb (a round cone, approximately)."""
+    """Segment a-b with a radius varying linearly from ra to rb (a round cone, approximately),
+    optionally scaled per axis."""
 
     def __init__(self, a, b, ra, rb=None, scale=(1.0, 1.0, 1.0)):
-        self.a = np.asarray(a, float)
-        self.b = np.asarray(b, float)
+        self.a = np.asarray(a, np.float32)
+        self.b = np.asarray(b, np.float32)
         self.ra = float(ra)
         self.rb = float(ra if rb is None else rb)
-        self.s = np.asarray(scale, float)
+        self.s = np.asarray(scale, np.float32)
         self.c = 0.5 * (self.a + self.b)
         self.bound = 0.5 * float(np.linalg.norm(self.b - self.a)) + max(self.ra, self.rb) * float(self.s.max())
 
     def __call__(self, p):
-        ba = self.b - self.a
-        pa = p - self.a
-        h = np.clip(pa @ ba / (ba @ ba), 0.0, 1.0)
-        d = (pa - h[:, None] * ba) / self.s
-        return np.sqrt(np.einsum("ij,ij->i", d, d)) * self.s.min() - (self.ra + (self.rb - self.ra) * h)
+        return self.xyz(p[:, 0], p[:, 1], p[:, 2])
+
+    def xyz(self, x, y, z):
+        ax, ay, az = (float(v) for v in self.a)
+        bx, by, bz = (float(v) - float(u) for v, u in zip(self.b, self.a))
+        inv = 1.0 / (bx * bx + by * by + bz * bz)
+        x, y, z = x - ax, y - ay, z - az
+        h = np.clip((x * bx + y * by + z * bz) * inv, 0.0, 1.0)
+        sx, sy, sz = (1.0 / float(v) for v in self.s)
+        x, y, z = (x - h * bx) * sx, (y - h * by) * sy, (z - h * bz) * sz
+        return np.sqrt(x * x + y * y + z * z) * float(self.s.min()) - (self.ra + (self.rb - self.ra) * h)
 
 
 class _Shape:
@@ -174,27 +212,27 @@ class _Shape:
         self.base = E((0, 3.5, -0.6), (7.2, 8.9, 9.4))  # cranium
         add(E((0, 5.0, 3.4), (6.3, 6.0, 5.9)), 2.0)  # forehead
         add(E((0, 6.0, -2.4), (7.3, 6.2, 7.4)), 2.0)  # parietal eminences
-        add(E((0, -0.6, 3.0), (6.75, 5.2, 6.3)), 2.4)  # mid-face (zygomatic width)
-        add(E((0, -5.2, 2.9), (5.0, 3.6, 5.6), _rot(pitch=0.3)), 2.2)  # jaw mass
+        add(E((0, -0.2, 3.0), (6.75, 4.6, 6.3)), 2.4)  # mid-face (zygomatic width)
+        add(E((0, -5.2, 2.9), (4.75, 3.6, 5.6), _rot(pitch=0.3)), 2.2)  # jaw mass
         # neck (slightly elliptic, widening a little toward the base) and the
         # sterno-cleido-mastoid muscles
-        add(Cap((0, -4.0, -1.7), (0, -30.0, -0.6), 5.35, 6.5, scale=(1.0, 1.0, 1.07)), 3.0)
+        add(Cap((0, -4.0, -1.7), (0, -30.0, -0.6), 5.55, 6.5, scale=(1.0, 1.0, 1.07)), 3.0)
         for s in (1, -1):
-            add(Cap((s * 4.7, -3.0, -2.6), (s * 1.9, -24.0, 2.0), 1.2, 1.5), 1.8)
+            add(Cap((s * 4.4, -3.0, -2.4), (s * 1.9, -24.0, 2.0), 1.05, 1.45), 2.2)
         for s in (1, -1):
             # jaw line (gonion -> chin)
-            add(Cap((s * 4.8, -6.9, -0.4), (s * 1.4, -9.1, 6.6), 0.9, 0.9), 1.6)
+            add(Cap((s * 4.65, -6.8, -0.3), (s * 1.4, -9.1, 6.6), 0.75, 0.75), 2.0)
             # cheekbones and cheeks
             add(E((s * 4.8, 0.4, 5.2), (1.8, 1.2, 2.0)), 1.6)
-            add(E((s * 3.6, -2.3, 5.9), (2.6, 2.6, 2.6)), 2.4)
+            add(E((s * 3.5, -2.1, 6.0), (2.2, 2.3, 2.45)), 2.4)
             # brow ridge
             add(E((s * 2.5, 3.15, 7.9), (2.4, 0.9, 1.4), _rot(yaw=s * 0.35)), 1.2)
         # chin
         add(E((0, -8.4, 7.7), (1.95, 1.75, 1.8)), 1.4)
         # mouth: muzzle and lips
         add(E((0, -4.6, 6.75), (3.1, 2.6, 2.3)), 1.6)
-        add(E((0, -4.3, 8.62), (2.15, 0.56, 1.05), _rot(pitch=-0.25)), 0.55)
-        add(E((0, -5.5, 8.48), (1.95, 0.6, 0.92), _rot(pitch=0.2)), 0.45)
+        add(E((0, -4.3, 8.62), (2.0, 0.56, 1.05), _rot(pitch=-0.25)), 0.55)
+        add(E((0, -5.5, 8.48), (1.85, 0.6, 0.92), _rot(pitch=0.2)), 0.45)
         # nose: bridge, tip, wings, base
         add(Cap((0, 2.3, 8.45), (0, -1.45, 10.3), 0.45, 0.68), 0.7)
         add(E((0, -1.8, 10.45), (0.75, 0.7, 0.78)), 0.5)
@@ -214,53 +252,61 @@ class _Shape:
             ax = self.C - target
             ax /= np.linalg.norm(ax)
             t = _raycast(self, self.C, -ax[None], iters=12, tol=1e-4)[0]
-            sub(E(self.C - t * ax, radii, _frame_from_axis(ax)), k)
+            prim = E(self.C - t * ax, radii, _frame_from_axis(ax))
+            sub(prim, k)
+            return prim
 
-        # nostrils, mouth line, mouth corners
-        for s in (1, -1):
-            cavity((s * self.NOSTRIL[0], self.NOSTRIL[1], self.NOSTRIL[2]), (0.27, 0.17, 0.7), 0.12)
+        # nostrils
+        self.nostrils = [cavity((s * self.NOSTRIL[0], self.NOSTRIL[1], self.NOSTRIL[2]), (0.27, 0.17, 0.7), 0.12) for s in (1, -1)]
 
     def sdf(self, p):
-        return np.maximum(self.sdf_body(p), self.Y_CUT - p[:, 1])
+        """Signed distance-like function (negative inside) at points p (n, 3), in float32."""
+        p = np.asarray(p, np.float32)
+        x, y, z = (np.ascontiguousarray(p[:, k]) for k in range(3))
+        return np.maximum(self._body(x, y, z), self.Y_CUT - y)
 
     def sdf_body(self, p):
         """The surface without the flat cut at the bottom of the neck."""
-        d = self.base(p)
-        if not hasattr(self, "_groups"):
+        p = np.asarray(p, np.float32)
+        return self._body(*(np.ascontiguousarray(p[:, k]) for k in range(3)))
+
+    def _body(self, x, y, z):
+        if "_groups" not in self.__dict__:
             self._make_groups()
-        for gc, gr, gk, ops in self._groups:
-            q = p - gc
-            m = np.einsum("ij,ij->i", q, q) < (gr + gk + np.abs(d)) ** 2
-            if gr > 1e3:
-                m[:] = True
-            if not np.any(m):
-                continue
-            idx = np.nonzero(m)[0]
-            pi, di = p[idx], d[idx]
-            for op, prim, k in ops:
-                q = pi - prim.c
+        glob, (gc, gr, gk, face) = self._groups
+        d = self.base.xyz(x, y, z)
+        for op, prim, k in glob:  # large masses: everywhere
+            e = prim.xyz(x, y, z)
+            d = _smin(d, e, k) if op == "u" else _smax(d, -e, k)
+        # face features: only near the face (two-level culling with bounding spheres; a primitive
+        # has no effect where it is farther than its smoothing width k)
+        lim = gr + gk + np.abs(d)
+        idx = np.nonzero((x - gc[0]) ** 2 + (y - gc[1]) ** 2 + (z - gc[2]) ** 2 < lim * lim)[0]
+        if len(idx):
+            xi, yi, zi, di = x[idx], y[idx], z[idx], d[idx]
+            for op, prim, k in face:
+                c = prim.c
                 lim = 1.3 * prim.bound + k + np.abs(di)
-                mm = np.einsum("ij,ij->i", q, q) < lim * lim
-                if not np.any(mm):
+                j = np.nonzero((xi - c[0]) ** 2 + (yi - c[1]) ** 2 + (zi - c[2]) ** 2 < lim * lim)[0]
+                if len(j) == 0:
                     continue
-                j = np.nonzero(mm)[0]
-                e = prim(pi[j])
+                e = prim.xyz(xi[j], yi[j], zi[j])
                 di[j] = _smin(di[j], e, k) if op == "u" else _smax(di[j], -e, k)
             d[idx] = di
         return d
 
     def _make_groups(self):
-        """Two-level culling: the face features form one group with a bounding sphere."""
-        face_c = np.array([0.0, -1.5, 8.0])
+        """Large masses are evaluated everywhere, the face features inside a bounding sphere."""
+        face_c = np.array([0.0, -1.5, 8.0], np.float32)
         glob, face = [], []
         for op in self.ops:
             prim = op[1]
-            if np.linalg.norm(prim.c - face_c) + 1.3 * prim.bound < 8.5:
+            if np.linalg.norm(prim.c - face_c) + 1.3 * prim.bound < 9.5:
                 face.append(op)
             else:
                 glob.append(op)
         kmax = max(op[2] for op in face)
-        self._groups = [(np.zeros(3), 1e9, 0.0, glob), (face_c, 8.5, kmax, face)]
+        self._groups = (glob, ([float(v) for v in face_c], 9.5, kmax, face))
 
 
 def _frame_from_axis(ax):
@@ -369,8 +415,9 @@ def _grid_tris(rows, cols, base=0):
 
 
 def _split_quads(P, a, b, c, d):
-    """Split quads a-b-c-d along the shorter diagonal; returns (n, 3) triangles (a, d, c) order
-    convention: a -> d -> c -> b is the intended counter-clockwise order of the quad."""
+    """Split the quads a-b-c-d (corners in cyclic order) along their shorter diagonal; the two
+    triangles of every quad share the winding of the cycle a -> d -> c -> b (the global
+    orientation is fixed afterwards by ``_orient_outward``)."""
     a, b, c, d = (x.ravel() for x in (a, b, c, d))
     ac = np.linalg.norm(P[a] - P[c], axis=1)
     bd = np.linalg.norm(P[b] - P[d], axis=1)
@@ -391,10 +438,11 @@ def _orient_outward(P, tris, ref):
     return tris
 
 
-def _disc_points(n_boundary_phis, K, scale_fn=None, warp=True):
-    """Concentric rings in the unit disc (boundary excluded) for a cap triangulation."""
+def _disc_points(boundary_phis, K, scale_fn=None, warp=True):
+    """Concentric rings in the unit disc (boundary excluded) for a cap triangulation; ring k of
+    K has about len(boundary_phis) * scale_fn(k / K) points."""
     pts = [np.zeros((1, 2))]
-    nb = len(n_boundary_phis)
+    nb = len(boundary_phis)
     for k in range(1, K):
         r = k / K
         m = max(6, int(round(nb * (scale_fn(r) if scale_fn else r))))
@@ -420,7 +468,7 @@ def _build_head_surface(shape):
     ref = np.concatenate([ref, np.linspace(ref[-1], [4.5, shape.Y_CUT - C[1] - 6.0], 120)[1:]])
     seg = np.linalg.norm(np.diff(ref, axis=0), axis=1)
     cum = np.concatenate([[0], np.cumsum(seg)])
-    M = int(Nr * 1.6)
+    M = int(Nr * 1.4)
     s = np.linspace(0, cum[-1], M)
     refp = np.stack([np.interp(s, cum, ref[:, 0]), np.interp(s, cum, ref[:, 1])], 1)
     elev = np.arctan2(refp[:, 1], refp[:, 0])  # decreasing
@@ -565,8 +613,12 @@ def _ear_mid(a, b):
     """Out-of-plane offset of the flap's mid-surface (flare away from the head) and its
     derivatives."""
     ap = np.maximum(a, 0.0)
-    w = 0.08 * ap**2
-    return w, 0.16 * ap, np.zeros_like(b)
+    # flare, plus a shallow concha bowl in front of the root
+    g = 0.22 * np.exp(-(((a - 0.9) / 0.75) ** 2) - ((b + 0.35) / 1.1) ** 2)
+    w = 0.08 * ap**2 - g
+    wa = 0.16 * ap + g * 2 * (a - 0.9) / 0.75**2
+    wb = g * 2 * (b + 0.35) / 1.1**2
+    return w, wa, wb
 
 
 def _ear_thickness(a, b, d_edge):
@@ -576,7 +628,7 @@ def _ear_thickness(a, b, d_edge):
     h = EAR_HALF_THICKNESS
     helix = _smoothstep(-1.6, -0.6, b) * np.exp(-(((d_edge - 0.32) / 0.2) ** 2))
     lobe = _smoothstep(-1.2, -2.0, b)
-    front = h + 0.11 * helix + 0.05 * lobe
+    front = h + 0.14 * helix + 0.05 * lobe
     back = h + 0.04 * helix + 0.05 * lobe
     return front, back
 
@@ -888,7 +940,7 @@ def _geometry():
             uv = _ring_init_uv(ring)
             if np.sum(_signed_uv_area(uv, T) < 0) > len(T) // 2:
                 uv[:, 0] *= -1
-            uv = _arap(P, T, uv, iters=8)
+            uv = _arap(P, T, uv, iters=7)
             Nc1 = N_COLS + 1
             top = uv[:Nc1].mean(0)
             bot = uv[-Nc1:].mean(0)
@@ -902,7 +954,7 @@ def _geometry():
         if np.sum(_signed_uv_area(uv, T) < 0) > len(T) // 2:  # mirrored solution: flip u
             uv[:, 0] *= -1
         uvs.append(uv)
-    # common density: every island gets the ring's UV-area / 3-D-area ratio
+    # common density: every island gets the same UV area per 3-D area (the bottom cut: half)
     rel = []
     for name, uv in zip(ISLANDS, uvs):
         P, T = parts[name]
@@ -911,7 +963,7 @@ def _geometry():
     packed, scale = _pack_islands(uvs, rel)
 
     # assemble
-    Ps, Ts, UVs, isl, groups = [], [], [], [], []
+    Ps, Ts, UVs, isl = [], [], [], []
     base = 0
     for k, name in enumerate(ISLANDS):
         P, T = parts[name]
@@ -947,6 +999,8 @@ def _geometry():
         "left_nostril": shape.NOSTRIL,
         "right_nostril": shape.NOSTRIL * mirror,
         "lips": [0, shape.STOMION_Y, 9.5],
+        "upper_lip": [0, shape.STOMION_Y + 0.45, 9.5],
+        "lower_lip": [0, shape.STOMION_Y - 0.5, 9.5],
         "left_cheek": [4.0, -1.2, 7.0],
         "right_cheek": [-4.0, -1.2, 7.0],
         "chin": [0, -8.4, 9.5],
@@ -1017,8 +1071,8 @@ def _value_noise3(P, cell, rng, smooth=1.0):
     if smooth > 0:
         lat = ndimage.gaussian_filter(lat, smooth, mode="wrap")
     lat /= lat.std() + 1e-12
-    coords = ((P - lo) / cell).T
-    return ndimage.map_coordinates(lat, coords, order=1, mode="nearest")
+    coords = ((P - lo) / cell).T.astype(np.float32)
+    return ndimage.map_coordinates(lat, coords, order=1, mode="nearest").astype(np.float32)
 
 
 def _splat(H, W, rows, cols, vals):
@@ -1046,3 +1100,259 @@ def _jittered_points(H, W, spacing, rng):
 
 def _sstep(e0, e1, x):
     return _smoothstep(e0, e1, x)
+
+
+def _lip_mask(x, y, z, shape):
+    """Vermilion of the lips (soft edges ~0.5 mm), from the front-projected lip outline."""
+    ys = shape.STOMION_Y
+    xu = np.abs(x) / 2.05
+    xl = np.abs(x) / 1.92
+    # upper border with a cupid's bow; lower border a flatter arc
+    yu = ys + 0.06 + 0.86 * np.clip(1 - xu**2.2, 0, 1) ** 0.55 - 0.09 * np.exp(-((x / 0.2) ** 2)) + 0.05 * np.exp(-(((np.abs(x) - 0.5) / 0.3) ** 2))
+    yl = ys - 0.95 * np.clip(1 - xl**2, 0, 1) ** 0.6
+    e = 0.05
+    m = _sstep(-e, e, yu - y) * _sstep(-e, e, y - yl) * _sstep(7.4, 7.9, z) * _sstep(2.15, 1.95, np.abs(x))
+    return m
+
+
+def _eye_fields(x, y, z, shape):
+    """(lid mask, lash line intensity, lid closure groove distance) for both eyes."""
+    ex, ey, ez = shape.EYE
+    ax = np.abs(x)
+    d = np.sqrt((ax - ex) ** 2 + (y - ey) ** 2 + (z - ez) ** 2)
+    lid = _sstep(shape.EYE_R + 0.35, shape.EYE_R + 0.08, d) * _sstep(ez + 0.2, ez + 0.7, z)
+    t = (ax - ex) / 1.2
+    yc = ey - 0.2 + 0.3 * t**2 - 0.06 * t  # closed-lid line: a gentle arc, corners higher
+    along = _sstep(1.08, 0.95, np.abs(t))
+    dist = y - yc
+    return lid, along, dist
+
+
+def _brow_mask(x, y, z):
+    ax = np.abs(x)
+    t = (ax - 1.05) / 3.9
+    yb = 3.2 + 0.33 * np.sin(np.pi * np.clip(t * 0.85, 0, 1)) - 0.05 * t
+    wb = 0.42 * (1 - 0.55 * np.clip(t, 0, 1))
+    m = _sstep(1.0, 0.45, np.abs(y - yb) / wb) * _sstep(-0.08, 0.15, t) * _sstep(1.05, 0.8, t) * _sstep(5.5, 6.5, z)
+    return m
+
+
+def _textures(geo, size, seed):
+    P, N, UV, T, isl, shape = geo["P"], geo["N"], geo["UV"], geo["T"], geo["island"], geo["shape"]
+    H = W = int(size)
+    rng = np.random.default_rng(seed)
+    tri, bary = _rasterize_uv(UV, T, W, H)
+    cov = tri >= 0
+    ti = tri[cov]
+    b = bary[cov]
+    P32, N32 = P.astype(np.float32), N.astype(np.float32)
+    pos = np.einsum("nk,nkj->nj", b, P32[T[ti]])
+    nrm = np.einsum("nk,nkj->nj", b, N32[T[ti]])
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    island = isl[ti]
+    n_all = len(pos)
+    y = pos[:, 1]
+
+    # per-triangle Jacobian (millimetres per UV unit) and texel size
+    Pm = P * MM_PER_UNIT
+    e1, e2 = Pm[T[:, 1]] - Pm[T[:, 0]], Pm[T[:, 2]] - Pm[T[:, 0]]
+    d1, d2 = UV[T[:, 1]] - UV[T[:, 0]], UV[T[:, 2]] - UV[T[:, 0]]
+    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+    Pu = ((e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) / det[:, None]).astype(np.float32)
+    Pv = ((e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) / det[:, None]).astype(np.float32)
+    tmm_tri = np.sqrt(0.5 * np.linalg.norm(np.cross(e1, e2), axis=1) / (0.5 * np.abs(det) * W * H))
+    texel_mm = float(np.median(tmm_tri[isl != ISLANDS.index("bottom_cap")]))
+
+    def full(vals, fill=0.0):
+        img = np.full((H, W), fill, np.float32)
+        img[cov] = vals
+        return img
+
+    # the face features are only evaluated on the front of the head
+    fi = np.nonzero((pos[:, 2] > 2.5) & (y > -12.0) & (y < 9.0) & (island == 0))[0]
+    fp = pos[fi]
+    x, fy, z = fp[:, 0], fp[:, 1], fp[:, 2]
+
+    def face(vals):
+        out = np.zeros(n_all, np.float32)
+        out[fi] = vals
+        return out
+
+    ear = (island >= 3).astype(np.float32)
+    bottom = (island == 2).astype(np.float32)
+    scalp = np.clip(_sstep(5.0, 8.0, y) * (1 - _sstep(6.0, 8.5, pos[:, 2])) + (island == 1), 0, 1)
+    neck = _sstep(-9.0, -11.5, y) * (1 - ear)
+    front = _sstep(3.5, 6.5, z)
+    lips_f = _lip_mask(x, fy, z, shape)
+    lid_f, lid_along, lid_dist = _eye_fields(x, fy, z, shape)
+    brow_f = _brow_mask(x, fy, z)
+    lm = geo["landmarks"]
+    nos_f = np.zeros(len(fi), np.float32)
+    for prim in shape.nostrils:
+        near = np.linalg.norm(fp - prim.c, axis=1) < 1.2
+        nos_f[near] += _sstep(0.1, -0.04, prim(fp[near].astype(float)))
+    nose_f = np.exp(-((x / 1.1) ** 2) - ((fy + 0.5) / 2.6) ** 2) * _sstep(8.0, 9.5, z)
+    nose_f += np.exp(-np.sum((fp - lm["nose_tip"]) ** 2, axis=1) / 1.2**2)
+    cheeks_f = np.exp(-(((np.abs(x) - 3.8) / 1.7) ** 2) - ((fy + 1.2) / 1.6) ** 2) * front
+    chin_f = np.exp(-np.sum((fp - lm["chin"]) ** 2, axis=1) / 1.8**2)
+    forehead_f = _sstep(3.7, 4.6, fy) * _sstep(7.8, 5.0, fy) * np.exp(-((x / 4.2) ** 4)) * front
+    lips, lid, brow, nos = face(lips_f), face(lid_f), face(brow_f), face(nos_f)
+    nose, cheeks, chin, forehead = face(nose_f), face(cheeks_f), face(chin_f), face(forehead_f)
+
+    # ---------------------------------------------------------------- height field (mm)
+    # pores: dimples on a jittered grid PORE_SPACING_MM apart
+    sp = PORE_SPACING_MM / texel_mm
+    pr, pc = _jittered_points(H, W, sp, rng)
+    dens = np.clip(0.75 + 0.35 * nose + 0.35 * cheeks + 0.2 * chin - 0.35 * neck - 0.3 * scalp - 0.5 * ear
+                   - lips - 0.8 * lid - 0.5 * brow, 0, 1.5) * (1 - bottom)
+    dens_img = full(dens)
+    amp = rng.uniform(0.5, 1.2, len(pr)) * dens_img[np.round(pr).astype(int), np.round(pc).astype(int)]
+    sig = max(0.22 * sp, 0.6)
+    depth = 0.06  # mm
+    pores = ndimage.gaussian_filter(_splat(H, W, pr, pc, amp * depth * 2 * np.pi * sig * sig).astype(np.float32), sig)
+    # micro-relief: band-limited noise, ~0.3-1 mm
+    wn = rng.standard_normal((H, W), dtype=np.float32)
+    s1, s2 = max(0.3 / texel_mm, 0.5), max(1.0 / texel_mm, 1.5)
+    micro = ndimage.gaussian_filter(wn, s1) - ndimage.gaussian_filter(wn, s2)
+    micro *= 0.008 / (micro.std() + 1e-12)
+    # wrinkles and folds from 3-D positions (continuous across UV seams), on the face only
+    # smooth noise fields are evaluated at the vertices and interpolated (cheaper than per texel)
+    vn = np.stack([_value_noise3(P, cell, rng) for cell in (0.6, 2.5, 0.8, 1.6)], 1)
+    n_line_all, n_big, n_mid, n_blotch = np.einsum("nk,nkc->cn", b, vn[T[ti]])
+    n_line = n_line_all[fi]
+    h3 = np.zeros(len(fi), np.float32)
+    for k, yk in enumerate((4.7, 5.35, 6.0, 6.7)):
+        yy = yk + 0.1 * (x / 3.0) ** 2 + 0.05 * n_line
+        h3 -= 0.035 * np.exp(-(((fy - yy) / 0.045) ** 2)) * np.clip(0.7 + 0.5 * n_line, 0, 1.2) * _sstep(4.2, 2.0, np.abs(x) + 0.3 * k)
+    h3 *= forehead_f
+    # crow's feet
+    dx = np.abs(x) - 4.3
+    dy = fy - (shape.EYE[1] - 0.05)
+    r = np.hypot(dx, dy)
+    th = np.arctan2(dy, dx)
+    cf = sum(np.exp(-(((th - a) * r / 0.03) ** 2)) for a in (-0.55, -0.22, 0.08, 0.38))
+    h3 -= 0.04 * cf * _sstep(0.25, 0.5, r) * _sstep(1.5, 0.9, r) * (dx > 0) * front
+    # closed-eye lid groove
+    h3 -= 0.12 * np.exp(-((lid_dist / 0.035) ** 2)) * lid_along * lid_f
+    # mouth line and the vertical lip lines
+    ys = shape.STOMION_Y + 0.03 * (x / 2.0) ** 2
+    mouth_f = np.exp(-(((fy - ys) / 0.04) ** 2)) * _sstep(2.15, 1.8, np.abs(x)) * _sstep(7.4, 7.9, z)
+    h3 -= 0.15 * mouth_f
+    ll = (0.5 + 0.5 * np.cos(2 * np.pi * x / 0.13 + 2.5 * n_line)) ** 6
+    h3 -= 0.01 * lips_f * ll
+    # labio-mental sulcus (the horizontal fold between the lower lip and the chin)
+    h3 -= 0.3 * np.exp(-(((fy - (LABIOMENTAL_Y + 0.06 * x * x)) / 0.2) ** 2)) * _sstep(2.2, 1.4, np.abs(x)) * _sstep(7.0, 8.0, z)
+    # naso-labial folds
+    for sgn in (1, -1):
+        cx = sgn * NASOLABIAL_X(fy)
+        h3 -= 0.25 * np.exp(-(((x - cx) / 0.22) ** 2)) * _sstep(-2.0, -2.6, fy) * _sstep(-6.6, -5.6, fy) * front
+    height = full(face(h3)) - pores + micro * full(1 - 0.7 * lips - 0.5 * bottom)
+    # fill the gutters before differentiating
+    inds = ndimage.distance_transform_edt(~cov, return_distances=False, return_indices=True)
+    gut = ~cov.ravel()
+    src = (inds[0] * W + inds[1]).ravel()[gut]  # nearest covered texel of each gutter texel
+    height = height.ravel()
+    height[gut] = height[src]
+    height = height.reshape(H, W)
+    g_row, g_col = np.gradient(height)
+    hu = g_col[cov] * W  # dh/du (mm per UV unit)
+    hv = -g_row[cov] * H  # dh/dv
+    # tangent frame of the renderer: T = dP/du orthogonalised against N, B = cross(N, T); the
+    # surface gradient of h expressed in (T, B) is exact for any (even sheared) UV map
+    pu, pv = Pu[ti], Pv[ti]
+    tt = pu - nrm * np.einsum("ij,ij->i", pu, nrm)[:, None]
+    tt /= np.linalg.norm(tt, axis=1, keepdims=True)
+    bb = np.cross(nrm, tt)
+    gT = hu / np.einsum("ij,ij->i", pu, tt)
+    gB = (hv - gT * np.einsum("ij,ij->i", pv, tt)) / np.einsum("ij,ij->i", pv, bb)
+    nts = np.stack([-gT, -gB, np.ones_like(gT)], 1)
+    nts /= np.linalg.norm(nts, axis=1, keepdims=True)
+
+    # ---------------------------------------------------------------- albedo (linear RGB)
+    melanin = 0.09 * n_big + 0.045 * n_mid
+    col = np.exp(-melanin[:, None] * np.array([0.9, 1.25, 1.6], np.float32))
+    redness = (0.45 * cheeks + 0.4 * nose + 0.15 * chin + 0.2 * ear + 0.12 * lid
+               + 0.22 * np.maximum(n_blotch - 0.3, 0) - 0.12 * neck)
+    col *= 1 + redness[:, None] * np.array([0.04, -0.33, -0.25], np.float32)
+    col *= 1 + neck[:, None] * np.array([0.0, 0.03, 0.04], np.float32)
+    # freckles: 0.5-1 mm brown spots, mostly on nose and cheeks
+    fsp = 2.6 / texel_mm
+    fr, fc = _jittered_points(H, W, fsp, rng)
+    fmask = full(np.clip(0.9 * nose + 1.0 * cheeks + 0.25 * forehead + 0.15, 0, 1.2) * (1 - lips) * (1 - bottom))
+    famp = (rng.random(len(fr)) < 0.55) * rng.uniform(0.3, 1.0, len(fr)) * fmask[np.round(fr).astype(int), np.round(fc).astype(int)]
+    fs = max(0.45 / texel_mm, 0.7)
+    freck = np.clip(ndimage.gaussian_filter(_splat(H, W, fr, fc, famp * 2 * np.pi * fs * fs).astype(np.float32), fs)[cov], 0, 1)
+    col *= 1 - 0.3 * freck[:, None] * np.array([0.55, 0.8, 1.0], np.float32)
+    # calibrate plain skin to the target mean
+    target = np.array([0.45, 0.25, 0.17])
+    plain = (lips < 0.05) & (brow < 0.05) & (lid < 0.05) & (nos < 0.05) & (bottom == 0)
+    col *= (target / col[plain].mean(0)).astype(np.float32)
+    # eyelids, lash line, brows, lips, nostrils, mouth line (on the face texels)
+    cf_ = col[fi]
+    cf_ *= 1 - lid_f[:, None] * np.array([0.05, 0.12, 0.1], np.float32)
+    nm_f = n_mid[fi]
+    strokes = (0.5 + 0.5 * np.cos(2 * np.pi * x / 0.06 + 3 * nm_f)) ** 4
+    lid_wide = _sstep(shape.EYE_R + 0.45, shape.EYE_R + 0.2,
+                      np.sqrt((np.abs(x) - shape.EYE[0]) ** 2 + (fy - shape.EYE[1]) ** 2 + (z - shape.EYE[2]) ** 2))
+    lash = lid_wide * lid_along * _sstep(shape.EYE[2] + 0.2, shape.EYE[2] + 0.6, z) * (
+        np.exp(-((lid_dist / 0.045) ** 2)) + 0.8 * strokes * _sstep(0.0, -0.02, lid_dist) * _sstep(-0.2, -0.05, lid_dist))
+    lash = np.clip(lash, 0, 1)
+    hair = np.zeros(len(fi), np.float32)
+    ib = brow_f > 0
+    if np.any(ib):
+        hair[ib] = np.clip(0.6 + 0.4 * _value_noise3(fp[ib] * [0.25, 1.0, 1.0], 0.05, rng, smooth=0.7), 0, 1)
+    brow_a = np.clip(0.8 * brow_f * hair, 0, 1)[:, None]
+    lip_col = np.array([0.45, 0.12, 0.10], np.float32) * (1 + 0.07 * nm_f[:, None]) * (1 - 0.06 * ll[:, None])
+    lf = lips_f[:, None]
+    cf_ = cf_ * (1 - lf) + lip_col * lf
+    cf_ = cf_ * (1 - brow_a) + np.array([0.10, 0.06, 0.045], np.float32) * brow_a
+    cf_ = cf_ * (1 - lash[:, None]) + np.array([0.03, 0.022, 0.018], np.float32) * lash[:, None]
+    cf_ *= 1 - 0.8 * np.clip(nos_f, 0, 1)[:, None]
+    cf_ *= 1 - 0.45 * mouth_f[:, None] * np.array([0.6, 1.0, 1.0], np.float32)
+    col[fi] = cf_
+    col = np.clip(col, 0.0, 1.0)
+
+    # ---------------------------------------------------------------- specular intensity
+    pnorm = np.clip(pores[cov] / (depth * 0.6), 0, 1)
+    spec = (0.32 + 0.25 * forehead + 0.3 * nose + 0.15 * chin + 0.08 * scalp + 0.35 * lips - 0.22 * brow
+            - 0.1 * cheeks - 0.08 * neck - 0.12 * pnorm + 0.04 * n_mid - 0.15 * bottom)
+    spec = np.clip(spec, 0.0, 1.0)
+
+    def finish(vals):
+        img = np.zeros((H * W,) + vals.shape[1:], np.float32)
+        img[cov.ravel()] = vals
+        img[gut] = img[src]  # dilate: gutters take the nearest island texel
+        return img.reshape((H, W) + vals.shape[1:])
+
+    return finish(col), finish(nts * 0.5 + 0.5), finish(spec), texel_mm
+
+
+def _readonly(a):
+    a = np.ascontiguousarray(a)
+    a.setflags(write=False)
+    return a
+
+
+@functools.lru_cache(maxsize=4)
+def build_default_head(texture_size: int = 1024, seed: int = 7) -> ProceduralHead:
+    """The built-in default scene's head-and-neck bust (see the module docstring).
+
+    Deterministic for given arguments and cached: the returned arrays are read-only."""
+    if int(texture_size) < 64:
+        raise ValueError("texture_size must be at least 64")
+    geo = _geometry()
+    albedo, normal_map, specular, texel_mm = _textures(geo, int(texture_size), int(seed))
+    return ProceduralHead(
+        positions=_readonly(geo["P"].astype(np.float32)),
+        normals=_readonly(geo["N"].astype(np.float32)),
+        uvs=_readonly(geo["UV"].astype(np.float32)),
+        indices=_readonly(geo["T"].astype(np.uint32)),
+        albedo=_readonly(albedo),
+        normal_map=_readonly(normal_map),
+        specular=_readonly(specular),
+        mm_per_unit=MM_PER_UNIT,
+        pore_spacing_mm=PORE_SPACING_MM,
+        landmarks={k: _readonly(v) for k, v in geo["landmarks"].items()},
+        islands=_readonly(geo["island"]),
+        texel_mm=texel_mm,
+    )

@@ -7,21 +7,27 @@ from three local quantities looked up in tables computed at start-up from the ac
 
 * curvature: the surface near a point is taken as a ring of radius r = 1 / curvature; light
   scattered from around the ring wraps past the terminator and reddens it (Penner eq. 1):
-      D(theta, r) = int_{-pi}^{pi} max(cos(theta + x), 0) R(2 r sin(x / 2)) dx
-                    / int_{-pi}^{pi} R(2 r sin(x / 2)) dx              per channel, theta = acos(N.L)
+      D(theta, r) = int_{-pi}^{pi} max(cos(theta + x), 0) K(2 r sin(x / 2)) dx
+                    / int_{-pi}^{pi} K(2 r sin(x / 2)) dx              per channel, theta = acos(N.L)
+  Penner takes K = R, the 2-D radial profile. dermis takes K = the profile integrated across the
+  ring, sum_k w_k g(v_k, d) with 1-D Gaussians (``RING_PROFILE = "line"``; "radial" is Penner's):
+  that is exactly the profile integrated over a CYLINDER's surface, it stays within 10% of a
+  sphere's, and it keeps each Gaussian's weight w_k, where R on a 1-D ring weights Gaussian k by
+  w_k / sqrt(2 pi v_k) and wraps 3-7x less light than the sphere (see :func:`ring_kernel`).
   At zero curvature D is max(N.L, 0); for every curvature its integral over the light angle is
   that of max(N.L, 0) (the ring only moves light around). Curvature is precomputed per vertex
-  from the mesh (the mean of the normal curvatures along the edges, 1/mm through mm_per_unit) and
-  falls back to length(fwidth(N)) / length(fwidth(P)) (Penner) when ``curvature_source`` is
-  "derivatives".
-* shadows: a soft (PCF) shadow value s in [0, 1] is a position across the penumbra; Penner's
-  second table scatters a shadow edge with the profile: the edge, sharpened to
-  ``PENUMBRA_SHARPEN`` of the penumbra's width w (mm on the surface, from the shadow map's texel
-  size, the PCF radius and N.L), convolved with the profile across the edge (its 1-D marginal:
-  the same Gaussians in 1-D) and rescaled to [0, 1] over the penumbra, per channel: red wraps
-  further into the shadow than green and blue.
+  from the mesh (the mean magnitude of the normal curvatures along its edges, 1/mm through
+  mm_per_unit) and falls back to Penner's length(fwidth(N)) / length(fwidth(P)) when
+  ``curvature_source`` is "derivatives".
+* shadows: a soft (PCF) shadow value s in [0, 1] is a position across the penumbra, of width w
+  (mm on the surface: 1 / |grad s| from screen derivatives, bounded by the PCF filter's diameter
+  projected on the surface). Penner's second table scatters the light's edge with the profile:
+  the edge, sharpened by the width the scattering adds (at most to PENUMBRA_SHARPEN_MIN w),
+  convolved with the profile across it (its 1-D marginal: the same Gaussians in 1-D) and rescaled
+  to [0, 1] over the penumbra, per channel: red reaches further into the shadow than green and blue.
 * surface detail: the normal map is read per channel at the mip level whose texel footprint
-  matches that channel's scattering radius (Penner's "blurred normals": red uses the blurriest).
+  matches that channel's scattering radius (Penner's "blurred normals": red uses the blurriest),
+  and never finer than the pixel's own footprint.
 
 Everything else is shared with the other techniques: lights, shadows, environment, specular
 (common/skin_specular.glsl), energy conservation (N.L in, N.V out) and the translucency of thin
@@ -29,7 +35,8 @@ parts from the shadow map's thickness (common/transmittance.glsl, Jimenez et al.
 Known failure modes: light crosses no geometry (nothing bleeds around a nostril's edge or into
 a crease's shadow beyond the penumbra; the shadow table only reshapes the PCF penumbra), the
 ring model assumes one curvature at a scale of the profile's width (mesh curvature finer than
-that is meaningless, a coarse mesh blurs it), and saddle points read as flat (mean curvature).
+that is meaningless, a coarse mesh blurs it), the penumbra width from derivatives is noisy on
+2x2 pixel quads (bounded by the projected filter size), and the table sharpens narrow penumbras.
 Shaders: shaders/preintegrated/skin.frag.
 """
 
@@ -54,7 +61,7 @@ CURVATURE_MAX_PER_MM = 1.0  # r = 1 mm: thinner than an ear's rim; higher curvat
 PENUMBRA_TABLE_SIZE = (129, 64)  # (shadow value, width)
 PENUMBRA_WIDTH_RANGE_MM = (0.05, 100.0)
 PENUMBRA_SHARPEN_MIN = 0.5  # the sharpened edge keeps at least this fraction of the PCF penumbra
-RING_PROFILE = "line"  # the ring's kernel: "line" (the profile integrated across the ring) or "radial" (Penner)
+RING_PROFILE = "line"  # the ring's kernel: "line" (profile integrated across the ring) or "radial" (Penner)
 
 UNIT_RHO_DT, UNIT_BECKMANN, UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE = 5, 6, 7, 8
 
@@ -83,7 +90,8 @@ def penumbra_width_axis(n: int = PENUMBRA_TABLE_SIZE[1]) -> np.ndarray:
 
 
 def _profile_key(profile, *extra):
-    return (np.asarray(profile.variances_mm2, np.float64).tobytes(), np.asarray(profile.weights, np.float64).tobytes(), extra)
+    v = np.asarray(profile.variances_mm2, np.float64).tobytes()
+    return (v, np.asarray(profile.weights, np.float64).tobytes(), extra)
 
 
 def ring_kernel(profile, distance_mm, ring_profile: str = "line") -> np.ndarray:
@@ -213,7 +221,8 @@ def penumbra_table(profile, size=PENUMBRA_TABLE_SIZE) -> np.ndarray:
     key = _profile_key(profile, "penumbra", tuple(size), PENUMBRA_SHARPEN_MIN)
     if key not in _TABLE_CACHE:
         s = shadow_axis(size[0])
-        _TABLE_CACHE[key] = np.stack([scattered_shadow(profile, s, w) for w in penumbra_width_axis(size[1])]).astype(np.float32)
+        rows = [scattered_shadow(profile, s, w) for w in penumbra_width_axis(size[1])]
+        _TABLE_CACHE[key] = np.stack(rows).astype(np.float32)
     return _TABLE_CACHE[key]
 
 
@@ -253,7 +262,7 @@ def _table_texture(ctx, table: np.ndarray):
 # ---------------------------------------------------------------------- the technique
 class PreintegratedSkin(Technique):
     name = "preintegrated"
-    description = "pre-integrated skin (Penner 2011): curvature and penumbra lookup tables of the profile, no blur passes"
+    description = "pre-integrated skin (Penner 2011): curvature and penumbra tables of the profile, no blur passes"
 
     def __init__(self, renderer, *, curvature_source: str = "mesh", blurred_normals: bool = True,
                  penumbra_scattering: bool = True, translucency: bool = True):

@@ -37,12 +37,13 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from dermis.errors import DermisError
 from dermis.gl.resources import set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.tables import upload_specular_tables
 from dermis.techniques.base import Frame, Technique, draw_mesh, set_profile_uniforms
 
-MAX_GAUSSIANS = 8  # the horizontal pass writes one target per Gaussian (GL guarantees 8)
+MAX_GAUSSIANS = 8  # the horizontal pass writes one target per Gaussian (GL guarantees 8 draw buffers)
 DEPTH_CUTOFF_MM = 5.0  # a tap this much nearer or further than the pixel is another surface
 MAX_TAPS = 48  # taps per side: impulse-exact while 3 sigma of the widest Gaussian < 48 px
 
@@ -77,14 +78,10 @@ class ScreenSpaceSSS(Technique):
     def __init__(self, renderer, *, max_taps: int = MAX_TAPS, depth_cutoff_mm: float = DEPTH_CUTOFF_MM,
                  follow_surface: bool = True, translucency: bool = True):
         super().__init__(renderer)
-        ctx = self.ctx
-        defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
-        self.p_irradiance = program(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines)
-        self.p_horizontal = program(ctx, "common/fullscreen.vert", "ssss/blur_horizontal.frag", defines)
-        self.p_vertical = program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines)
-        self.p_final = program(ctx, "common/mesh.vert", "ssss/final.frag", defines)
-        self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_horizontal, self.p_vertical)}
-        self.tables = upload_specular_tables(ctx)
+        self.p_final = program(self.ctx, "common/mesh.vert", "ssss/final.frag")
+        self._programs = {}  # K -> the passes that loop over the profile, compiled for exactly K Gaussians
+        self.vaos = {}
+        self.tables = upload_specular_tables(self.ctx)
         self.max_taps = int(max_taps)
         self.depth_cutoff_mm = float(depth_cutoff_mm)
         self.follow_surface = bool(follow_surface)
@@ -94,6 +91,21 @@ class ScreenSpaceSSS(Technique):
         self._targets_key = None
 
     # ------------------------------------------------------------------ resources
+    def _profile_programs(self, k: int):
+        """(irradiance, horizontal, vertical) programs for a K-Gaussian profile. Compiled with
+        MAX_GAUSSIANS = K: the loops over Gaussians unroll to exactly K (15% of the blurs' time)."""
+        if k > MAX_GAUSSIANS:
+            raise DermisError(f"profile has {k} Gaussians; ssss supports at most {MAX_GAUSSIANS}")
+        if k not in self._programs:
+            ctx, defines = self.ctx, {"MAX_GAUSSIANS": k}
+            progs = (program(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines),
+                     program(ctx, "common/fullscreen.vert", "ssss/blur_horizontal.frag", defines),
+                     program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines))
+            for p in progs[1:]:
+                self.vaos[p] = ctx.vertex_array(p, [])
+            self._programs[k] = progs
+        return self._programs[k]
+
     def _ensure_targets(self, size, k):
         if self._targets_key == (size, k):
             return
@@ -131,7 +143,7 @@ class ScreenSpaceSSS(Technique):
     # ------------------------------------------------------------------ passes
     def _kernel_uniforms(self, prog, frame: Frame, axis: int):
         size = frame.size
-        set_profile_uniforms(prog, frame.scene.profile, MAX_GAUSSIANS)
+        set_profile_uniforms(prog, frame.scene.profile, frame.scene.profile.k)
         # pixels per mm at a view depth of 1 mm along this axis: size / 2 * P[axis][axis]
         set_uniform(prog, "uPixelsPerMmAtUnitDepth", float(0.5 * size[axis] * frame.proj[axis, axis]))
         set_uniform(prog, "uDirection", (1, 0) if axis == 0 else (0, 1))
@@ -144,6 +156,7 @@ class ScreenSpaceSSS(Technique):
         (H, W, 3), row 0 = top, replaces the rendered light (depth kept): used by the tests."""
         scene = frame.scene
         profile = scene.profile
+        p_irradiance, p_horizontal, p_vertical = self._profile_programs(profile.k)
         self._ensure_targets(tuple(frame.size), profile.k)
         t = self.tex
         with frame.timer("ssss_irradiance"):
@@ -152,9 +165,9 @@ class ScreenSpaceSSS(Technique):
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            prog = self.p_irradiance
+            prog = p_irradiance
             set_uniform(prog, "uViewZ", view_z_row(frame.view))
-            set_profile_uniforms(prog, profile, MAX_GAUSSIANS)
+            set_profile_uniforms(prog, profile, profile.k)
             translucency_uniforms(prog, self.translucency and any(L.cast_shadows for L in scene.lights),
                                   self.translucency_strength)
             self._bind(prog, "uRhoDtTex", self.tables["rho_dt"], UNIT_RHO_DT)
@@ -169,18 +182,18 @@ class ScreenSpaceSSS(Technique):
         frame.passes_run.append("ssss_irradiance")
         self.ctx.disable(moderngl.DEPTH_TEST)
         with frame.timer("ssss_blur"):
-            prog = self.p_horizontal
+            prog = p_horizontal
             self._kernel_uniforms(prog, frame, 0)
             self._bind(prog, "uIrradiance", t["irradiance"], 0)
             t["fbo_horizontal"].use()
             self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
-            prog = self.p_vertical
+            prog = p_vertical
             self._kernel_uniforms(prog, frame, 1)
             self._bind(prog, "uIrradiance", t["irradiance"], 0)
             if "uGaussian" in prog:
                 units = []
-                for k in range(MAX_GAUSSIANS):
-                    t["gaussians"][min(k, profile.k - 1)].use(1 + k)
+                for k in range(profile.k):
+                    t["gaussians"][k].use(1 + k)
                     units.append(1 + k)
                 n = prog["uGaussian"].array_length
                 prog["uGaussian"].value = units[:n] if n > 1 else units[0]
@@ -243,5 +256,7 @@ class ScreenSpaceSSS(Technique):
             t.release()
         for v in self.vaos.values():
             v.release()
-        for p in (self.p_irradiance, self.p_horizontal, self.p_vertical, self.p_final):
-            p.release()
+        for progs in self._programs.values():
+            for p in progs:
+                p.release()
+        self.p_final.release()

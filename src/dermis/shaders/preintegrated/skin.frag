@@ -56,15 +56,20 @@ vec3 penumbra_lookup(float shadow, float width_mm) {
     return textureLod(uPenumbraTable, table_coord(uPenumbraTable, vec2(shadow, t)), 0.0).rgb;
 }
 
-// Width (mm) of light i's PCF penumbra on the surface at P: the filter's diameter,
-// 2 (softness + 1) texels (the Poisson disc and each tap's bilinear 2x2), in world units from the
-// light's projection (uv per world unit = |row 0| / 2w), stretched by 1 / N.L along the surface.
-float penumbra_width_mm(int i, vec3 P, float ndl_geometric) {
+// Width (mm) of light i's penumbra on the surface at P. The shadow value s rises from 0 to 1
+// across it, so where 0 < s < 1 the width is 1 / |grad s|, the gradient from the screen
+// derivatives of s over the pixel's size in mm (pixel_mm). It is bounded by the PCF filter's
+// diameter, 2 (softness + 1) texels (the Poisson disc and each tap's bilinear 2x2), in world
+// units from the light's projection (uv per world unit = |row 0| / 2w), projected on the surface:
+// from that (an edge along the light's projected direction) to that / N.L (across it).
+float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float ds_per_pixel, float pixel_mm) {
     mat4 M = uLightViewProj[i];
     float w = (M * vec4(P, 1.0)).w;
     float row0 = length(vec3(M[0][0], M[1][0], M[2][0]));
     float texel_world = uShadowParams[i].w * 2.0 * abs(w) / max(row0, 1e-12);
-    return 2.0 * (uShadowParams[i].x + 1.0) * texel_world * uMmPerUnit / max(ndl_geometric, 0.2);
+    float pcf_mm = 2.0 * (uShadowParams[i].x + 1.0) * texel_world * uMmPerUnit;
+    float measured = pixel_mm / max(ds_per_pixel, 1e-6);
+    return clamp(measured, pcf_mm, pcf_mm / max(ndl_geometric, 0.2));
 }
 
 void main() {
@@ -77,7 +82,8 @@ void main() {
     vec2 tex = vec2(textureSize(uNormalMap, 0));
     vec2 duvx = dFdx(v_uv) * tex, duvy = dFdy(v_uv) * tex;
     float area_uv = abs(duvx.x * duvy.y - duvx.y * duvy.x);
-    float area_mm = length(cross(dFdx(P_mm), dFdy(P_mm)));
+    float area_mm = length(cross(dFdx(P_mm), dFdy(P_mm)));  // a pixel's footprint, mm^2
+    float pixel_mm = sqrt(area_mm);
     float texels_per_mm = sqrt(area_uv / max(area_mm, 1e-12));
 
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
@@ -101,11 +107,13 @@ void main() {
         vec3 L;
         vec3 Ei = light_incident(i, v_world, L);
         vec3 D = diffuse_lookup(vec3(dot(N_red, L), dot(N_green, L), dot(N_blue, L)), curvature);
-        if (max(D.r, max(D.g, D.b)) <= 0.0) continue;
-        float s = shadow_soft(i, v_world, Ngeo);
+        bool lit = max(D.r, max(D.g, D.b)) > 0.0;
+        float s = lit ? shadow_soft(i, v_world, Ngeo) : 0.0;
+        float ds = length(vec2(dFdx(s), dFdy(s)));  // outside any branch: derivatives need all 4 pixels
+        if (!lit) continue;
         vec3 S = vec3(s);
         if (uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0)
-            S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L)));
+            S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), ds, pixel_mm));
         E += Ei * D * S * energy_transmitted(rho_s, clamp(dot(N, L), 0.0, 1.0), m);
     }
     vec3 ambient = vec3(environment_irradiance(N_red).r, environment_irradiance(N_green).g, environment_irradiance(N_blue).b);

@@ -69,8 +69,11 @@ float ssss_centre_weight(SsssKernel K, int k) {
 }
 
 // Depth factor of a tap for Gaussian k: exp(-dz^2 / 2 v_k); dz_px = depth difference in pixels.
+// Below an exponent of 2e-3, 1 - u is exact to 2e-6 and skips the exp (a third of the blurs' time
+// on llvmpipe: most taps of the wide Gaussians barely change depth).
 float ssss_depth_factor(SsssKernel K, int k, float dz_px) {
-    return dz_px == 0.0 ? 1.0 : exp(-dz_px * dz_px * K.inv_2var[k]);
+    float u = dz_px * dz_px * K.inv_2var[k];
+    return u < 2e-3 ? 1.0 - u : exp(-u);
 }
 
 // Depth difference of a tap in pixels at this depth, or -1 to reject the tap.
