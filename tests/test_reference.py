@@ -98,7 +98,8 @@ def _sheet(z, normal_z, h=0.1, half=8.0):
 def test_tissue_paths_cut_air_gaps_not_thin_parts():
     """Two sheets 1 mm apart, a Gaussian of variance 0.5 mm^2 (the 3-D distance model): facing
     each other (a crease, air between) the far sheet adds exp(-1 / 2v) to the mass with straight
-    paths and nothing with tissue paths; back to back (a thin part, tissue between) both count it."""
+    paths and less than 10% of that with tissue paths (segments shallower than the threshold still
+    count); back to back (a thin part, tissue between) both count all of it."""
     from dermis.reference.integrate import TISSUE_TAU, gather
 
     v = 0.5
@@ -106,7 +107,7 @@ def test_tissue_paths_cut_air_gaps_not_thin_parts():
     qn = np.array([[0.0, 0.0, 1.0]])
     near_p, near_n, near_w = _sheet(0.0, 1.0)
     extra = np.exp(-1.0 / (2 * v))
-    for z_far, n_far, tissue_expected in ((1.0, -1.0, 1.0), (-1.0, -1.0, 1.0 + extra)):
+    for z_far, n_far, crease in ((1.0, -1.0, True), (-1.0, -1.0, False)):
         far_p, far_n, far_w = _sheet(z_far, n_far)
         P, N, W = np.concatenate([near_p, far_p]), np.concatenate([near_n, far_n]), np.concatenate([near_w, far_w])
         ones = np.ones((len(P), 3))
@@ -114,7 +115,10 @@ def test_tissue_paths_cut_air_gaps_not_thin_parts():
         tissue, _ = gather(q, P, W, ones, [v], [cutoff_radius(v)], query_normals=qn, sample_normals=N,
                            tissue_tau=TISSUE_TAU)
         assert straight[0, 0, 0] == pytest.approx(1.0 + extra, rel=2e-3)
-        assert tissue[0, 0, 0] == pytest.approx(tissue_expected, rel=2e-3)
+        if crease:
+            assert 1.0 - 2e-3 < tissue[0, 0, 0] < 1.0 + 0.1 * extra
+        else:
+            assert tissue[0, 0, 0] == pytest.approx(1.0 + extra, rel=2e-3)
 
 
 def _plane(albedo=(0.6, 0.4, 0.3), view_mm=40.0):

@@ -35,11 +35,18 @@ vec4 gradient_noise_d(vec3 x) {
 
 // Perturb N by the surface gradient of two octaves of noise at pore scale (bump mapping,
 // Blinn 1978): N' = normalize(N - strength * (grad - N (N.grad))). P_mm in millimetres.
+// Each octave fades out as its wavelength approaches the pixel's footprint on the surface (the
+// noise would alias into sparkle): a frequency clamp (Perlin 1985; Lagae et al. 2010, sec. 3).
+// Fragment shaders only (uses derivatives).
 vec3 pore_normal(vec3 N, vec3 P_mm, float pore_scale_mm, float strength) {
     if (strength <= 0.0 || pore_scale_mm <= 0.0) return N;
+    float footprint_mm = max(length(dFdx(P_mm)), length(dFdy(P_mm)));
+    float f1 = 1.0 - smoothstep(0.25, 0.5, footprint_mm / pore_scale_mm);
+    float f2 = 1.0 - smoothstep(0.25, 0.5, footprint_mm / (0.5 * pore_scale_mm));
+    if (f1 <= 0.0) return N;
     vec4 n1 = gradient_noise_d(P_mm / pore_scale_mm);
     vec4 n2 = gradient_noise_d(P_mm / (0.5 * pore_scale_mm) + 17.0);
-    vec3 g = n1.yzw + 0.5 * n2.yzw;
+    vec3 g = f1 * n1.yzw + 0.5 * f2 * n2.yzw;
     vec3 gt = g - N * dot(N, g);
     return normalize(N - strength * gt);
 }
