@@ -168,16 +168,6 @@ def test_box_over_plane_shadow(gl_ctx):
 # 6. the default scene needs no file
 
 
-def _procedural_head_available():
-    try:
-        from dermis.scene.procedural_head import build_default_head  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-@pytest.mark.skipif(not _procedural_head_available(),
-                    reason="dermis.scene.procedural_head.build_default_head is not written yet")
 def test_default_scene_renders_without_files(gl_ctx):
     scene = dermis.default_scene()
     img = dermis.render(scene, technique="lambert", size=(128, 128), ctx=gl_ctx)

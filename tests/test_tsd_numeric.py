@@ -6,28 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dermis.profiles import SumOfGaussians, deon_skin
+from dermis.profiles import SumOfGaussians
 from dermis.renderer import Renderer
 from dermis.specular import rho_dt_table, roughness_axis
-from dermis.verification import impulse_reference, quad_scene, rweighted_error
+from dermis.verification import impulse_reference, impulse_response, quad_scene, rweighted_error
 
 
 def _impulse(S, shape_mm, gl_ctx, multires=True, profile=None):
-    sc = quad_scene(*shape_mm)
-    if profile is not None:
-        sc.profile = profile
-    with Renderer(sc, (32, 32), irradiance_size=S, ctx=gl_ctx, samples=0) as r:
-        r.render("tsd")
-        tsd = r.technique("tsd")
-        tsd.multires = multires
-        irr = np.zeros((S, S, 4), np.float32)
-        irr[..., 3] = 1.0
-        c = (S // 2, S // 2)
-        irr[c[0], c[1], :3] = 1.0
-        tsd.texture_space(r.last_frame, irradiance=irr)
-        comb = tsd.combined(r.last_frame)
-        levels = list(tsd.levels)
-    return sc, comb, c, levels
+    return impulse_response(S, shape_mm, gl_ctx, multires, profile)
 
 
 @pytest.mark.parametrize("multires", [False, True])

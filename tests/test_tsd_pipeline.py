@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from dermis.environment import equirect_directions, irradiance_sh_eval, sh_irradiance_from_equirect
-from dermis.errors import DermisError
 from dermis.output import bloom
 from dermis.renderer import Renderer
 from dermis.scene.model import Texture

@@ -123,7 +123,7 @@ def bench_cmd(scene, techniques, size, irradiance_size, frames, json_out, markdo
         write_json_atomic(json_out, {"info": info, "size": [w, h], "irradiance_size": irradiance_size,
                                      "results": results, **extra})
     if markdown:
-        from dermis.images import _atomic_write
+        from dermis.images import atomic_write
 
         text = table + ("\n\n" + json.dumps(extra) if extra else "") + "\n"
-        _atomic_write(markdown, lambda tmp: Path(tmp).write_text(text))
+        atomic_write(markdown, lambda tmp: Path(tmp).write_text(text))

@@ -35,10 +35,10 @@ def scene_from_arg(scene_arg: str | None, technique: str | None = None):
 
 
 def write_json_atomic(path, obj):
-    from dermis.images import _atomic_write
+    from dermis.images import atomic_write
 
     text = json.dumps(obj, indent=2, default=float)
-    _atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+    atomic_write(path, lambda tmp: Path(tmp).write_text(text))
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})

@@ -125,7 +125,9 @@ def _read_hdr(path: Path, max_pixels: int) -> np.ndarray:
     return arr[:, :, :3] if arr.ndim == 3 else arr[:, :, None]
 
 
-def _atomic_write(path, write_fn) -> Path:
+def atomic_write(path, write_fn) -> Path:
+    """Call write_fn(temporary_path) in the destination's folder, then rename over ``path``;
+    on any failure the temporary file is removed and ``path`` is left as it was."""
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
@@ -149,7 +151,7 @@ def write_png(path, rgb_srgb_float: np.ndarray) -> Path:
     from PIL import Image
 
     arr = np.clip(np.asarray(rgb_srgb_float, np.float32) * 255.0 + 0.5, 0, 255).astype(np.uint8)
-    return _atomic_write(path, lambda tmp: Image.fromarray(arr).save(tmp, format="PNG"))
+    return atomic_write(path, lambda tmp: Image.fromarray(arr).save(tmp, format="PNG"))
 
 
 def write_exr(path, rgb_linear: np.ndarray, half: bool = False) -> Path:
@@ -164,4 +166,6 @@ def write_exr(path, rgb_linear: np.ndarray, half: bool = False) -> Path:
         with OpenEXR.File(header, channels) as f:
             f.write(tmp)
 
-    return _atomic_write(path, write)
+    return atomic_write(path, write)
+
+

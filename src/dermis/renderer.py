@@ -10,7 +10,6 @@ from __future__ import annotations
 import hashlib
 import time
 
-import moderngl
 import numpy as np
 
 from dermis.camera import camera_matrices

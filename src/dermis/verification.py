@@ -59,11 +59,13 @@ def rweighted_error(measured, reference, mask):
     return np.sqrt((d ** 2).sum(axis=0) / (reference[mask] ** 2).sum(axis=0))
 
 
-def impulse_error(renderer_ctx=None, S: int = 256, texel_mm: float = 0.1, multires: bool = True, profile=None):
-    """r-weighted L2 error per channel of tsd's impulse response against the closed form."""
+def impulse_response(S: int, shape_mm, renderer_ctx=None, multires: bool = True, profile=None):
+    """tsd's diffuse response, in texture space, to irradiance 1 in the centre texel of a flat
+    quad of shape_mm (mm, spanning the whole S x S layout). Returns (scene, (S, S, 3) response,
+    centre texel (row, col), blur levels used)."""
     from dermis.renderer import Renderer
 
-    sc = quad_scene(S * texel_mm, S * texel_mm)
+    sc = quad_scene(*shape_mm)
     if profile is not None:
         sc.profile = profile
     with Renderer(sc, (32, 32), irradiance_size=S, ctx=renderer_ctx, samples=0) as r:
@@ -75,7 +77,13 @@ def impulse_error(renderer_ctx=None, S: int = 256, texel_mm: float = 0.1, multir
         c = (S // 2, S // 2)
         irr[c[0], c[1], :3] = 1.0
         tsd.texture_space(r.last_frame, irradiance=irr)
-        comb = tsd.combined(r.last_frame)
+        return sc, tsd.combined(r.last_frame), c, list(tsd.levels)
+
+
+def impulse_error(renderer_ctx=None, S: int = 256, texel_mm: float = 0.1, multires: bool = True, profile=None):
+    """r-weighted L2 error per channel of tsd's impulse response against the closed form, out to
+    3 sigma of the widest Gaussian."""
+    sc, comb, c, _ = impulse_response(S, (S * texel_mm, S * texel_mm), renderer_ctx, multires, profile)
     ref = impulse_reference(sc.profile, (S, S), c, texel_mm, texel_mm)
     yy, xx = np.mgrid[:S, :S]
     rr = np.hypot((yy - c[0]) * texel_mm, (xx - c[1]) * texel_mm)

@@ -16,13 +16,12 @@ Files are written atomically: to a temporary name in the same folder, then renam
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.images import atomic_write
 from dermis.profiles.gaussians import SumOfGaussians
 
 FORMAT = "dermis-profile"
@@ -32,21 +31,12 @@ OUTPUT_RADII_MM = np.geomspace(1e-3, 60.0, 240)
 
 def write_atomic(path, write) -> None:
     """Call ``write(file_object)`` on a temporary file beside ``path``, then rename it to ``path``."""
-    target = Path(path)
-    folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
-        raise DermisError(f"{target}: folder '{folder}' does not exist")
-    handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(handle, "wb") as stream:
+
+    def to_file(temporary):
+        with open(temporary, "wb") as stream:
             write(stream)
-        os.replace(temporary, target)
-    except BaseException:
-        try:
-            os.unlink(temporary)
-        except FileNotFoundError:
-            pass
-        raise
+
+    atomic_write(path, to_file)
 
 
 def profile_document(profile, fit=None, parameters: dict | None = None, illuminant: str | None = None) -> dict:

@@ -44,9 +44,9 @@ def reference_cmd(scene, size, out, png, spp, spacing, seed, paths, stats, quiet
         raise DermisError(f"--spp must be in [1, 64], got {spp}")
     if spacing is not None and not 0.005 <= spacing <= 10.0:
         raise DermisError(f"--spacing must be in [0.005, 10] mm, got {spacing}")
-    paths = [Path(p) for p in (out, png, stats) if p]
-    for p in paths:
-        _check_out(p)
+    for p in (out, png, stats):
+        if p:
+            _check_out(Path(p))
     if Path(out).suffix.lower() not in (".exr", ".png"):
         raise DermisError(f"--out {out}: use a .exr or .png file name")
     sc = scene_from_arg(scene)

@@ -12,7 +12,6 @@ bottom (OpenGL). ``uv_convention`` says what the FILE uses: "v-down" (glTF spec)
 from __future__ import annotations
 
 import base64
-import struct
 from pathlib import Path
 from urllib.parse import unquote
 
@@ -228,7 +227,7 @@ class GltfAsset:
         g = self.gltf
         if not g.meshes:
             raise DermisError(f"{self.path}: glTF has no meshes")
-        P, N, T, UV, I, TAN = [], [], [], [], [], []
+        P, N, UV, I, TAN = [], [], [], [], []
         base = 0
         material_index = None
         mats = self._node_matrices()

@@ -308,10 +308,10 @@ class Viewer:
         gone after the swap, so this reads what the last frame drew before swapping)."""
         from PIL import Image
 
-        from dermis.images import _atomic_write
+        from dermis.images import atomic_write
 
         arr = self._last_window_pixels
-        _atomic_write(path, lambda tmp: Image.fromarray(arr).save(tmp, format="PNG"))
+        atomic_write(path, lambda tmp: Image.fromarray(arr).save(tmp, format="PNG"))
         self.report["screenshots"].append(str(path))
         return Path(path)
 

@@ -113,9 +113,9 @@ class PngFolderWriter:
     def write(self, rgb8: np.ndarray):
         from PIL import Image
 
-        from dermis.images import _atomic_write
+        from dermis.images import atomic_write
 
-        _atomic_write(self.path / f"frame_{self.index:05d}.png", lambda tmp: Image.fromarray(rgb8).save(tmp, format="PNG"))
+        atomic_write(self.path / f"frame_{self.index:05d}.png", lambda tmp: Image.fromarray(rgb8).save(tmp, format="PNG"))
         self.index += 1
 
     def close(self, ok: bool = True):
