@@ -10,7 +10,6 @@ the environment irradiance (pi * c for a constant environment of radiance c).
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 import dermis
 from dermis.camera import camera_matrices
