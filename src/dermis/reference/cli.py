@@ -100,8 +100,7 @@ def validate_cmd(scenes, techniques, size, json_path, images, spp, spacing, attr
         img_dir = Path(images) if images else Path(json_path).with_suffix("")
     else:
         img_dir = Path(images) if images else Path("out/validate")
-    if not img_dir.parent.exists():
-        raise DermisError(f"{img_dir}: folder {img_dir.parent} does not exist")
+    _check_out(img_dir)
     report = validate(files, names, (w, h), out_dir=img_dir, spp=spp, spacing_mm=spacing, attribution=attribution,
                       progress=not quiet, echo=click.echo)
     report["images"] = str(img_dir)
