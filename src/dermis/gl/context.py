@@ -40,6 +40,9 @@ def create_context(device_index: int | None = None):
         ctx = moderngl.create_context(**kwargs)
     except Exception as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        if device_index is not None and "device" in first.lower():
+            raise GLUnavailableError(f"no OpenGL context on EGL device {device_index} ({first}); "
+                                     "choose another --device / DERMIS_GL_DEVICE") from None
         raise GLUnavailableError(f"no OpenGL 4.5 context through EGL ({first}); {_INSTALL_HINT}") from None
     if ctx.version_code < 450:
         ctx.release()
