@@ -57,12 +57,25 @@ def camera_matrices(camera, aspect: float, lo, hi):
     return look_at(eye, camera.target, camera.up), perspective(camera.fov_deg, aspect, near, far), eye, near, far
 
 
-def light_matrices(light, lo, hi):
-    """View-projection of a light's shadow map covering the scene's bounding sphere.
+def orthographic_box(x0, x1, y0, y1, near, far) -> np.ndarray:
+    """Off-centre orthographic projection of the view-space box [x0, x1] x [y0, y1] x [-far, -near]."""
+    m = np.eye(4)
+    m[0, 0], m[1, 1] = 2 / (x1 - x0), 2 / (y1 - y0)
+    m[0, 3], m[1, 3] = -(x1 + x0) / (x1 - x0), -(y1 + y0) / (y1 - y0)
+    m[2, 2] = -2 / (far - near)
+    m[2, 3] = -(far + near) / (far - near)
+    return m
 
-    Directional: orthographic along the light's direction. Spot: perspective with the cone's
-    angle. Point: perspective aimed at the scene centre (one map, not a cube map: a point light
-    inside the scene casts shadows only within that frustum). Returns (viewproj, eye).
+
+def light_matrices(light, lo, hi, points=None):
+    """View-projection of a light's shadow map covering the scene. Returns (viewproj, eye,
+    half_extent): half_extent is half the map's width in scene units (its texel size x tile / 2).
+
+    Directional: orthographic along the light's direction, fitted to the mesh's own silhouette as
+    seen from the light when ``points`` (the vertices) are given - for a bust lit from the front that
+    is about 1.4x finer per axis than the bounding sphere - else to the bounding sphere. Spot:
+    perspective with the cone's angle. Point: perspective aimed at the scene centre (one map, not a
+    cube map: a point light inside the scene casts shadows only within that frustum).
     """
     c, r = bounding_sphere(lo, hi)
     r *= 1.02
@@ -70,8 +83,16 @@ def light_matrices(light, lo, hi):
     if light.kind == "directional":
         eye = c - d * (2.0 * r)
         view = look_at(eye, c, (0, 1, 0))
+        if points is not None and len(points):
+            q = np.asarray(points, np.float64) @ view[:3, :3].T + view[:3, 3]
+            (x0, y0), (x1, y1) = q[:, :2].min(axis=0), q[:, :2].max(axis=0)
+            # square texels: the larger extent sets the texel size, plus a 2% margin for PCF
+            half = 0.51 * max(x1 - x0, y1 - y0, 1e-9)
+            cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+            proj = orthographic_box(cx - half, cx + half, cy - half, cy + half, 0.5 * r, 3.5 * r)
+            return proj @ view, eye, half
         proj = orthographic(r, r, 0.5 * r, 3.5 * r)
-        return proj @ view, eye
+        return proj @ view, eye, r
     eye = np.asarray(light.position, np.float64)
     dist = np.linalg.norm(c - eye)
     if light.kind == "spot":
@@ -82,4 +103,6 @@ def light_matrices(light, lo, hi):
         fov = min(2 * np.degrees(np.arcsin(min(r / max(dist, 1e-9), 0.999))) + 2.0, 170.0) if dist > r else 150.0
     near = max(dist - r, dist * 1e-3, 1e-4)
     far = dist + r
-    return perspective(fov, 1.0, near, far) @ look_at(eye, target, (0, 1, 0)), eye
+    # the map's width at the scene centre's distance (the normal offset's scale)
+    half = dist * np.tan(np.radians(fov) / 2)
+    return perspective(fov, 1.0, near, far) @ look_at(eye, target, (0, 1, 0)), eye, half

@@ -77,9 +77,11 @@ def info(device, as_json):
 @click.option("--tonemap", type=click.Choice(["aces", "linear"]), default=None, help="Tone map (overrides the scene).")
 @click.option("--samples", type=int, default=4, show_default=True, help="MSAA samples (capped at 4 on llvmpipe).")
 @click.option("--irradiance-size", type=int, default=1024, show_default=True, help="Texture-space resolution (tsd).")
+@click.option("--shadow-size", type=int, default=2048, show_default=True, help="Shadow-map tile per light (texels).")
 @click.option("--debug-buffers", default=None, help="Folder to write intermediate buffers (EXR) into.")
 @click.option("--device", type=int, default=None, help="EGL device (GPU) index.")
-def render(scene, technique, size, out, exr, stats, exposure, tonemap, samples, irradiance_size, debug_buffers, device):
+def render(scene, technique, size, out, exr, stats, exposure, tonemap, samples, irradiance_size, shadow_size, debug_buffers,
+           device):
     """Render SCENE (a .toml scene or a .glb/.gltf/.obj mesh; default: the built-in head)."""
     from dermis.images import write_exr, write_png
     from dermis.output import output_transform
@@ -89,6 +91,8 @@ def render(scene, technique, size, out, exr, stats, exposure, tonemap, samples, 
     w, h = parse_size(size)
     if not 64 <= irradiance_size <= 8192:
         raise DermisError(f"--irradiance-size must be in [64, 8192], got {irradiance_size}")
+    if not 128 <= shadow_size <= 8192:
+        raise DermisError(f"--shadow-size must be in [128, 8192], got {shadow_size}")
     sc = scene_from_arg(scene, technique)
     technique_class(sc.technique)  # unknown names fail before any GL work
     outputs = [Path(p) for p in (out, exr, stats) if p]
@@ -98,7 +102,8 @@ def render(scene, technique, size, out, exr, stats, exposure, tonemap, samples, 
                 p.parent.mkdir(parents=True, exist_ok=True)
             else:
                 raise DermisError(f"{p}: output folder {p.parent} does not exist")
-    with Renderer(sc, (w, h), device=device, samples=samples, irradiance_size=irradiance_size) as r:
+    with Renderer(sc, (w, h), device=device, samples=samples, irradiance_size=irradiance_size,
+                  shadow_size=shadow_size) as r:
         img = r.render()
         if not np.isfinite(img).all():
             raise DermisError(f"{sc.source}: the render produced NaN or infinite values (bad scene values?)")

@@ -16,7 +16,7 @@ from dermis.camera import camera_matrices
 from dermis.errors import DermisError
 from dermis.gl.context import create_context, gl_info, is_software
 from dermis.gl.resources import GpuScene, LightUniforms
-from dermis.gl.shadows import ShadowAtlas, normal_offset
+from dermis.gl.shadows import ShadowAtlas
 from dermis.techniques import technique_class
 from dermis.techniques.base import Frame, PassTimer
 
@@ -54,7 +54,7 @@ class Renderer:
     """
 
     def __init__(self, scene=None, size=(512, 512), *, device: int | None = None, samples: int = 4,
-                 shadow_size: int = 1024, irradiance_size: int = 1024, ctx=None, timing: bool = True):
+                 shadow_size: int = 2048, irradiance_size: int = 1024, ctx=None, timing: bool = True):
         self._owns_ctx = ctx is None
         self.ctx = ctx or create_context(device)
         self.info = gl_info(self.ctx)
@@ -180,8 +180,7 @@ class Renderer:
             self._shadow_key = shadow_key
             passes.append("shadow")
         else:
-            self.shadows._ensure(lights.count)
-            self._refresh_shadow_params(lights)
+            self.shadows.update_params(lights)
         t = self._targets
         bg = scene.output.background
         t["fbo"].use()
@@ -204,17 +203,6 @@ class Renderer:
                       "frame_ms": total}
         self.last_frame = frame
         return img if with_alpha else np.ascontiguousarray(img[:, :, :3])
-
-    def _refresh_shadow_params(self, lights):
-        lo, hi = self.scene.bounds()
-        radius = float(np.linalg.norm(hi - lo) / 2)
-        cols, rows = self.shadows.grid
-        for i, L in enumerate(lights.lights):
-            c, r = i % cols, i // cols
-            self.shadows.tiles[i] = (c / cols, r / rows, 1.0 / cols, 1.0 / rows)
-            self.shadows.params[i] = (L.shadow_softness, L.shadow_bias,
-                                      normal_offset(L.shadow_softness, radius, self.shadows.tile_size),
-                                      1.0 / self.shadows.tile_size)
 
     def debug_buffers(self, technique: str | None = None) -> dict:
         name = technique or self.scene.technique

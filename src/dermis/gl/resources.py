@@ -175,11 +175,13 @@ class LightUniforms:
         self.radiance = np.zeros((n, 4), np.float32)
         self.spot = np.zeros((n, 4), np.float32)
         self.viewproj = np.zeros((n, 4, 4), np.float32)
+        self.map_half_extent = np.zeros(n, np.float64)  # half a shadow map's width, scene units
         lo, hi = scene.bounds()
         types = {"directional": 0, "point": 1, "spot": 2}
         for i, L in enumerate(lights):
-            vp, eye = light_matrices(L, lo, hi)
+            vp, eye, half = light_matrices(L, lo, hi, scene.mesh.positions)
             self.viewproj[i] = vp
+            self.map_half_extent[i] = half
             pos = np.asarray(L.position, np.float32) if L.kind != "directional" else eye.astype(np.float32)
             self.pos_type[i] = (*pos, types[L.kind])
             self.direction[i, :3] = np.asarray(L.direction, np.float32) / np.linalg.norm(L.direction)

@@ -17,7 +17,7 @@ from dermis.gl.resources import mat_bytes, set_uniform
 from dermis.gl.shaders import program
 
 
-def normal_offset(softness: float, radius: float, tile_size: int) -> float:
+def normal_offset(softness: float, half_extent: float, tile_size: int) -> float:
     """Normal offset (scene units) against acne (King 2004): it must cover the PCF footprint.
 
     A PCF tap ``R`` texels away on a receiver at angle theta to the light reads the receiver's own
@@ -25,7 +25,7 @@ def normal_offset(softness: float, radius: float, tile_size: int) -> float:
     o >= R sin(theta), so o = R texels with R = softness + 1.5 (disc + bilinear 2x2 + margin).
     A fixed 1.5 texels self-shadowed a lit sphere by up to 8% at N.L = 0.15 (softness 1.5).
     """
-    texel_world = 2.0 * radius / tile_size
+    texel_world = 2.0 * half_extent / tile_size
     return (max(float(softness), 0.0) + 1.5) * texel_world
 
 
@@ -72,13 +72,9 @@ class ShadowAtlas:
         light_uniforms.apply(self.prog)
         set_uniform(self.prog, "uMmPerUnit", float(scene.mm_per_unit))
         vao = gpu_scene.vao(self.prog)
-        lo, hi = scene.bounds()
-        radius = float(np.linalg.norm(hi - lo) / 2)
+        self.update_params(light_uniforms)
         for i, L in enumerate(light_uniforms.lights):
             c, r = i % cols, i // cols
-            self.tiles[i] = (c / cols, r / rows, 1.0 / cols, 1.0 / rows)
-            self.params[i] = (L.shadow_softness, L.shadow_bias, normal_offset(L.shadow_softness, radius, self.tile_size),
-                              1.0 / self.tile_size)
             if not L.cast_shadows:
                 continue
             self.fbo.viewport = (c * self.tile_size, r * self.tile_size, self.tile_size, self.tile_size)
@@ -86,6 +82,16 @@ class ShadowAtlas:
             self.prog["uLight"].value = i
             vao.render(moderngl.TRIANGLES)
         return sum(1 for L in light_uniforms.lights if L.cast_shadows)
+
+    def update_params(self, light_uniforms):
+        """Tile placement and filtering parameters of each light (cheap; every frame)."""
+        self._ensure(light_uniforms.count)
+        cols, rows = self.grid
+        for i, L in enumerate(light_uniforms.lights):
+            c, r = i % cols, i // cols
+            self.tiles[i] = (c / cols, r / rows, 1.0 / cols, 1.0 / rows)
+            offset = normal_offset(L.shadow_softness, light_uniforms.map_half_extent[i], self.tile_size)
+            self.params[i] = (L.shadow_softness, L.shadow_bias, offset, 1.0 / self.tile_size)
 
     def bind(self, prog, depth_unit: int, aux_unit: int):
         if "uShadowAtlas" in prog:
