@@ -205,8 +205,19 @@ class Renderer:
         return img if with_alpha else np.ascontiguousarray(img[:, :, :3])
 
     def debug_buffers(self, technique: str | None = None) -> dict:
+        """Intermediate buffers of the last frame as float32 (H, W, C) arrays, row 0 = top: the
+        shared shadow atlas (depth, and the translucent shadow map: uv, distance to the light in mm,
+        coverage) and whatever the technique keeps (tsd: irradiance, stretch, each blur, ...)."""
+        from dermis.gl.resources import read_texture
+
         name = technique or self.scene.technique
-        bufs = dict(self.technique(name).debug_buffers())
+        bufs = {}
+        sh = self.shadows
+        if sh.depth is not None:
+            d = np.frombuffer(sh.depth.read(), np.float32).reshape(sh.depth.size[1], sh.depth.size[0])[::-1]
+            bufs["shadow_depth"] = np.repeat(d[:, :, None], 3, axis=2).copy()
+            bufs["shadow_tsm"] = read_texture(sh.aux)
+        bufs.update(self.technique(name).debug_buffers())
         return bufs
 
     def release(self):

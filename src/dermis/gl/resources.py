@@ -37,6 +37,14 @@ def mat_bytes(m) -> bytes:
     return np.ascontiguousarray(np.asarray(m, np.float32).T).tobytes()
 
 
+def read_texture(tex) -> np.ndarray:
+    """A float texture (f2 or f4) read back as float32 (H, W, C), row 0 = top (the image order)."""
+    w, h = tex.size
+    dt = {"f2": np.float16, "f4": np.float32}[tex.dtype]
+    data = np.frombuffer(tex.read(), dt).reshape(h, w, tex.components).astype(np.float32)
+    return data[::-1].copy()
+
+
 def upload_texture(ctx, data: np.ndarray, *, components=None, dtype="f4", mipmaps=True, repeat=False):
     """Upload an (H, W, C) float image (row 0 = top) as a linear-filtered texture."""
     arr = np.asarray(data, np.float32)

@@ -38,7 +38,7 @@ import moderngl
 import numpy as np
 
 from dermis.errors import DermisError
-from dermis.gl.resources import set_uniform
+from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.tables import upload_specular_tables
 from dermis.techniques.base import Frame, Technique, draw_mesh, set_profile_uniforms
@@ -226,13 +226,7 @@ class ScreenSpaceSSS(Technique):
             prog[name].value = unit
 
     # ------------------------------------------------------------------ inspection
-    @staticmethod
-    def read_texture(tex) -> np.ndarray:
-        """A texture as float32 (H, W, C), row 0 = top."""
-        w, h = tex.size
-        dt = {"f2": np.float16, "f4": np.float32}[tex.dtype]
-        data = np.frombuffer(tex.read(), dt).reshape(h, w, tex.components).astype(np.float32)
-        return data[::-1].copy()
+    read_texture = staticmethod(read_texture)
 
     def scattered(self) -> np.ndarray:
         """The last frame's scattered light before albedo^(1-mix) / pi: (H, W, 3), row 0 = top."""

@@ -32,7 +32,7 @@ import moderngl
 import numpy as np
 
 from dermis.errors import DermisError
-from dermis.gl.resources import set_uniform
+from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.tables import upload_specular_tables
 from dermis.techniques.base import Frame, Technique, draw_mesh
@@ -356,11 +356,7 @@ class TextureSpaceDiffusion(Technique):
         return self.read_texture(out)
 
     # ------------------------------------------------------------------ inspection
-    def read_texture(self, tex) -> np.ndarray:
-        w, h = tex.size
-        dt = {"f2": np.float16, "f4": np.float32}[tex.dtype]
-        data = np.frombuffer(tex.read(), dt).reshape(h, w, tex.components).astype(np.float32)
-        return data[::-1].copy()
+    read_texture = staticmethod(read_texture)
 
     def debug_buffers(self) -> dict:
         out = {}
@@ -376,10 +372,6 @@ class TextureSpaceDiffusion(Technique):
         frame = self.renderer.last_frame
         if frame is not None:
             out["diffuse_texture_space"] = self.combined(frame)
-            sh = frame.shadows
-            out["shadow_tsm"] = self.read_texture(sh.aux)
-            d = np.frombuffer(sh.depth.read(), np.float32).reshape(sh.depth.size[1], sh.depth.size[0])[::-1]
-            out["shadow_depth"] = np.repeat(d[:, :, None], 3, axis=2).copy()
             out["specular"] = self.renderer.render_mode(self.name, output_mode=2)
         return out
 
