@@ -80,3 +80,33 @@ def test_bad_input_gets_a_one_line_error(tmp_path, monkeypatch, args, message):
     assert isinstance(result.exception, SystemExit)  # click's error exit, not a traceback
     error_lines = [line for line in result.output.splitlines() if line.startswith("Error")]
     assert len(error_lines) == 1 and message in error_lines[0], result.output
+
+
+def test_artist_facing_burley_profile_from_albedo_and_mean_free_path(tmp_path):
+    """`--albedo/--mfp-mm`: Christensen & Burley 2015's profile integrates to the albedo over the
+    plane and has the closed-form mean radius 2.5 l / s(A) (checked by numerical integration of the
+    written profile), and the fit's Gaussians carry the albedo."""
+    import json
+
+    from click.testing import CliRunner
+
+    from dermis.profiles.cli import profile_cmd
+
+    out = tmp_path / "b.json"
+    res = CliRunner().invoke(profile_cmd, ["--albedo", "0.8,0.5,0.4", "--mfp-mm", "1.0,0.5,0.25", "--fit", "6",
+                                           "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    r = np.asarray(doc["radii_mm"])
+    R = np.asarray(doc["profile_rgb"])
+    ring = 2 * np.pi * r[:, None] * R
+    total = np.trapezoid(ring, r, axis=0)
+    np.testing.assert_allclose(total, [0.8, 0.5, 0.4], rtol=0.01)
+    A, l = np.array([0.8, 0.5, 0.4]), np.array([1.0, 0.5, 0.25])
+    s = 1.9 - A + 3.5 * (A - 0.8) ** 2
+    mean_r = np.trapezoid(ring * r[:, None], r, axis=0) / total
+    np.testing.assert_allclose(mean_r, 2.5 * l / s, rtol=0.02)
+    w = np.asarray(doc["fit"]["weights_rgb"])
+    np.testing.assert_allclose(w.sum(axis=0), A, rtol=0.03)
+    bad = CliRunner().invoke(profile_cmd, ["--albedo", "0.8", "--mfp-mm", "1", "--preset", "fair"])
+    assert bad.exit_code != 0 and "Burley" in bad.output

@@ -71,6 +71,19 @@ def _plot(path, profile, fit, title: str) -> None:
     write_atomic(path, lambda stream: figure.savefig(stream, format="png"))
 
 
+def _rgb(text: str, option: str) -> list[float]:
+    """'0.8,0.6,0.5' (or one number for all three) -> three floats."""
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise click.UsageError(f"{option} {text}: expected R,G,B numbers") from None
+    if len(values) == 1:
+        values *= 3
+    if len(values) != 3:
+        raise click.UsageError(f"{option} {text}: expected three numbers R,G,B")
+    return values
+
+
 def _check_output(path, suffix: str, option: str):
     if path is None:
         return None
@@ -99,8 +112,10 @@ def _check_output(path, suffix: str, option: str):
 @click.option("--illuminant", default="D65", show_default=True, help="CIE illuminant for the RGB integration")
 @click.option("--wavelength-step", type=int, default=10, show_default=True,
               help="nm between the wavelengths sampled in 400-700 nm")
+@click.option("--albedo", default=None, help="burley, artist-facing: surface albedo R,G,B (linear, 0..1)")
+@click.option("--mfp-mm", default=None, help="burley, artist-facing: mean free path R,G,B in mm")
 def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, epidermis_mm, fit_k, plot_path,
-                json_path, photons, seed, illuminant, wavelength_step):
+                json_path, photons, seed, illuminant, wavelength_step, albedo, mfp_mm):
     """Compute a skin diffusion profile from physics, fit Gaussians to it, plot it, save it."""
     from dermis.profiles.fit import fit_sum_of_gaussians
     from dermis.profiles.presets import PRESETS
@@ -127,8 +142,16 @@ def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, 
     if preset == "deon" and model not in (None, "deon"):
         raise click.UsageError(f"--preset deon is d'Eon's Gaussian table; it cannot be computed with --model {model}")
     parameters = None
+    if (albedo is None) != (mfp_mm is None):
+        raise click.UsageError("--albedo and --mfp-mm go together (the artist-facing Burley profile)")
+    if albedo is not None and (model not in (None, "burley") or preset is not None or overrides):
+        raise click.UsageError("--albedo/--mfp-mm define a Burley profile: no --preset, skin parameters or other --model")
     try:
-        if model == "deon" or preset == "deon":
+        if albedo is not None:
+            from dermis.profiles.models import burley_artist_profile
+
+            model, profile = "burley", burley_artist_profile(_rgb(albedo, "--albedo"), _rgb(mfp_mm, "--mfp-mm"))
+        elif model == "deon" or preset == "deon":
             if overrides or (preset not in (None, "deon")):
                 raise click.UsageError("--model deon is a fixed table: it takes no preset or skin parameters")
             model, profile = "deon", deon_profile()

@@ -216,6 +216,18 @@ def burley_skin_profile(parameters: SkinParameters, *, wavelength_nm=DEFAULT_WAV
                          {"mean_free_path_mm": mean_free_path})
 
 
+def burley_artist_profile(albedo_rgb, mean_free_path_mm_rgb, name: str = "burley") -> RadialProfile:
+    """The artist-facing Christensen-Burley profile (Christensen & Burley 2015): surface albedo A and
+    mean free path l per RGB channel, no physical parameters. Its integral over the plane is A."""
+    albedo = np.asarray(albedo_rgb, np.float64).reshape(3)
+    mfp = np.asarray(mean_free_path_mm_rgb, np.float64).reshape(3)
+    if np.any(albedo <= 0) or np.any(albedo > 1) or np.any(mfp <= 0) or not np.all(np.isfinite(mfp)):
+        raise DermisError(f"burley: albedo must be in (0, 1] and mean free path > 0 mm, got {albedo.tolist()}, {mfp.tolist()}")
+    radius = np.geomspace(1e-3, max(60.0, 40.0 * mfp.max()), 400)
+    return RadialProfile(radius, burley_reflectance(radius, albedo, mfp), albedo.copy(), "burley", name,
+                         {"mean_free_path_mm": mfp})
+
+
 MONTE_CARLO_BIN_EDGES_MM = np.concatenate([[0.0], np.geomspace(0.01, 40.0, 73)])
 
 
