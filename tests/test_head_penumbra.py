@@ -17,7 +17,7 @@ def penumbra_renders(example_head_toml, gl_ctx):
     sc.lights = [Light(direction=(0.75, -0.25, -0.6), intensity=4.0, shadow_softness=2.0)]
     sc.environment = Environment(color=(0.01, 0.01, 0.01))
     out = {}
-    with Renderer(sc, (192, 192), irradiance_size=512, ctx=gl_ctx, samples=0) as r:
+    with Renderer(sc, (256, 256), irradiance_size=512, ctx=gl_ctx, samples=0) as r:
         for name in ("lambert", "tsd", "ssss", "preintegrated"):
             out[name] = r.render(name)
         sc.lights[0].cast_shadows = False
