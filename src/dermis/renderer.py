@@ -147,6 +147,18 @@ class Renderer:
         return self._techniques[name]
 
     # ------------------------------------------------------------------ frame
+    def _light_uniforms(self, scene):
+        """The packed lights, rebuilt only when a light, the mesh or the environment changes (the
+        shadow frusta transform every vertex; an HDR environment is projected to SH)."""
+        env = scene.environment
+        key = _key(id(scene.mesh), [(L.kind, L.color, L.intensity, L.direction, L.position, L.spot_angle_deg,
+                                     L.spot_blend, L.cast_shadows) for L in scene.lights],
+                   env.color, env.intensity, id(env.image))
+        cached = getattr(self, "_lights_cache", None)
+        if cached is None or cached[0] != key:
+            self._lights_cache = (key, LightUniforms(scene))
+        return self._lights_cache[1]
+
     def render_mode(self, technique: str, output_mode: int):
         """Re-render the last frame's view with a technique's output mode (e.g. 2 = specular only)."""
         f = self.last_frame
@@ -171,7 +183,7 @@ class Renderer:
         cam = camera or scene.camera
         lo, hi = scene.bounds()
         view, proj, eye, near, far = camera_matrices(cam, size[0] / size[1], lo, hi)
-        lights = LightUniforms(scene)
+        lights = self._light_uniforms(scene)
         passes = []
         shadow_key = _key(id(scene.mesh), [(L.kind, L.direction, L.position, L.spot_angle_deg, L.cast_shadows) for L in scene.lights])
         if shadow_key != self._shadow_key:
