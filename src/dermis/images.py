@@ -125,6 +125,12 @@ def _read_hdr(path: Path, max_pixels: int) -> np.ndarray:
     return arr[:, :, :3] if arr.ndim == 3 else arr[:, :, None]
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write(path, write_fn) -> Path:
     """Call write_fn(temporary_path) in the destination's folder, then rename over ``path``;
     on any failure the temporary file is removed and ``path`` is left as it was."""
@@ -136,6 +142,7 @@ def atomic_write(path, write_fn) -> Path:
     os.close(fd)
     try:
         write_fn(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
         os.replace(tmp, path)
     except BaseException:
         try:
