@@ -181,3 +181,18 @@ def test_write_into_missing_folder_is_a_user_error(tmp_path):
     with pytest.raises(DermisError, match="does not exist"):
         write_png(tmp_path / "nope" / "a.png", np.zeros((2, 2, 3), np.float32))
     assert folder_names(tmp_path) == []
+
+
+def test_outputs_get_the_usual_permissions(tmp_path):
+    """Atomic writes go through mkstemp (mode 0600); the final file follows the umask instead."""
+    import os
+    import stat
+
+    from dermis.images import write_png
+
+    old = os.umask(0o022)
+    try:
+        p = write_png(tmp_path / "a.png", np.zeros((4, 4, 3), np.float32))
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(p.stat().st_mode) == 0o644
