@@ -33,7 +33,9 @@ def equirect_directions(h, w):
 
 def sh_irradiance_from_equirect(img) -> np.ndarray:
     """(9, 3) irradiance SH coefficients A_l L_lm from a linear equirect radiance image."""
-    img = np.asarray(img, np.float64)[:, :, :3]
+    from dermis.images import as_rgb
+
+    img = as_rgb(img).astype(np.float64)
     d, dw = equirect_directions(*img.shape[:2])
     Y = sh9_basis(d)  # (h, w, 9)
     L = np.einsum("hwk,hwc,hw->kc", Y, img, dw)

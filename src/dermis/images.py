@@ -35,9 +35,8 @@ def linear_to_srgb(c):
 def _decode_bytes(data: bytes, source: str, max_pixels: int) -> np.ndarray:
     from PIL import Image
 
-    Image.MAX_IMAGE_PIXELS = None  # our own limit below, checked before any decoding
     try:
-        with Image.open(io.BytesIO(data)) as im:
+        with Image.open(io.BytesIO(data)) as im:  # reads the header only
             w, h = im.size
             if w <= 0 or h <= 0:
                 raise DermisError(f"{source}: image has zero size")
@@ -85,37 +84,54 @@ def read_image(path, *, srgb: bool, max_pixels: int = MAX_IMAGE_PIXELS, data: by
     ``srgb=True`` decodes colour maps to linear; HDR formats (EXR, Radiance .hdr) are linear already.
     """
     src = source or str(path)
+    hdr = False
     if data is None:
         p = Path(path)
         if not p.is_file():
             raise DermisError(f"{p}: image file not found")
-        if p.suffix.lower() == ".exr":
-            return _read_exr(p, max_pixels)
-        if p.suffix.lower() == ".hdr":
-            return _read_hdr(p, max_pixels)
-        data = p.read_bytes()
-    arr = _decode_bytes(data, src, max_pixels)
-    if srgb:
-        c = min(arr.shape[2], 3)
-        arr[:, :, :c] = srgb_to_linear(arr[:, :, :c])
+        if p.suffix.lower() in (".exr", ".hdr"):
+            arr = _read_exr(p, max_pixels) if p.suffix.lower() == ".exr" else _read_hdr(p, max_pixels)
+            hdr = True
+        else:
+            data = p.read_bytes()
+    if not hdr:
+        arr = _decode_bytes(data, src, max_pixels)
+        if srgb:
+            c = 1 if arr.shape[2] == 2 else min(arr.shape[2], 3)  # never the alpha of L+A
+            arr[:, :, :c] = srgb_to_linear(arr[:, :, :c])
     if not np.all(np.isfinite(arr)):
         raise DermisError(f"{src}: image contains NaN or infinite values")
     return arr
 
 
+def as_rgb(arr: np.ndarray) -> np.ndarray:
+    """(H, W, C) -> (H, W, 3): grey (and grey + alpha) replicated, alpha dropped."""
+    arr = np.asarray(arr, np.float32)
+    if arr.ndim == 2:
+        arr = arr[:, :, None]
+    if arr.shape[2] in (1, 2):
+        return np.repeat(arr[:, :, :1], 3, axis=2)
+    return arr[:, :, :3]
+
+
 def _read_hdr(path: Path, max_pixels: int) -> np.ndarray:
     """Radiance RGBE (.hdr) through imageio, with the size read from the header first."""
-    head = path.read_bytes()[:4096]
+    with open(path, "rb") as f:
+        head = f.read(65536)
+    size = None
     for line in head.split(b"\n"):
         parts = line.split()
-        if len(parts) == 4 and parts[0] in (b"-Y", b"+Y"):
+        if len(parts) == 4 and parts[0] in (b"-Y", b"+Y", b"-X", b"+X") and parts[2] in (b"-Y", b"+Y", b"-X", b"+X"):
             try:
-                h, w = int(parts[1]), int(parts[3])
+                size = int(parts[1]) * int(parts[3])
+                dims = f"{int(parts[3])}x{int(parts[1])}"
             except ValueError:
-                break
-            if w * h > max_pixels:
-                raise DermisError(f"{path}: image is {w}x{h}, over the limit of {max_pixels} pixels; refused before decoding")
+                pass
             break
+    if size is None:
+        raise DermisError(f"{path}: not a Radiance HDR image (no resolution line in its header)")
+    if size > max_pixels:
+        raise DermisError(f"{path}: image is {dims}, over the limit of {max_pixels} pixels; refused before decoding")
     try:
         import imageio.v3 as iio
 

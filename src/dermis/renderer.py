@@ -185,7 +185,9 @@ class Renderer:
         view, proj, eye, near, far = camera_matrices(cam, size[0] / size[1], lo, hi)
         lights = self._light_uniforms(scene)
         passes = []
-        shadow_key = _key(id(scene.mesh), [(L.kind, L.direction, L.position, L.spot_angle_deg, L.cast_shadows) for L in scene.lights])
+        # the TSM stores distances in mm: the scale is part of what the shadow pass wrote
+        shadow_key = _key(id(scene.mesh), scene.mm_per_unit,
+                          [(L.kind, L.direction, L.position, L.spot_angle_deg, L.cast_shadows) for L in scene.lights])
         if shadow_key != self._shadow_key:
             with self.timer("shadow"):
                 self.shadows.render(self.gpu, lights, scene)

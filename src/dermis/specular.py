@@ -180,12 +180,13 @@ def rho_dt(cos_theta, m, rho_s=1.0, f0=SKIN_F0, n_xi: int = 96, n_phi: int = 64)
 
     CONVENTION: this returns the integral itself, rho_s * a(cos, m), where a is the albedo for
     rho_s = 1 (the quantity :func:`rho_dt_table` stores). The fraction of light left for the diffuse
-    term is 1 - rho_dt = 1 - rho_s * a(N.L, m) on the way in and 1 - rho_s * a(N.V, m) on the way out
-    (skin-rendering.md section 1). KSK is reciprocal, so one table serves L and V.
+    term is 1 - rho_s * a(N.L, m) / pi on the way in and 1 - rho_s * a(N.V, m) / pi on the way out.
+    KSK is reciprocal, so one table serves L and V.
 
     Because P has no 1/pi (module docstring), a is pi times the albedo of the physically normalised
-    lobe: the specular that dermis renders reflects rho_s * a / pi of the incident energy, and d'Eon's
-    factor 1 - rho_s * a takes pi times that away from the diffuse. dermis follows d'Eon here.
+    lobe: the specular that dermis renders (divided by pi, as physical radiance) reflects
+    rho_s * a / pi of the incident energy, so that is what shaders/common/energy.glsl removes from the
+    diffuse. d'Eon's factor 1 - rho_s * a (skin-rendering.md section 1) would remove pi times too much.
 
     Quadrature, in the half-vector domain (dw_L = 4 (V.h) dw_h, dot(h_u, h_u) = 4 (V.h)^2):
         a = integral P(h) F(V.h) (N.L) / (V.h) dw_h  over V.h > 0 and N.L > 0,

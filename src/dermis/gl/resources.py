@@ -10,6 +10,7 @@ import numpy as np
 
 from dermis.camera import light_matrices
 from dermis.environment import environment_sh
+from dermis.images import as_rgb
 
 VERTEX_FORMAT = "3f 3f 2f 4f"
 # default texture units of the material maps (0-1 shadows; techniques use 5-15 for their own)
@@ -108,7 +109,7 @@ class GpuScene:
             t.release()
         self.textures = {}
         if mat.albedo is not None:
-            self.textures["albedo"] = upload_texture(self.ctx, mat.albedo.data[:, :, :3], components=3, dtype="f2")
+            self.textures["albedo"] = upload_texture(self.ctx, as_rgb(mat.albedo.data), components=3, dtype="f2")
         else:
             self.textures["albedo"] = upload_texture(self.ctx, np.array([[mat.albedo_color]], np.float32), mipmaps=False)
         if mat.normal_map is not None:
@@ -123,7 +124,7 @@ class GpuScene:
         self.has_specular_map = mat.specular_map is not None
         # mean albedo on the skin (texels brighter than 2%), for profile-driven skin colour
         if mat.albedo is not None:
-            a = mat.albedo.data[::4, ::4, :3].reshape(-1, 3)
+            a = as_rgb(mat.albedo.data[::4, ::4]).reshape(-1, 3)
             a = a[a.mean(axis=1) > 0.02]
             self.albedo_mean = a.mean(axis=0) if len(a) else np.ones(3)
         else:

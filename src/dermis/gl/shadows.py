@@ -13,6 +13,7 @@ import math
 import moderngl
 import numpy as np
 
+from dermis.errors import DermisError
 from dermis.gl.resources import mat_bytes, set_uniform
 from dermis.gl.shaders import program
 
@@ -47,6 +48,10 @@ class ShadowAtlas:
         size = (cols * self.tile_size, rows * self.tile_size)
         if size == self._size:
             return
+        limit = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE") or 16384)
+        if max(size) > limit:
+            raise DermisError(f"--shadow-size {self.tile_size}: {n_lights} lights need a {size[0]}x{size[1]} shadow atlas, "
+                              f"over this GPU's texture limit of {limit}; use a smaller --shadow-size")
         self.release()
         self._size = size
         self.depth = self.ctx.depth_texture(size)

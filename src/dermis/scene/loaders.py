@@ -18,7 +18,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from dermis.errors import DermisError
-from dermis.images import MAX_IMAGE_PIXELS, read_image
+from dermis.images import MAX_IMAGE_PIXELS, as_rgb, read_image
 from dermis.scene.model import Mesh, Texture
 from dermis.scene.tangents import generate_tangents
 
@@ -185,7 +185,7 @@ class GltfAsset:
                 label = str(p)
         else:
             raise DermisError(f"{label}: image has neither a URI nor a bufferView")
-        return Texture(arr, label)
+        return Texture(as_rgb(arr), label)
 
     def _node_matrices(self):
         g = self.gltf
@@ -278,16 +278,25 @@ class GltfAsset:
         tangents = np.concatenate(TAN) if have_tangents and TAN else None
         mesh = finish_mesh(np.concatenate(P), normals, np.concatenate(UV), np.concatenate(I), str(self.path), uv_convention, tangents)
         material = {"albedo": None, "normal_map": None, "specular_map": None, "albedo_color": None}
-        if material_index is not None and g.materials:
-            mat = g.materials[material_index]
-            pbr = mat.pbrMetallicRoughness
-            if pbr is not None:
-                if pbr.baseColorTexture is not None:
-                    material["albedo"] = self.image(pbr.baseColorTexture.index, srgb=True, max_pixels=max_pixels)
-                if pbr.baseColorFactor:
-                    material["albedo_color"] = tuple(pbr.baseColorFactor[:3])
-            if mat.normalTexture is not None:
-                material["normal_map"] = self.image(mat.normalTexture.index, srgb=False, max_pixels=max_pixels)
+        try:
+            if material_index is not None and g.materials:
+                mat = g.materials[material_index]
+                pbr = mat.pbrMetallicRoughness
+                factor = np.asarray(pbr.baseColorFactor[:3], np.float32) if pbr is not None and pbr.baseColorFactor else None
+                if pbr is not None and pbr.baseColorTexture is not None:
+                    tex = self.image(pbr.baseColorTexture.index, srgb=True, max_pixels=max_pixels)
+                    if factor is not None:  # glTF 2.0: base colour = factor x texture
+                        tex = Texture(tex.data * factor, tex.source)
+                    material["albedo"] = tex
+                elif factor is not None:
+                    material["albedo_color"] = tuple(float(x) for x in factor)
+                if mat.normalTexture is not None:
+                    material["normal_map"] = self.image(mat.normalTexture.index, srgb=False, max_pixels=max_pixels)
+        except DermisError:
+            raise
+        except Exception as exc:
+            raise DermisError(f"{self.path}: malformed glTF material ({type(exc).__name__}: "
+                              f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
         return mesh, material
 
 
@@ -303,7 +312,9 @@ def _safe_resolver(folder: Path, source: Path, max_pixels: int):
         def get(self, name):
             p = resolve_inside(folder, name, "referenced file", source)
             data = p.read_bytes()
-            if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".tga", ".bmp", ".tif", ".tiff"):
+            if p.suffix.lower() not in (".mtl", ".obj"):
+                # anything else a material names is an image to trimesh: size-check its header
+                # (whatever its suffix) before anything decodes it
                 from PIL import Image
                 import io
 

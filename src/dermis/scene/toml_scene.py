@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from dermis.errors import DermisError
-from dermis.images import MAX_IMAGE_PIXELS, read_image
+from dermis.images import MAX_IMAGE_PIXELS, as_rgb, read_image
 from dermis.scene.model import Camera, Environment, Light, Output, Scene, SkinMaterial, Texture
 
 # key -> expected python type(s); lists of numbers are checked for length
@@ -61,11 +61,13 @@ def _check(table: dict, section: str, source) -> dict:
     return out
 
 
-def _texture(folder: Path, rel: str, srgb: bool, source, max_pixels: int) -> Texture:
+def _texture(folder: Path, rel: str, srgb: bool, source, max_pixels: int, rgb: bool = True) -> Texture:
+    """A texture file as float32; ``rgb``: grey images are replicated to three channels."""
     p = (folder / rel)
     if not p.is_file():
         raise DermisError(f"{source}: texture '{rel}' not found (looked for {p})")
-    return Texture(read_image(p, srgb=srgb, max_pixels=max_pixels), str(p))
+    arr = read_image(p, srgb=srgb, max_pixels=max_pixels)
+    return Texture(as_rgb(arr) if rgb else arr, str(p))
 
 
 def _positive(value, name, source, lo=0.0, hi=None, inclusive=False):
@@ -141,7 +143,7 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
         elif k == "normal_map":
             mat.normal_map = _texture(folder, v, False, path, max_pixels)
         elif k in ("specular_map", "roughness_map"):
-            t = _texture(folder, v, False, path, max_pixels)
+            t = _texture(folder, v, False, path, max_pixels, rgb=False)
             setattr(mat, k, Texture(t.data[:, :, :1], t.source))
         else:
             setattr(mat, k, v)
