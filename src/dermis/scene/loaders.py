@@ -253,6 +253,8 @@ class GltfAsset:
                     if at.TANGENT is not None:
                         tg = self.accessor(at.TANGENT).astype(np.float64)
                         tg[:, :3] = tg[:, :3] @ m4[:3, :3].T
+                        if np.linalg.det(m4[:3, :3]) < 0:  # a mirroring transform flips handedness
+                            tg[:, 3] = -tg[:, 3]
                         TAN.append(tg)
                     else:
                         have_tangents = False
