@@ -35,3 +35,28 @@ def gl_ctx():
 @pytest.fixture(scope="session")
 def example_head_toml(lee_perry_smith) -> Path:
     return REPO / "examples" / "lee-perry-smith.toml"
+
+
+# an asymmetric scene (a box over a plane): turning it changes the image even when the light
+# turns with the camera (viewer and turntable tests)
+BOX_SCENE_TOML = """
+[scene]
+name = "box-over-plane"
+mm_per_unit = 20.0
+
+[mesh]
+builtin = "box_over_plane"
+
+[[lights]]
+type = "directional"
+direction = [0.5, -0.6, -0.6]
+color = [1.0, 0.95, 0.9]
+intensity = 3.0
+"""
+
+
+@pytest.fixture(scope="session")
+def box_toml(tmp_path_factory) -> Path:
+    p = tmp_path_factory.mktemp("box_scene") / "box.toml"
+    p.write_text(BOX_SCENE_TOML)
+    return p

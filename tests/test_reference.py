@@ -13,10 +13,9 @@ from dermis.reference.integrate import cutoff_radius, plan_levels
 from dermis.reference.raycast import Bvh
 from dermis.reference.render import render_reference
 from dermis.reference.sampling import coarsen, surface_cells
-from dermis.scene.builtin import slab, uv_sphere
-from dermis.scene.loaders import finish_mesh
-from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial
-from dermis.verification import quad_scene
+from dermis.scene.builtin import uv_sphere
+from dermis.scene.model import Camera, Light
+from dermis.verification import backlit_slab_scene, quad_scene
 
 
 def _brute_force(v0, v1, v2, o, d):
@@ -189,22 +188,13 @@ def test_point_of_light_on_plane_reproduces_the_profile():
     assert img[far, 0].mean() > 100 * max(img[far, 2].mean(), 1e-12)
 
 
-def _slab_scene(thickness_mm):
-    p, n, uv, t = slab(size=30.0, thickness=thickness_mm, n=16)
-    mesh = finish_mesh(p, n, uv, t, f"test:slab{thickness_mm}", "v-up")
-    return Scene(mesh=mesh, material=SkinMaterial(albedo_color=(1.0, 1.0, 1.0), rho_s=0.0, pore_strength=0.0),
-                 lights=[Light(direction=(0.0, 0.0, 1.0), intensity=np.pi)],  # from behind, towards the camera
-                 camera=Camera(position=(0.0, 0.0, 120.0), fov_deg=4.0),
-                 environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0)
-
-
 @pytest.mark.parametrize("d, paths", [(1.0, "straight"), (2.0, "tissue")])
 def test_light_through_a_slab_is_part_of_the_integral(d, paths):
     """A slab lit from behind: the front (in shadow) receives the back face's light through the
     3-D distance, integral of G(v, sqrt(r^2 + d^2)) over the back face = exp(-d^2 / 2v), so the
     front radiance is sum_k w_k exp(-d^2 / 2 v_k) (white albedo, E = pi), within 3% + 1e-5
     (measured: 0.5%), with either kind of paths (tissue lies between the faces)."""
-    sc = _slab_scene(d)
+    sc = backlit_slab_scene(d, fov_deg=4.0)
     res = render_reference(sc, (12, 12), spp=1, progress=False, min_spacing_mm=0.05, paths=paths)
     assert res.coverage.min() == 1.0
     prof = sc.profile.normalized()

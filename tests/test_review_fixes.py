@@ -30,14 +30,9 @@ def test_grey_albedo_is_grey_not_cyan(tmp_path, gl_ctx):
 
 
 def test_changing_the_scale_re_renders_the_translucent_shadow_map(gl_ctx):
-    from dermis.scene.builtin import slab
-    from dermis.scene.loaders import finish_mesh
-    from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial
+    from dermis.verification import backlit_slab_scene
 
-    p, n, uv, t = slab(size=30.0, thickness=2.0, n=8)
-    sc = Scene(mesh=finish_mesh(p, n, uv, t, "t", "v-up"), material=SkinMaterial(albedo_color=(1, 1, 1), rho_s=0.0),
-               lights=[Light(direction=(0.0, 0.0, 1.0), intensity=np.pi)], camera=Camera(position=(0, 0, 120)),
-               environment=Environment(color=(0, 0, 0)), mm_per_unit=1.0)
+    sc = backlit_slab_scene(2.0, n=8)
     with Renderer(sc, (32, 32), irradiance_size=128, ctx=gl_ctx, samples=0) as r:
         r.render("tsd", output_mode=1)
         sc.mm_per_unit = 0.5

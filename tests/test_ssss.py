@@ -12,11 +12,11 @@ import pytest
 import dermis
 from dermis.profiles import SumOfGaussians
 from dermis.renderer import Renderer
-from dermis.scene.builtin import grid_mesh, merge, slab
+from dermis.scene.builtin import grid_mesh, merge
 from dermis.scene.loaders import finish_mesh
 from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial
 from dermis.specular import rho_dt
-from dermis.verification import impulse_reference, quad_scene, rweighted_error
+from dermis.verification import backlit_slab_scene, impulse_reference, quad_scene, rweighted_error
 
 FOV_DEG = 25.0
 
@@ -160,12 +160,7 @@ def test_transmittance_through_a_slab(gl_ctx):
     r = None
     try:
         for d in (0.5, 1.0, 2.0, 4.0):
-            p, n, uv, t = slab(size=30.0, thickness=d, n=16)
-            sc = Scene(mesh=finish_mesh(p, n, uv, t, f"test:slab{d}", "v-up"),
-                       material=SkinMaterial(albedo_color=(1.0, 1.0, 1.0), rho_s=0.0, pore_strength=0.0),
-                       lights=[Light(direction=(0.0, 0.0, 1.0), intensity=np.pi)],  # from behind
-                       camera=Camera(position=(0.0, 0.0, 120.0), fov_deg=10.0),
-                       environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0)
+            sc = backlit_slab_scene(d)
             if r is None:
                 r = Renderer(sc, (48, 48), ctx=gl_ctx, samples=0)
             else:

@@ -7,19 +7,11 @@ import pytest
 
 import dermis
 from dermis.renderer import Renderer
-from dermis.scene.builtin import cylinder_seam, slab
+from dermis.scene.builtin import cylinder_seam
 from dermis.scene.loaders import finish_mesh
 from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial
 from dermis.techniques.tsd import TRANSLUCENCY_MIN_VARIANCE_MM2
-
-
-def _slab_scene(thickness_mm):
-    p, n, uv, t = slab(size=30.0, thickness=thickness_mm, n=16)
-    mesh = finish_mesh(p, n, uv, t, f"test:slab{thickness_mm}", "v-up")
-    return Scene(mesh=mesh, material=SkinMaterial(albedo_color=(1.0, 1.0, 1.0), rho_s=0.0, pore_strength=0.0),
-                 lights=[Light(direction=(0.0, 0.0, 1.0), intensity=np.pi)],  # from behind, towards the camera
-                 camera=Camera(position=(0.0, 0.0, 120.0), fov_deg=10.0),
-                 environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0)
+from dermis.verification import backlit_slab_scene
 
 
 def test_translucency_falls_as_exp_d2_over_2v(gl_ctx):
@@ -31,7 +23,7 @@ def test_translucency_falls_as_exp_d2_over_2v(gl_ctx):
     wide = v >= TRANSLUCENCY_MIN_VARIANCE_MM2
     measured, expected = [], []
     for d in (0.5, 1.0, 2.0, 3.0, 4.0):
-        sc = _slab_scene(d)
+        sc = backlit_slab_scene(d)
         with Renderer(sc, (48, 48), irradiance_size=256, ctx=gl_ctx, samples=0) as r:
             img = r.render("tsd", output_mode=1)
         front = img[20:28, 20:28].reshape(-1, 3).mean(axis=0)

@@ -11,46 +11,22 @@ import pytest
 
 from dermis.errors import DermisError
 
-# an asymmetric scene (a box over a plane): turning it changes the image even when the light
-# turns with the camera
-SCENE = """
-[scene]
-name = "box-over-plane"
-mm_per_unit = 20.0
-
-[mesh]
-builtin = "box_over_plane"
-
-[[lights]]
-type = "directional"
-direction = [0.5, -0.6, -0.6]
-color = [1.0, 0.95, 0.9]
-intensity = 3.0
-"""
-
 SIZE = (96, 72)
 FRAMES = 6
-
-
-@pytest.fixture(scope="module")
-def scene_toml(tmp_path_factory):
-    p = tmp_path_factory.mktemp("turntable") / "box.toml"
-    p.write_text(SCENE)
-    return p
 
 
 def _differ(a, b) -> float:
     return float(np.abs(np.asarray(a, np.float64) - np.asarray(b, np.float64)).mean() / 255.0)
 
 
-def test_gif_has_n_frames_and_turns(scene_toml, tmp_path):
+def test_gif_has_n_frames_and_turns(box_toml, tmp_path):
     import imageio.v3 as iio
 
     import dermis
     from dermis.viewer.turntable import turntable
 
     out = tmp_path / "spin.gif"
-    res = turntable(dermis.load_scene(scene_toml), out, frames=FRAMES, size=SIZE, technique="tsd",
+    res = turntable(dermis.load_scene(box_toml), out, frames=FRAMES, size=SIZE, technique="tsd",
                     irradiance_size=128, progress=False)
     assert res["frames"] == FRAMES and out.is_file()
     frames = iio.imread(out, index=None)
@@ -62,10 +38,10 @@ def test_gif_has_n_frames_and_turns(scene_toml, tmp_path):
     assert all(p == ["tsd_final"] for p in res["passes_run"][1:])
 
 
-def test_mp4_through_the_cli_with_orbiting_light(scene_toml, tmp_path):
+def test_mp4_through_the_cli_with_orbiting_light(box_toml, tmp_path):
     imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
     out = tmp_path / "spin.mp4"
-    res = subprocess.run([sys.executable, "-m", "dermis.cli", "turntable", str(scene_toml), "--frames", str(FRAMES),
+    res = subprocess.run([sys.executable, "-m", "dermis.cli", "turntable", str(box_toml), "--frames", str(FRAMES),
                           "--size", f"{SIZE[0]}x{SIZE[1]}", "--out", str(out), "--technique", "lambert", "--orbit-light"],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr[-2000:]
@@ -82,25 +58,25 @@ def test_mp4_through_the_cli_with_orbiting_light(scene_toml, tmp_path):
     assert _differ(frames[0], frames[FRAMES // 2]) > 0.01
 
 
-def test_png_folder(scene_toml, tmp_path):
+def test_png_folder(box_toml, tmp_path):
     import dermis
     from dermis.viewer.turntable import turntable
 
     out = tmp_path / "frames"
-    turntable(dermis.load_scene(scene_toml), out, frames=3, size=(48, 48), technique="lambert", progress=False)
+    turntable(dermis.load_scene(box_toml), out, frames=3, size=(48, 48), technique="lambert", progress=False)
     assert sorted(p.name for p in out.iterdir()) == ["frame_00000.png", "frame_00001.png", "frame_00002.png"]
 
 
-def test_turntable_user_errors(scene_toml, tmp_path):
+def test_turntable_user_errors(box_toml, tmp_path):
     import dermis
     from dermis.viewer.turntable import turntable
 
-    scene = dermis.load_scene(scene_toml)
+    scene = dermis.load_scene(box_toml)
     with pytest.raises(DermisError, match="unsupported turntable output '.avi'"):
         turntable(scene, tmp_path / "x.avi", frames=2, size=(32, 32))
     with pytest.raises(DermisError, match="--frames"):
         turntable(scene, tmp_path / "x.gif", frames=0, size=(32, 32))
-    res = subprocess.run([sys.executable, "-m", "dermis.cli", "turntable", str(scene_toml), "--out",
+    res = subprocess.run([sys.executable, "-m", "dermis.cli", "turntable", str(box_toml), "--out",
                           str(tmp_path / "missing" / "x.gif")], capture_output=True, text=True, timeout=120,
                          env=dict(os.environ))
     assert res.returncode == 2 and "does not exist" in res.stderr

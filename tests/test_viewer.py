@@ -20,21 +20,6 @@ import pytest
 from dermis.errors import DermisError
 
 # ------------------------------------------------------------------ scenes and helpers
-BOX_SCENE = """
-[scene]
-name = "box-over-plane"
-mm_per_unit = 20.0
-
-[mesh]
-builtin = "box_over_plane"
-
-[[lights]]
-type = "directional"
-direction = [0.5, -0.6, -0.6]
-color = [1.0, 0.95, 0.9]
-intensity = 3.0
-"""
-
 # a lit sphere: scattering shows at its terminator, so tsd and lambert differ there
 SPHERE_SCENE = """
 [scene]
@@ -58,13 +43,6 @@ fov_deg = 30.0
 
 WINDOW = (240, 180)  # small: llvmpipe on shared CPUs
 IRRADIANCE = 128
-
-
-@pytest.fixture(scope="module")
-def box_toml(tmp_path_factory):
-    p = tmp_path_factory.mktemp("viewer_scene") / "box.toml"
-    p.write_text(BOX_SCENE)
-    return p
 
 
 @pytest.fixture(scope="module")

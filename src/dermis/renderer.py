@@ -35,6 +35,20 @@ def check_size(size, what="--size") -> tuple[int, int]:
     return w, h
 
 
+def _light_geometry(L) -> tuple:
+    """What a light's shadow map depends on."""
+    return (L.kind, L.direction, L.position, L.spot_angle_deg, L.cast_shadows)
+
+
+def _light_state(L) -> tuple:
+    """Everything about a light that the image depends on."""
+    return _light_geometry(L) + (L.color, L.intensity, L.spot_blend, L.shadow_softness, L.shadow_bias)
+
+
+def _environment_state(env) -> tuple:
+    return (env.color, env.intensity, id(env.image))
+
+
 def _key(*parts) -> str:
     h = hashlib.sha1()
     for p in parts:
@@ -98,9 +112,8 @@ class Renderer:
         """Everything the view-independent (texture-space) passes depend on."""
         s = self.scene
         m = s.material
-        lights = [(L.kind, L.color, L.intensity, L.direction, L.position, L.spot_angle_deg, L.spot_blend,
-                   L.cast_shadows, L.shadow_softness, L.shadow_bias) for L in s.lights]
-        env = (s.environment.color, s.environment.intensity, id(s.environment.image))
+        lights = [_light_state(L) for L in s.lights]
+        env = _environment_state(s.environment)
         mat = (self._material_state(), m.normal_strength, m.roughness, m.rho_s, m.specular_map_bias,
                m.specular_map_scale, m.mix)
         return _key(id(s.mesh), s.mm_per_unit, lights, env, mat, s.skin_color, s.profile.variances_mm2, s.profile.weights,
@@ -150,10 +163,7 @@ class Renderer:
     def _light_uniforms(self, scene):
         """The packed lights, rebuilt only when a light, the mesh or the environment changes (the
         shadow frusta transform every vertex; an HDR environment is projected to SH)."""
-        env = scene.environment
-        key = _key(id(scene.mesh), [(L.kind, L.color, L.intensity, L.direction, L.position, L.spot_angle_deg,
-                                     L.spot_blend, L.cast_shadows) for L in scene.lights],
-                   env.color, env.intensity, id(env.image))
+        key = _key(id(scene.mesh), [_light_state(L) for L in scene.lights], _environment_state(scene.environment))
         cached = getattr(self, "_lights_cache", None)
         if cached is None or cached[0] != key:
             self._lights_cache = (key, LightUniforms(scene))
@@ -186,8 +196,7 @@ class Renderer:
         lights = self._light_uniforms(scene)
         passes = []
         # the TSM stores distances in mm: the scale is part of what the shadow pass wrote
-        shadow_key = _key(id(scene.mesh), scene.mm_per_unit,
-                          [(L.kind, L.direction, L.position, L.spot_angle_deg, L.cast_shadows) for L in scene.lights])
+        shadow_key = _key(id(scene.mesh), scene.mm_per_unit, [_light_geometry(L) for L in scene.lights])
         if shadow_key != self._shadow_key:
             with self.timer("shadow"):
                 self.shadows.render(self.gpu, lights, scene)

@@ -134,23 +134,19 @@ def _build(v0, v1, v2):
         seg = order[s:e].copy()
         mid = s
         if best_split > 0:
+            left = np.empty(m, np.bool_)  # each triangle's side, binned once
+            for k in range(m):
+                b = int((cen[seg[k], axis] - clo[axis]) * scale)
+                left[k] = min(b, SAH_BINS - 1) < best_split
             w = s
             for k in range(m):
-                t = seg[k]
-                b = int((cen[t, axis] - clo[axis]) * scale)
-                if b >= SAH_BINS:
-                    b = SAH_BINS - 1
-                if b < best_split:
-                    order[w] = t
+                if left[k]:
+                    order[w] = seg[k]
                     w += 1
             mid = w
             for k in range(m):
-                t = seg[k]
-                b = int((cen[t, axis] - clo[axis]) * scale)
-                if b >= SAH_BINS:
-                    b = SAH_BINS - 1
-                if b >= best_split:
-                    order[w] = t
+                if not left[k]:
+                    order[w] = seg[k]
                     w += 1
         if mid == s or mid == e:  # degenerate: object median
             keys = np.empty(m)

@@ -694,21 +694,28 @@ def _boundary_vertices(T):
     return np.unique(u[c == 1])
 
 
+def _triangle_frames(P, T):
+    """Each triangle's corners in its own orthonormal 2-D frame (x along edge 0-1, in the
+    triangle's plane), (m, 3, 2), and twice its area, (m,)."""
+    p0, p1, p2 = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
+    e1, e2 = p1 - p0, p2 - p0
+    nrm = np.cross(e1, e2)
+    a2 = np.linalg.norm(nrm, axis=1)
+    x = e1 / np.linalg.norm(e1, axis=1, keepdims=True)
+    y = np.cross(nrm / a2[:, None], x)
+    q = np.zeros((len(T), 3, 2))
+    q[:, 1, 0] = np.linalg.norm(e1, axis=1)
+    q[:, 2, 0] = np.einsum("ij,ij->i", e2, x)
+    q[:, 2, 1] = np.einsum("ij,ij->i", e2, y)
+    return q, a2
+
+
 def _lscm(P, T):
     """Least-squares conformal map (Levy et al. 2002) of a disc-like patch; orientation
     preserving (UV triangles counter-clockwise when the 3-D triangles are counter-clockwise seen
     along their normal).  Returns (n, 2) UVs in the units of P."""
     n, m = len(P), len(T)
-    p0, p1, p2 = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
-    e1, e2 = p1 - p0, p2 - p0
-    nrm = np.cross(e1, e2)
-    a2 = np.linalg.norm(nrm, axis=1)  # twice the area
-    x = e1 / np.linalg.norm(e1, axis=1, keepdims=True)
-    y = np.cross(nrm / a2[:, None], x)
-    q = np.zeros((m, 3, 2))
-    q[:, 1, 0] = np.linalg.norm(e1, axis=1)
-    q[:, 2, 0] = np.einsum("ij,ij->i", e2, x)
-    q[:, 2, 1] = np.einsum("ij,ij->i", e2, y)
+    q, a2 = _triangle_frames(P, T)
     # gradients of the barycentric coordinates: ((y_j+1 - y_j+2), (x_j+2 - x_j+1)) / 2A
     qa, qb = np.roll(q, -1, axis=1), np.roll(q, -2, axis=1)
     gx = (qa[..., 1] - qb[..., 1]) / a2[:, None]
@@ -754,16 +761,7 @@ def _arap(P, T, uv0, iters=12):
     """As-rigid-as-possible parameterisation (Liu et al. 2008), local/global iterations from
     ``uv0``.  Keeps the triangles' orientation of ``uv0`` (which must be counter-clockwise)."""
     n, m = len(P), len(T)
-    p0, p1, p2 = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
-    e1, e2 = p1 - p0, p2 - p0
-    nrm = np.cross(e1, e2)
-    a2 = np.linalg.norm(nrm, axis=1)
-    x = e1 / np.linalg.norm(e1, axis=1, keepdims=True)
-    y = np.cross(nrm / a2[:, None], x)
-    q = np.zeros((m, 3, 2))
-    q[:, 1, 0] = np.linalg.norm(e1, axis=1)
-    q[:, 2, 0] = np.einsum("ij,ij->i", e2, x)
-    q[:, 2, 1] = np.einsum("ij,ij->i", e2, y)
+    q, a2 = _triangle_frames(P, T)
     # cotangent of the angle at each corner
     cot = np.empty((m, 3))
     for k in range(3):
