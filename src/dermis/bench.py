@@ -29,12 +29,18 @@ def _rotate(v, angle):
     return (c * x + s * z, y, -s * x + c * z)
 
 
-def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames=5, progress=None, device=None):
+def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames=5, progress=None, device=None,
+              floors: bool = True):
+    """Median frame and pass times per technique and workload; with ``floors``, also the floors of
+    dermis.bench_floors measured on the same renderer (``info["floors_ms"]``)."""
+    from dermis.bench_floors import measure_floors
     from dermis.renderer import Renderer
 
     results = {}
     with Renderer(scene, size, irradiance_size=irradiance_size, device=device) as r:
         info = dict(r.info)
+        if floors:
+            info["floors_ms"] = measure_floors(r, irradiance_size, repeats=frames)
         base_light = [tuple(L.direction) for L in scene.lights]
         base_cam = tuple(scene.camera.position)
         target = np.asarray(scene.camera.target, float)
@@ -66,7 +72,7 @@ def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames
     return info, results
 
 
-def markdown_table(info, results, size, irradiance_size):
+def markdown_table(info, results, size, irradiance_size, gaussians: int = 6):
     base = results.get("lambert")
     lines = [f"Renderer: {info['renderer']} ({info['version']}); output {size[0]}x{size[1]}, irradiance {irradiance_size}^2; "
              f"machine: {platform.machine()}, {platform.system()}, Python {platform.python_version()}", "",
@@ -78,7 +84,27 @@ def markdown_table(info, results, size, irradiance_size):
         rc = f"{cm / base['camera']['frame_ms']:.2f}x" if base else "-"
         passes = ", ".join(f"{k} {v:.0f}" for k, v in res["lights"]["passes_ms"].items())
         lines.append(f"| {name} | {lm:.0f} | {rl} | {cm:.0f} | {rc} | {passes} |")
+    floors = info.get("floors_ms")
+    if floors:
+        lines += ["", "Floors (ms, same run; dermis.bench_floors): " +
+                  ", ".join(f"{k} {v:.1f}" for k, v in floors.items()), "",
+                  "| technique | pass | ms (lights moving) | floor (ms) | multiple of floor |", "|---|---|---|---|---|"]
+        for name, res in results.items():
+            for k, v in floor_ratios(res["lights"]["passes_ms"], floors, gaussians).items():
+                lines.append(f"| {name} | {k} | {v[0]:.1f} | {v[1]:.1f} | {v[2]:.2f}x |")
     return "\n".join(lines)
+
+
+def floor_ratios(passes_ms: dict, floors: dict, gaussians: int) -> dict:
+    """{pass: (ms, floor ms, multiple)} for the passes that have a floor."""
+    from dermis.bench_floors import pass_floor
+
+    out = {}
+    for k, v in passes_ms.items():
+        f = pass_floor(k, floors, gaussians)
+        if f:
+            out[k] = (v, f, v / f)
+    return out
 
 
 @click.command("bench")
@@ -110,7 +136,7 @@ def bench_cmd(scene, techniques, size, irradiance_size, frames, json_out, markdo
 
     with tqdm(total=len(names) * 2 * frames, desc="bench", unit="frame") as bar:
         info, results = run_bench(sc, names, (w, h), irradiance_size, frames, progress=bar.update, device=device)
-    table = markdown_table(info, results, (w, h), irradiance_size)
+    table = markdown_table(info, results, (w, h), irradiance_size, gaussians=sc.profile.k)
     click.echo(table)
     extra = {}
     if accuracy and "tsd" in names:

@@ -1,0 +1,164 @@
+"""The floors of ``dermis bench``: what each kind of pass costs at the least on this machine.
+
+A technique's pass time alone says little (llvmpipe and an NVIDIA GPU differ by 1000x); its ratio
+to the cheapest pass of the same shape, measured in the same run, says how much of the time is
+the technique's own work. Each floor does the same memory traffic as the passes it bounds, with
+no arithmetic:
+
+- ``copy``: one full-screen pass that copies the irradiance texture (RGBA16F, S x S) texel for
+  texel: the floor of one blur pass; a chain of K Gaussians (2K passes) has a floor of 2K copies
+  (``copy_screen``, the same at the output size, bounds screen-space blurs);
+- ``uv_raster``: the mesh rasterised in its UV layout into an S x S RGBA16F target with a constant
+  fragment: the floor of the texture-space irradiance and translucency passes;
+- ``screen_raster``: the mesh rasterised on screen into the frame's multisampled target, depth
+  tested, constant fragment: the floor of a technique's final (screen-space) pass;
+- ``depth_only``: the mesh into a depth-only target of the shadow tile size, once per shadowed
+  light: the floor of the shadow pass.
+"""
+
+from __future__ import annotations
+
+import statistics
+
+import moderngl
+import numpy as np
+
+from dermis.camera import camera_matrices
+from dermis.gl.resources import mat_bytes
+from dermis.gl.shaders import program
+from dermis.techniques.base import PassTimer
+
+
+def _median_ms(timer: PassTimer, name: str, fn, repeats: int) -> float:
+    times = []
+    fn()  # warm-up: shader compile, first allocation
+    for _ in range(repeats):
+        timer.reset()
+        with timer(name):
+            fn()
+        times.append(timer.times_ms[name])
+    return statistics.median(times)
+
+
+def measure_floors(renderer, irradiance_size: int | None = None, repeats: int = 5) -> dict:
+    """Floors in ms for ``renderer``'s scene, output size, samples and shadow tile size.
+
+    Returns {"copy", "copy_screen", "uv_raster", "uv_raster_half", "screen_raster", "depth_only"}
+    (ms per pass: ``copy`` at S x S, ``copy_screen`` at the output size;
+    ``depth_only`` is for all shadowed lights together)."""
+    from dermis.gl.resources import LightUniforms
+
+    ctx = renderer.ctx
+    scene = renderer.scene
+    gpu = renderer.gpu
+    S = int(irradiance_size or renderer.irradiance_size)
+    timer = PassTimer(ctx, True)
+    made = []
+
+    def keep(o):
+        made.append(o)
+        return o
+
+    out = {}
+    # copy: RGBA16F S x S -> RGBA16F S x S
+    p_copy = keep(program(ctx, "common/fullscreen.vert", "bench/copy.frag"))
+    vao_copy = keep(ctx.vertex_array(p_copy, []))
+
+    def copy_pass(w, h):
+        src = keep(ctx.texture((w, h), 4, dtype="f2"))
+        src.write(np.random.default_rng(0).random((h, w, 4)).astype(np.float16).tobytes())
+        fbo = keep(ctx.framebuffer(color_attachments=[keep(ctx.texture((w, h), 4, dtype="f2"))]))
+
+        def run():
+            fbo.use()
+            fbo.viewport = (0, 0, w, h)
+            src.use(0)
+            p_copy["uSource"].value = 0
+            vao_copy.render(moderngl.TRIANGLES, vertices=3)
+        return run, fbo
+
+    copy, fbo_copy = copy_pass(S, S)
+    out["copy"] = _median_ms(timer, "copy", copy, repeats)
+    out["copy_screen"] = _median_ms(timer, "copy_screen", copy_pass(*renderer.size)[0], repeats)
+
+    # texture-space raster, full and half resolution (translucency runs at half)
+    p_uv = keep(program(ctx, "bench/uv_raster.vert", "bench/constant.frag"))
+    vao_uv = gpu.vao(p_uv)
+    half = max(S // 2, 1)
+    dst_half = keep(ctx.texture((half, half), 4, dtype="f2"))
+    fbo_half = keep(ctx.framebuffer(color_attachments=[dst_half]))
+
+    def uv_raster(fbo, n):
+        def run():
+            fbo.use()
+            fbo.viewport = (0, 0, n, n)
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+            vao_uv.render(moderngl.TRIANGLES)
+        return run
+
+    out["uv_raster"] = _median_ms(timer, "uv_raster", uv_raster(fbo_copy, S), repeats)
+    out["uv_raster_half"] = _median_ms(timer, "uv_raster_half", uv_raster(fbo_half, half), repeats)
+
+    # screen raster into a target like the frame's (same size, samples, formats)
+    w, h = renderer.size
+    samples = renderer.samples if renderer.samples > 1 else 0
+    color = keep(ctx.renderbuffer((w, h), 4, samples=samples, dtype="f2"))
+    depth = keep(ctx.depth_renderbuffer((w, h), samples=samples))
+    fbo_screen = keep(ctx.framebuffer(color_attachments=[color], depth_attachment=depth))
+    p_screen = keep(program(ctx, "bench/screen_raster.vert", "bench/constant.frag"))
+    lo, hi = scene.bounds()
+    view, proj, *_ = camera_matrices(scene.camera, w / h, lo, hi)
+    p_screen["uViewProj"].write(mat_bytes(np.asarray(proj) @ np.asarray(view)))
+    vao_screen = gpu.vao(p_screen)
+
+    def screen():
+        fbo_screen.use()
+        fbo_screen.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        vao_screen.render(moderngl.TRIANGLES)
+
+    out["screen_raster"] = _median_ms(timer, "screen_raster", screen, repeats)
+
+    # depth-only raster at the shadow tile size, once per shadowed light
+    T = renderer.shadows.tile_size
+    lights = LightUniforms(scene)
+    shadowed = [i for i, L in enumerate(lights.lights) if L.cast_shadows]
+    dtex = keep(ctx.depth_texture((T, T)))
+    fbo_depth = keep(ctx.framebuffer(depth_attachment=dtex))
+    p_depth = keep(program(ctx, "bench/depth_only.vert"))
+    vao_depth = gpu.vao(p_depth)
+
+    def depth_only():
+        fbo_depth.use()
+        fbo_depth.clear(depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        for i in shadowed:
+            p_depth["uViewProj"].write(mat_bytes(lights.viewproj[i]))
+            vao_depth.render(moderngl.TRIANGLES)
+
+    out["depth_only"] = _median_ms(timer, "depth_only", depth_only, repeats) if shadowed else 0.0
+    ctx.enable(moderngl.DEPTH_TEST)
+    for o in reversed(made):
+        o.release()
+    return out
+
+
+# Which floor bounds each pass of each technique, and how many floor units the pass holds at
+# least. Blur chains: two passes (U, V) per Gaussian of the profile, each at least one copy.
+def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
+    if pass_name == "shadow":
+        return floors["depth_only"] or None
+    if pass_name in ("tsd_irradiance", "ssss_irradiance"):
+        return floors["uv_raster"] if pass_name.startswith("tsd") else floors["screen_raster"]
+    if pass_name == "tsd_translucency":
+        return floors["uv_raster_half"]
+    if pass_name == "tsd_blur":
+        return 2 * gaussians * floors["copy"]
+    if pass_name == "ssss_blur":
+        return 2 * gaussians * floors["copy_screen"]
+    if pass_name in ("tsd_final", "ssss_final", "lambert", "preintegrated"):
+        return floors["screen_raster"]
+    return None
