@@ -41,7 +41,10 @@ MAX_GAUSSIANS = 8
 TRANSLUCENCY_MIN_VARIANCE_MM2 = 0.15  # d'Eon uses Gaussians 3..6 of the skin table (v >= 0.187)
 
 
-OVERLAP_TOLERANCE = 0.01  # fraction of covered texels a UV layout may cover twice
+OVERLAP_TOLERANCE = 0.01
+# A blur step runs at the coarsest level where its sigma is still >= this many texels of that
+# level (and no finer than the step before it).
+LEVEL_MIN_SIGMA_TEXELS = 1.2  # fraction of covered texels a UV layout may cover twice
 
 
 class TextureSpaceDiffusion(Technique):
@@ -54,13 +57,13 @@ class TextureSpaceDiffusion(Technique):
         defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
         self.p_stretch = program(ctx, "tsd/uv_space.vert", "tsd/stretch.frag", defines)
         self.p_irradiance = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines)
-        self.p_blur = program(ctx, "tsd/fullscreen.vert", "tsd/blur.frag", defines)
         self.p_dilate = program(ctx, "tsd/fullscreen.vert", "tsd/dilate.frag", defines)
         self.p_down = program(ctx, "tsd/fullscreen.vert", "tsd/downsample.frag", defines)
         self.p_trans = program(ctx, "tsd/uv_space.vert", "tsd/translucency.frag", defines)
         self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag", defines)
         self.p_combine = program(ctx, "tsd/fullscreen.vert", "tsd/combine.frag", defines)
-        self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_blur, self.p_dilate, self.p_down, self.p_combine)}
+        self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine)}
+        self._blur_programs = {}  # taps per side -> program (blur.frag with TAPS unrolled)
         self.tables = upload_specular_tables(ctx)
         self.multires = multires
         self.max_taps = int(max_taps)
@@ -72,6 +75,7 @@ class TextureSpaceDiffusion(Technique):
         self.tex = {}
         self.levels = []
         self.median_stretch = None
+        self.tap_stretch = None
         self.last_output_mode = 0
 
     # ------------------------------------------------------------------ resources
@@ -159,6 +163,9 @@ class TextureSpaceDiffusion(Technique):
         # one-texel islands' edges: derivatives are unreliable at triangle borders; take the median
         vals = data[cov][:, :2]
         self.median_stretch = float(np.median(vals))
+        # the tap count of each blur pass is set for 90% of the layout; where the stretch is larger the
+        # taps space out (integer steps, Sheppard-corrected bins) instead of every texel paying for more
+        self.tap_stretch = float(np.percentile(vals, 90.0))
         idx = ndimage.distance_transform_edt(~cov, return_distances=False, return_indices=True)
         filled = data[idx[0], idx[1]]
         filled[:, :, 3] = cov.astype(np.float32)
@@ -173,12 +180,11 @@ class TextureSpaceDiffusion(Technique):
         sig = profile.chain_sigmas_mm()
         levels, prev = [], 0
         max_level = max(0, int(math.log2(max(S, 16) / 16)))
-        target = self.max_taps / 6.0
         for s in sig:
             lvl = 0
             if self.multires and self.median_stretch:
                 st = s * self.median_stretch
-                lvl = max(0, math.ceil(math.log2(max(st, 1e-9) / (2.0 * target))))
+                lvl = max(0, math.floor(math.log2(max(st, 1e-9) / LEVEL_MIN_SIGMA_TEXELS)))
             lvl = int(min(max(lvl, prev), max_level))
             levels.append(lvl)
             prev = lvl
@@ -206,14 +212,26 @@ class TextureSpaceDiffusion(Technique):
         self._fullscreen(self.p_down, dst)
         return dst
 
+    def _blur_program(self, sigma_mm, level):
+        """blur.frag compiled with the fewest taps per side that reach 3 sigma at the widest
+        stretch that 90% of the layout has (at most max_taps; wider kernels space their taps further)."""
+        widest = sigma_mm * (self.tap_stretch or self.median_stretch or 1.0) * 2.0 ** -level
+        taps = int(min(max(math.ceil(3.0 * widest), 1), self.max_taps))
+        prog = self._blur_programs.get(taps)
+        if prog is None:
+            prog = program(self.ctx, "common/fullscreen.vert", "tsd/blur.frag",
+                           {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TAPS": taps})
+            self._blur_programs[taps] = prog
+            self.vaos[prog] = self.ctx.vertex_array(prog, [])
+        return prog
+
     def _blur(self, src, stretch, sigma_mm, level, out_key, footprint=False):
         size = src.size
         tmp = self._texture(("tmp", out_key), size)
         out = self._texture(out_key, size)
-        prog = self.p_blur
+        prog = self._blur_program(sigma_mm, level)
         set_uniform(prog, "uSigmaMm", float(sigma_mm))
         set_uniform(prog, "uLevelScale", float(2.0 ** -level))
-        set_uniform(prog, "uMaxTaps", self.max_taps)
         set_uniform(prog, "uFootprint", 1.0 if footprint else 0.0)
         self._bind(prog, "uStretch", stretch, 1)
         set_uniform(prog, "uDirection", (1.0, 0.0))
@@ -223,6 +241,29 @@ class TextureSpaceDiffusion(Technique):
         self._bind(prog, "uSource", tmp, 0)
         self._fullscreen(prog, out)
         return out
+
+    def _blur_chain(self, dil, levels, steps):
+        """I_1..I_K from the dilated irradiance: step k blurs I_(k-1) by variance steps[k] at
+        resolution level levels[k]; the stretch map goes through the same chain (once per mesh)."""
+        chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12)))
+        redo_stretch = chain_key != getattr(self, "_stretch_chain_key", None)
+        src, st = dil, self.tex["stretch_0"]
+        level = 0
+        for k, (lvl, var) in enumerate(zip(levels, steps)):
+            while level < lvl:
+                level += 1
+                src = self._down(src, ("down", k, level), level)
+                if redo_stretch:
+                    st = self._down(st, ("stretch_down", k, level), level)
+                else:
+                    st = self.tex[("stretch_down", k, level)]
+            sigma = math.sqrt(var)
+            if redo_stretch:
+                st = self._blur(st, st, sigma, level, ("stretch", k))
+            else:
+                st = self.tex[("stretch", k)]
+            src = self._blur(src, st, sigma, level, ("blur", k), footprint=(k == 0))
+        self._stretch_chain_key = chain_key
 
     def _profile_uniforms(self, prog, profile, first_unit):
         K = profile.k
@@ -282,26 +323,8 @@ class TextureSpaceDiffusion(Technique):
             self._fullscreen(self.p_dilate, dil)
         frame.passes_run.append("tsd_irradiance")
         # chained blurs of the irradiance and (once per mesh) of the stretch
-        chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12)))
-        redo_stretch = chain_key != getattr(self, "_stretch_chain_key", None)
-        src, st = dil, self.tex["stretch_0"]
-        level = 0
         with timer("tsd_blur"):
-            for k, (lvl, var) in enumerate(zip(levels, steps)):
-                while level < lvl:
-                    level += 1
-                    src = self._down(src, ("down", k, level), level)
-                    if redo_stretch:
-                        st = self._down(st, ("stretch_down", k, level), level)
-                    else:
-                        st = self.tex[("stretch_down", k, level)]
-                sigma = math.sqrt(var)
-                if redo_stretch:
-                    st = self._blur(st, st, sigma, level, ("stretch", k))
-                else:
-                    st = self.tex[("stretch", k)]
-                src = self._blur(src, st, sigma, level, ("blur", k), footprint=(k == 0))
-        self._stretch_chain_key = chain_key
+            self._blur_chain(dil, levels, steps)
         frame.passes_run.append("tsd_blur")
         # translucency (texture space, half resolution)
         trans = self._texture("translucency", (max(S // 2, 1), max(S // 2, 1)))
@@ -381,6 +404,6 @@ class TextureSpaceDiffusion(Technique):
             t.release()
         for v in self.vaos.values():
             v.release()
-        for p in (self.p_stretch, self.p_irradiance, self.p_blur, self.p_dilate, self.p_down, self.p_trans, self.p_final,
-                  self.p_combine):
+        for p in (self.p_stretch, self.p_irradiance, self.p_dilate, self.p_down, self.p_trans, self.p_final,
+                  self.p_combine, *self._blur_programs.values()):
             p.release()

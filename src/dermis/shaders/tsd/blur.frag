@@ -15,7 +15,6 @@ uniform sampler2D uStretch;   // xy = texels per mm along u, v at level 0
 uniform vec2 uDirection;      // (1, 0) = U pass, (0, 1) = V pass
 uniform float uSigmaMm;       // this step's standard deviation, mm
 uniform float uLevelScale;    // texels of this level per level-0 texel (2^-level)
-uniform int uMaxTaps;         // taps per side at most
 uniform float uFootprint;     // 1: integrate over the receiving texel (first step), 0: exact variance
 in vec2 v_uv;
 out vec4 f_color;
@@ -28,30 +27,41 @@ float erf_as(float x) {
     float y = 1.0 - (((((1.061405429 * t - 1.453152027) * t) + 1.421413741) * t - 0.284496736) * t + 0.254829592) * t * exp(-x * x);
     return s * y;
 }
-float bin_weight(float a, float b, float sigma) {  // integral of the unit-area Gaussian over [a, b]
-    return 0.5 * (erf_as(b / (sigma * 1.41421356)) - erf_as(a / (sigma * 1.41421356)));
-}
+
+// TAPS (taps per side, a compile-time constant: the loop unrolls, which matters on CPU
+// rasterisers where a per-pixel loop bound costs more than the taps) is chosen per pass by tsd.py
+// from the widest sigma in the texture. Taps sit on texel centres (integer spacing) and are
+// fetched without filtering. Adjacent bins share an edge, so each tap costs one erf.
+#ifndef TAPS
+#define TAPS 12
+#endif
 
 void main() {
-    vec2 size = vec2(textureSize(uSource, 0));
-    vec4 center = texture(uSource, v_uv);
-    vec2 st = texture(uStretch, v_uv).xy;
+    ivec2 isize = textureSize(uSource, 0);
+    ivec2 ip = ivec2(gl_FragCoord.xy);
+    vec4 center = texelFetch(uSource, ip, 0);
+    vec2 st = texelFetch(uStretch, min(ip, textureSize(uStretch, 0) - 1), 0).xy;
     float sigma = uSigmaMm * dot(st, uDirection) * uLevelScale;  // texels of this level
     if (sigma < 0.05) { f_color = center; return; }
-    float step_ = max(1.0, 3.0 * sigma / float(uMaxTaps));
-    int n = int(min(ceil(3.0 * sigma / step_ - 0.001), float(uMaxTaps)));
-    vec2 dt = uDirection / size * step_;
+    float step_ = max(1.0, ceil(3.0 * sigma / float(TAPS)));
+    int n = int(min(ceil(3.0 * sigma / step_ - 0.001), float(TAPS)));
+    ivec2 dir = ivec2(uDirection) * int(step_);
+    ivec2 imax = isize - 1;
     float sb = sqrt(max(sigma * sigma - (1.0 - uFootprint) * step_ * step_ / 12.0, 0.0025));  // Sheppard
-    sigma = sb;
-    float w0 = bin_weight(-0.5 * step_, 0.5 * step_, sigma);
+    float inv = 1.0 / (sb * 1.41421356);
+    float edge = erf_as(0.5 * step_ * inv);  // erf at the upper edge of the previous bin
+    float w0 = edge;                          // bin 0: [-step/2, step/2]
     vec3 sum = center.rgb * center.a * w0;
     float sum_a = center.a * w0;
     float sum_w = w0;
-    for (int j = 1; j <= n; ++j) {
-        float w = bin_weight((float(j) - 0.5) * step_, (float(j) + 0.5) * step_, sigma);
-        if (j == n) w += 0.5 - bin_weight(0.0, (float(j) + 0.5) * step_, sigma);  // fold the tail in
-        vec4 a = texture(uSource, v_uv + dt * float(j));
-        vec4 b = texture(uSource, v_uv - dt * float(j));
+    for (int j = 1; j <= TAPS; ++j) {
+        float e = erf_as((float(j) + 0.5) * step_ * inv);
+        float w = 0.5 * (e - edge);
+        edge = e;
+        if (j == n) w += 0.5 * (1.0 - e);  // fold the tail in
+        w = j <= n ? w : 0.0;
+        vec4 a = texelFetch(uSource, clamp(ip + dir * j, ivec2(0), imax), 0);
+        vec4 b = texelFetch(uSource, clamp(ip - dir * j, ivec2(0), imax), 0);
         sum += w * (a.rgb * a.a + b.rgb * b.a);
         sum_a += w * (a.a + b.a);
         sum_w += 2.0 * w;
