@@ -368,3 +368,38 @@ def test_gpu_objects_stay_constant_over_200_frames_of_changes(xvfb_display, box_
     assert counts[0]["texture"] > 10 and counts[0]["framebuffer"] > 5 and counts[0]["program"] > 3
     for c in counts[1:]:
         assert c == counts[0], f"GPU objects grew: {counts}"
+
+
+def test_progressive_frames_while_dragging_then_the_full_frame(xvfb_display, sphere_toml, tmp_path):
+    """While input is active the viewer draws reduced frames (smaller output; a light drag re-runs
+    the texture space on the small interactive renderer); the first frame without input is the
+    full frame, equal to the headless render of that view."""
+    import dermis
+    from dermis.output import output_transform
+    from dermis.viewer.camera_controls import OrbitCamera
+
+    script = {"actions": [{"frame": f, "orbit": [40, -5]} for f in (1, 2, 3)] +
+                         [{"frame": 4, "screenshot": "refined.png"}] +
+                         [{"frame": f, "light_drag": [30, 0]} for f in (6, 7)], "quit_after": 10}
+    res, report = run_viewer(xvfb_display, sphere_toml, script, tmp_path)
+    q = report["quality"]
+    assert q == ["full", "interactive", "interactive", "interactive", "full", "idle",
+                 "interactive", "interactive", "full", "idle"], q
+    for f in (1, 2, 3, 6, 7):
+        w, h = report["render_size"][f]
+        assert w < WINDOW[0] and h < WINDOW[1], report["render_size"]
+    for f in (0, 4, 8):
+        assert report["render_size"][f] == list(WINDOW)
+    # orbiting reuses the full renderer's texture space; a light drag re-runs it on the small one
+    assert all(report["passes_run"][f] == ["tsd_final"] for f in (1, 2, 3))
+    assert [report["texture_space"][f] for f in (6, 7)] == ["fast", "fast"]
+    assert "tsd_irradiance" in report["passes_run"][6]
+    assert "tsd_irradiance" in report["passes_run"][8] and report["texture_space"][8] == "full"
+    # the refined frame is the headless render of the orbited view
+    scene = dermis.load_scene(sphere_toml)
+    oc = OrbitCamera.from_camera(scene.camera, float(np.linalg.norm(np.subtract(*scene.bounds()[::-1])) / 2))
+    for _ in range(3):
+        oc.orbit(40, -5)
+    expected, sc = _offline(sphere_toml, "tsd", oc.camera())
+    want = output_transform(expected, sc.output.exposure, sc.output.tonemap)
+    assert np.abs(_read_png(tmp_path / "refined.png") - want).mean() < 2.0 / 255

@@ -117,17 +117,30 @@ def floor_ratios(passes_ms: dict, floors: dict, gaussians: int) -> dict:
 @click.option("--markdown", default=None, help="Write the table as Markdown.")
 @click.option("--accuracy/--no-accuracy", default=True, help="Also measure tsd's impulse error with and without reduced-resolution blurs.")
 @click.option("--device", type=int, default=None)
-def bench_cmd(scene, techniques, size, irradiance_size, frames, json_out, markdown, accuracy, device):
+@click.option("--viewer", is_flag=True, help="Measure the interactive viewer instead (a scripted session in a real "
+              "window, 960x640 unless --size is given; needs a display: xvfb-run -a dermis bench --viewer).")
+def bench_cmd(scene, techniques, size, irradiance_size, frames, json_out, markdown, accuracy, device, viewer):
     """Time every technique on the real head (default) relative to lambert."""
     import dermis
     import dermis.verification
     from dermis.cli import parse_size, write_json_atomic
     from dermis.techniques import technique_names
 
-    w, h = parse_size(size)
     path = scene or HEAD_TOML
     if scene is None and not Path(path).is_file():
         raise DermisError(f"{path}: the benchmark scene is missing")
+    if viewer:
+        w, h = parse_size(size) if size != "1024x1024" else (960, 640)
+        table, data = viewer_table(path, (w, h), irradiance_size if irradiance_size != 1024 else 512)
+        click.echo(table)
+        if json_out:
+            write_json_atomic(json_out, data)
+        if markdown:
+            from dermis.images import atomic_write
+
+            atomic_write(markdown, lambda tmp: Path(tmp).write_text(table + "\n"))
+        return
+    w, h = parse_size(size)
     sc = dermis.load_scene(path)
     names = techniques.split(",") if techniques else technique_names()
     if "lambert" not in names:
@@ -153,3 +166,22 @@ def bench_cmd(scene, techniques, size, irradiance_size, frames, json_out, markdo
 
         text = table + ("\n\n" + json.dumps(extra) if extra else "") + "\n"
         atomic_write(markdown, lambda tmp: Path(tmp).write_text(text))
+
+
+def viewer_table(path, size, irradiance_size):
+    """The viewer bench with progressive rendering on and off, in one run."""
+    import dermis
+    from dermis.viewer.bench import viewer_bench
+
+    runs = {}
+    for progressive in (True, False):
+        runs["progressive" if progressive else "full every frame"] = viewer_bench(
+            dermis.load_scene(path), size, irradiance_size=irradiance_size, progressive=progressive)
+    first = next(iter(runs.values()))
+    lines = [f"Viewer: {first['renderer']}; window {size[0]}x{size[1]}, irradiance {irradiance_size}^2, tsd, panel on", "",
+             "| mode | orbit fps | light drag fps | full quality after orbit (ms) | after light drag (ms) |",
+             "|---|---|---|---|---|"]
+    for name, r in runs.items():
+        lines.append(f"| {name} | {r['orbit']['fps']:.1f} | {r['light_drag']['fps']:.1f} | "
+                     f"{r['full_after_orbit_ms']:.0f} | {r['full_after_light_ms']:.0f} |")
+    return "\n".join(lines), runs

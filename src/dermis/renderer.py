@@ -81,6 +81,7 @@ class Renderer:
         self._techniques = {}
         self._targets = None
         self._targets_size = None
+        self._target_sets = {}  # size -> targets: the previous size's, kept for reuse
         self.scene = None
         self.gpu = None
         self._shadow_key = None
@@ -128,9 +129,19 @@ class Renderer:
 
     # ------------------------------------------------------------------ targets
     def _ensure_targets(self, size):
+        """The frame's render targets at ``size``. The two most recent sizes are kept (the viewer
+        alternates between a reduced size while dragging and the full one)."""
         if self._targets_size == size:
             return
-        self._release_targets()
+        kept = self._target_sets.pop(size, None)
+        if self._targets is not None:
+            self._target_sets[self._targets_size] = self._targets
+        while len(self._target_sets) > 1:
+            old = self._target_sets.pop(next(iter(self._target_sets)))
+            self._release_target_set(old)
+        if kept is not None:
+            self._targets, self._targets_size = kept, size
+            return
         w, h = size
         ctx = self.ctx
         if self.samples > 1:
@@ -146,11 +157,17 @@ class Renderer:
                          "readback": np.empty((h, w, 4), np.float32)}
         self._targets_size = size
 
+    @staticmethod
+    def _release_target_set(targets):
+        for k, o in targets.items():
+            if k != "readback":
+                o.release()
+
     def _release_targets(self):
-        if self._targets:
-            for k, o in self._targets.items():
-                if k != "readback":
-                    o.release()
+        for t in [self._targets, *self._target_sets.values()]:
+            if t:
+                self._release_target_set(t)
+        self._target_sets = {}
         self._targets = None
         self._targets_size = None
 

@@ -52,7 +52,7 @@ class ShadowAtlas:
         if max(size) > limit:
             raise DermisError(f"--shadow-size {self.tile_size}: {n_lights} lights need a {size[0]}x{size[1]} shadow atlas, "
                               f"over this GPU's texture limit of {limit}; use a smaller --shadow-size")
-        self.release()
+        self._release_targets()
         self._size = size
         self.depth = self.ctx.depth_texture(size)
         self.depth.compare_func = "<="
@@ -108,9 +108,15 @@ class ShadowAtlas:
         set_uniform(prog, "uShadowTile", self.tiles)
         set_uniform(prog, "uShadowParams", self.params)
 
-    def release(self):
+    def _release_targets(self):
         for o in (self.fbo, self.depth, self.aux):
             if o is not None:
                 o.release()
         self.fbo = self.depth = self.aux = None
         self._size = None
+
+    def release(self):
+        self._release_targets()
+        if self.prog is not None:
+            self.prog.release()
+            self.prog = None

@@ -44,7 +44,10 @@ TRANSLUCENCY_MIN_VARIANCE_MM2 = 0.15  # d'Eon uses Gaussians 3..6 of the skin ta
 OVERLAP_TOLERANCE = 0.01
 # A blur step runs at the coarsest level where its sigma is still >= this many texels of that
 # level (and no finer than the step before it).
-LEVEL_MIN_SIGMA_TEXELS = 1.2  # fraction of covered texels a UV layout may cover twice
+LEVEL_MIN_SIGMA_TEXELS = 1.2
+# the unrolled blur programs compiled up front (taps per side); a pass uses the smallest that
+# reaches 3 sigma
+BLUR_TAP_COUNTS = (2, 3, 4, 6, 8, 12)  # fraction of covered texels a UV layout may cover twice
 
 
 class TextureSpaceDiffusion(Technique):
@@ -64,6 +67,9 @@ class TextureSpaceDiffusion(Technique):
         self.p_combine = program(ctx, "tsd/fullscreen.vert", "tsd/combine.frag", defines)
         self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine)}
         self._blur_programs = {}  # taps per side -> program (blur.frag with TAPS unrolled)
+        for taps in BLUR_TAP_COUNTS:
+            if taps <= max_taps:
+                self._compile_blur(taps)
         self.tables = upload_specular_tables(ctx)
         self.multires = multires
         self.max_taps = int(max_taps)
@@ -216,13 +222,18 @@ class TextureSpaceDiffusion(Technique):
         """blur.frag compiled with the fewest taps per side that reach 3 sigma at the widest
         stretch that 90% of the layout has (at most max_taps; wider kernels space their taps further)."""
         widest = sigma_mm * (self.tap_stretch or self.median_stretch or 1.0) * 2.0 ** -level
-        taps = int(min(max(math.ceil(3.0 * widest), 1), self.max_taps))
+        need = min(math.ceil(3.0 * widest), self.max_taps)
+        taps = next((t for t in BLUR_TAP_COUNTS if t >= need), BLUR_TAP_COUNTS[-1])
+        taps = min(taps, self.max_taps)
         prog = self._blur_programs.get(taps)
-        if prog is None:
-            prog = program(self.ctx, "common/fullscreen.vert", "tsd/blur.frag",
-                           {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TAPS": taps})
-            self._blur_programs[taps] = prog
-            self.vaos[prog] = self.ctx.vertex_array(prog, [])
+        if prog is None:  # max_taps outside the precompiled set
+            prog = self._compile_blur(taps)
+        return prog
+
+    def _compile_blur(self, taps):
+        prog = program(self.ctx, "common/fullscreen.vert", "tsd/blur.frag", {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TAPS": taps})
+        self._blur_programs[taps] = prog
+        self.vaos[prog] = self.ctx.vertex_array(prog, [])
         return prog
 
     def _blur(self, src, stretch, sigma_mm, level, out_key, footprint=False):

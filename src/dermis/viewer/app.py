@@ -58,7 +58,8 @@ class Viewer:
     returns a report: frames drawn, frame times, screenshots written, GPU object counts."""
 
     def __init__(self, scene, size=(960, 640), *, irradiance_size: int = 512, samples: int = 4, script=None,
-                 show_gui: bool = True, screenshot_dir=".", title: str | None = None, vsync: bool | None = None):
+                 show_gui: bool = True, screenshot_dir=".", title: str | None = None, vsync: bool | None = None,
+                 progressive: bool = True, interactive_ms: float = 80.0):
         from dermis.renderer import Renderer, check_size
 
         check_display()
@@ -96,6 +97,9 @@ class Viewer:
             self.renderer = Renderer(scene, self.framebuffer_size(), ctx=self.ctx, samples=samples,
                                      irradiance_size=self.params.irradiance_size)
             self.presenter = Presenter(self.ctx)
+            from dermis.viewer.progressive import ProgressiveRenderer
+
+            self.progressive = ProgressiveRenderer(self.renderer, target_ms=interactive_ms, enabled=progressive)
         except BaseException:
             self._terminate()
             raise
@@ -123,7 +127,8 @@ class Viewer:
         self._idle = False
         self._view_key = None
         self._last_stats = {}
-        self.report = {"frames": 0, "frame_ms": [], "render_ms": [], "passes_run": [], "screenshots": [],
+        self.report = {"frames": 0, "frame_ms": [], "render_ms": [], "passes_run": [], "quality": [], "render_size": [],
+                       "texture_space": [], "screenshots": [],
                        "resources": [], "renderer": self.renderer.info.get("renderer")}
         self.last_image = None  # what the window shows, linear (H, W, 3)
         self._install_callbacks()
@@ -286,11 +291,25 @@ class Viewer:
         exposure, tonemap = self._display_transform()
         return output_transform(self.last_image, exposure, tonemap)
 
+    def refine_now(self):
+        """Replace a reduced (interactive) image by the full frame of the same view."""
+        if self.last_image is None or self.progressive.quality == "full" or self.params.buffer != "final":
+            return
+        img = self.progressive.render(self.params.technique, self.framebuffer_size(), self.orbit.camera(),
+                                      interactive=False)
+        if getattr(self.scene.output, "bloom", 0.0) > 0:
+            from dermis.output import bloom
+
+            img = bloom(img, self.scene.output.bloom, self.scene.output.bloom_radius)
+        self.last_image = img
+        self._last_stats = dict(self.progressive.stats)
+
     def save_screenshot(self, path=None) -> Path:
         from dermis.images import write_png
 
         if self.last_image is None:
             raise DermisError("no frame to save yet")
+        self.refine_now()  # a screenshot is always the full frame
         if path is None:
             self.screenshot_dir.mkdir(parents=True, exist_ok=True)
             path = self.screenshot_dir / time.strftime("dermis-%Y%m%d-%H%M%S.png")
@@ -375,13 +394,19 @@ class Viewer:
         self.editor.apply(self.params)
         fb = self.framebuffer_size()
         view_key = (self.orbit.state(), dataclasses.astuple(self.params), fb, self.renderer.lighting_key())
-        self._idle = view_key == self._view_key and self.last_image is not None
+        changed = view_key != self._view_key or self.last_image is None
+        # progressive: a reduced frame while input is active, the full frame once it stops (a
+        # script's input is its actions: the first frame without any refines)
+        refine = not changed and (self.progressive.quality != "full" if scripted else
+                                  self.progressive.needs_refine(input_held=self._drag is not None))
+        self._idle = not changed and not refine
         if self._idle:  # the same view: show the last image again (the panel may still change)
             stats = dict(self._last_stats, passes_run=[])
             shown = self.last_image
         else:
-            img = self.renderer.render(self.params.technique, size=fb, camera=self.orbit.camera())
-            stats = dict(self.renderer.stats)
+            interactive = changed and self.last_image is not None and self.params.buffer == "final"
+            img = self.progressive.render(self.params.technique, fb, self.orbit.camera(), interactive=interactive)
+            stats = dict(self.progressive.stats)
             shown = img
             if self.params.buffer != "final":
                 b = self._buffer_image(self.params.buffer)
@@ -422,6 +447,9 @@ class Viewer:
         self.report["frame_ms"].append(round(frame_ms, 3))
         self.report["render_ms"].append(round(float(stats.get("frame_ms", 0.0)), 3))
         self.report["passes_run"].append(stats.get("passes_run", []))
+        self.report["quality"].append("idle" if self._idle else stats.get("quality", "full"))
+        self.report["render_size"].append(list(stats.get("size", fb)))
+        self.report["texture_space"].append(stats.get("renderer", "full"))
         if not self._idle:
             self._last_frame_ms = frame_ms
         if self._want_screenshot:
@@ -445,6 +473,7 @@ class Viewer:
         self._gui_time = now
         imgui.new_frame()
         status = {"frame_ms": getattr(self, "_last_frame_ms", frame_ms), "render_ms": stats.get("frame_ms", 0.0),
+                  "quality": stats.get("quality", "full"), "scale": stats.get("scale", 1.0),
                   "passes_run": stats.get("passes_run", []), "gpu_objects": self.gpu_objects.total(),
                   "profile_busy": self.profiles.busy, "profile_note": self._profile_note, "message": self._message}
         changes, actions = self.panel.draw(self.params, status)
@@ -490,6 +519,7 @@ class Viewer:
         if self.gui is not None:
             self.gui.release()
         self.presenter.release()
+        self.progressive.release()
         self.renderer.release()
         self.ctx.release()
         self.glfw.destroy_window(self.window)

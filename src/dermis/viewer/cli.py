@@ -26,7 +26,9 @@ def _irradiance(n: int) -> int:
               help="JSON file of scripted per-frame actions (see dermis.viewer.script).")
 @click.option("--no-gui", is_flag=True, help="Start with the panel hidden (Tab shows it).")
 @click.option("--screenshot-dir", default=".", show_default=True, help="Folder for screenshots taken with S.")
-def view_cmd(scene, technique, size, irradiance_size, samples, script_path, no_gui, screenshot_dir):
+@click.option("--progressive/--no-progressive", default=True, show_default=True,
+              help="Reduced frames while dragging, the full frame when input stops.")
+def view_cmd(scene, technique, size, irradiance_size, samples, script_path, no_gui, screenshot_dir, progressive):
     """Open SCENE in an interactive window: orbit, light, skin and output controls, buffer views.
 
     Left-drag orbits, shift-drag or middle-drag pans, the wheel zooms, right-drag moves the
@@ -45,7 +47,7 @@ def view_cmd(scene, technique, size, irradiance_size, samples, script_path, no_g
     sc = scene_from_arg(scene, technique)
     technique_class(sc.technique)
     report = view(sc, (w, h), irradiance_size=irradiance_size, samples=samples, script=script, show_gui=not no_gui,
-                  screenshot_dir=screenshot_dir)
+                  screenshot_dir=screenshot_dir, progressive=progressive)
     if script is not None:
         click.echo(f"viewer: {report['frames']} frames, {len(report['screenshots'])} screenshots")
 

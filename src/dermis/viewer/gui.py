@@ -246,6 +246,11 @@ class Panel:
         imgui.begin("dermis")
         imgui.push_item_width(-120)  # room for the labels
         imgui.text(f"frame {status.get('frame_ms', 0):6.1f} ms   render {status.get('render_ms', 0):6.1f} ms")
+        fps = 1e3 / max(status.get("frame_ms", 0) or 1e-3, 1e-3)
+        if status.get("quality", "full") == "full":
+            imgui.text_disabled(f"{fps:5.1f} fps   full quality")
+        else:
+            imgui.text_disabled(f"{fps:5.1f} fps   interactive ({status.get('scale', 1.0):.2f}x), refining when input stops")
         imgui.text_disabled(f"ran: {', '.join(status.get('passes_run', [])) or '-'}")
         imgui.text_disabled(f"GPU objects: {status.get('gpu_objects', '?')}")
 

@@ -1,0 +1,105 @@
+"""Progressive rendering for the viewer: cheap frames while the user drags, the full frame after.
+
+On a CPU rasteriser a full tsd frame of the head costs about a second when the lights move and
+a few hundred ms when only the camera does, far from interactive. While input is active the
+viewer therefore draws *interactive* frames, and when input stops it draws one *full* frame:
+
+- interactive, camera or output changed: the full-quality renderer (its texture-space passes are
+  cached on the lighting key, so only the final pass runs) at a reduced output size;
+- interactive, lighting changed (light drag, skin or material sliders): a second, small renderer
+  (irradiance and shadow textures at a fraction of the full size, no MSAA) at a reduced output
+  size: every view-independent pass re-runs, on 1/16 of the texels;
+- full: the full-quality renderer at the window's size: the same image ``dermis render`` makes
+  of that view with the same settings.
+
+The reduced output size adapts: after each interactive frame the scale moves one step (of 1/8)
+towards the one that would have met ``target_ms``, so the frame rate holds on slow and fast
+machines alike without flickering between sizes.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+SCALE_STEPS = (0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0)
+FAST_IRRADIANCE = 256  # texels per side of the interactive renderer's texture space (at most)
+FAST_SHADOW = 512      # shadow tile size of the interactive renderer
+REFINE_AFTER_S = 0.2   # an interactive session refines this long after the last input
+
+
+class ProgressiveRenderer:
+    """Chooses and renders each frame's quality. ``render(view_changed, ...)`` returns the image
+    and the quality it was drawn at: "interactive" or "full"."""
+
+    def __init__(self, full, *, target_ms: float = 80.0, start_scale: float = 0.5, enabled: bool = True):
+        self.full = full          # the Renderer whose frames are the reference
+        self.fast = None          # created on the first lighting change
+        self.target_ms = float(target_ms)
+        self.scale_index = SCALE_STEPS.index(min(SCALE_STEPS, key=lambda s: abs(s - start_scale)))
+        self.enabled = enabled
+        self.quality = "full"     # of the image last drawn
+        self._full_lighting = None  # lighting key the full renderer's texture space holds
+        self.last_input_time = -math.inf
+        self.stats = {}
+
+    @property
+    def scale(self) -> float:
+        return SCALE_STEPS[self.scale_index]
+
+    def _fast_renderer(self):
+        from dermis.renderer import Renderer
+
+        full = self.full
+        irr = min(FAST_IRRADIANCE, full.irradiance_size)
+        if self.fast is None or self.fast.irradiance_size != irr:
+            if self.fast is not None:
+                self.fast.release()
+            self.fast = Renderer(full.scene, full.size, ctx=full.ctx, samples=0, irradiance_size=irr,
+                                 shadow_size=min(FAST_SHADOW, full.shadows.tile_size))
+        elif self.fast.scene is not full.scene:
+            self.fast.set_scene(full.scene)
+        return self.fast
+
+    def needs_refine(self, now: float | None = None, input_held: bool = False) -> bool:
+        """Whether the last image is a reduced one that should now be replaced by the full frame."""
+        if self.quality == "full":
+            return False
+        now = time.perf_counter() if now is None else now
+        return not input_held and now - self.last_input_time >= REFINE_AFTER_S
+
+    def render(self, technique: str, size, camera, *, interactive: bool):
+        """Render one frame; ``interactive`` asks for a reduced frame (input is active)."""
+        full = self.full
+        if interactive and self.enabled:
+            self.last_input_time = time.perf_counter()
+            w, h = size
+            small = (max(1, int(round(w * self.scale))), max(1, int(round(h * self.scale))))
+            lighting = full.lighting_key()
+            r = full if lighting == self._full_lighting else self._fast_renderer()
+            img = r.render(technique, size=small, camera=camera)
+            self._adapt(r.stats["frame_ms"])
+            self.stats = dict(r.stats, quality="interactive", scale=self.scale,
+                              renderer="full" if r is full else "fast")
+            self.quality = "interactive"
+            return img
+        img = full.render(technique, size=size, camera=camera)
+        self._full_lighting = full.lighting_key()
+        self.stats = dict(full.stats, quality="full", scale=1.0, renderer="full")
+        self.quality = "full"
+        return img
+
+    def _adapt(self, frame_ms: float):
+        """One step of the output scale towards the one that would have met target_ms
+        (time ~ pixels ~ scale^2)."""
+        want = self.scale * math.sqrt(self.target_ms / max(frame_ms, 1e-3))
+        if want < self.scale * 0.9 and self.scale_index > 0:
+            self.scale_index -= 1
+        elif want > SCALE_STEPS[min(self.scale_index + 1, len(SCALE_STEPS) - 1)] * 1.1 \
+                and self.scale_index < len(SCALE_STEPS) - 1:
+            self.scale_index += 1
+
+    def release(self):
+        if self.fast is not None:
+            self.fast.release()
+            self.fast = None
