@@ -108,7 +108,7 @@ def test_no_light_bleeds_across_a_depth_discontinuity(gl_ctx):
         irr = np.repeat(near[:, :, None].astype(np.float32), 3, axis=2)
         ssss.screen_space(r.last_frame, irradiance=irr)
         out = ssss.scattered()
-        ssss.follow_surface = False
+        r.technique("ssss", follow_surface=False)
         ssss.screen_space(r.last_frame, irradiance=irr)
         naive = ssss.scattered()
     edge = int(np.argmax(~near[S // 2]))  # first far column on the middle row
