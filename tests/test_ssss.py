@@ -151,11 +151,11 @@ def test_transmittance_through_a_slab(gl_ctx):
     """A slab lit from behind: the light reaching the front falls with the shadow map's thickness d
     as sum over the wide Gaussians of w_k exp(-d^2 / 2 v_k) (Jimenez et al. 2010 with the profile's
     Gaussians; the same falloff as tsd's translucency), within 5% + 1e-4, and glows red."""
-    from dermis.techniques.ssss import translucency_min_variance_mm2
+    from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
 
     profile = dermis.profiles.deon_skin()
     w, v = profile.normalized().weights, profile.variances_mm2
-    wide = v >= translucency_min_variance_mm2()
+    wide = v >= TRANSLUCENCY_MIN_VARIANCE_MM2
     measured, expected = [], []
     r = None
     try:

@@ -10,7 +10,7 @@ from dermis.renderer import Renderer
 from dermis.scene.builtin import cylinder_seam
 from dermis.scene.loaders import finish_mesh
 from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial
-from dermis.techniques.tsd import TRANSLUCENCY_MIN_VARIANCE_MM2
+from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
 from dermis.verification import backlit_slab_scene
 
 

@@ -7,14 +7,14 @@ edit is seen and a new array with equal values is not a change), a scalar's is i
 uses ``id()``, which an unrelated object can reuse once the first is garbage-collected.
 
 Checking content costs a pass over the bytes each frame (a CRC-32 reads 0.5-1 GB/s on one CPU
-core). Arrays that cannot change, i.e. read-only arrays
-(``a.flags.writeable = False``) whose bases are read-only too, are checksummed once and remembered.
+core: about 15-30 ms for the head's three 1024^2 float maps). Remembering the checksum of a
+read-only array would not be sound: its flag can be turned back on, the array edited and the flag
+turned off again between two frames.
 """
 
 from __future__ import annotations
 
 import hashlib
-import weakref
 import zlib
 
 import numpy as np
@@ -33,33 +33,13 @@ PRODUCTS = {
 }
 """Every cached product and what it depends on. "epoch" is bumped by Renderer.invalidate()."""
 
-_MEMO: dict = {}  # id -> (weakref to a read-only array, checksum); the weakref guards against reuse
-
-
-def _frozen(a: np.ndarray) -> bool:
-    while isinstance(a, np.ndarray):
-        if a.flags.writeable:
-            return False
-        a = a.base
-    return True
-
-
 def fingerprint(a) -> tuple | None:
     """Content key of an array (or None): shape, dtype and a CRC-32 of its bytes."""
     if a is None:
         return None
     a = np.asarray(a)
-    frozen = _frozen(a)
-    if frozen:
-        hit = _MEMO.get(id(a))
-        if hit is not None and hit[0]() is a:
-            return hit[1]
     data = a if a.flags.c_contiguous else np.ascontiguousarray(a)
-    key = (a.shape, a.dtype.str, zlib.crc32(memoryview(data).cast("B")))
-    if frozen:
-        i = id(a)
-        _MEMO[i] = (weakref.ref(a, lambda _r, i=i: _MEMO.pop(i, None)), key)
-    return key
+    return (a.shape, a.dtype.str, zlib.crc32(memoryview(data).cast("B")))
 
 
 def _texture(t):

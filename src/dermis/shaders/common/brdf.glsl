@@ -82,7 +82,7 @@ float ks_skin_specular(vec3 N, vec3 L, vec3 V, float m, float rho_s, sampler2D b
 }
 
 // d'Eon & Luebke 2007, section 14.3: specular albedo a(cos, m) = integral of ks_skin_specular (rho_s = 1)
-// over the hemisphere, from the table (s axis sqrt(cos)). Energy left for diffuse: 1 - rho_s * a,
+// over the hemisphere, from the table (s axis sqrt(cos)). Energy left for diffuse: 1 - rho_s * a / pi,
 // with cosTheta = N.L for light entering the skin and N.V for light leaving it.
 float rho_dt_lookup(sampler2D rhoDtTex, float cosTheta, float m) {
     float x = sqrt(clamp(cosTheta, 0.0, 1.0));
