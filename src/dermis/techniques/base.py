@@ -121,6 +121,18 @@ class TechniqueOptions:
         pass
 
 
+@dataclass(frozen=True)
+class TranslucentOptions(TechniqueOptions):
+    """Options of the techniques that carry light through thin parts (tsd, ssss, preintegrated)."""
+
+    translucency: bool = True  # light through thin parts from the (translucent) shadow maps
+    translucency_strength: float = 1.0  # 1 = physical
+
+    def validate(self, technique: str) -> None:
+        check_bool(f"{technique}: translucency", self.translucency)
+        check_float(f"{technique}: translucency_strength", self.translucency_strength)
+
+
 class Technique:
     name = ""
     description = ""

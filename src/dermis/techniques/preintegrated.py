@@ -51,7 +51,7 @@ from dermis.gl.resources import set_uniform
 from dermis.gl.shaders import program
 from dataclasses import dataclass
 
-from dermis.techniques.base import Frame, Technique, TechniqueOptions, check_bool, check_choice, check_float, draw_mesh
+from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, casts_translucency,
                                       set_profile_uniforms, surface_detail_uniforms, translucency_uniforms)
 
@@ -263,19 +263,16 @@ def _table_texture(ctx, table: np.ndarray):
 
 # ---------------------------------------------------------------------- the technique
 @dataclass(frozen=True)
-class PreintegratedOptions(TechniqueOptions):
+class PreintegratedOptions(TranslucentOptions):
     curvature_source: str = "mesh"  # "mesh": per-vertex curvature; "derivatives": Penner's fwidth
     blurred_normals: bool = True  # per-channel normal-map mip levels
     penumbra_scattering: bool = True  # the penumbra table (else plain PCF)
-    translucency: bool = True  # light through thin parts from the shadow map's thickness
-    translucency_strength: float = 1.0  # 1 = physical
 
     def validate(self, technique: str) -> None:
+        super().validate(technique)
         check_choice(f"{technique}: curvature_source", self.curvature_source, ("mesh", "derivatives"))
         check_bool(f"{technique}: blurred_normals", self.blurred_normals)
         check_bool(f"{technique}: penumbra_scattering", self.penumbra_scattering)
-        check_bool(f"{technique}: translucency", self.translucency)
-        check_float(f"{technique}: translucency_strength", self.translucency_strength)
 
 
 class PreintegratedSkin(Technique):

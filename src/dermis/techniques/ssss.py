@@ -42,7 +42,7 @@ from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
 from dataclasses import dataclass
 
-from dermis.techniques.base import Frame, Technique, TechniqueOptions, check_bool, check_float, check_int, draw_mesh
+from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
                                       casts_translucency, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
@@ -57,19 +57,16 @@ def view_z_row(view: np.ndarray) -> tuple:
 
 
 @dataclass(frozen=True)
-class SsssOptions(TechniqueOptions):
+class SsssOptions(TranslucentOptions):
     max_taps: int = MAX_TAPS  # taps per side of each blur
     depth_cutoff_mm: float = DEPTH_CUTOFF_MM  # taps across a larger depth jump are rejected
     follow_surface: bool = True  # weight taps by the 3-D distance and reject depth jumps
-    translucency: bool = True  # light through thin parts from the shadow map's thickness
-    translucency_strength: float = 1.0  # 1 = physical
 
     def validate(self, technique: str) -> None:
+        super().validate(technique)
         check_int(f"{technique}: max_taps", self.max_taps, 1, 512)
         check_float(f"{technique}: depth_cutoff_mm", self.depth_cutoff_mm)
         check_bool(f"{technique}: follow_surface", self.follow_surface)
-        check_bool(f"{technique}: translucency", self.translucency)
-        check_float(f"{technique}: translucency_strength", self.translucency_strength)
 
 
 class ScreenSpaceSSS(Technique):

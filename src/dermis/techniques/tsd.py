@@ -36,8 +36,7 @@ from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
 from dataclasses import dataclass
 
-from dermis.techniques.base import (Frame, Technique, TechniqueOptions, bind_scene, check_bool, check_float, check_int,
-                                    draw_mesh)
+from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
                                       casts_translucency, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
@@ -46,17 +45,14 @@ OVERLAP_TOLERANCE = 0.01  # fraction of covered texels a UV layout may cover twi
 
 
 @dataclass(frozen=True)
-class TsdOptions(TechniqueOptions):
+class TsdOptions(TranslucentOptions):
     multires: bool = True  # wide Gaussians blurred at half or quarter resolution
     max_taps: int = 12  # taps per side of a blur at the resolution it runs at
-    translucency: bool = True  # light through thin parts from the translucent shadow maps
-    translucency_strength: float = 1.0  # 1 = physical
 
     def validate(self, technique: str) -> None:
+        super().validate(technique)
         check_bool(f"{technique}: multires", self.multires)
         check_int(f"{technique}: max_taps", self.max_taps, 1, 64)
-        check_bool(f"{technique}: translucency", self.translucency)
-        check_float(f"{technique}: translucency_strength", self.translucency_strength)
 
 
 class TextureSpaceDiffusion(Technique):
