@@ -129,9 +129,6 @@ class ScreenSpaceSSS(Technique):
         self.tex = {}
         self._targets_key = None
 
-    def scene_changed(self):
-        pass  # nothing is cached across frames
-
     # ------------------------------------------------------------------ passes
     def _kernel_uniforms(self, prog, frame: Frame, axis: int):
         size = frame.size
