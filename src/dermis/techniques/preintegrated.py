@@ -43,14 +43,13 @@ Shaders: shaders/preintegrated/skin.frag.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import moderngl
 import numpy as np
 
 from dermis.gl.resources import set_uniform
 from dermis.gl.shaders import program
-from dataclasses import dataclass
-
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, casts_translucency,
                                       set_profile_uniforms, surface_detail_uniforms, translucency_uniforms)

@@ -27,6 +27,7 @@ Shaders: shaders/tsd/*.glsl; specular in shaders/common/brdf.glsl.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import moderngl
 import numpy as np
@@ -34,8 +35,6 @@ import numpy as np
 from dermis.errors import DermisError
 from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
-from dataclasses import dataclass
-
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
                                       casts_translucency, set_profile_uniforms, surface_detail_uniforms,
