@@ -1,4 +1,4 @@
-"""Pre-integrated skin (issue 5): its tables against independent numpy integrations, zero
+"""Pre-integrated skin: its tables against independent numpy integrations, zero
 curvature and energy on flat regions, mesh curvature, and the real head."""
 
 from __future__ import annotations
@@ -188,7 +188,7 @@ def test_curvature_of_a_sphere_from_the_mesh_and_from_derivatives(gl_ctx):
     assert abs(np.median(k[~poles]) * 20.0 - 1.0) < 0.01, np.median(k[~poles])
     with Renderer(sc, (96, 96), ctx=gl_ctx, samples=0) as r:
         mesh_img = r.render("preintegrated", output_mode=3)[:, :, 0]
-        r.technique("preintegrated").curvature_source = "derivatives"
+        r.technique("preintegrated", curvature_source="derivatives")
         deriv_img = r.render("preintegrated", output_mode=3)[:, :, 0]
     disc = mesh_img > 0.0
     disc[:, :] &= np.hypot(*np.mgrid[-48:48, -48:48]) < 25  # away from the silhouette
@@ -209,7 +209,7 @@ def test_flat_regions_conserve_energy_and_use_clamped_ndotl(gl_ctx):
     E = 2.5
     with Renderer(sc, (64, 64), ctx=gl_ctx, samples=0) as r:
         for source in ("mesh", "derivatives"):
-            r.technique("preintegrated").curvature_source = source
+            r.technique("preintegrated", curvature_source=source)
             for theta in (0.0, 50.0, 75.0):
                 t = math.radians(theta)
                 sc.lights[0].direction = (math.sin(t), 0.0, -math.cos(t))

@@ -1,4 +1,4 @@
-"""Separable screen-space SSS (issue 5): the screen-space kernel against closed forms, in mm,
+"""Separable screen-space SSS: the screen-space kernel against closed forms, in mm,
 silhouettes, energy, transmittance, and the real head. Flat quads facing the camera, whose pixels
 cover a known number of mm (from the camera's field of view, distance and mm_per_unit)."""
 
@@ -108,7 +108,7 @@ def test_no_light_bleeds_across_a_depth_discontinuity(gl_ctx):
         irr = np.repeat(near[:, :, None].astype(np.float32), 3, axis=2)
         ssss.screen_space(r.last_frame, irradiance=irr)
         out = ssss.scattered()
-        ssss.follow_surface = False
+        r.technique("ssss", follow_surface=False)
         ssss.screen_space(r.last_frame, irradiance=irr)
         naive = ssss.scattered()
     edge = int(np.argmax(~near[S // 2]))  # first far column on the middle row
@@ -151,11 +151,11 @@ def test_transmittance_through_a_slab(gl_ctx):
     """A slab lit from behind: the light reaching the front falls with the shadow map's thickness d
     as sum over the wide Gaussians of w_k exp(-d^2 / 2 v_k) (Jimenez et al. 2010 with the profile's
     Gaussians; the same falloff as tsd's translucency), within 5% + 1e-4, and glows red."""
-    from dermis.techniques.ssss import translucency_min_variance_mm2
+    from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
 
     profile = dermis.profiles.deon_skin()
     w, v = profile.normalized().weights, profile.variances_mm2
-    wide = v >= translucency_min_variance_mm2()
+    wide = v >= TRANSLUCENCY_MIN_VARIANCE_MM2
     measured, expected = [], []
     r = None
     try:

@@ -1,4 +1,4 @@
-"""Numeric verification of texture-space diffusion (issue 3): every check against an independent
+"""Numeric verification of texture-space diffusion: every check against an independent
 closed form or numpy computation. Flat quads with a known number of mm per texel."""
 
 from __future__ import annotations
@@ -69,8 +69,7 @@ def test_chained_blurs_equal_direct_blurs(gl_ctx):
     irr[..., 3] = 1.0
     with Renderer(sc, (32, 32), irradiance_size=S, ctx=gl_ctx, samples=0) as r:
         r.render("tsd")
-        tsd = r.technique("tsd")
-        tsd.multires = False
+        tsd = r.technique("tsd", multires=False)
         tsd.texture_space(r.last_frame, irradiance=irr)
         chained = {k: tsd.read_texture(tsd.tex[("blur", k)])[..., :3] for k in range(6)}
         inner = (slice(16, S - 16), slice(16, S - 16))  # away from the quad's border

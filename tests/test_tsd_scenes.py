@@ -1,4 +1,4 @@
-"""Texture-space diffusion on whole scenes: translucency, seams, and the real head (issue 3)."""
+"""Texture-space diffusion on whole scenes: translucency, seams, and the real head."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from dermis.renderer import Renderer
 from dermis.scene.builtin import cylinder_seam
 from dermis.scene.loaders import finish_mesh
 from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial
-from dermis.techniques.tsd import TRANSLUCENCY_MIN_VARIANCE_MM2
+from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
 from dermis.verification import backlit_slab_scene
 
 
@@ -78,7 +78,7 @@ def test_head_backlit_ears_transmit_red(head_scene, gl_ctx):
     sc.camera = Camera(position=(9.0, 1.8, 3.0), target=(0.0, 1.8, 0.0), fov_deg=22.0)  # the right ear, from the side
     with Renderer(sc, (160, 160), irradiance_size=512, ctx=gl_ctx, samples=0) as r:
         with_t = r.render("tsd", output_mode=1)
-        r.technique("tsd").translucency = False
+        r.technique("tsd", translucency=False)
         without = r.render("tsd", output_mode=1)
     diff = with_t - without
     glow = diff.sum(axis=2) > 1e-3

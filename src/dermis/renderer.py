@@ -1,13 +1,13 @@
 """The Renderer: one GL context, the scene on the GPU, shared shadow maps, every technique.
 
-It keeps GL resources across frames (for interactive and batch use) and only re-runs what changed:
-the shadow atlas when lights or geometry change, texture-space passes (in techniques that have
-them) when the lighting key changes. ``render`` returns linear float32 (H, W, 3) radiance.
+It keeps GL resources across frames (for interactive and batch use) and only re-runs what changed.
+What each cached product depends on is declared in one table, dermis.invalidation.PRODUCTS, and
+keyed on content (array checksums, values), so a changed, swapped or edited-in-place mesh, texture
+or environment is seen on the next frame. ``render`` returns linear float32 (H, W, 3) radiance.
 """
 
 from __future__ import annotations
 
-import hashlib
 import time
 
 import numpy as np
@@ -17,8 +17,10 @@ from dermis.errors import DermisError
 from dermis.gl.context import create_context, gl_info, is_software
 from dermis.gl.resources import GpuScene, LightUniforms
 from dermis.gl.shadows import ShadowAtlas
+from dermis.invalidation import product_keys, scene_inputs
 from dermis.techniques import technique_class
 from dermis.techniques.base import Frame, PassTimer
+from dermis.techniques.shared import OutputMode
 
 MAX_SIZE = 8192
 
@@ -33,30 +35,6 @@ def check_size(size, what="--size") -> tuple[int, int]:
     if w > MAX_SIZE or h > MAX_SIZE:
         raise DermisError(f"{what}: size {w}x{h} exceeds the limit of {MAX_SIZE}x{MAX_SIZE}")
     return w, h
-
-
-def _light_geometry(L) -> tuple:
-    """What a light's shadow map depends on."""
-    return (L.kind, L.direction, L.position, L.spot_angle_deg, L.cast_shadows)
-
-
-def _light_state(L) -> tuple:
-    """Everything about a light that the image depends on."""
-    return _light_geometry(L) + (L.color, L.intensity, L.spot_blend, L.shadow_softness, L.shadow_bias)
-
-
-def _environment_state(env) -> tuple:
-    return (env.color, env.intensity, id(env.image))
-
-
-def _key(*parts) -> str:
-    h = hashlib.sha1()
-    for p in parts:
-        if isinstance(p, np.ndarray):
-            h.update(np.ascontiguousarray(p).tobytes())
-        else:
-            h.update(repr(p).encode())
-    return h.hexdigest()
 
 
 class Renderer:
@@ -82,11 +60,13 @@ class Renderer:
         self._targets = None
         self._targets_size = None
         self._target_sets = {}  # size -> targets: the previous size's, kept for reuse
+        self._specular_tables = None
         self.scene = None
         self.gpu = None
-        self._shadow_key = None
-        self._material_key = None
-        self._epoch = 0  # bumped by invalidate(): part of the lighting key
+        self._built = {}  # product -> the key it was built with (dermis.invalidation.PRODUCTS)
+        self._lights = None  # LightUniforms of the key self._built["light_uniforms"]
+        self._epoch = 0  # bumped by invalidate(): an input of the products that invalidate() re-runs
+        self._last_camera = None
         self.stats = {}
         self.last_frame = None
         if scene is not None:
@@ -94,37 +74,44 @@ class Renderer:
 
     # ------------------------------------------------------------------ scene state
     def set_scene(self, scene):
+        self.scene = scene
+        self._built = {}
+        self._rebuild_gpu_scene()
+
+    def _rebuild_gpu_scene(self):
+        """A new mesh: new buffers (and material textures) on the GPU; techniques drop what they
+        built on the old ones."""
         if self.gpu is not None:
             self.gpu.release()
-        self.scene = scene
-        self.gpu = GpuScene(self.ctx, scene)
-        self._shadow_key = None
-        self._material_key = self._material_state()
+        self.gpu = GpuScene(self.ctx, self.scene)
         for t in self._techniques.values():
-            if hasattr(t, "scene_changed"):
-                t.scene_changed()
+            t.scene_changed()
 
-    def _material_state(self):
-        m = self.scene.material
-        return (id(m.albedo), id(m.normal_map), id(m.specular_map), id(m.roughness_map), m.albedo_color,
-                m.roughness if m.roughness_map is None else None)
+    @property
+    def specular_tables(self) -> dict:
+        """The specular tables (dermis.gl.tables), uploaded once per Renderer, shared by every technique."""
+        if self._specular_tables is None:
+            from dermis.gl.tables import upload_specular_tables
+
+            self._specular_tables = upload_specular_tables(self.ctx)
+        return self._specular_tables
+
+    def inputs(self) -> dict:
+        """This frame's inputs of every cached product (dermis.invalidation.scene_inputs)."""
+        return scene_inputs(self.scene, irradiance_size=self.irradiance_size, epoch=self._epoch)
+
+    def product_keys(self) -> dict:
+        """The key of every cached product of dermis.invalidation.PRODUCTS for the current scene."""
+        return product_keys(self.inputs())
 
     def lighting_key(self) -> str:
         """Everything the view-independent (texture-space) passes depend on."""
-        s = self.scene
-        m = s.material
-        lights = [_light_state(L) for L in s.lights]
-        env = _environment_state(s.environment)
-        mat = (self._material_state(), m.normal_strength, m.roughness, m.rho_s, m.specular_map_bias,
-               m.specular_map_scale, m.mix)
-        return _key(id(s.mesh), s.mm_per_unit, lights, env, mat, s.skin_color, s.profile.variances_mm2, s.profile.weights,
-                    self.irradiance_size, self._epoch)
+        return self.product_keys()["texture_space"]
 
     def invalidate(self):
         """Make the next frame re-run everything cached between frames (shadow maps and the
         view-independent passes), as a frame with moving lights would: for timings that compare
         techniques like for like (dermis compare). Once-per-mesh work (e.g. tsd's stretch map) stays."""
-        self._shadow_key = None
         self._epoch += 1
 
     # ------------------------------------------------------------------ targets
@@ -171,68 +158,88 @@ class Renderer:
         self._targets = None
         self._targets_size = None
 
-    def technique(self, name: str):
+    def technique(self, name: str, **options):
+        """The technique ``name`` (built once per Renderer), with ``options`` (its Options
+        dataclass's fields, validated) changed from what it had; e.g. technique("tsd", multires=False)."""
         if name not in self._techniques:
             self._techniques[name] = technique_class(name)(self)
-        return self._techniques[name]
+        tech = self._techniques[name]
+        if options:
+            tech.configure(**options)
+        return tech
 
     # ------------------------------------------------------------------ frame
-    def _light_uniforms(self, scene):
-        """The packed lights, rebuilt only when a light, the mesh or the environment changes (the
-        shadow frusta transform every vertex; an HDR environment is projected to SH)."""
-        key = _key(id(scene.mesh), [_light_state(L) for L in scene.lights], _environment_state(scene.environment))
-        cached = getattr(self, "_lights_cache", None)
-        if cached is None or cached[0] != key:
-            self._lights_cache = (key, LightUniforms(scene))
-        return self._lights_cache[1]
+    def _stale(self, product: str, keys: dict) -> bool:
+        return self._built.get(product) != keys[product]
 
-    def render_mode(self, technique: str, output_mode: int):
-        """Re-render the last frame's view with a technique's output mode (e.g. 2 = specular only)."""
+    def _update_scene_products(self, keys: dict, passes: list):
+        """Rebuild the renderer's own cached products whose inputs changed."""
+        scene = self.scene
+        if self._stale("gpu_mesh", keys):
+            if "gpu_mesh" in self._built:  # the first frame's GpuScene was made by set_scene
+                self._rebuild_gpu_scene()
+            self._built["gpu_mesh"] = keys["gpu_mesh"]
+            self._built["material_textures"] = keys["material_textures"]
+        if self._stale("material_textures", keys):
+            self.gpu.upload_material()
+            self._built["material_textures"] = keys["material_textures"]
+        # the shadow frusta transform every vertex; an HDR environment is projected to SH
+        if self._stale("light_uniforms", keys):
+            self._lights = LightUniforms(scene)
+            self._built["light_uniforms"] = keys["light_uniforms"]
+        # the TSM stores distances in mm: the scale is part of what the shadow pass wrote
+        if self._stale("shadow_atlas", keys):
+            with self.timer("shadow"):
+                self.shadows.render(self.gpu, self._lights, scene)
+            self._built["shadow_atlas"] = keys["shadow_atlas"]
+            passes.append("shadow")
+        else:
+            self.shadows.update_params(self._lights)
+
+    def side_render(self, technique: str, output_mode: int):
+        """The last frame's view again with another output mode (e.g. specular only), for debug
+        buffers: stats, last_frame and the pass timings are left as the frame left them."""
         f = self.last_frame
-        return self.render(technique, size=f.size if f else None, camera=getattr(self, "_last_camera", None),
-                           output_mode=output_mode)
+        saved = (self.stats, self.last_frame, self._last_camera, dict(self.timer.times_ms))
+        try:
+            return self.render(technique, size=f.size if f else None, camera=self._last_camera, output_mode=output_mode)
+        finally:
+            self.stats, self.last_frame, self._last_camera, self.timer.times_ms = saved
 
     def render(self, technique: str | None = None, size=None, camera=None, *, with_alpha: bool = False,
-               output_mode: int = 0):
-        """Render one frame; returns linear float32 (H, W, 3) (or (H, W, 4) with coverage alpha)."""
+               output_mode: int = OutputMode.FULL):
+        """Render one frame; returns linear float32 (H, W, 3) (or (H, W, 4) with coverage alpha).
+        ``output_mode`` (dermis.techniques.shared.OutputMode): the full image, or one of its terms."""
         if self.scene is None:
             raise DermisError("Renderer has no scene: call set_scene(scene) first")
+        try:
+            output_mode = OutputMode(output_mode)
+        except ValueError:
+            raise DermisError(f"output_mode must be one of {', '.join(f'{int(m)} ({m.name.lower()})' for m in OutputMode)}, "
+                              f"got {output_mode!r}") from None
         name = technique or self.scene.technique
         tech = self.technique(name)
         size = check_size(size or self.size)
         self._ensure_targets(size)
         scene = self.scene
-        if self._material_state() != self._material_key:
-            self.gpu.upload_material()
-            self._material_key = self._material_state()
         self.timer.reset()
         t0 = time.perf_counter()
+        keys = self.product_keys()
+        passes = []
+        self._update_scene_products(keys, passes)
+        lights = self._lights
         cam = camera or scene.camera
         lo, hi = scene.bounds()
         view, proj, eye, near, far = camera_matrices(cam, size[0] / size[1], lo, hi)
-        lights = self._light_uniforms(scene)
-        passes = []
-        # the TSM stores distances in mm: the scale is part of what the shadow pass wrote
-        shadow_key = _key(id(scene.mesh), scene.mm_per_unit, [_light_geometry(L) for L in scene.lights])
-        if shadow_key != self._shadow_key:
-            with self.timer("shadow"):
-                self.shadows.render(self.gpu, lights, scene)
-            self._shadow_key = shadow_key
-            passes.append("shadow")
-        else:
-            self.shadows.update_params(lights)
         t = self._targets
         bg = scene.output.background
         t["fbo"].use()
         t["fbo"].clear(bg[0], bg[1], bg[2], 0.0, depth=1.0)
         frame = Frame(renderer=self, ctx=self.ctx, scene=scene, gpu=self.gpu, lights=lights, shadows=self.shadows,
                       view=view, proj=proj, eye=eye, size=size, target=t["fbo"], timer=self.timer,
-                      lighting_key=self.lighting_key(), passes_run=passes, near=near, far=far)
+                      keys=keys, passes_run=passes, near=near, far=far)
         self._last_camera = camera
-        if output_mode:
-            tech.render(frame, output_mode=output_mode)
-        else:
-            tech.render(frame)
+        tech.render(frame, output_mode=output_mode)
         with self.timer("resolve"):
             self.ctx.copy_framebuffer(t["resolve_fbo"], t["fbo"])
             t["resolved"].read_into(t["readback"])
@@ -267,6 +274,9 @@ class Renderer:
         self._release_targets()
         if self.gpu is not None:
             self.gpu.release()
+        for t in (self._specular_tables or {}).values():
+            t.release()
+        self._specular_tables = None
         self.shadows.release()
         if self._owns_ctx:
             self.ctx.release()

@@ -14,11 +14,11 @@ region); ``rho_s`` a dimensionless scale (skin about 0.18); ``f0`` the normal-in
 reflectance (0.028 for refractive index 1.4). Everything is per unit light radiance.
 
 Normalisation (read this before comparing with other renderers): P(h) follows d'Eon's code and has
-NO 1/pi, so integral P(h) (N.h) dw_h = pi, not 1 (a normalised Beckmann NDF D = P / pi). dermis,
-like d'Eon, also renders diffuse as albedo * E with no 1/pi, so both terms are pi times physical
-radiance and their ratio is right. The table :func:`rho_dt_table` integrates f_spec exactly as
-written above (rho_s = 1), as d'Eon's rho_dt shader does; see :func:`rho_dt` for what that means
-for energy conservation.
+NO 1/pi, so integral P(h) (N.h) dw_h = pi, not 1 (a normalised Beckmann NDF D = P / pi). The
+functions here keep d'Eon's formulas as written; dermis renders physical radiance, so the shaders
+divide f_spec and the albedo a(cos, m) by pi (the radiometric convention is stated once, in
+dermis/techniques/shared.py). The table :func:`rho_dt_table` integrates f_spec exactly as written
+above (rho_s = 1), as d'Eon's rho_dt shader does; see :func:`rho_dt` for energy conservation.
 
 Tables for the GPU (uploaded by :func:`dermis.gl.tables.upload_specular_tables`; the shader side is
 ``shaders/common/brdf.glsl``). Both share the roughness axis y:
@@ -40,8 +40,8 @@ Tables for the GPU (uploaded by :func:`dermis.gl.tables.upload_specular_tables`;
 Texel-centre addressing in GLSL for a table of width W: s = (x * (W - 1) + 0.5) / W.
 Known limits: no shadowing-masking term (Kelemen's 1 / dot(h, h) approximates it), so the albedo
 rises at grazing angles: a(cos, m) exceeds 1 below cos ~ 0.25 and reaches 2.75 (m = 0.05,
-cos = 0; a / pi stays below 0.88), so 1 - rho_s * a stays >= 0 only for rho_s <= 0.36 (skin's
-0.18 .. 0.34 fits). P is for an isotropic surface; the tables cover m in [0.05, 1].
+cos = 0; a / pi stays below 0.88), so the energy left for diffuse, 1 - rho_s * a / pi, stays >= 0
+for rho_s <= pi / 2.75 = 1.14 (skin's 0.18 .. 0.34 fits). P is for an isotropic surface; the tables cover m in [0.05, 1].
 """
 
 from __future__ import annotations
@@ -186,7 +186,7 @@ def rho_dt(cos_theta, m, rho_s=1.0, f0=SKIN_F0, n_xi: int = 96, n_phi: int = 64)
     Because P has no 1/pi (module docstring), a is pi times the albedo of the physically normalised
     lobe: the specular that dermis renders (divided by pi, as physical radiance) reflects
     rho_s * a / pi of the incident energy, so that is what shaders/common/energy.glsl removes from the
-    diffuse. d'Eon's factor 1 - rho_s * a (skin-rendering.md section 1) would remove pi times too much.
+    diffuse. d'Eon's factor 1 - rho_s * a (docs/skin-rendering.md section 1) would remove pi times too much.
 
     Quadrature, in the half-vector domain (dw_L = 4 (V.h) dw_h, dot(h_u, h_u) = 4 (V.h)^2):
         a = integral P(h) F(V.h) (N.L) / (V.h) dw_h  over V.h > 0 and N.L > 0,
@@ -241,7 +241,7 @@ def rho_dt_table(size_cos: int = RHO_DT_TABLE_SIZE[0], size_m: int = RHO_DT_TABL
 
     Returns float32 (size_m, size_cos), read-only and cached: column i holds cos_theta = x_i^2 with
     x_i = i / (size_cos - 1); row j holds m_j of :func:`roughness_axis`; both AT TEXEL CENTRES.
-    The renderer multiplies by rho_s: diffuse keeps 1 - rho_s * a. Builds in about 0.6 s (64 x 64).
+    The renderer multiplies by rho_s: diffuse keeps 1 - rho_s * a / pi. Builds in about 0.6 s (64 x 64).
     """
     if size_cos < 2 or size_m < 2:
         raise ValueError("rho_dt_table needs at least 2 x 2 texels")

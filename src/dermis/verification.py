@@ -84,8 +84,7 @@ def impulse_response(S: int, shape_mm, renderer_ctx=None, multires: bool = True,
         sc.profile = profile
     with Renderer(sc, (32, 32), irradiance_size=S, ctx=renderer_ctx, samples=0) as r:
         r.render("tsd")
-        tsd = r.technique("tsd")
-        tsd.multires = multires
+        tsd = r.technique("tsd", multires=multires)
         irr = np.zeros((S, S, 4), np.float32)
         irr[..., 3] = 1.0
         c = (S // 2, S // 2)

@@ -11,10 +11,9 @@ import numpy as np
 from dermis.camera import light_matrices
 from dermis.environment import environment_sh
 from dermis.images import as_rgb
+from dermis.techniques.shared import LIGHT_TYPES, MAX_LIGHTS, SHARED_SAMPLERS
 
 VERTEX_FORMAT = "3f 3f 2f 4f"
-# default texture units of the material maps (0-1 shadows; techniques use 5-15 for their own)
-MATERIAL_UNITS = {"uAlbedoMap": 2, "uNormalMap": 3, "uSpecularMap": 4, "uRoughnessMap": 16}
 VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent")
 
 
@@ -89,18 +88,23 @@ class GpuScene:
         self.textures = {}
         self.upload_material()
 
+    def vertex_content(self, prog) -> tuple:
+        """(buffer, format, attributes...) of the vertex buffer for ``prog``: attributes the program
+        does not use are skipped as padding ("3x4" = 3 floats)."""
+        parts, used = [], []
+        for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS):
+            if a in prog:
+                parts.append(f)
+                used.append(a)
+            else:
+                parts.append(f"{f[0]}x4")
+        return (self.vbo, " ".join(parts), *used)
+
     def vao(self, prog):
+        # keyed on the program object, held in the entry: its id cannot be reused while cached
         key = id(prog)
         if key not in self._vaos:
-            # attributes a program does not use are skipped as padding ("3x4" = 3 floats)
-            parts, used = [], []
-            for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS):
-                if a in prog:
-                    parts.append(f)
-                    used.append(a)
-                else:
-                    parts.append(f"{f[0]}x4")
-            self._vaos[key] = (self.ctx.vertex_array(prog, [(self.vbo, " ".join(parts), *used)], self.ibo), prog)
+            self._vaos[key] = (self.ctx.vertex_array(prog, [self.vertex_content(prog)], self.ibo), prog)
         return self._vaos[key][0]
 
     def upload_material(self):
@@ -134,12 +138,13 @@ class GpuScene:
         else:
             self.textures["roughness"] = upload_texture(self.ctx, np.array([[[mat.roughness]]], np.float32), mipmaps=False)
 
-    def material_uniforms(self, prog, units: dict):
+    def material_uniforms(self, prog):
+        """The material's maps at their contract units (dermis.techniques.shared.Unit) and its scalars."""
         mat = self.scene.material
         for name, key in (("uAlbedoMap", "albedo"), ("uNormalMap", "normal"), ("uSpecularMap", "specular"),
                           ("uRoughnessMap", "roughness")):
             if name in prog:
-                unit = units.get(name, MATERIAL_UNITS[name])
+                unit = int(SHARED_SAMPLERS[name])
                 self.textures[key].use(unit)
                 prog[name].value = unit
         set_uniform(prog, "uNormalStrength", float(mat.normal_strength))
@@ -173,7 +178,7 @@ class GpuScene:
 class LightUniforms:
     """Packs the scene's lights (and shadow tiles) into the arrays of common/lights.glsl."""
 
-    MAX_LIGHTS = 8
+    MAX_LIGHTS = MAX_LIGHTS
 
     def __init__(self, scene, shadow_atlas=None):
         lights = scene.lights[: self.MAX_LIGHTS]
@@ -186,13 +191,12 @@ class LightUniforms:
         self.viewproj = np.zeros((n, 4, 4), np.float32)
         self.map_half_extent = np.zeros(n, np.float64)  # half a shadow map's width, scene units
         lo, hi = scene.bounds()
-        types = {"directional": 0, "point": 1, "spot": 2}
         for i, L in enumerate(lights):
             vp, eye, half = light_matrices(L, lo, hi, scene.mesh.positions)
             self.viewproj[i] = vp
             self.map_half_extent[i] = half
             pos = np.asarray(L.position, np.float32) if L.kind != "directional" else eye.astype(np.float32)
-            self.pos_type[i] = (*pos, types[L.kind])
+            self.pos_type[i] = (*pos, LIGHT_TYPES[L.kind])
             self.direction[i, :3] = np.asarray(L.direction, np.float32) / np.linalg.norm(L.direction)
             self.radiance[i] = (*L.radiance_rgb(), 1.0 if L.cast_shadows else 0.0)
             outer = np.cos(np.radians(L.spot_angle_deg))

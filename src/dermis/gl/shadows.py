@@ -16,6 +16,7 @@ import numpy as np
 from dermis.errors import DermisError
 from dermis.gl.resources import mat_bytes, set_uniform
 from dermis.gl.shaders import program
+from dermis.techniques.shared import MAX_LIGHTS, Unit, bind_sampler
 
 
 def normal_offset(softness: float, half_extent: float, tile_size: int) -> float:
@@ -31,7 +32,7 @@ def normal_offset(softness: float, half_extent: float, tile_size: int) -> float:
 
 
 class ShadowAtlas:
-    def __init__(self, ctx, tile_size: int = 1024, max_lights: int = 8):
+    def __init__(self, ctx, tile_size: int = 1024, max_lights: int = MAX_LIGHTS):
         self.ctx = ctx
         self.tile_size = int(tile_size)
         self.cols = 4 if max_lights > 4 else max(1, min(max_lights, 2))
@@ -98,13 +99,10 @@ class ShadowAtlas:
             offset = normal_offset(L.shadow_softness, light_uniforms.map_half_extent[i], self.tile_size)
             self.params[i] = (L.shadow_softness, L.shadow_bias, offset, 1.0 / self.tile_size)
 
-    def bind(self, prog, depth_unit: int, aux_unit: int):
-        if "uShadowAtlas" in prog:
-            self.depth.use(depth_unit)
-            prog["uShadowAtlas"].value = depth_unit
-        if "uShadowAux" in prog:
-            self.aux.use(aux_unit)
-            prog["uShadowAux"].value = aux_unit
+    def bind(self, prog):
+        """The atlas and its translucent shadow map at their contract units, and each tile's parameters."""
+        bind_sampler(prog, "uShadowAtlas", self.depth, Unit.SHADOW_ATLAS)
+        bind_sampler(prog, "uShadowAux", self.aux, Unit.SHADOW_AUX)
         set_uniform(prog, "uShadowTile", self.tiles)
         set_uniform(prog, "uShadowParams", self.params)
 

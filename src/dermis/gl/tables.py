@@ -4,10 +4,13 @@ What a technique feeds ``shaders/common/brdf.glsl``: two single-channel float te
 R32F (float32: the Beckmann peak 1/m^2 reaches 400 at m = 0.05 and the tables are small, so there is
 no reason to give up precision for R16F), LINEAR min/mag filtering, no mipmaps, CLAMP_TO_EDGE:
 
-* ``"beckmann"``: Beckmann P(N.h, m), 512 x 256 texels; bind to ``sampler2D beckmannTex``
-  (argument of ``beckmann()``, ``beckmann_lookup()``, ``ks_skin_specular()``).
-* ``"rho_dt"``: specular albedo a(cos, m) for rho_s = 1, 64 x 64 texels; bind to
-  ``sampler2D rhoDtTex`` (argument of ``rho_dt_lookup()``); diffuse keeps 1 - rho_s * a.
+* ``"beckmann"``: Beckmann P(N.h, m), 512 x 256 texels; the ``beckmannTex`` argument of
+  ``beckmann()``, ``beckmann_lookup()``, ``ks_skin_specular()`` (uniform ``uBeckmannTex``).
+* ``"rho_dt"``: specular albedo a(cos, m) for rho_s = 1, 64 x 64 texels; the ``rhoDtTex`` argument
+  of ``rho_dt_lookup()`` (uniform ``uRhoDtTex``); diffuse keeps 1 - rho_s * a / pi.
+
+A Renderer uploads them once (``Renderer.specular_tables``) and every technique binds them at
+the units of the shading contract (dermis.techniques.shared.bind_specular_tables).
 
 The s axis is the table's x (sqrt(1 - N.h), resp. sqrt(cos)), the t axis the log-spaced roughness;
 numpy row 0 is uploaded first, which GL places at t = 0 (the bottom row), so numpy row j is texture
@@ -20,10 +23,6 @@ import numpy as np
 
 from dermis.specular import beckmann_table, rho_dt_table
 
-BECKMANN_SAMPLER = "beckmannTex"
-"""Suggested uniform name for the Beckmann table (the name brdf.glsl's arguments use)."""
-RHO_DT_SAMPLER = "rhoDtTex"
-"""Suggested uniform name for the rho_dt table."""
 
 
 def _float_table_texture(ctx, table: np.ndarray):

@@ -337,7 +337,7 @@ class SurfaceModel:
         return a * (1 - fy) + b * fy
 
     def energy_transmitted(self, rho_s, cos_theta):
-        """energy_transmitted() of tsd/energy.glsl: 1 - rho_s a(cos, m) / pi."""
+        """energy_transmitted() of common/energy.glsl: 1 - rho_s a(cos, m) / pi."""
         return 1.0 - rho_s * self.specular_albedo(cos_theta, float(self.material.roughness)) / np.pi
 
     def ambient(self, n):

@@ -16,8 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from dermis.specular import ksk_specular
-
-INV_PI = 1.0 / np.pi
+from dermis.techniques.shared import INV_PI, MAX_LIGHTS
 SHADOW_EPSILON_REL = 1e-6
 """Shadow-ray origin offset along the face normal, relative to the mesh's bounding diagonal."""
 
@@ -30,7 +29,7 @@ def _smoothstep(e0, e1, x):
 class LightRig:
     """The scene's lights (at most 8, as the real-time techniques) in millimetres."""
 
-    MAX_LIGHTS = 8
+    MAX_LIGHTS = MAX_LIGHTS
 
     def __init__(self, scene, surface, bvh):
         self.surface = surface

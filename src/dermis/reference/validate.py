@@ -115,10 +115,10 @@ def attribution_toggles():
             L.shadow_softness = 0.0
 
     def multires_off(r):
-        r.technique("tsd").multires = False
+        r.technique("tsd", multires=False)
 
     def translucency_off(r):
-        r.technique("tsd").translucency = False
+        r.technique("tsd", translucency=False)
 
     return [
         ("irradiance_2048", "irradiance texture 2048^2 instead of 1024^2 (texture-space resolution, stretch)",

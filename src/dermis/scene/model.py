@@ -125,6 +125,10 @@ class Output:
     bloom_radius: float = 0.015  # bloom Gaussian's standard deviation, fraction of image height
 
 
+SKIN_COLORS = ("albedo", "profile")
+"""Scene.skin_color: where the skin's total diffuse colour comes from (see Scene)."""
+
+
 @dataclass
 class Scene:
     mesh: Mesh

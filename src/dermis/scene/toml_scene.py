@@ -15,7 +15,9 @@ import numpy as np
 
 from dermis.errors import DermisError
 from dermis.images import MAX_IMAGE_PIXELS, as_rgb, read_image
-from dermis.scene.model import Camera, Environment, Light, Output, Scene, SkinMaterial, Texture
+from dermis.output import TONEMAPS
+from dermis.scene.model import SKIN_COLORS, Camera, Environment, Light, Output, Scene, SkinMaterial, Texture
+from dermis.techniques.shared import MAX_LIGHTS
 
 # key -> expected python type(s); lists of numbers are checked for length
 _SCHEMA = {
@@ -32,7 +34,6 @@ _SCHEMA = {
     "output": {"exposure": float, "tonemap": str, "background": "rgb", "bloom": float, "bloom_radius": float},
 }
 _TOP = {"scene", "mesh", "material", "lights", "camera", "environment", "output", "skin"}
-TONEMAPS = ("aces", "linear")
 
 
 def _check(table: dict, section: str, source) -> dict:
@@ -188,10 +189,6 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
     return scene
 
 
-MAX_LIGHTS = 8
-
-
-SKIN_COLORS = ("albedo", "profile")
 
 
 def resolve_profile_section(section: dict, folder: Path, source):

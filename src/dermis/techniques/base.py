@@ -8,12 +8,17 @@ the environment are shared through ``frame``, so every technique lights the same
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import moderngl
 import numpy as np
+
+from dermis.errors import DermisError
+from dermis.techniques.shared import OutputMode, bind_specular_tables
 
 
 class PassTimer:
@@ -70,7 +75,7 @@ class Frame:
     size: tuple
     target: object  # moderngl.Framebuffer (multisampled, RGBA16F + depth)
     timer: PassTimer
-    lighting_key: str = ""
+    keys: dict = field(default_factory=dict)  # product -> key of its inputs (dermis.invalidation.PRODUCTS)
     passes_run: list = field(default_factory=list)
     near: float = 0.1
     far: float = 100.0
@@ -79,17 +84,91 @@ class Frame:
     def viewproj(self) -> np.ndarray:
         return self.proj @ self.view
 
+    @property
+    def lighting_key(self) -> str:
+        """The key of everything the view-independent (texture-space) passes depend on."""
+        return self.keys.get("texture_space", "")
+
+
+# ---------------------------------------------------------------------- options
+def check_bool(what: str, value) -> None:
+    if not isinstance(value, (bool, np.bool_)):
+        raise DermisError(f"{what} must be true or false, got {value!r}")
+
+
+def check_int(what: str, value, lo: int, hi: int | None = None) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo or (hi is not None and value > hi):
+        rng = f"{lo}..{hi}" if hi is not None else f">= {lo}"
+        raise DermisError(f"{what} must be an integer {rng}, got {value!r}")
+
+
+def check_float(what: str, value, lo: float = 0.0) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(value) or value < lo:
+        raise DermisError(f"{what} must be a finite number >= {lo:g}, got {value!r}")
+
+
+def check_choice(what: str, value, choices) -> None:
+    if value not in choices:
+        raise DermisError(f"{what} must be one of {', '.join(map(repr, choices))}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class TechniqueOptions:
+    """A technique's options: a frozen dataclass whose validate() refuses bad values
+    (DermisError naming the option). Set through Renderer.technique(name, **options)."""
+
+    def validate(self, technique: str) -> None:
+        pass
+
+
+@dataclass(frozen=True)
+class TranslucentOptions(TechniqueOptions):
+    """Options of the techniques that carry light through thin parts (tsd, ssss, preintegrated)."""
+
+    translucency: bool = True  # light through thin parts from the (translucent) shadow maps
+    translucency_strength: float = 1.0  # 1 = physical
+
+    def validate(self, technique: str) -> None:
+        check_bool(f"{technique}: translucency", self.translucency)
+        check_float(f"{technique}: translucency_strength", self.translucency_strength)
+
 
 class Technique:
     name = ""
     description = ""
+    Options = TechniqueOptions
 
-    def __init__(self, renderer):
+    def __init__(self, renderer, **options):
         self.renderer = renderer
         self.ctx = renderer.ctx
+        self.options = self.Options()
+        self.options.validate(self.name)
+        if options:
+            self.configure(**options)
 
-    def render(self, frame: Frame) -> None:  # pragma: no cover - interface
+    def configure(self, **options) -> None:
+        """Change options (validated as a whole before any is applied); caches keyed on the
+        options (e.g. tsd's texture-space passes) re-run on the next frame."""
+        names = [f.name for f in dataclasses.fields(self.Options)]
+        unknown = sorted(set(options) - set(names))
+        if unknown:
+            raise DermisError(f"technique '{self.name}': unknown option {', '.join(unknown)} "
+                              f"(options: {', '.join(names) or 'none'})")
+        new = dataclasses.replace(self.options, **options)
+        new.validate(self.name)
+        self.options = new
+
+    def __setattr__(self, name, value):
+        if name != "options" and name in {f.name for f in dataclasses.fields(self.Options)}:
+            raise DermisError(f"technique '{self.name}': option {name} is set with "
+                              f"Renderer.technique('{self.name}', {name}=...), which validates it")
+        super().__setattr__(name, value)
+
+    def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:  # pragma: no cover - interface
         raise NotImplementedError
+
+    def scene_changed(self) -> None:
+        """The scene's GPU copy was rebuilt (new scene or mesh): drop what was built on it."""
 
     def debug_buffers(self) -> dict:
         """Intermediate buffers of the last frame as float32 (H, W, C) arrays, row 0 = top."""
@@ -99,36 +178,22 @@ class Technique:
         pass
 
 
-def set_profile_uniforms(prog, profile, max_gaussians: int = 8):
-    """The uniforms of shaders/common/profile.glsl: the profile's K variances (mm^2) and its weights
-    normalised per channel (sum_k w_k = 1), zero-padded to ``max_gaussians``."""
-    from dermis.errors import DermisError
-    from dermis.gl.resources import set_uniform
-
-    K = profile.k
-    if K > max_gaussians:
-        raise DermisError(f"profile '{profile.name}' has {K} Gaussians; at most {max_gaussians} are supported")
-    weights = np.zeros((max_gaussians, 3), np.float32)
-    weights[:K] = profile.normalized().weights
-    variances = np.ones(max_gaussians, np.float32)
-    variances[:K] = profile.variances_mm2
-    set_uniform(prog, "uGaussianCount", K)
-    for name, arr in (("uWeights", weights), ("uVariances", variances)):
-        if name in prog:  # the compiler may trim an array's unused tail
-            prog[name].write(np.ascontiguousarray(arr[: getattr(prog[name], "array_length", 1)]).tobytes())
+def bind_scene(frame: Frame, prog):
+    """Bind the shared scene state every lighting pass reads: lights, shadow atlas, material and
+    the specular tables, each at its unit of the shading contract (dermis.techniques.shared)."""
+    frame.lights.apply(prog)
+    frame.shadows.bind(prog)
+    frame.gpu.material_uniforms(prog)
+    bind_specular_tables(prog, frame.renderer.specular_tables)
 
 
-def draw_mesh(frame: Frame, prog, units: dict | None = None, vao=None):
-    """Bind the shared scene state (camera, lights, shadows, material) and draw the mesh
+def draw_mesh(frame: Frame, prog, vao=None):
+    """Bind the camera and the shared scene state (:func:`bind_scene`) and draw the mesh
     (with ``frame.gpu.vao(prog)``, or ``vao``: one that adds a technique's own attributes)."""
     from dermis.gl.resources import mat_bytes, set_uniform
 
-    units = units or {}
     if "uViewProj" in prog:
         prog["uViewProj"].write(mat_bytes(frame.viewproj))
     set_uniform(prog, "uCameraPos", tuple(float(x) for x in frame.eye))
-    frame.lights.apply(prog)
-    frame.shadows.bind(prog, units.get("uShadowAtlas", 0), units.get("uShadowAux", 1))
-    frame.gpu.material_uniforms(prog, {"uAlbedoMap": units.get("uAlbedoMap", 2), "uNormalMap": units.get("uNormalMap", 3),
-                                       "uSpecularMap": units.get("uSpecularMap", 4)})
+    bind_scene(frame, prog)
     (vao or frame.gpu.vao(prog)).render(moderngl.TRIANGLES)

@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import moderngl
 
+from dermis.errors import DermisError
 from dermis.gl.shaders import program
 from dermis.techniques.base import Frame, Technique, draw_mesh
+from dermis.techniques.shared import OutputMode
 
 
 class Lambert(Technique):
@@ -24,7 +26,9 @@ class Lambert(Technique):
         super().__init__(renderer)
         self.prog = program(self.ctx, "common/mesh.vert", "lambert/lambert.frag")
 
-    def render(self, frame: Frame) -> None:
+    def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
+        if output_mode != OutputMode.FULL:
+            raise DermisError(f"technique '{self.name}' renders only the full image (output mode {OutputMode.FULL.name.lower()})")
         with frame.timer("lambert"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)

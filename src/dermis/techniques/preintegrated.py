@@ -43,15 +43,16 @@ Shaders: shaders/preintegrated/skin.frag.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import moderngl
 import numpy as np
 
-from dermis.gl.resources import VERTEX_ATTRS, VERTEX_FORMAT, set_uniform
+from dermis.gl.resources import set_uniform
 from dermis.gl.shaders import program
-from dermis.gl.tables import upload_specular_tables
-from dermis.techniques.base import Frame, Technique, draw_mesh, set_profile_uniforms
-from dermis.techniques.ssss import MAX_GAUSSIANS, translucency_uniforms
+from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh
+from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, casts_translucency,
+                                      set_profile_uniforms, surface_detail_uniforms, translucency_uniforms)
 
 # The diffuse table: N.L along s (odd, so N.L = 0 is a texel centre and max(N.L, 0) interpolates
 # exactly), curvature along t on a square-root axis (fine steps where faces mostly are).
@@ -63,7 +64,7 @@ PENUMBRA_WIDTH_RANGE_MM = (0.05, 100.0)
 PENUMBRA_SHARPEN_MIN = 0.5  # the sharpened edge keeps at least this fraction of the PCF penumbra
 RING_PROFILE = "line"  # the ring's kernel: "line" (profile integrated across the ring) or "radial" (Penner)
 
-UNIT_RHO_DT, UNIT_BECKMANN, UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE = 5, 6, 7, 8
+UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE = Unit.FIRST_FREE, Unit.FIRST_FREE + 1
 
 _TABLE_CACHE: dict = {}
 
@@ -260,23 +261,28 @@ def _table_texture(ctx, table: np.ndarray):
 
 
 # ---------------------------------------------------------------------- the technique
+@dataclass(frozen=True)
+class PreintegratedOptions(TranslucentOptions):
+    curvature_source: str = "mesh"  # "mesh": per-vertex curvature; "derivatives": Penner's fwidth
+    blurred_normals: bool = True  # per-channel normal-map mip levels
+    penumbra_scattering: bool = True  # the penumbra table (else plain PCF)
+
+    def validate(self, technique: str) -> None:
+        super().validate(technique)
+        check_choice(f"{technique}: curvature_source", self.curvature_source, ("mesh", "derivatives"))
+        check_bool(f"{technique}: blurred_normals", self.blurred_normals)
+        check_bool(f"{technique}: penumbra_scattering", self.penumbra_scattering)
+
+
 class PreintegratedSkin(Technique):
     name = "preintegrated"
     description = "pre-integrated skin (Penner 2011): curvature and penumbra tables of the profile, no blur passes"
+    Options = PreintegratedOptions
 
-    def __init__(self, renderer, *, curvature_source: str = "mesh", blurred_normals: bool = True,
-                 penumbra_scattering: bool = True, translucency: bool = True):
-        super().__init__(renderer)
-        if curvature_source not in ("mesh", "derivatives"):
-            raise ValueError(f"curvature_source must be 'mesh' or 'derivatives', got {curvature_source!r}")
+    def __init__(self, renderer, **options):
+        super().__init__(renderer, **options)
         self.prog = program(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
                             {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None})
-        self.tables = upload_specular_tables(self.ctx)
-        self.curvature_source = curvature_source
-        self.blurred_normals = bool(blurred_normals)
-        self.penumbra_scattering = bool(penumbra_scattering)
-        self.translucency = bool(translucency)
-        self.translucency_strength = 1.0
         self.profile_tables = {}  # "diffuse", "penumbra": textures of the active profile
         self._profile_key = None
         self.curvature = None  # per-vertex curvature (1/mm) of the active mesh, numpy
@@ -287,7 +293,7 @@ class PreintegratedSkin(Technique):
     # ------------------------------------------------------------------ resources
     def _ensure_profile_tables(self, frame: Frame):
         profile = frame.scene.profile
-        key = _profile_key(profile, RING_PROFILE, PENUMBRA_SHARPEN_MIN)
+        key = frame.keys["profile_tables"]
         if key == self._profile_key:
             return
         with frame.timer("preintegrated_tables"):
@@ -300,7 +306,7 @@ class PreintegratedSkin(Technique):
 
     def _ensure_curvature(self, frame: Frame):
         scene = frame.scene
-        key = (id(scene.mesh), float(scene.mm_per_unit), id(frame.gpu))
+        key = frame.keys["mesh_curvature"]  # a new GpuScene calls scene_changed(): the VAO is rebuilt
         if key == self._mesh_key:
             return
         self._release_mesh()
@@ -308,15 +314,7 @@ class PreintegratedSkin(Technique):
             m = scene.mesh
             self.curvature = vertex_curvature(m.positions, m.normals, m.indices, scene.mm_per_unit)
             self._curvature_buffer = self.ctx.buffer(np.ascontiguousarray(self.curvature, np.float32).tobytes())
-            # the scene's vertex buffer (attributes the program does not use are skipped) + ours
-            parts, used = [], []
-            for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS):
-                if a in self.prog:
-                    parts.append(f)
-                    used.append(a)
-                else:
-                    parts.append(f"{f[0]}x4")
-            content = [(frame.gpu.vbo, " ".join(parts), *used)]
+            content = [frame.gpu.vertex_content(self.prog)]  # the scene's vertex buffer + ours
             if "in_curvature" in self.prog:
                 content.append((self._curvature_buffer, "1f", "in_curvature"))
             self._vao = self.ctx.vertex_array(self.prog, content, frame.gpu.ibo)
@@ -334,7 +332,7 @@ class PreintegratedSkin(Technique):
         self._release_mesh()
 
     # ------------------------------------------------------------------ frame
-    def render(self, frame: Frame, output_mode: int = 0) -> None:
+    def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         self._ensure_profile_tables(frame)
         self._ensure_curvature(frame)
         profile = frame.scene.profile
@@ -343,34 +341,25 @@ class PreintegratedSkin(Technique):
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
             prog = self.prog
-            for name, tex, unit in (("uRhoDtTex", self.tables["rho_dt"], UNIT_RHO_DT),
-                                    ("uBeckmannTex", self.tables["beckmann"], UNIT_BECKMANN),
-                                    ("uDiffuseTable", self.profile_tables["diffuse"], UNIT_DIFFUSE_TABLE),
-                                    ("uPenumbraTable", self.profile_tables["penumbra"], UNIT_PENUMBRA_TABLE)):
-                if name in prog:
-                    tex.use(unit)
-                    prog[name].value = unit
+            bind_sampler(prog, "uDiffuseTable", self.profile_tables["diffuse"], UNIT_DIFFUSE_TABLE)
+            bind_sampler(prog, "uPenumbraTable", self.profile_tables["penumbra"], UNIT_PENUMBRA_TABLE)
             set_profile_uniforms(prog, profile, MAX_GAUSSIANS)
-            translucency_uniforms(prog, self.translucency and any(L.cast_shadows for L in frame.scene.lights),
-                                  self.translucency_strength)
+            translucency_uniforms(prog, self.options.translucency and casts_translucency(frame.scene), self.options.translucency_strength)
             set_uniform(prog, "uCurvatureMaxPerMm", float(CURVATURE_MAX_PER_MM))
             set_uniform(prog, "uPenumbraWidthRangeMm", tuple(float(x) for x in PENUMBRA_WIDTH_RANGE_MM))
-            set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.curvature_source == "mesh" else 0.0)
+            set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.options.curvature_source == "mesh" else 0.0)
             set_uniform(prog, "uScatterRadiusMm", tuple(float(x) for x in channel_scatter_radius_mm(profile)))
-            set_uniform(prog, "uBlurredNormals", 1.0 if self.blurred_normals else 0.0)
-            set_uniform(prog, "uPenumbraScattering", 1.0 if self.penumbra_scattering else 0.0)
-            m = frame.scene.material
-            set_uniform(prog, "uPoreScaleMm", float(m.pore_scale_mm))
-            set_uniform(prog, "uPoreStrength", float(m.pore_strength))
-            set_uniform(prog, "uOutputMode", int(output_mode))
+            set_uniform(prog, "uBlurredNormals", 1.0 if self.options.blurred_normals else 0.0)
+            set_uniform(prog, "uPenumbraScattering", 1.0 if self.options.penumbra_scattering else 0.0)
+            surface_detail_uniforms(prog, frame.scene.material, output_mode)
             draw_mesh(frame, prog, vao=self._vao)
         frame.passes_run.append("preintegrated")
 
     def debug_buffers(self) -> dict:
         if self.renderer.last_frame is None or self._vao is None:
             return {}
-        out = {"curvature_per_mm": self.renderer.render_mode(self.name, output_mode=3),
-               "specular": self.renderer.render_mode(self.name, output_mode=2)}
+        out = {"curvature_per_mm": self.renderer.side_render(self.name, OutputMode.CURVATURE),
+               "specular": self.renderer.side_render(self.name, OutputMode.SPECULAR)}
         for key in ("diffuse", "penumbra"):
             t = self.profile_tables.get(key)
             if t is not None:
@@ -380,7 +369,7 @@ class PreintegratedSkin(Technique):
 
     def release(self):
         self._release_mesh()
-        for t in list(self.profile_tables.values()) + list(self.tables.values()):
+        for t in self.profile_tables.values():
             t.release()
         self.prog.release()
 

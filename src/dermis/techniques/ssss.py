@@ -34,36 +34,21 @@ common/skin_specular.glsl.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import moderngl
 import numpy as np
 
 from dermis.errors import DermisError
 from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
-from dermis.gl.tables import upload_specular_tables
-from dermis.techniques.base import Frame, Technique, draw_mesh, set_profile_uniforms
+from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh
+from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
+                                      casts_translucency, set_profile_uniforms, surface_detail_uniforms,
+                                      translucency_uniforms)
 
-MAX_GAUSSIANS = 8  # the horizontal pass writes one target per Gaussian (GL guarantees 8 draw buffers)
 DEPTH_CUTOFF_MM = 5.0  # a tap this much nearer or further than the pixel is another surface
 MAX_TAPS = 48  # taps per side: impulse-exact while 3 sigma of the widest Gaussian < 48 px
-
-# texture units (0-1 shadows, 2-4 and 16 material maps; see dermis.gl.resources.MATERIAL_UNITS)
-UNIT_RHO_DT, UNIT_BECKMANN, UNIT_SCATTERED = 5, 6, 7
-
-
-def translucency_min_variance_mm2() -> float:
-    """The narrowest Gaussian that carries light through thin parts: tsd's, so both agree."""
-    try:
-        from dermis.techniques.tsd import TRANSLUCENCY_MIN_VARIANCE_MM2
-    except ImportError:  # pragma: no cover - tsd is part of every build
-        return 0.15
-    return float(TRANSLUCENCY_MIN_VARIANCE_MM2)
-
-
-def translucency_uniforms(prog, enabled: bool, strength: float = 1.0):
-    """Uniforms of shaders/common/transmittance.glsl."""
-    set_uniform(prog, "uTranslucencyMinVariance", translucency_min_variance_mm2())
-    set_uniform(prog, "uTranslucencyStrength", float(strength) if enabled else 0.0)
 
 
 def view_z_row(view: np.ndarray) -> tuple:
@@ -71,22 +56,29 @@ def view_z_row(view: np.ndarray) -> tuple:
     return tuple(float(x) for x in np.asarray(view, np.float64)[2])
 
 
+@dataclass(frozen=True)
+class SsssOptions(TranslucentOptions):
+    max_taps: int = MAX_TAPS  # taps per side of each blur
+    depth_cutoff_mm: float = DEPTH_CUTOFF_MM  # taps across a larger depth jump are rejected
+    follow_surface: bool = True  # weight taps by the 3-D distance and reject depth jumps
+
+    def validate(self, technique: str) -> None:
+        super().validate(technique)
+        check_int(f"{technique}: max_taps", self.max_taps, 1, 512)
+        check_float(f"{technique}: depth_cutoff_mm", self.depth_cutoff_mm)
+        check_bool(f"{technique}: follow_surface", self.follow_surface)
+
+
 class ScreenSpaceSSS(Technique):
     name = "ssss"
     description = "separable screen-space SSS (Jimenez et al. 2009/2015): per-Gaussian depth-aware blurs of the image"
+    Options = SsssOptions
 
-    def __init__(self, renderer, *, max_taps: int = MAX_TAPS, depth_cutoff_mm: float = DEPTH_CUTOFF_MM,
-                 follow_surface: bool = True, translucency: bool = True):
-        super().__init__(renderer)
+    def __init__(self, renderer, **options):
+        super().__init__(renderer, **options)
         self.p_final = program(self.ctx, "common/mesh.vert", "ssss/final.frag")
         self._programs = {}  # K -> the passes that loop over the profile, compiled for exactly K Gaussians
         self.vaos = {}
-        self.tables = upload_specular_tables(self.ctx)
-        self.max_taps = int(max_taps)
-        self.depth_cutoff_mm = float(depth_cutoff_mm)
-        self.follow_surface = bool(follow_surface)
-        self.translucency = bool(translucency)
-        self.translucency_strength = 1.0
         self.tex = {}
         self._targets_key = None
 
@@ -137,9 +129,6 @@ class ScreenSpaceSSS(Technique):
         self.tex = {}
         self._targets_key = None
 
-    def scene_changed(self):
-        pass  # nothing is cached across frames
-
     # ------------------------------------------------------------------ passes
     def _kernel_uniforms(self, prog, frame: Frame, axis: int):
         size = frame.size
@@ -147,9 +136,9 @@ class ScreenSpaceSSS(Technique):
         # pixels per mm at a view depth of 1 mm along this axis: size / 2 * P[axis][axis]
         set_uniform(prog, "uPixelsPerMmAtUnitDepth", float(0.5 * size[axis] * frame.proj[axis, axis]))
         set_uniform(prog, "uDirection", (1, 0) if axis == 0 else (0, 1))
-        set_uniform(prog, "uMaxTaps", int(max(self.max_taps, 1)))
-        set_uniform(prog, "uDepthCutoffMm", float(self.depth_cutoff_mm) if self.follow_surface else 1e30)
-        set_uniform(prog, "uFollowSurface", 1.0 if self.follow_surface else 0.0)
+        set_uniform(prog, "uMaxTaps", int(max(self.options.max_taps, 1)))
+        set_uniform(prog, "uDepthCutoffMm", float(self.options.depth_cutoff_mm) if self.options.follow_surface else 1e30)
+        set_uniform(prog, "uFollowSurface", 1.0 if self.options.follow_surface else 0.0)
 
     def screen_space(self, frame: Frame, irradiance: np.ndarray | None = None):
         """Passes 1-3: the pre-scatter irradiance and depth, then the two blurs. ``irradiance``
@@ -168,9 +157,7 @@ class ScreenSpaceSSS(Technique):
             prog = p_irradiance
             set_uniform(prog, "uViewZ", view_z_row(frame.view))
             set_profile_uniforms(prog, profile, profile.k)
-            translucency_uniforms(prog, self.translucency and any(L.cast_shadows for L in scene.lights),
-                                  self.translucency_strength)
-            self._bind(prog, "uRhoDtTex", self.tables["rho_dt"], UNIT_RHO_DT)
+            translucency_uniforms(prog, self.options.translucency and casts_translucency(scene), self.options.translucency_strength)
             draw_mesh(frame, prog)
             if irradiance is not None:
                 a = self.read_texture(t["irradiance"])
@@ -184,24 +171,18 @@ class ScreenSpaceSSS(Technique):
         with frame.timer("ssss_blur"):
             prog = p_horizontal
             self._kernel_uniforms(prog, frame, 0)
-            self._bind(prog, "uIrradiance", t["irradiance"], 0)
+            bind_sampler(prog, "uIrradiance", t["irradiance"], Unit.FIRST_FREE)
             t["fbo_horizontal"].use()
             self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
             prog = p_vertical
             self._kernel_uniforms(prog, frame, 1)
-            self._bind(prog, "uIrradiance", t["irradiance"], 0)
-            if "uGaussian" in prog:
-                units = []
-                for k in range(profile.k):
-                    t["gaussians"][k].use(1 + k)
-                    units.append(1 + k)
-                n = prog["uGaussian"].array_length
-                prog["uGaussian"].value = units[:n] if n > 1 else units[0]
+            bind_sampler(prog, "uIrradiance", t["irradiance"], Unit.FIRST_FREE)
+            bind_sampler_array(prog, "uGaussian", t["gaussians"][: profile.k], Unit.FIRST_FREE + 1)
             t["fbo_vertical"].use()
             self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
         frame.passes_run.append("ssss_blur")
 
-    def render(self, frame: Frame, output_mode: int = 0) -> None:
+    def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         self.screen_space(frame)
         with frame.timer("ssss_final"):
             frame.target.use()
@@ -209,21 +190,10 @@ class ScreenSpaceSSS(Technique):
             self.ctx.disable(moderngl.CULL_FACE)
             prog = self.p_final
             set_uniform(prog, "uViewZ", view_z_row(frame.view))
-            self._bind(prog, "uRhoDtTex", self.tables["rho_dt"], UNIT_RHO_DT)
-            self._bind(prog, "uBeckmannTex", self.tables["beckmann"], UNIT_BECKMANN)
-            self._bind(prog, "uScattered", self.tex["scattered"], UNIT_SCATTERED)
-            m = frame.scene.material
-            set_uniform(prog, "uPoreScaleMm", float(m.pore_scale_mm))
-            set_uniform(prog, "uPoreStrength", float(m.pore_strength))
-            set_uniform(prog, "uOutputMode", int(output_mode))
+            bind_sampler(prog, "uScattered", self.tex["scattered"], Unit.FIRST_FREE)
+            surface_detail_uniforms(prog, frame.scene.material, output_mode)
             draw_mesh(frame, prog)
         frame.passes_run.append("ssss_final")
-
-    @staticmethod
-    def _bind(prog, name, tex, unit):
-        if name in prog:
-            tex.use(unit)
-            prog[name].value = unit
 
     # ------------------------------------------------------------------ inspection
     read_texture = staticmethod(read_texture)
@@ -241,13 +211,11 @@ class ScreenSpaceSSS(Technique):
             out[f"ssss_horizontal_{k + 1}"] = self.read_texture(g)[:, :, :3]
         out["ssss_scattered"] = self.scattered()
         if self.renderer.last_frame is not None:
-            out["specular"] = self.renderer.render_mode(self.name, output_mode=2)
+            out["specular"] = self.renderer.side_render(self.name, OutputMode.SPECULAR)
         return out
 
     def release(self):
         self._release_targets()
-        for t in self.tables.values():
-            t.release()
         for v in self.vaos.values():
             v.release()
         for progs in self._programs.values():

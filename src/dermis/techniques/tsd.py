@@ -27,6 +27,7 @@ Shaders: shaders/tsd/*.glsl; specular in shaders/common/brdf.glsl.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import moderngl
 import numpy as np
@@ -34,47 +35,52 @@ import numpy as np
 from dermis.errors import DermisError
 from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
-from dermis.gl.tables import upload_specular_tables
-from dermis.techniques.base import Frame, Technique, draw_mesh
+from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh
+from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
+                                      casts_translucency, set_profile_uniforms, surface_detail_uniforms,
+                                      translucency_uniforms)
 
-MAX_GAUSSIANS = 8
-TRANSLUCENCY_MIN_VARIANCE_MM2 = 0.15  # d'Eon uses Gaussians 3..6 of the skin table (v >= 0.187)
-
-
-OVERLAP_TOLERANCE = 0.01
+OVERLAP_TOLERANCE = 0.01  # fraction of covered texels a UV layout may cover twice
 # A blur step runs at the coarsest level where its sigma is still >= this many texels of that
 # level (and no finer than the step before it).
 LEVEL_MIN_SIGMA_TEXELS = 1.2
 # the unrolled blur programs compiled up front (taps per side); a pass uses the smallest that
 # reaches 3 sigma
-BLUR_TAP_COUNTS = (2, 3, 4, 6, 8, 12)  # fraction of covered texels a UV layout may cover twice
+BLUR_TAP_COUNTS = (2, 3, 4, 6, 8, 12)
+
+
+@dataclass(frozen=True)
+class TsdOptions(TranslucentOptions):
+    multires: bool = True  # wide Gaussians blurred at half or quarter resolution
+    max_taps: int = 12  # taps per side of a blur at the resolution it runs at
+
+    def validate(self, technique: str) -> None:
+        super().validate(technique)
+        check_bool(f"{technique}: multires", self.multires)
+        check_int(f"{technique}: max_taps", self.max_taps, 1, 64)
 
 
 class TextureSpaceDiffusion(Technique):
     name = "tsd"
     description = "texture-space diffusion (d'Eon, Luebke & Enderton 2007): chained UV-space Gaussian blurs"
+    Options = TsdOptions
 
-    def __init__(self, renderer, *, multires: bool = True, max_taps: int = 12, translucency: bool = True):
-        super().__init__(renderer)
+    def __init__(self, renderer, **options):
+        super().__init__(renderer, **options)
         ctx = self.ctx
         defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
         self.p_stretch = program(ctx, "tsd/uv_space.vert", "tsd/stretch.frag", defines)
         self.p_irradiance = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines)
-        self.p_dilate = program(ctx, "tsd/fullscreen.vert", "tsd/dilate.frag", defines)
-        self.p_down = program(ctx, "tsd/fullscreen.vert", "tsd/downsample.frag", defines)
+        self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
+        self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
         self.p_trans = program(ctx, "tsd/uv_space.vert", "tsd/translucency.frag", defines)
         self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag", defines)
-        self.p_combine = program(ctx, "tsd/fullscreen.vert", "tsd/combine.frag", defines)
+        self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)
         self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine)}
         self._blur_programs = {}  # taps per side -> program (blur.frag with TAPS unrolled)
         for taps in BLUR_TAP_COUNTS:
-            if taps <= max_taps:
+            if taps <= self.options.max_taps:
                 self._compile_blur(taps)
-        self.tables = upload_specular_tables(ctx)
-        self.multires = multires
-        self.max_taps = int(max_taps)
-        self.translucency = translucency
-        self.translucency_strength = 1.0
         self._cache_key = None
         self._stretch_key = None
         self._size = None
@@ -82,7 +88,8 @@ class TextureSpaceDiffusion(Technique):
         self.levels = []
         self.median_stretch = None
         self.tap_stretch = None
-        self.last_output_mode = 0
+        self.uv_overlap = None
+        self._stretch_chain_key = None
 
     # ------------------------------------------------------------------ resources
     def _texture(self, key, size, components=4, dtype="f2"):
@@ -109,6 +116,8 @@ class TextureSpaceDiffusion(Technique):
         return f
 
     def release_textures(self):
+        """Free every texture-space target; what was built in them is gone, so the keys it was
+        built with are forgotten too (the next frame rebuilds, whatever its inputs)."""
         for k, o in list(self.tex.items()):
             if isinstance(k, tuple) and k[0] == "fbo":
                 o.release()
@@ -116,6 +125,8 @@ class TextureSpaceDiffusion(Technique):
             if not (isinstance(k, tuple) and k[0] == "fbo"):
                 o.release()
         self.tex = {}
+        self.scene_changed()
+        self._stretch_chain_key = None
 
     def scene_changed(self):
         self._cache_key = None
@@ -136,11 +147,6 @@ class TextureSpaceDiffusion(Technique):
             fbo.clear(0.0, 0.0, 0.0, 0.0)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         frame.gpu.vao(prog).render(moderngl.TRIANGLES)
-
-    def _bind(self, prog, name, tex, unit):
-        if name in prog:
-            tex.use(unit)
-            prog[name].value = unit
 
     def _stretch(self, frame):
         """S_0: texels per mm along u, v; gutters filled with the nearest island's value (CPU, once)."""
@@ -179,16 +185,17 @@ class TextureSpaceDiffusion(Technique):
         s0.write(np.ascontiguousarray(filled).tobytes())
 
     def _plan_levels(self, profile, S):
-        """Resolution level of each blur step. A step whose sigma exceeds 2 * TARGET texels at full
-        resolution runs at the coarsest level where it is still > TARGET texels (so at most
-        3 * 2 * TARGET = max_taps taps per side at 1-texel spacing): wide Gaussians hold no fine
-        detail (d'Eon & Luebke 2007, 14.4.3), and each level divides a pass's texels by 4."""
+        """Resolution level of each blur step: the coarsest level where its sigma (at the median
+        stretch) is still >= LEVEL_MIN_SIGMA_TEXELS texels of that level, and no finer than the
+        step before: wide Gaussians hold no fine detail (d'Eon & Luebke 2007, 14.4.3), and each
+        level divides a pass's texels by 4. On the head at 1024^2 (2 texels/mm) the skin profile's
+        last two steps run at half resolution; the impulse test's error stays under 1%."""
         sig = profile.chain_sigmas_mm()
         levels, prev = [], 0
         max_level = max(0, int(math.log2(max(S, 16) / 16)))
         for s in sig:
             lvl = 0
-            if self.multires and self.median_stretch:
+            if self.options.multires and self.median_stretch:
                 st = s * self.median_stretch
                 lvl = max(0, math.floor(math.log2(max(st, 1e-9) / LEVEL_MIN_SIGMA_TEXELS)))
             lvl = int(min(max(lvl, prev), max_level))
@@ -214,7 +221,7 @@ class TextureSpaceDiffusion(Technique):
     def _down(self, src, key, level):
         size = (max(1, src.size[0] // 2), max(1, src.size[1] // 2))
         dst = self._texture(key, size)
-        self._bind(self.p_down, "uSource", src, 0)
+        bind_sampler(self.p_down, "uSource", src, 0)
         self._fullscreen(self.p_down, dst)
         return dst
 
@@ -222,9 +229,9 @@ class TextureSpaceDiffusion(Technique):
         """blur.frag compiled with the fewest taps per side that reach 3 sigma at the widest
         stretch that 90% of the layout has (at most max_taps; wider kernels space their taps further)."""
         widest = sigma_mm * (self.tap_stretch or self.median_stretch or 1.0) * 2.0 ** -level
-        need = min(math.ceil(3.0 * widest), self.max_taps)
+        need = min(math.ceil(3.0 * widest), self.options.max_taps)
         taps = next((t for t in BLUR_TAP_COUNTS if t >= need), BLUR_TAP_COUNTS[-1])
-        taps = min(taps, self.max_taps)
+        taps = min(taps, self.options.max_taps)
         prog = self._blur_programs.get(taps)
         if prog is None:  # max_taps outside the precompiled set
             prog = self._compile_blur(taps)
@@ -244,12 +251,12 @@ class TextureSpaceDiffusion(Technique):
         set_uniform(prog, "uSigmaMm", float(sigma_mm))
         set_uniform(prog, "uLevelScale", float(2.0 ** -level))
         set_uniform(prog, "uFootprint", 1.0 if footprint else 0.0)
-        self._bind(prog, "uStretch", stretch, 1)
+        bind_sampler(prog, "uStretch", stretch, 1)
         set_uniform(prog, "uDirection", (1.0, 0.0))
-        self._bind(prog, "uSource", src, 0)
+        bind_sampler(prog, "uSource", src, 0)
         self._fullscreen(prog, tmp)
         set_uniform(prog, "uDirection", (0.0, 1.0))
-        self._bind(prog, "uSource", tmp, 0)
+        bind_sampler(prog, "uSource", tmp, 0)
         self._fullscreen(prog, out)
         return out
 
@@ -257,7 +264,7 @@ class TextureSpaceDiffusion(Technique):
         """I_1..I_K from the dilated irradiance: step k blurs I_(k-1) by variance steps[k] at
         resolution level levels[k]; the stretch map goes through the same chain (once per mesh)."""
         chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12)))
-        redo_stretch = chain_key != getattr(self, "_stretch_chain_key", None)
+        redo_stretch = chain_key != self._stretch_chain_key
         src, st = dil, self.tex["stretch_0"]
         level = 0
         for k, (lvl, var) in enumerate(zip(levels, steps)):
@@ -277,23 +284,11 @@ class TextureSpaceDiffusion(Technique):
         self._stretch_chain_key = chain_key
 
     def _profile_uniforms(self, prog, profile, first_unit):
+        """The profile (common/profile.glsl) and its blurred irradiances I_k (tsd/gaussians.glsl)
+        from ``first_unit`` on; entries past K repeat I_K (never read: the loops stop at K)."""
         K = profile.k
-        w = profile.normalized().weights.astype(np.float32)
-        weights = np.zeros((MAX_GAUSSIANS, 3), np.float32)
-        weights[:K] = w
-        var = np.zeros(MAX_GAUSSIANS, np.float32)
-        var[:K] = profile.variances_mm2
-        set_uniform(prog, "uGaussianCount", K)
-        set_uniform(prog, "uWeights", weights)
-        set_uniform(prog, "uVariances", var)
-        if "uBlur" in prog:
-            units = []
-            for k in range(MAX_GAUSSIANS):
-                t = self.tex[("blur", min(k, K - 1))]
-                t.use(first_unit + k)
-                units.append(first_unit + k)
-            n = prog["uBlur"].array_length
-            prog["uBlur"].value = units[:n] if n > 1 else units[0]
+        set_profile_uniforms(prog, profile, MAX_GAUSSIANS)
+        bind_sampler_array(prog, "uBlur", [self.tex[("blur", min(k, K - 1))] for k in range(MAX_GAUSSIANS)], first_unit)
 
     def texture_space(self, frame: Frame, irradiance: np.ndarray | None = None):
         """Run the view-independent passes. ``irradiance`` (S, S, 4) float, row 0 = top (v = 1),
@@ -304,7 +299,7 @@ class TextureSpaceDiffusion(Technique):
             raise DermisError(f"profile '{profile.name}' has {profile.k} Gaussians; tsd supports at most {MAX_GAUSSIANS}")
         S = self.renderer.irradiance_size
         timer = frame.timer
-        stretch_key = (id(scene.mesh), scene.mm_per_unit, S)
+        stretch_key = frame.keys["stretch"]
         if stretch_key != self._stretch_key:
             with timer("tsd_stretch"):
                 self._stretch(frame)
@@ -318,10 +313,7 @@ class TextureSpaceDiffusion(Technique):
         with timer("tsd_irradiance"):
             irr = self._texture("irradiance", (S, S))
             prog = self.p_irradiance
-            frame.lights.apply(prog)
-            frame.shadows.bind(prog, 0, 1)
-            frame.gpu.material_uniforms(prog, {"uAlbedoMap": 2, "uNormalMap": 3, "uSpecularMap": 4})
-            self._bind(prog, "uRhoDtTex", self.tables["rho_dt"], 5)
+            bind_scene(frame, prog)
             if irradiance is None:
                 self._uv_pass(frame, prog, irr)
             else:
@@ -330,7 +322,7 @@ class TextureSpaceDiffusion(Technique):
                     raise ValueError(f"irradiance override must be {(S, S, 4)}, got {a.shape}")
                 irr.write(a.astype(np.float16).tobytes())
             dil = self._texture("irradiance_dilated", (S, S))
-            self._bind(self.p_dilate, "uSource", irr, 0)
+            bind_sampler(self.p_dilate, "uSource", irr, 0)
             self._fullscreen(self.p_dilate, dil)
         frame.passes_run.append("tsd_irradiance")
         # chained blurs of the irradiance and (once per mesh) of the stretch
@@ -339,22 +331,20 @@ class TextureSpaceDiffusion(Technique):
         frame.passes_run.append("tsd_blur")
         # translucency (texture space, half resolution)
         trans = self._texture("translucency", (max(S // 2, 1), max(S // 2, 1)))
-        if self.translucency and any(L.cast_shadows for L in scene.lights):
+        if self.options.translucency and casts_translucency(scene):
             with timer("tsd_translucency"):
                 prog = self.p_trans
-                frame.lights.apply(prog)
-                frame.shadows.bind(prog, 0, 1)
+                bind_scene(frame, prog)
                 set_uniform(prog, "uMmPerUnit", float(scene.mm_per_unit))
-                set_uniform(prog, "uTranslucencyMinVariance", TRANSLUCENCY_MIN_VARIANCE_MM2)
-                set_uniform(prog, "uTranslucencyStrength", float(self.translucency_strength))
-                self._profile_uniforms(prog, profile, 4)
+                translucency_uniforms(prog, True, self.options.translucency_strength)
+                self._profile_uniforms(prog, profile, Unit.FIRST_FREE)
                 self._uv_pass(frame, prog, trans)
             frame.passes_run.append("tsd_translucency")
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)
 
-    def render(self, frame: Frame, output_mode: int = 0) -> None:
-        key = (frame.lighting_key, self.translucency, self.translucency_strength, self.multires, self.max_taps)
+    def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
+        key = (frame.lighting_key, self.options)
         if key != self._cache_key:
             self.texture_space(frame)
             self._cache_key = key
@@ -363,14 +353,9 @@ class TextureSpaceDiffusion(Technique):
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
             prog = self.p_final
-            self._bind(prog, "uBeckmannTex", self.tables["beckmann"], 5)
-            self._bind(prog, "uRhoDtTex", self.tables["rho_dt"], 6)
-            self._bind(prog, "uTranslucency", self.tex["translucency"], 7)
-            self._profile_uniforms(prog, frame.scene.profile, 8)
-            m = frame.scene.material
-            set_uniform(prog, "uPoreScaleMm", float(m.pore_scale_mm))
-            set_uniform(prog, "uPoreStrength", float(m.pore_strength))
-            set_uniform(prog, "uOutputMode", int(output_mode))
+            bind_sampler(prog, "uTranslucency", self.tex["translucency"], Unit.FIRST_FREE)
+            self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE + 1)
+            surface_detail_uniforms(prog, frame.scene.material, output_mode)
             draw_mesh(frame, prog)
         frame.passes_run.append("tsd_final")
 
@@ -406,13 +391,11 @@ class TextureSpaceDiffusion(Technique):
         frame = self.renderer.last_frame
         if frame is not None:
             out["diffuse_texture_space"] = self.combined(frame)
-            out["specular"] = self.renderer.render_mode(self.name, output_mode=2)
+            out["specular"] = self.renderer.side_render(self.name, OutputMode.SPECULAR)
         return out
 
     def release(self):
         self.release_textures()
-        for t in self.tables.values():
-            t.release()
         for v in self.vaos.values():
             v.release()
         for p in (self.p_stretch, self.p_irradiance, self.p_dilate, self.p_down, self.p_trans, self.p_final,

@@ -244,14 +244,13 @@ class Viewer:
 
     def _set_irradiance_size(self, n: int):
         """A new texture-space resolution: free the techniques' texture-space targets (they are
-        re-made at the new size on the next frame) and invalidate their caches."""
+        re-made at the new size on the next frame; the size is an input of every texture-space
+        product, dermis.invalidation.PRODUCTS, so they re-run)."""
         r = self.renderer
         r.irradiance_size = int(n)
-        for tech in getattr(r, "_techniques", {}).values():
+        for tech in r._techniques.values():
             if hasattr(tech, "release_textures"):
                 tech.release_textures()
-            if hasattr(tech, "scene_changed"):
-                tech.scene_changed()
         self._buffers_cache = (None, {})
 
     def _run_actions(self, actions):
@@ -348,9 +347,7 @@ class Viewer:
             key = key + (self.orbit.state(), self.framebuffer_size())
         cached_key, bufs = self._buffers_cache
         if cached_key != key:
-            stats = dict(r.stats)
-            bufs = r.debug_buffers(self.params.technique)
-            r.stats = stats  # debug_buffers may render again (specular): keep the frame's numbers
+            bufs = r.debug_buffers(self.params.technique)  # a side path: the frame's stats stay
             self._buffers_cache = (key, bufs)
         names = ["final"] + sorted(bufs)
         if self.panel is not None:

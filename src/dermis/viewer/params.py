@@ -25,11 +25,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.output import TONEMAPS
+from dermis.profiles.presets import PRESETS
+from dermis.scene.model import SKIN_COLORS
 
-PROFILES = ("scene", "deon", "fair", "asian", "dark", "physical")
-SKIN_COLORS = ("albedo", "profile")  # Scene.skin_color
+# "scene" keeps the scene's own profile; then every preset; "physical" uses the sliders
+PROFILES = ("scene",) + PRESETS + ("physical",)
 ENVIRONMENTS = ("scene", "constant", "off")
-TONEMAPS = ("aces", "linear")
 IRRADIANCE_SIZES = (128, 256, 512, 1024, 2048)
 BUFFER_SCALES = ("auto", "exposure")
 

@@ -5,19 +5,16 @@
 // table layouts and the energy convention are documented in dermis/specular.py; the tables are
 // uploaded by dermis.gl.tables.upload_specular_tables (R32F, linear, clamp-to-edge).
 //
-// Units: all vectors are unit length and in one space; results are per unit light radiance and,
-// like d'Eon's (and dermis's diffuse, albedo * E), carry no 1/pi: pi times physical radiance.
+// Units: all vectors are unit length and in one space; results are per unit light radiance. The
+// skin terms are d'Eon's as written, with no 1/pi: callers divide by pi to get physical radiance
+// (the convention is stated once, in dermis/techniques/shared.py).
 //
 // Configuration (#define before including, or through dermis.gl.shaders defines):
 //   DERMIS_BECKMANN_ANALYTIC  beckmann() evaluates the closed form instead of the table.
-//   DERMIS_SKIN_F0            Schlick F0 of skin (default 0.028, refractive index 1.4).
-// DERMIS_SPECULAR_M_MIN / _M_MAX must equal dermis.specular.M_MIN / M_MAX (the tables' m range).
-
-#ifndef DERMIS_SKIN_F0
-#define DERMIS_SKIN_F0 0.028
-#endif
-#define DERMIS_SPECULAR_M_MIN 0.05
-#define DERMIS_SPECULAR_M_MAX 1.0
+//   DERMIS_SKIN_F0            Schlick F0 of skin (default dermis.specular.SKIN_F0).
+// The tables' roughness range DERMIS_SPECULAR_M_MIN / _M_MAX is dermis.specular.M_MIN / M_MAX,
+// generated into common/constants.glsl.
+#include "common/constants.glsl"
 
 // Beckmann 1963 as in d'Eon & Luebke 2007 (GPU Gems 3, 14.3, PHBeckmann), no 1/pi:
 // P = exp(-tan^2(alpha) / m^2) / (m^2 cos^4(alpha)); integral P (N.H) dw_H = pi. Reference only.
@@ -85,7 +82,7 @@ float ks_skin_specular(vec3 N, vec3 L, vec3 V, float m, float rho_s, sampler2D b
 }
 
 // d'Eon & Luebke 2007, section 14.3: specular albedo a(cos, m) = integral of ks_skin_specular (rho_s = 1)
-// over the hemisphere, from the table (s axis sqrt(cos)). Energy left for diffuse: 1 - rho_s * a,
+// over the hemisphere, from the table (s axis sqrt(cos)). Energy left for diffuse: 1 - rho_s * a / pi,
 // with cosTheta = N.L for light entering the skin and N.V for light leaving it.
 float rho_dt_lookup(sampler2D rhoDtTex, float cosTheta, float m) {
     float x = sqrt(clamp(cosTheta, 0.0, 1.0));
@@ -95,8 +92,7 @@ float rho_dt_lookup(sampler2D rhoDtTex, float cosTheta, float m) {
 // Blinn 1977, "Models of Light Reflection for Computer Synthesized Pictures", with the energy
 // normalisation (n + 8) / (8 pi) (Akenine-Moller, Haines & Hoffman 2008, Real-Time Rendering 3rd
 // ed., section 7.6): ks (n + 8) / (8 pi) (N.H)^n N.L; 0 unless N.L > 0 and N.V > 0. Baseline only.
-// Unlike the skin terms this keeps the 1/pi of a physical BRDF: beside a diffuse of albedo * E it is
-// pi times dimmer than the same lobe written d'Eon's way, so fold pi into ks for a like-for-like look.
+// A physical BRDF already (it keeps its 1/pi), so it is used as is beside a diffuse of albedo E / pi.
 float blinn_phong_specular(vec3 N, vec3 L, vec3 V, float shininess, float ks) {
     float ndotl = dot(N, L);
     float ndotv = dot(N, V);
@@ -105,6 +101,5 @@ float blinn_phong_specular(vec3 N, vec3 L, vec3 V, float shininess, float ks) {
     }
     vec3 H = normalize(L + V);
     float ndoth = max(dot(N, H), 0.0);
-    const float PI = 3.14159265358979;
-    return ks * (shininess + 8.0) / (8.0 * PI) * pow(ndoth, shininess) * ndotl;
+    return ks * (shininess + 8.0) * (0.125 * INV_PI) * pow(ndoth, shininess) * ndotl;
 }

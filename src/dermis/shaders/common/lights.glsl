@@ -2,12 +2,8 @@
 // A directional light's intensity is the irradiance it gives at normal incidence; a point or spot
 // light's intensity is per steradian, with inverse-square falloff over the distance in METRES
 // (uMmPerUnit converts), so a scene's scale changes nothing but its size.
-#ifndef MAX_LIGHTS
-#define MAX_LIGHTS 8
-#endif
-#define LIGHT_DIRECTIONAL 0
-#define LIGHT_POINT 1
-#define LIGHT_SPOT 2
+// MAX_LIGHTS and LIGHT_DIRECTIONAL / _POINT / _SPOT come from dermis.techniques.shared.
+#include "common/constants.glsl"
 
 uniform int uLightCount;
 uniform vec4 uLightPosType[MAX_LIGHTS];   // xyz position, w type

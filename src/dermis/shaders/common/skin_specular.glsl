@@ -11,15 +11,14 @@
 // (irradiance / pi in the reflected direction) times the specular albedo rho_s a(N.V, m) / pi.
 // P: world position; Ng: geometric normal (shadow lookups, back-facing lights); V: to the eye.
 vec3 skin_specular_radiance(vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho_s, sampler2D beckmannTex) {
-    const float INV_PI_S = 0.31830988618;
     vec3 spec = vec3(0.0);
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
         vec3 Ei = light_incident(i, P, L);
         if (dot(Ng, L) <= 0.0) continue;
-        spec += Ei * shadow_sharp(i, P, Ng) * ks_skin_specular(Ns, L, V, m, rho_s, beckmannTex) * INV_PI_S;
+        spec += Ei * shadow_sharp(i, P, Ng) * ks_skin_specular(Ns, L, V, m, rho_s, beckmannTex) * INV_PI;
     }
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
-    spec += environment_irradiance(reflect(-V, Ns)) * INV_PI_S * rho_s * rho_dt_lookup(uRhoDtTex, ndv, m) * INV_PI_S;
+    spec += environment_irradiance(reflect(-V, Ns)) * INV_PI * rho_s * rho_dt_lookup(uRhoDtTex, ndv, m) * INV_PI;
     return spec;
 }

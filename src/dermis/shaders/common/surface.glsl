@@ -1,4 +1,5 @@
 // Surface attributes shared by techniques: tangent-space normal mapping and material lookups.
+#include "common/constants.glsl"
 uniform sampler2D uAlbedoMap;     // linear RGB (sRGB decoded on load)
 uniform vec3 uAlbedoScale;        // 1, or the skin colour of a physical profile over the map's mean
 uniform sampler2D uNormalMap;     // tangent space, OpenGL convention (+y = +v), encoded n*0.5+0.5
@@ -37,7 +38,7 @@ float specular_intensity(vec2 uv) {
 // (Weyrich et al. 2006 measured m per face region: 0.2-0.5). Clamped to the tables' range.
 float roughness_at(vec2 uv) {
     float m = uHasRoughnessMap > 0.5 ? texture(uRoughnessMap, uv).r : uRoughness;
-    return clamp(m, 0.05, 1.0);
+    return clamp(m, DERMIS_SPECULAR_M_MIN, DERMIS_SPECULAR_M_MAX);
 }
 
 // Diffuse albedo at uv (linear). With a physical skin profile the total diffuse reflectance comes

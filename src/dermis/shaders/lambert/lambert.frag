@@ -13,7 +13,6 @@ in vec2 v_uv;
 in vec4 v_tangent;
 out vec4 f_color;
 
-const float INV_PI = 0.31830988618;
 
 void main() {
     vec3 Ng = normalize(v_normal);

@@ -27,7 +27,7 @@ uniform float uPenumbraScattering;  // 1: scatter the penumbra through its table
 uniform vec3 uCameraPos;
 uniform float uPoreScaleMm;
 uniform float uPoreStrength;
-uniform int uOutputMode;  // 0 diffuse + specular, 1 diffuse only, 2 specular only, 3 curvature (1/mm)
+uniform int uOutputMode;  // OUTPUT_FULL, _DIFFUSE, _SPECULAR or _CURVATURE (1/mm; dermis.techniques.shared.OutputMode)
 in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -35,7 +35,6 @@ in vec4 v_tangent;
 in float v_curvature;
 out vec4 f_color;
 
-const float INV_PI = 0.31830988618;
 
 // Texel-centre coordinate: f = 0 and 1 land on the first and last texels' centres.
 vec2 table_coord(sampler2D table, vec2 f) {
@@ -122,6 +121,7 @@ void main() {
 
     vec3 diffuse = E * albedo_at(v_uv) * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uBeckmannTex);
-    vec3 color = uOutputMode == 1 ? diffuse : uOutputMode == 2 ? spec : uOutputMode == 3 ? vec3(curvature) : diffuse + spec;
+    vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec
+                : uOutputMode == OUTPUT_CURVATURE ? vec3(curvature) : diffuse + spec;
     f_color = vec4(color, 1.0);
 }

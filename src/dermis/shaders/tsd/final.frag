@@ -17,14 +17,13 @@ uniform float uMix;
 uniform float uPoreScaleMm;
 uniform float uPoreStrength;
 uniform vec3 uCameraPos;
-uniform int uOutputMode;  // 0 diffuse + specular, 1 diffuse only, 2 specular only
+uniform int uOutputMode;  // OUTPUT_FULL, OUTPUT_DIFFUSE or OUTPUT_SPECULAR (dermis.techniques.shared.OutputMode)
 in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
 out vec4 f_color;
 
-const float INV_PI = 0.31830988618;
 
 void main() {
     vec3 Ng = normalize(v_normal);
@@ -41,6 +40,6 @@ void main() {
 
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uBeckmannTex);
 
-    vec3 color = uOutputMode == 1 ? diffuse : uOutputMode == 2 ? spec : diffuse + spec;
+    vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec : diffuse + spec;
     f_color = vec4(color, 1.0);
 }

@@ -1,0 +1,163 @@
+"""The shading contract every technique shares, owned here and nowhere else.
+
+Python side: the limits (lights, Gaussians), the output modes, the texture unit of every shared
+sampler, the translucency threshold, the profile and translucency uniforms, the sampler binding
+helper and the specular tables (uploaded once per Renderer). GLSL side: ``common/constants.glsl``
+is GENERATED from these constants when a shader is loaded (:func:`glsl_constants`, wired in
+dermis.gl.shaders), so no shader repeats a number that Python also holds.
+
+Radiometric convention (the one statement of it; README, dermis.specular and the shaders refer
+here): dermis renders PHYSICAL linear radiance. A Lambertian surface of albedo a under irradiance E
+leaves radiance a E / pi. d'Eon & Luebke's specular formulas (GPU Gems 3, ch. 14) carry no 1/pi
+(their Beckmann P integrates to pi against N.h), so every skin shader divides their specular,
+and the specular albedo a(cos, m) of :func:`dermis.specular.rho_dt_table`, by pi:
+    diffuse  = albedo * E / pi * (1 - rho_s a(N.V, m) / pi)
+    specular = sum_lights E_i * KS_Skin_Specular / pi,    energy left: 1 - rho_s a(cos, m) / pi.
+
+No technique imports another: what two of them share lives here or in shaders/common/.
+GL objects are imported inside the helpers, so dermis.gl may import these constants.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+
+import numpy as np
+
+from dermis.errors import DermisError
+from dermis.specular import M_MAX, M_MIN, SKIN_F0
+
+MAX_LIGHTS = 8
+"""Lights a scene may hold: the size of the light arrays in common/lights.glsl."""
+
+MAX_GAUSSIANS = 8
+"""Gaussians a profile may hold on the GPU (ssss's horizontal pass writes one target per Gaussian,
+and GL guarantees 8 draw buffers)."""
+
+TRANSLUCENCY_MIN_VARIANCE_MM2 = 0.15
+"""Gaussians at least this wide (mm^2) carry light through thin parts; d'Eon uses Gaussians 3..6 of
+the skin table (v >= 0.187), the narrow ones carry nothing through millimetres of tissue."""
+
+INV_PI = 1.0 / math.pi
+
+LIGHT_TYPES = {"directional": 0, "point": 1, "spot": 2}
+"""Light kind -> the integer in uLightPosType.w (LIGHT_DIRECTIONAL etc. in GLSL)."""
+
+
+class OutputMode(IntEnum):
+    """What a technique's final pass writes (uOutputMode; OUTPUT_* in GLSL)."""
+
+    FULL = 0  # diffuse + specular
+    DIFFUSE = 1  # diffuse only
+    SPECULAR = 2  # specular only
+    CURVATURE = 3  # preintegrated: the curvature used (1/mm) in every channel
+
+
+class Unit(IntEnum):
+    """Texture units of the shared samplers; a technique's own textures start at FIRST_FREE."""
+
+    SHADOW_ATLAS = 0
+    SHADOW_AUX = 1
+    ALBEDO = 2
+    NORMAL = 3
+    SPECULAR = 4
+    ROUGHNESS = 5
+    RHO_DT = 6
+    BECKMANN = 7
+    FIRST_FREE = 8
+
+
+SHARED_SAMPLERS = {"uShadowAtlas": Unit.SHADOW_ATLAS, "uShadowAux": Unit.SHADOW_AUX, "uAlbedoMap": Unit.ALBEDO,
+                   "uNormalMap": Unit.NORMAL, "uSpecularMap": Unit.SPECULAR, "uRoughnessMap": Unit.ROUGHNESS,
+                   "uRhoDtTex": Unit.RHO_DT, "uBeckmannTex": Unit.BECKMANN}
+"""Sampler uniform -> unit, for every sampler the shared GLSL (shaders/common) declares."""
+
+GUARANTEED_TEXTURE_UNITS = 16
+"""GL_MAX_TEXTURE_IMAGE_UNITS every GL 4.5 implementation offers per stage."""
+
+
+def _glsl_float(x: float) -> str:
+    return repr(float(x))
+
+
+def glsl_constants() -> str:
+    """The text of shaders/common/constants.glsl, generated from the constants above.
+    MAX_GAUSSIANS is guarded: a program may be compiled for exactly a profile's K."""
+    lines = ["// GENERATED from dermis/techniques/shared.py when the shader is loaded: edit it there.",
+             f"#define MAX_LIGHTS {MAX_LIGHTS}",
+             "#ifndef MAX_GAUSSIANS", f"#define MAX_GAUSSIANS {MAX_GAUSSIANS}", "#endif",
+             f"const float INV_PI = {_glsl_float(INV_PI)};",
+             f"#define DERMIS_SPECULAR_M_MIN {_glsl_float(M_MIN)}",
+             f"#define DERMIS_SPECULAR_M_MAX {_glsl_float(M_MAX)}",
+             "#ifndef DERMIS_SKIN_F0", f"#define DERMIS_SKIN_F0 {_glsl_float(SKIN_F0)}", "#endif"]
+    lines += [f"#define LIGHT_{kind.upper()} {v}" for kind, v in LIGHT_TYPES.items()]
+    lines += [f"#define OUTPUT_{m.name} {int(m)}" for m in OutputMode]
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------- binding
+def bind_sampler(prog, name: str, tex, unit: int) -> None:
+    """Bind ``tex`` to ``unit`` and point sampler ``name`` at it, if the program uses it."""
+    if name in prog:
+        tex.use(int(unit))
+        prog[name].value = int(unit)
+
+
+def bind_sampler_array(prog, name: str, textures, first_unit: int) -> None:
+    """Bind a sampler array (``uniform sampler2D name[N]``) to consecutive units from first_unit;
+    the compiler may trim the array's unused tail, so only its active length is bound."""
+    if name not in prog:
+        return
+    n = getattr(prog[name], "array_length", 1)
+    units = []
+    for i, tex in enumerate(list(textures)[:n]):
+        tex.use(first_unit + i)
+        units.append(first_unit + i)
+    prog[name].value = units if n > 1 else units[0]
+
+
+def bind_specular_tables(prog, tables: dict) -> None:
+    """The Renderer's specular tables (dermis.gl.tables) at their contract units."""
+    bind_sampler(prog, "uRhoDtTex", tables["rho_dt"], Unit.RHO_DT)
+    bind_sampler(prog, "uBeckmannTex", tables["beckmann"], Unit.BECKMANN)
+
+
+# ---------------------------------------------------------------------- uniforms
+def set_profile_uniforms(prog, profile, max_gaussians: int = MAX_GAUSSIANS) -> None:
+    """The uniforms of shaders/common/profile.glsl: the profile's K variances (mm^2) and its weights
+    normalised per channel (sum_k w_k = 1), padded to ``max_gaussians`` (weights 0, variances 1:
+    a padded entry adds nothing and never divides by zero)."""
+    K = profile.k
+    if K > max_gaussians:
+        raise DermisError(f"profile '{profile.name}' has {K} Gaussians; at most {max_gaussians} are supported")
+    weights = np.zeros((max_gaussians, 3), np.float32)
+    weights[:K] = profile.normalized().weights
+    variances = np.ones(max_gaussians, np.float32)
+    variances[:K] = profile.variances_mm2
+    if "uGaussianCount" in prog:
+        prog["uGaussianCount"].value = K
+    for name, arr in (("uWeights", weights), ("uVariances", variances)):
+        if name in prog:  # the compiler may trim an array's unused tail
+            prog[name].write(np.ascontiguousarray(arr[: getattr(prog[name], "array_length", 1)]).tobytes())
+
+
+def translucency_uniforms(prog, enabled: bool, strength: float = 1.0) -> None:
+    """Uniforms of the translucency of thin parts (common/transmittance.glsl, tsd/translucency.frag)."""
+    if "uTranslucencyMinVariance" in prog:
+        prog["uTranslucencyMinVariance"].value = TRANSLUCENCY_MIN_VARIANCE_MM2
+    if "uTranslucencyStrength" in prog:
+        prog["uTranslucencyStrength"].value = float(strength) if enabled else 0.0
+
+
+def surface_detail_uniforms(prog, material, output_mode: int = OutputMode.FULL) -> None:
+    """The final passes' procedural pore detail and output mode."""
+    for name, value in (("uPoreScaleMm", float(material.pore_scale_mm)), ("uPoreStrength", float(material.pore_strength)),
+                        ("uOutputMode", int(OutputMode(output_mode)))):
+        if name in prog:
+            prog[name].value = value
+
+
+def casts_translucency(scene) -> bool:
+    """Thin parts transmit light only from lights with a shadow (thickness) map."""
+    return any(L.cast_shadows for L in scene.lights)
