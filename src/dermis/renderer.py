@@ -15,6 +15,7 @@ import numpy as np
 from dermis.camera import camera_matrices
 from dermis.errors import DermisError
 from dermis.gl.context import create_context, gl_info, is_software
+from dermis.geometry.texture_space import scene_texture_space
 from dermis.gl.resources import GpuScene, LightUniforms
 from dermis.gl.shadows import ShadowAtlas
 from dermis.techniques import technique_class
@@ -96,6 +97,8 @@ class Renderer:
         if self.gpu is not None:
             self.gpu.release()
         self.scene = scene
+        # the UV set texture space works in: the mesh's own when unique, else generated (xatlas)
+        scene.mesh = scene_texture_space(scene, self.irradiance_size)
         self.gpu = GpuScene(self.ctx, scene)
         self._shadow_key = None
         self._material_key = self._material_state()

@@ -12,10 +12,11 @@ from dermis.camera import light_matrices
 from dermis.environment import environment_sh
 from dermis.images import as_rgb
 
-VERTEX_FORMAT = "3f 3f 2f 4f"
+VERTEX_FORMAT = "3f 3f 2f 4f 2f"
 # default texture units of the material maps (0-1 shadows; techniques use 5-15 for their own)
 MATERIAL_UNITS = {"uAlbedoMap": 2, "uNormalMap": 3, "uSpecularMap": 4, "uRoughnessMap": 16}
-VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent")
+# in_uv: the asset's UVs (material maps); in_uv_ts: the texture-space set (geometry/texture_space.py)
+VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent", "in_uv_ts")
 
 
 def set_uniform(prog, name, value):
@@ -82,7 +83,8 @@ class GpuScene:
         self.ctx = ctx
         self.scene = scene
         m = scene.mesh
-        verts = np.concatenate([m.positions, m.normals, m.uvs, m.tangents], axis=1).astype(np.float32)
+        uv_ts = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
+        verts = np.concatenate([m.positions, m.normals, m.uvs, m.tangents, uv_ts], axis=1).astype(np.float32)
         self.vbo = ctx.buffer(np.ascontiguousarray(verts).tobytes())
         self.ibo = ctx.buffer(np.ascontiguousarray(m.indices, np.uint32).tobytes())
         self._vaos = {}
