@@ -70,6 +70,8 @@ import numpy as np
 from scipy import ndimage, sparse, spatial
 from scipy.sparse.linalg import splu
 
+from dermis.geometry.rasterize import rasterize_uv
+
 MM_PER_UNIT = 10.0
 LABIOMENTAL_Y = -6.75  # height of the labio-mental fold (normal map), cm
 
@@ -1025,42 +1027,6 @@ def _geometry():
 # ----------------------------------------------------------------------------------------------
 
 
-def _rasterize_uv(uv, T, W, H):
-    """Which triangle covers each texel centre, and its barycentric coordinates.
-
-    Texel (row, col) has its centre at u = (col + .5) / W, v = 1 - (row + .5) / H.  Returns
-    tri (H, W) int32 (-1: gutter) and bary (H, W, 3) float32."""
-    x = uv[:, 0] * W - 0.5  # texel-centre coordinates (col)
-    y = (1.0 - uv[:, 1]) * H - 0.5  # (row)
-    tx, ty = x[T], y[T]
-    c0 = np.clip(np.ceil(tx.min(1) - 1e-9).astype(int), 0, W - 1)
-    c1 = np.clip(np.floor(tx.max(1) + 1e-9).astype(int), 0, W - 1)
-    r0 = np.clip(np.ceil(ty.min(1) - 1e-9).astype(int), 0, H - 1)
-    r1 = np.clip(np.floor(ty.max(1) + 1e-9).astype(int), 0, H - 1)
-    nw, nh = c1 - c0 + 1, r1 - r0 + 1
-    tri = np.full(H * W, -1, np.int32)
-    bary = np.zeros((H * W, 3), np.float32)
-    ok = (nw > 0) & (nh > 0)
-    sz = np.maximum(nw, nh)
-    d = (tx[:, 1] - tx[:, 0]) * (ty[:, 2] - ty[:, 0]) - (tx[:, 2] - tx[:, 0]) * (ty[:, 1] - ty[:, 0])
-    for s in np.unique(sz[ok]):
-        sel = np.nonzero(ok & (sz == s))[0]
-        oy, ox = np.divmod(np.arange(s * s), s)
-        for ch in np.array_split(sel, max(1, len(sel) * s * s // 1_500_000 + 1)):
-            cx = c0[ch, None] + ox[None]
-            cy = r0[ch, None] + oy[None]
-            ax, ay = tx[ch, 0, None], ty[ch, 0, None]
-            dd = d[ch, None]
-            w1 = ((cx - ax) * (ty[ch, 2, None] - ay) - (tx[ch, 2, None] - ax) * (cy - ay)) / dd
-            w2 = ((tx[ch, 1, None] - ax) * (cy - ay) - (cx - ax) * (ty[ch, 1, None] - ay)) / dd
-            w0 = 1.0 - w1 - w2
-            ins = (w0 >= -1e-6) & (w1 >= -1e-6) & (w2 >= -1e-6) & (cx <= c1[ch, None]) & (cy <= r1[ch, None])
-            pix = (cy * W + cx)[ins]
-            tri[pix] = np.broadcast_to(ch[:, None], ins.shape)[ins]
-            bary[pix] = np.stack([w0[ins], w1[ins], w2[ins]], 1)
-    return tri.reshape(H, W), bary.reshape(H, W, 3)
-
-
 def _value_noise3(P, cell, rng, smooth=1.0):
     """Smooth 3-D value noise (zero mean, ~unit std) at points P (n, 3), feature size ~cell."""
     lo = P.min(0) - 2 * cell
@@ -1139,7 +1105,7 @@ def _textures(geo, size, seed):
     P, N, UV, T, isl, shape = geo["P"], geo["N"], geo["UV"], geo["T"], geo["island"], geo["shape"]
     H = W = int(size)
     rng = np.random.default_rng(seed)
-    tri, bary = _rasterize_uv(UV, T, W, H)
+    tri, bary = rasterize_uv(UV, T, W, H)
     cov = tri >= 0
     ti = tri[cov]
     b = bary[cov]
