@@ -4,7 +4,6 @@ seam checks hold on the generated layout."""
 
 from __future__ import annotations
 
-import subprocess
 import sys
 from pathlib import Path
 
@@ -82,8 +81,8 @@ def test_mesh_mode_keeps_refusing_an_overlapping_layout(gl_ctx):
         with_texture_space_uvs(mesh, "sometimes")
 
 
-def test_obj_without_uvs_renders_with_tsd(tmp_path):
-    """An OBJ with no vt lines: the loader generates an xatlas layout; the CLI renders it with tsd."""
+def test_obj_without_uvs_renders_with_tsd(tmp_path, gl_ctx):
+    """An OBJ with no vt lines: the loader generates an xatlas layout; tsd renders it, lit."""
     p, n, uv, t = uv_sphere(radius=1.0, nu=24, nv=12)
     lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in p] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in t]
     obj = tmp_path / "nouv.obj"
@@ -91,10 +90,13 @@ def test_obj_without_uvs_renders_with_tsd(tmp_path):
     mesh, _ = load_mesh_file(obj)
     assert layout_problem(mesh.uvs, mesh.indices) is None
     np.testing.assert_allclose(mesh.positions[mesh.indices], p[t], atol=1e-6)
-    out = tmp_path / "x.png"
-    res = subprocess.run([sys.executable, "-m", "dermis.cli", "render", str(obj), "--technique", "tsd", "--size", "32x32",
-                          "--out", str(out)], capture_output=True, text=True, timeout=180)
-    assert res.returncode == 0 and out.exists(), res.stderr
+    sc = _lit_scene(mesh)
+    sc.mm_per_unit = 20.0
+    sc.camera = Camera(position=(0.0, 0.0, 8.0), fov_deg=20.0)
+    with Renderer(sc, (32, 32), irradiance_size=128, ctx=gl_ctx, samples=0) as r:
+        img = r.render("tsd")
+        lam = r.render("lambert")
+    assert img[16, 16] @ LUM > 0.5 * (lam[16, 16] @ LUM) > 0
 
 
 def test_gltf_with_overlapping_uvs_renders_with_tsd(tmp_path, gl_ctx):

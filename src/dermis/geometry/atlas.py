@@ -106,3 +106,22 @@ def generate_atlas(positions, indices, *, resolution: int = 1024, padding_px: in
         except OSError:
             pass  # a read-only cache folder only costs the regeneration
     return result
+
+
+def atlas_on_welded_surface(positions, indices, resolution: int = 1024, padding_px: int = 4, cache: bool = True):
+    """An xatlas layout of the surface with vertices welded by position, so that charts may
+    cross the asset's own UV seams (a mirrored head's midline, a cylinder's wrap) instead of every
+    such seam becoming a texture-space seam too; then every triangle corner gets a vertex for
+    each distinct (atlas vertex, asset vertex) pair, so both UV sets stay per vertex.
+    Returns (input vertex of each new vertex, triangles (M, 3) uint32 in the input's order, UVs)."""
+    p = np.asarray(positions)
+    t = np.asarray(indices, np.int64).reshape(-1, 3)
+    _, first, weld = np.unique(p, axis=0, return_index=True, return_inverse=True)
+    weld = weld.reshape(-1)
+    atlas = generate_atlas(p[first], weld[t], resolution=resolution, padding_px=padding_px, cache=cache)
+    # xatlas keeps the triangles in order: corner (f, k) is atlas vertex atlas.indices[f, k] and
+    # asset vertex t[f, k]
+    n = len(p)
+    pairs = atlas.indices.astype(np.int64).reshape(-1) * n + t.reshape(-1)  # one int64 key per pair
+    uniq, inv = np.unique(pairs, return_inverse=True)
+    return uniq % n, inv.reshape(-1, 3).astype(np.uint32), atlas.uvs[uniq // n]

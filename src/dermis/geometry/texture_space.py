@@ -24,7 +24,7 @@ from dataclasses import replace
 import numpy as np
 
 from dermis.errors import DermisError
-from dermis.geometry.atlas import content_hash, generate_atlas
+from dermis.geometry.atlas import atlas_on_welded_surface, content_hash
 from dermis.geometry.rasterize import overlap_fraction
 
 MODES = ("auto", "mesh", "generate")
@@ -85,28 +85,10 @@ def with_texture_space_uvs(mesh, mode: str | None = None, *, resolution: int = 1
     if mode == "auto" and layout_problem(mesh.uvs, mesh.indices) is None:
         return mesh
     pad = gutter_texels(mesh, resolution, mm_per_unit, widest_variance_mm2)
-    vm, indices, uv_ts = _atlas_on_welded_surface(mesh, resolution, pad, cache)
+    vm, indices, uv_ts = atlas_on_welded_surface(mesh.positions, mesh.indices, resolution, pad, cache)
     return replace(mesh, positions=mesh.positions[vm], normals=mesh.normals[vm], uvs=mesh.uvs[vm],
                    tangents=None if mesh.tangents is None else mesh.tangents[vm], indices=indices,
                    texture_space_uvs=uv_ts, texture_space_uv=mode).validate()
-
-
-def _atlas_on_welded_surface(mesh, resolution: int, padding_px: int, cache: bool):
-    """An xatlas layout of the surface with vertices welded by position, so that charts may
-    cross the asset's own UV seams (a mirrored head's midline, a cylinder's wrap) instead of every
-    such seam becoming a texture-space seam too; then every triangle corner gets a vertex for
-    each distinct (atlas vertex, asset vertex) pair, so both UV sets stay per vertex.
-    Returns (asset vertex of each new vertex, triangles (M, 3) uint32, texture-space UVs)."""
-    p = np.asarray(mesh.positions)
-    t = np.asarray(mesh.indices, np.int64)
-    _, first, weld = np.unique(p, axis=0, return_index=True, return_inverse=True)
-    weld = weld.reshape(-1)
-    atlas = generate_atlas(p[first], weld[t], resolution=resolution, padding_px=padding_px, cache=cache)
-    # xatlas keeps the triangles in order: corner (f, k) is atlas vertex atlas.indices[f, k] and
-    # asset vertex t[f, k]
-    pairs = np.stack([atlas.indices.astype(np.int64).reshape(-1), t.reshape(-1)], 1)
-    uniq, inv = np.unique(pairs, axis=0, return_inverse=True)
-    return uniq[:, 1], inv.reshape(-1, 3).astype(np.uint32), atlas.uvs[uniq[:, 0]]
 
 
 def scene_texture_space(scene, resolution: int):

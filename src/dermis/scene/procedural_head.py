@@ -21,17 +21,15 @@ subject's left is +x):
 * Concave parts: eye sockets (the closed lids lie ~7 mm and the inner corners ~13 mm inside the
   convex hull), nostrils (tunnels toward ``C``, ~6 mm deeper than their rim).
 
-UV layout (unique, for texture-space diffusion): seven islands -- the ring (cut once, down the
-back of the head and neck), the top cap, the bottom cap, and the front / back sheet of each ear
-(seam along the ear rim).  The ring is unrolled by arc length and relaxed with as-rigid-as-
-possible iterations (Liu et al. 2008: near-isometric, median shear ~3 deg, 99th percentile
-~15 deg, texel density within about +-25 %), the other islands with least-squares conformal maps
-(Levy et al. 2002).  All islands get one common texel density (the bottom cut face, which is
-never seen, gets half), every UV triangle is counter-clockwise (tangent handedness w = +1
-everywhere), the ring has the head's up along +v, and the islands are packed into [0, 1]^2 with
-gutters of at least ``GUTTER_UV`` (12 texels at 1024^2) and a ``MARGIN_UV`` border.  At 1024^2 a
-texel is ~0.52 mm of skin.  The gutters of every texture are filled with the value of the nearest
-island texel (dilation), so bilinear filtering and blurs never pick up black.
+UV layout (unique, for texture-space diffusion): xatlas charts (dermis.geometry.atlas: charts,
+least-squares conformal parameterisation, packing) of the welded surface, packed for 1024^2 with
+``ATLAS_PADDING_TEXELS`` of padding around every chart (>= 12 texels between charts), all charts
+at one texel density (~0.5 mm of skin per texel at 1024^2). Charts may be mirrored (tangent
+handedness w = -1 there); the normal map is encoded in the frame the renderer rebuilds either way.
+``islands`` labels each triangle with its part (``PARTS``: the ring of the head and neck, the top
+cap, the bottom cut, the front / back sheet of each ear), which the texture painter uses as masks.
+The gutters of every texture are filled with the value of the nearest chart texel (dilation), so
+bilinear filtering and blurs never pick up black.
 
 Textures (row 0 = top of the image, i.e. texel (row, col) is at u = (col + .5) / W,
 v = 1 - (row + .5) / H; v = 0 is the bottom row, the OpenGL convention used by the UVs):
@@ -67,9 +65,9 @@ import functools
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage, sparse, spatial
-from scipy.sparse.linalg import splu
+from scipy import ndimage, spatial
 
+from dermis.geometry.atlas import atlas_on_welded_surface
 from dermis.geometry.rasterize import rasterize_uv
 
 MM_PER_UNIT = 10.0
@@ -83,8 +81,8 @@ def NASOLABIAL_X(y):
 
 
 PORE_SPACING_MM = 1.0
-GUTTER_UV = 12.0 / 1024.0  # minimum distance between UV islands (packing target)
-MARGIN_UV = 6.0 / 1024.0  # minimum distance of an island from the border of [0, 1]^2
+ATLAS_RESOLUTION = 1024  # texels per side the UV charts are packed for
+ATLAS_PADDING_TEXELS = 6  # xatlas padding around every chart: >= 12 texels between charts at 1024^2
 
 
 @dataclass
@@ -99,11 +97,12 @@ class ProceduralHead:
     mm_per_unit: float = MM_PER_UNIT
     pore_spacing_mm: float = PORE_SPACING_MM
     landmarks: dict = field(default_factory=dict)  # name -> (3,) float32 point, scene units
-    islands: np.ndarray | None = None  # (M,) int8 UV island of each triangle (see ISLANDS)
+    islands: np.ndarray | None = None  # (M,) int8 part of each triangle (see PARTS)
     texel_mm: float = 0.0  # mean millimetres per texel of the skin islands at this texture size
 
 
-ISLANDS = ("ring", "top_cap", "bottom_cap", "left_ear_front", "left_ear_back", "right_ear_front", "right_ear_back")
+PARTS = ("ring", "top_cap", "bottom_cap", "left_ear_front", "left_ear_back", "right_ear_front", "right_ear_back")
+ISLANDS = PARTS  # former name (the parts were the UV islands before the layout came from xatlas)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -685,219 +684,6 @@ def _ear_point(info, a, b):
 
 
 # ----------------------------------------------------------------------------------------------
-# UV layout
-# ----------------------------------------------------------------------------------------------
-
-
-def _boundary_vertices(T):
-    e = np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]])
-    es = np.sort(e, axis=1)
-    u, c = np.unique(es, axis=0, return_counts=True)
-    return np.unique(u[c == 1])
-
-
-def _triangle_frames(P, T):
-    """Each triangle's corners in its own orthonormal 2-D frame (x along edge 0-1, in the
-    triangle's plane), (m, 3, 2), and twice its area, (m,)."""
-    p0, p1, p2 = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
-    e1, e2 = p1 - p0, p2 - p0
-    nrm = np.cross(e1, e2)
-    a2 = np.linalg.norm(nrm, axis=1)
-    x = e1 / np.linalg.norm(e1, axis=1, keepdims=True)
-    y = np.cross(nrm / a2[:, None], x)
-    q = np.zeros((len(T), 3, 2))
-    q[:, 1, 0] = np.linalg.norm(e1, axis=1)
-    q[:, 2, 0] = np.einsum("ij,ij->i", e2, x)
-    q[:, 2, 1] = np.einsum("ij,ij->i", e2, y)
-    return q, a2
-
-
-def _lscm(P, T):
-    """Least-squares conformal map (Levy et al. 2002) of a disc-like patch; orientation
-    preserving (UV triangles counter-clockwise when the 3-D triangles are counter-clockwise seen
-    along their normal).  Returns (n, 2) UVs in the units of P."""
-    n, m = len(P), len(T)
-    q, a2 = _triangle_frames(P, T)
-    # gradients of the barycentric coordinates: ((y_j+1 - y_j+2), (x_j+2 - x_j+1)) / 2A
-    qa, qb = np.roll(q, -1, axis=1), np.roll(q, -2, axis=1)
-    gx = (qa[..., 1] - qb[..., 1]) / a2[:, None]
-    gy = (qb[..., 0] - qa[..., 0]) / a2[:, None]
-    w = np.sqrt(0.5 * a2)[:, None]
-    ar, ai = gx * w, gy * w  # c_j = a + i b ; residual sum_j c_j U_j
-    rows_r = np.repeat(np.arange(m), 3)
-    cols = T.ravel()
-    # real part: sum a u - b v ; imaginary part: sum b u + a v
-    data = np.concatenate([ar.ravel(), -ai.ravel(), ai.ravel(), ar.ravel()])
-    rr = np.concatenate([rows_r, rows_r, rows_r + m, rows_r + m])
-    cc = np.concatenate([cols, cols + n, cols, cols + n])
-    A = sparse.csr_matrix((data, (rr, cc)), shape=(2 * m, 2 * n))
-    # pins: two far-apart boundary vertices
-    bnd = _boundary_vertices(T)
-    bp = P[bnd]
-    i0 = bnd[np.argmax(np.linalg.norm(bp - bp.mean(0), axis=1))]
-    i1 = bnd[np.argmax(np.linalg.norm(bp - P[i0], axis=1))]
-    dist = float(np.linalg.norm(P[i1] - P[i0]))
-    pins = np.array([i0, i1, i0 + n, i1 + n])
-    pinv = np.array([0.0, dist, 0.0, 0.0])
-    free = np.setdiff1d(np.arange(2 * n), pins)
-    Af = A[:, free]
-    rhs = -(A[:, pins] @ pinv)
-    lu = splu((Af.T @ Af).tocsc(), permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True))
-    sol = lu.solve(Af.T @ rhs)
-    x_all = np.empty(2 * n)
-    x_all[free] = sol
-    x_all[pins] = pinv
-    return np.stack([x_all[:n], x_all[n:]], 1)
-
-
-def _signed_uv_area(uv, T):
-    a, b, c = uv[T[:, 0]], uv[T[:, 1]], uv[T[:, 2]]
-    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
-
-
-def _tri_areas(P, T):
-    return 0.5 * np.linalg.norm(np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]), axis=1)
-
-
-def _arap(P, T, uv0, iters=12):
-    """As-rigid-as-possible parameterisation (Liu et al. 2008), local/global iterations from
-    ``uv0``.  Keeps the triangles' orientation of ``uv0`` (which must be counter-clockwise)."""
-    n, m = len(P), len(T)
-    q, a2 = _triangle_frames(P, T)
-    # cotangent of the angle at each corner
-    cot = np.empty((m, 3))
-    for k in range(3):
-        a = q[:, (k + 1) % 3] - q[:, k]
-        b = q[:, (k + 2) % 3] - q[:, k]
-        cot[:, k] = (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) / (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
-    # half-edges (i, j) opposite corner k
-    I = np.concatenate([T[:, 1], T[:, 2], T[:, 0]])
-    J = np.concatenate([T[:, 2], T[:, 0], T[:, 1]])
-    W = np.concatenate([cot[:, 0], cot[:, 1], cot[:, 2]])
-    Lm = sparse.coo_matrix((np.concatenate([W, W, -W, -W]), (np.concatenate([I, J, I, J]), np.concatenate([I, J, J, I]))), shape=(n, n)).tocsc()
-    # pin vertex 0 (fixes the translation)
-    keep = np.arange(1, n)
-    lu = splu(Lm[keep][:, keep].tocsc(), permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True))
-    qi = np.concatenate([q[:, 1], q[:, 2], q[:, 0]])
-    qj = np.concatenate([q[:, 2], q[:, 0], q[:, 1]])
-    dq = qi - qj  # (3m, 2)
-    Eq = np.stack([q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]], -1)  # (m, 2, 2) columns
-    Eq_inv = np.linalg.inv(Eq)
-    uv = uv0.copy()
-    col0 = np.asarray(Lm[keep][:, [0]].todense()).ravel()
-    for _ in range(iters):
-        Euv = np.stack([uv[T[:, 1]] - uv[T[:, 0]], uv[T[:, 2]] - uv[T[:, 0]]], -1)
-        Jt = Euv @ Eq_inv
-        th = np.arctan2(Jt[:, 1, 0] - Jt[:, 0, 1], Jt[:, 0, 0] + Jt[:, 1, 1])
-        c3, s3 = np.tile(np.cos(th), 3), np.tile(np.sin(th), 3)
-        rx = (c3 * dq[:, 0] - s3 * dq[:, 1]) * W
-        ry = (s3 * dq[:, 0] + c3 * dq[:, 1]) * W
-        bx = np.bincount(I, rx, n) - np.bincount(J, rx, n)
-        by = np.bincount(I, ry, n) - np.bincount(J, ry, n)
-        uv[keep, 0] = lu.solve(bx[keep] - col0 * uv[0, 0])
-        uv[keep, 1] = lu.solve(by[keep] - col0 * uv[0, 1])
-    return uv
-
-
-def _ring_init_uv(ring):
-    """Arc-length unrolling of the ring grid (rows x cols+1, seam column duplicated): u along
-    the rows from the front midline, v along the columns from the eye row."""
-    Nr1, Nc1 = ring.shape[:2]
-    jf = (Nc1 - 1) // 2  # front column (azimuth 0)
-    du = np.linalg.norm(np.diff(ring, axis=1), axis=2)
-    u = np.concatenate([np.zeros((Nr1, 1)), np.cumsum(du, axis=1)], 1)
-    u -= u[:, jf : jf + 1]
-    dv = np.linalg.norm(np.diff(ring, axis=0), axis=2)
-    v = -np.concatenate([np.zeros((1, Nc1)), np.cumsum(dv, axis=0)], 0)
-    iref = np.argmin(np.abs(ring[:, jf, 1] - 1.5))
-    v -= v[iref : iref + 1]
-    return np.stack([u, v], -1).reshape(-1, 2)
-
-
-def _rotate_uv(uv, ang):
-    c, s = np.cos(ang), np.sin(ang)
-    return uv @ np.array([[c, s], [-s, c]])
-
-
-def _min_bbox_angle(uv, angles):
-    best, best_a = np.inf, 0.0
-    for a in angles:
-        r = _rotate_uv(uv, a)
-        ext = r.max(0) - r.min(0)
-        if ext[0] * ext[1] < best:
-            best, best_a = ext[0] * ext[1], a
-    return best_a
-
-
-def _skyline_pack(sizes, W, H):
-    """Bottom-left skyline packing of rectangles (w, h) in order into [0, W] x [0, H] (y grows
-    downward from the top).  Returns positions or None if they do not fit."""
-    sky = [(0.0, W, 0.0)]  # segments (x, width, y)
-    out = []
-    for w, h in sizes:
-        best = None
-        for i, (x0, _, _) in enumerate(sky):
-            if x0 + w > W + 1e-12:
-                break
-            y, xe = 0.0, x0 + w
-            for x1, w1, y1 in sky[i:]:
-                if x1 >= xe - 1e-12:
-                    break
-                y = max(y, y1)
-            if y + h <= H + 1e-12 and (best is None or (y, x0) < (best[1], best[0])):
-                best = (x0, y)
-        if best is None:
-            return None
-        x0, y = best
-        out.append(best)
-        new = []
-        for x1, w1, y1 in sky:
-            a, b = x1, x1 + w1
-            if b <= x0 or a >= x0 + w:
-                new.append((x1, w1, y1))
-                continue
-            if a < x0:
-                new.append((a, x0 - a, y1))
-            if b > x0 + w:
-                new.append((x0 + w, b - x0 - w, y1))
-        new.append((x0, w, y + h))
-        new.sort()
-        merged = []
-        for seg in new:
-            if merged and abs(merged[-1][2] - seg[2]) < 1e-12 and abs(merged[-1][0] + merged[-1][1] - seg[0]) < 1e-12:
-                merged[-1] = (merged[-1][0], merged[-1][1] + seg[1], seg[2])
-            else:
-                merged.append(seg)
-        sky = merged
-    return out
-
-
-def _pack_islands(uvs, rel_density):
-    """Scale (common texel density times ``rel_density``), and pack islands (UVs in
-    centimetres, already oriented) into [0, 1]^2 with gutters; returns the packed UVs and the
-    scale (UV units per centimetre at relative density 1)."""
-    G, M = GUTTER_UV, MARGIN_UV
-    ext = [u.max(0) - u.min(0) for u in uvs]
-    order = sorted(range(len(uvs)), key=lambda i: -ext[i][1] * rel_density[i] if i else -np.inf)
-    scale = (1 - 2 * M) / max(e[0] * d for e, d in zip(ext, rel_density))
-    for _ in range(200):
-        sizes = [(ext[i][0] * rel_density[i] * scale + G, ext[i][1] * rel_density[i] * scale + G) for i in order]
-        pos = _skyline_pack(sizes, 1 - 2 * M + G, 1 - 2 * M + G)
-        if pos is not None:
-            break
-        scale *= 0.99
-    out = [None] * len(uvs)
-    for (x, y), i in zip(pos, order):
-        u = (uvs[i] - uvs[i].min(0)) * rel_density[i] * scale
-        hgt = ext[i][1] * rel_density[i] * scale
-        # image-style y (down from the top) -> v up
-        u[:, 0] += M - G / 2 + x + G / 2
-        u[:, 1] += 1 - (M - G / 2 + y + G / 2) - hgt
-        out[i] = u
-    return out, scale
-
-
-# ----------------------------------------------------------------------------------------------
 # mesh assembly
 # ----------------------------------------------------------------------------------------------
 
@@ -931,60 +717,33 @@ def _geometry():
     parts["right_ear_front"] = (Pf * mirror, Tf[:, ::-1].copy())
     parts["right_ear_back"] = (Pb * mirror, Tb[:, ::-1].copy())
 
-    # flatten the islands (centimetres), orient them (counter-clockwise, tight bounding box;
-    # the ring with the head's up along +v)
-    uvs = []
-    for name in ISLANDS:
-        P, T = parts[name]
-        if name == "ring":
-            uv = _ring_init_uv(ring)
-            if np.sum(_signed_uv_area(uv, T) < 0) > len(T) // 2:
-                uv[:, 0] *= -1
-            uv = _arap(P, T, uv, iters=7)
-            Nc1 = N_COLS + 1
-            top = uv[:Nc1].mean(0)
-            bot = uv[-Nc1:].mean(0)
-            d = top - bot
-            base = np.arctan2(d[0], d[1])  # rotating by this brings d onto +v
-            uv = _rotate_uv(uv, -base)
-            uv = _rotate_uv(uv, _min_bbox_angle(uv, np.radians(np.linspace(-6, 6, 25))))
-        else:
-            uv = _lscm(P, T)
-            uv = _rotate_uv(uv, _min_bbox_angle(uv, np.radians(np.arange(0, 180, 3.0))))
-        if np.sum(_signed_uv_area(uv, T) < 0) > len(T) // 2:  # mirrored solution: flip u
-            uv[:, 0] *= -1
-        uvs.append(uv)
-    # common density: every island gets the same UV area per 3-D area (the bottom cut: half)
-    rel = []
-    for name, uv in zip(ISLANDS, uvs):
-        P, T = parts[name]
-        k = np.sqrt(_tri_areas(P, T).sum() / np.abs(_signed_uv_area(uv, T)).sum())
-        rel.append(k * (0.5 if name == "bottom_cap" else 1.0))
-    packed, scale = _pack_islands(uvs, rel)
-
-    # assemble
-    Ps, Ts, UVs, isl = [], [], [], []
+    # assemble the parts (triangle labels kept: the texture painter's masks use them)
+    Ps, Ts, isl = [], [], []
     base = 0
-    for k, name in enumerate(ISLANDS):
+    for k, name in enumerate(PARTS):
         P, T = parts[name]
         Ps.append(P)
         Ts.append(T + base)
-        UVs.append(packed[k])
         isl.append(np.full(len(T), k, np.int8))
         base += len(P)
     P = np.concatenate(Ps)
     T = np.concatenate(Ts)
-    UV = np.concatenate(UVs)
     island = np.concatenate(isl)
-    # normals: smooth across UV seams (vertices at the same position share a normal), but the
-    # flat bottom cut keeps its own (sharp edge)
+    # normals: smooth across part boundaries (vertices at the same position share a normal), but
+    # the flat bottom cut keeps its own (sharp edge)
     key = np.round(P, 6)
     bottom = np.zeros(len(P), bool)
-    b0 = sum(len(parts[n][0]) for n in ISLANDS[:2])
+    b0 = sum(len(parts[n][0]) for n in PARTS[:2])
     bottom[b0 : b0 + len(parts["bottom_cap"][0])] = True
     key = np.concatenate([key, bottom[:, None].astype(float)], 1)
     _, group = np.unique(key, axis=0, return_inverse=True)
     N = _vertex_normals(P, T, group.ravel())
+    # UV layout: xatlas charts of the welded surface, packed with ATLAS_PADDING_TEXELS gutters at
+    # ATLAS_RESOLUTION (dermis.geometry.atlas); vertices split along the chart seams
+    vm, T, UV = atlas_on_welded_surface(P, T, ATLAS_RESOLUTION, ATLAS_PADDING_TEXELS)
+    P, N = P[vm], N[vm]
+    T = T.astype(np.int64)
+    UV = UV.astype(np.float64)
 
     # landmarks
     C = shape.C
@@ -1019,7 +778,7 @@ def _geometry():
         "right_ear_root": ear["root"] * mirror,
     })
     lm = {k: np.asarray(v, np.float32) for k, v in lm.items()}
-    return dict(P=P, N=N, UV=UV, T=T, island=island, scale=scale, landmarks=lm, shape=shape, ear=ear)
+    return dict(P=P, N=N, UV=UV, T=T, island=island, landmarks=lm, shape=shape, ear=ear)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -1125,7 +884,7 @@ def _textures(geo, size, seed):
     Pu = ((e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) / det[:, None]).astype(np.float32)
     Pv = ((e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) / det[:, None]).astype(np.float32)
     tmm_tri = np.sqrt(0.5 * np.linalg.norm(np.cross(e1, e2), axis=1) / (0.5 * np.abs(det) * W * H))
-    texel_mm = float(np.median(tmm_tri[isl != ISLANDS.index("bottom_cap")]))
+    texel_mm = float(np.median(tmm_tri[isl != PARTS.index("bottom_cap")]))
 
     def full(vals, fill=0.0):
         img = np.full((H, W), fill, np.float32)
@@ -1181,7 +940,10 @@ def _textures(geo, size, seed):
     micro *= 0.008 / (micro.std() + 1e-12)
     # wrinkles and folds from 3-D positions (continuous across UV seams), on the face only
     # smooth noise fields are evaluated at the vertices and interpolated (cheaper than per texel)
-    vn = np.stack([_value_noise3(P, cell, rng) for cell in (0.6, 2.5, 0.8, 1.6)], 1)
+    # the 3-D noise has its own random stream: its pattern does not depend on how many pores the
+    # UV layout's texel size made room for
+    rng3 = np.random.default_rng([seed, 3])
+    vn = np.stack([_value_noise3(P, cell, rng3) for cell in (0.6, 2.5, 0.8, 1.6)], 1)
     n_line_all, n_big, n_mid, n_blotch = np.einsum("nk,nkc->cn", b, vn[T[ti]])
     n_line = n_line_all[fi]
     h3 = np.zeros(len(fi), np.float32)
@@ -1221,12 +983,13 @@ def _textures(geo, size, seed):
     g_row, g_col = np.gradient(height)
     hu = g_col[cov] * W  # dh/du (mm per UV unit)
     hv = -g_row[cov] * H  # dh/dv
-    # tangent frame of the renderer: T = dP/du orthogonalised against N, B = cross(N, T); the
+    # tangent frame of the renderer: T = dP/du orthogonalised against N, B = w cross(N, T) with
+    # w = +1 on counter-clockwise UV charts and -1 on mirrored ones (dermis.scene.tangents); the
     # surface gradient of h expressed in (T, B) is exact for any (even sheared) UV map
     pu, pv = Pu[ti], Pv[ti]
     tt = pu - nrm * np.einsum("ij,ij->i", pu, nrm)[:, None]
     tt /= np.linalg.norm(tt, axis=1, keepdims=True)
-    bb = np.cross(nrm, tt)
+    bb = np.sign(det[ti]).astype(np.float32)[:, None] * np.cross(nrm, tt)
     gT = hu / np.einsum("ij,ij->i", pu, tt)
     gB = (hv - gT * np.einsum("ij,ij->i", pv, tt)) / np.einsum("ij,ij->i", pv, bb)
     nts = np.stack([-gT, -gB, np.ones_like(gT)], 1)
@@ -1264,7 +1027,7 @@ def _textures(geo, size, seed):
     hair = np.zeros(len(fi), np.float32)
     ib = brow_f > 0
     if np.any(ib):
-        hair[ib] = np.clip(0.6 + 0.4 * _value_noise3(fp[ib] * [0.25, 1.0, 1.0], 0.05, rng, smooth=0.7), 0, 1)
+        hair[ib] = np.clip(0.6 + 0.4 * _value_noise3(fp[ib] * [0.25, 1.0, 1.0], 0.05, rng3, smooth=0.7), 0, 1)
     brow_a = np.clip(0.8 * brow_f * hair, 0, 1)[:, None]
     lip_col = np.array([0.45, 0.12, 0.10], np.float32) * (1 + 0.07 * nm_f[:, None]) * (1 - 0.06 * ll[:, None])
     lf = lips_f[:, None]
