@@ -1,6 +1,6 @@
 """Texture atlases from xatlas (Young, "xatlas", github.com/jpcy/xatlas; the library Godot uses
 for its light-map UVs): the mesh is cut into charts, each is parameterised (least-squares
-conformal maps, then the charts are packed into one square image with ``padding_px`` empty
+conformal maps) and the charts are packed into one square image with ``padding_px`` empty
 texels around every chart, so filters that reach that far do not mix charts.
 
 The result splits vertices where a chart boundary runs: ``vmapping`` gives, for every atlas

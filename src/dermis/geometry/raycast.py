@@ -65,7 +65,7 @@ class RayCaster:
         tri[far <= 0] = -1
         return tmin + r["tfar"].astype(np.float64), tri, r["u"].astype(np.float64), r["v"].astype(np.float64)
 
-    def _refine(self, o, d, tri, u, v):
+    def _refine(self, o, d, tri):
         """Distance along the ray to the plane of its hit triangle, in float64 (Embree's float32
         hit point moved onto the triangle): exact t for the caller's own geometry."""
         a, b, c = self.v0[tri], self.v1[tri], self.v2[tri]
@@ -83,7 +83,7 @@ class RayCaster:
         hit = tri >= 0
         t = np.where(hit, t, np.inf)
         if hit.any():
-            tr = self._refine(o[hit], d[hit], tri[hit], u[hit], v[hit])
+            tr = self._refine(o[hit], d[hit], tri[hit])
             ok = np.isfinite(tr)
             t[np.nonzero(hit)[0][ok]] = tr[ok]
         bary = np.where(hit[:, None], np.stack([u, v], 1), 0.0)
