@@ -2,24 +2,19 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
-SHARED_HEAD = REPO.parent / "shared" / "assets" / "lee-perry-smith"
+HEAD_ASSETS = REPO / "examples" / "assets" / "lee-perry-smith"
 
 
 @pytest.fixture(scope="session")
 def lee_perry_smith() -> Path:
-    """The real head scan in ../shared; skipped when absent, a failure under CI=true."""
-    if not (SHARED_HEAD / "LeePerrySmith.glb").is_file():
-        msg = f"the Lee Perry-Smith head is not at {SHARED_HEAD} (../shared beside the repository)"
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(msg + "; CI must have it")
-        pytest.skip(msg)
-    return SHARED_HEAD
+    """The real head scan, shipped in examples/assets/lee-perry-smith (CC BY 3.0)."""
+    assert (HEAD_ASSETS / "LeePerrySmith.glb").is_file(), f"{HEAD_ASSETS} is part of the repository"
+    return HEAD_ASSETS
 
 
 @pytest.fixture(scope="session")

@@ -1,4 +1,4 @@
-"""The built-in procedural head: geometry, UV layout and textures (real checks, < ~20 s)."""
+"""The built-in procedural head: geometry, UV layout (xatlas) and textures (real checks, < ~20 s)."""
 
 from __future__ import annotations
 
@@ -236,22 +236,39 @@ def _rasterize_count(uv, T, W, H, eps=1e-4):
     return count.reshape(H, W)
 
 
-def test_uvs_unique_inside_and_counter_clockwise(head):
+def test_uvs_unique_inside_and_no_flips_within_a_chart(head):
+    """xatlas charts may be mirrored as a whole (tangent handedness -1 there), but no triangle is
+    flipped inside its chart, and the generated tangents' handedness follows the orientation."""
+    from dermis.scene.tangents import generate_tangents
+
     UV, T = head.uvs.astype(np.float64), head.indices.astype(np.int64)
     assert UV.min() >= 0.0 and UV.max() <= 1.0
     a, b, c = UV[T[:, 0]], UV[T[:, 1]], UV[T[:, 2]]
     signed = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-    assert np.all(signed > 0), "every UV triangle counter-clockwise: no flips, handedness +1"
+    assert np.all(signed != 0)
+    _, lab = _uv_islands(T, len(UV))
+    chart = lab[T[:, 0]]
+    pos = np.bincount(chart, signed > 0)
+    tot = np.bincount(chart)
+    assert np.all((pos == 0) | (pos == tot)), "a chart mixes orientations"
+    w = generate_tangents(head.positions, head.normals, head.uvs, head.indices)[:, 3]
+    assert np.all(w[T[:, 0]] == np.sign(signed))
     count = _rasterize_count(UV, T, SIZE, SIZE)
-    assert count.max() <= 1, "overlapping UV triangles"
+    # xatlas's least-squares conformal charts can fold locally in the nostril tunnels: ~100 texels
+    # (0.02 %) covered twice, far below what tsd tolerates (techniques/tsd.py OVERLAP_TOLERANCE)
+    assert count.max() <= 2 and (count > 1).sum() / (count > 0).sum() < 1e-3, "overlapping UV triangles"
     assert np.mean(count > 0) > 0.35  # the layout uses a reasonable part of the texture
 
 
 def test_uv_gutters(head):
     UV, T = head.uvs.astype(np.float64), head.indices.astype(np.int64)
-    n, lab = _uv_islands(T, len(UV))
+    # charts: vertices at the same position and UV are one (the parts' own vertices stay split)
+    _, weld = np.unique(np.c_[head.positions, head.uvs], axis=0, return_inverse=True)
+    weld = weld.reshape(-1)
+    n, lab_w = _uv_islands(weld[T], weld.max() + 1)
+    lab = lab_w[weld]
     labs = np.unique(lab[np.unique(T)])
-    assert len(labs) == len(ISLANDS)
+    assert len(labs) >= len(ISLANDS)  # xatlas charts: at least one per part (~70)
     e = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
     u, cnt = np.unique(e, axis=0, return_counts=True)
     bnd = u[cnt == 1]
@@ -269,7 +286,7 @@ def test_uv_gutters(head):
         tree = spatial.cKDTree(pts[ids == L])
         dmin, _ = tree.query(pts[ids != L], k=1)
         gaps.append(dmin.min())
-    assert min(gaps) * SIZE >= 8.0, min(gaps) * SIZE
+    assert min(gaps) * SIZE >= 8.0, min(gaps) * SIZE  # ATLAS_PADDING_TEXELS on each side
 
 
 def test_texel_density_roughly_uniform(head):
@@ -360,26 +377,37 @@ def test_deterministic_and_seeded():
         build_default_head(128, 3).positions[0, 0] = 1.0
 
 
-def _profile(head, p, axis, half=14, band=3):
-    """Decoded tangent-space normal component ``axis`` (0: x along +u, 1: y along +v) along +u
-    (axis 0) or +v (axis 1) through the texel of the surface point nearest to ``p``, averaged
-    over a few parallel texel lines."""
+def _profile(head, p, world_dir, half=14, band=3):
+    """The decoded tangent-space normal's tilt toward ``world_dir`` along a texel line that runs
+    in ``world_dir`` on the surface, through the texel of the surface point nearest to ``p``,
+    averaged over a few parallel lines. The tangent frame is the renderer's: x along +u, y along
+    +v (for either chart handedness); the UV direction of ``world_dir`` comes from the UV
+    Jacobian of a triangle at that vertex (the charts are near-conformal: texels are square)."""
     n = head.normal_map.astype(np.float64) * 2 - 1
     H, W = n.shape[:2]
-    uv = head.uvs[np.argmin(np.linalg.norm(head.positions - p, axis=1))]
-    col, row = int(uv[0] * W), int((1 - uv[1]) * H)
+    P, UV, T = head.positions.astype(np.float64), head.uvs.astype(np.float64), head.indices.astype(np.int64)
+    v = int(np.argmin(np.linalg.norm(P - p, axis=1)))
+    t = T[np.nonzero((T == v).any(1))[0][0]]
+    J = np.stack([P[t[1]] - P[t[0]], P[t[2]] - P[t[0]]], 1)  # dP / d(barycentric)
+    D = np.stack([UV[t[1]] - UV[t[0]], UV[t[2]] - UV[t[0]]], 1)  # dUV / d(barycentric)
+    duv = D @ np.linalg.lstsq(J, np.asarray(world_dir, float), rcond=None)[0]
+    d = duv * [W, H]
+    d /= np.linalg.norm(d)  # unit step in texels along (+u, +v)
+    perp = np.array([-d[1], d[0]])
+    col, row = UV[v, 0] * W, (1 - UV[v, 1]) * H
     k = np.arange(-half, half + 1)
-    if axis == 0:  # along +u: columns increase
-        prof = np.mean([n[row + j, col + k, 0] for j in range(-band, band + 1)], axis=0)
-    else:  # along +v: rows decrease
-        prof = np.mean([n[row - k, col + j, 1] for j in range(-band, band + 1)], axis=0)
-    return prof
+    prof = []
+    for j in range(-band, band + 1):
+        c = np.round(col + k * d[0] + j * perp[0]).astype(int)
+        r = np.round(row - k * d[1] - j * perp[1]).astype(int)  # rows go down as v goes up
+        prof.append(n[r, c, 0] * d[0] + n[r, c, 1] * d[1])
+    return np.mean(prof, axis=0)
 
 
 def test_normal_map_tangent_convention(head):
     """Grooves baked into the normal map tilt the normals the right way in the renderer's frame
-    (+x along +u, +y along +v, rows top-down): crossing a groove along +u (or +v), the normal
-    first tilts toward +u (+v), then toward -u (-v)."""
+    (+x along +u, +y along +v, rows top-down): crossing a groove along +x (or +y) on the
+    surface, the normal first tilts toward +x (+y), then toward -x (-y)."""
     from dermis.scene.procedural_head import LABIOMENTAL_Y, NASOLABIAL_X
 
     P = head.positions.astype(np.float64)
@@ -389,9 +417,9 @@ def test_normal_map_tangent_convention(head):
         return P[m][np.argmax(P[m, 2])]
 
     for x in (NASOLABIAL_X(-4.2), -NASOLABIAL_X(-4.2)):  # vertical grooves, crossed along u
-        prof = _profile(head, front_point(x, -4.2), 0)
+        prof = _profile(head, front_point(x, -4.2), [1.0, 0.0, 0.0])
         assert prof.max() > 0.04 and prof.min() < -0.04
         assert np.argmax(prof) < np.argmin(prof)
-    prof = _profile(head, front_point(0.0, LABIOMENTAL_Y), 1)  # horizontal groove, crossed along v
+    prof = _profile(head, front_point(0.0, LABIOMENTAL_Y), [0.0, 1.0, 0.0])  # horizontal groove, crossed along y
     assert prof.max() > 0.04 and prof.min() < -0.04
     assert np.argmax(prof) < np.argmin(prof)

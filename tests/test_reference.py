@@ -10,7 +10,7 @@ import pytest
 
 import dermis
 from dermis.reference.integrate import cutoff_radius, plan_levels
-from dermis.reference.raycast import Bvh
+from dermis.geometry.raycast import RayCaster
 from dermis.reference.render import render_reference
 from dermis.reference.sampling import coarsen, surface_cells
 from dermis.scene.builtin import uv_sphere
@@ -35,10 +35,10 @@ def _brute_force(v0, v1, v2, o, d):
     return t[k], (k if np.isfinite(t[k]) else -1)
 
 
-def test_bvh_matches_brute_force():
-    """Closest hits and shadow (any-hit) queries equal a brute-force loop over all triangles."""
+def test_ray_caster_matches_brute_force():
+    """Closest hits and shadow (any-hit) queries (Embree) equal a brute-force loop over all triangles."""
     p, n, uv, t = uv_sphere(radius=1.0, nu=24, nv=12)
-    bvh = Bvh(p, t)
+    bvh = RayCaster(p, t)
     rng = np.random.default_rng(3)
     o = rng.uniform(-2, 2, (400, 3))
     d = rng.normal(size=(400, 3))

@@ -45,20 +45,29 @@ def test_roughness_map_changes_the_highlight(gl_ctx):
     assert spec_map / spec_const == pytest.approx((0.3 / 0.15) ** 2, rel=0.08)
 
 
-def test_overlapping_uvs_are_refused_by_tsd_but_not_lambert(tmp_path):
+def test_overlapping_uvs_are_refused_by_tsd_only_when_the_scene_asks_for_the_mesh_uvs(tmp_path):
+    """texture_space_uv = "mesh" keeps the old refusal (one line, exit 2, no output); lambert
+    renders regardless, and the default ("auto") renders tsd on a generated layout."""
     obj = tmp_path / "mirror.obj"
     obj.write_text(
         "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nv 2 -1 0\nv 4 -1 0\nv 4 1 0\nv 2 1 0\n"
         "vt 0.1 0.1\nvt 0.9 0.1\nvt 0.9 0.9\nvt 0.1 0.9\n"
         "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 5/1 6/2 7/3\nf 5/1 7/3 8/4\n")
+    toml = tmp_path / "mirror.toml"
+    toml.write_text('[scene]\nmm_per_unit = 20.0\n[mesh]\nfile = "mirror.obj"\ntexture_space_uv = "mesh"\n'
+                    '[[lights]]\ntype = "directional"\ndirection = [0.0, 0.0, -1.0]\n')
     out = tmp_path / "x.png"
-    cmd = [sys.executable, "-m", "dermis.cli", "render", str(obj), "--size", "32x32", "--out", str(out)]
-    res = subprocess.run(cmd + ["--technique", "tsd"], capture_output=True, text=True, timeout=120)
+    base = [sys.executable, "-m", "dermis.cli", "render"]
+    opts = ["--size", "32x32", "--out", str(out)]
+    res = subprocess.run(base + [str(toml)] + opts + ["--technique", "tsd"], capture_output=True, text=True, timeout=120)
     assert res.returncode == 2
     lines = [l for l in res.stderr.splitlines() if l.strip()]
     assert len(lines) == 1 and "overlaps" in lines[0] and "mirror.obj" in lines[0], res.stderr
     assert not out.exists() and not list(tmp_path.glob(".x.png*"))
-    res = subprocess.run(cmd + ["--technique", "lambert"], capture_output=True, text=True, timeout=120)
+    res = subprocess.run(base + [str(toml)] + opts + ["--technique", "lambert"], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0 and out.exists(), res.stderr
+    out.unlink()
+    res = subprocess.run(base + [str(obj)] + opts + ["--technique", "tsd"], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0 and out.exists(), res.stderr
 
 

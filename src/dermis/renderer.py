@@ -15,6 +15,7 @@ import numpy as np
 from dermis.camera import camera_matrices
 from dermis.errors import DermisError
 from dermis.gl.context import create_context, gl_info, is_software
+from dermis.geometry.texture_space import scene_texture_space
 from dermis.gl.resources import GpuScene, LightUniforms
 from dermis.gl.shadows import ShadowAtlas
 from dermis.invalidation import product_keys, scene_inputs
@@ -67,6 +68,7 @@ class Renderer:
         self._lights = None  # LightUniforms of the key self._built["light_uniforms"]
         self._epoch = 0  # bumped by invalidate(): an input of the products that invalidate() re-runs
         self._last_camera = None
+        self._texture_space_checked = None  # the mesh object _texture_space_mesh last returned
         self.stats = {}
         self.last_frame = None
         if scene is not None:
@@ -76,7 +78,16 @@ class Renderer:
     def set_scene(self, scene):
         self.scene = scene
         self._built = {}
+        self._texture_space_mesh()
         self._rebuild_gpu_scene()
+
+    def _texture_space_mesh(self):
+        """Give the scene's mesh the UV set texture space works in: its own when unique, else one
+        generated with xatlas (dermis.geometry.texture_space). Checked once per mesh object (the
+        check rasterises the layout); a new or edited mesh is then keyed on content as usual."""
+        if self.scene.mesh is not self._texture_space_checked:
+            self.scene.mesh = scene_texture_space(self.scene, self.irradiance_size)
+            self._texture_space_checked = self.scene.mesh
 
     def _rebuild_gpu_scene(self):
         """A new mesh: new buffers (and material textures) on the GPU; techniques drop what they
@@ -224,6 +235,7 @@ class Renderer:
         scene = self.scene
         self.timer.reset()
         t0 = time.perf_counter()
+        self._texture_space_mesh()
         keys = self.product_keys()
         passes = []
         self._update_scene_products(keys, passes)

@@ -4,6 +4,8 @@ and the r-weighted L2 error. Used by the tests and by ``dermis bench``."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from scipy.special import erf
 
@@ -101,3 +103,111 @@ def impulse_error(renderer_ctx=None, S: int = 256, texel_mm: float = 0.1, multir
     yy, xx = np.mgrid[:S, :S]
     rr = np.hypot((yy - c[0]) * texel_mm, (xx - c[1]) * texel_mm)
     return rweighted_error(comb, ref, rr <= 3 * np.sqrt(sc.profile.variances_mm2[-1]))
+
+
+def texel_positions(mesh, S: int):
+    """World position (mesh units) of every texel centre of the mesh's texture-space layout
+    (its texture_space_uvs, else its uvs) at S x S, row 0 = top, and the covered mask."""
+    from dermis.geometry.rasterize import rasterize_uv
+
+    uv = mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
+    tri, bary = rasterize_uv(uv, mesh.indices, S, S)
+    cov = tri >= 0
+    corners = np.asarray(mesh.positions, np.float64)[np.asarray(mesh.indices, np.int64)[np.maximum(tri, 0)]]
+    pos = np.einsum("hwk,hwkc->hwc", bary.astype(np.float64), corners)
+    return np.where(cov[..., None], pos, np.nan), cov
+
+
+def impulse_error_on_layout(renderer_ctx=None, S: int = 256, size_mm: float = 25.6, texture_space_uv: str = "mesh",
+                            profile=None):
+    """tsd's impulse response on a flat square quad (size_mm, mm_per_unit = 1) in the layout that
+    ``texture_space_uv`` selects ("mesh": the quad's own UVs; "generate": an xatlas atlas), against
+    the closed form: irradiance 1 in the texel nearest the quad's centre, the reference
+    sum_k w_k G(v_k) integrated over each texel's footprint in mm. A planar chart maps to the plane
+    by a similarity, so each texel is a square of side h (mm) along two orthogonal directions and
+    the footprint integral separates along them (binned_gaussian_1d). Returns (r-weighted L2
+    error per channel out to 3 sigma of the widest Gaussian, texel size h in mm)."""
+    from dermis.renderer import Renderer
+
+    sc = quad_scene(size_mm, size_mm)
+    sc.mesh.texture_space_uv = texture_space_uv
+    if profile is not None:
+        sc.profile = profile
+    with Renderer(sc, (32, 32), irradiance_size=S, ctx=renderer_ctx, samples=0) as r:
+        r.render("tsd")
+        tsd = r.technique("tsd")
+        pos, cov = texel_positions(sc.mesh, S)
+        d2 = np.where(cov, np.nansum(pos ** 2, axis=2), np.inf)
+        c = np.unravel_index(np.argmin(d2), d2.shape)
+        irr = np.zeros((S, S, 4), np.float32)
+        irr[..., 3] = cov
+        irr[c[0], c[1], :3] = 1.0
+        tsd.texture_space(r.last_frame, irradiance=irr)
+        comb = tsd.combined(r.last_frame)
+    # texel axes in mm: one column (u) and one row (v, downwards) from the centre texel
+    eu, ev = pos[c[0], c[1] + 1] - pos[c], pos[c[0] + 1, c[1]] - pos[c]
+    hu, hv = np.linalg.norm(eu), np.linalg.norm(ev)
+    off = pos - pos[c]
+    au, av = np.einsum("hwc,c->hw", off, eu / hu), np.einsum("hwc,c->hw", off, ev / hv)
+    w = sc.profile.normalized().weights
+    ref = np.zeros((S, S, 3))
+    for k, v in enumerate(sc.profile.variances_mm2):
+        g = binned_gaussian_1d(np.nan_to_num(au), v, hu) * binned_gaussian_1d(np.nan_to_num(av), v, hv)
+        ref += g[:, :, None] * w[k][None, None, :]
+    rr = np.where(cov, np.hypot(au, av), np.inf)
+    return rweighted_error(comb, ref, rr <= 3 * np.sqrt(sc.profile.variances_mm2[-1])), float(hu)
+
+
+def seam_deviation(scene, size: int = 128, irradiance_size: int = 256, renderer_ctx=None):
+    """Largest relative step of tsd's image across the texture-space seams seen on the lit side:
+    on every seam (an edge the layout cuts: one triangle per side in the texture-space topology,
+    two once vertices are welded by position) facing the camera, |q(seam) / median(q around) - 1|
+    with q = tsd / lambert luminance (the cosine falloff divided out; lambert has no texture-
+    space seams). Returns (max deviation, number of seam pixels tested)."""
+    from scipy import ndimage
+
+    from dermis.camera import camera_matrices
+    from dermis.renderer import Renderer
+
+    with Renderer(scene, (size, size), irradiance_size=irradiance_size, ctx=renderer_ctx, samples=0) as r:
+        tsd = r.render("tsd")
+        lam = r.render("lambert")
+    m = scene.mesh
+    p = np.asarray(m.positions, np.float64)
+    t = np.asarray(m.indices, np.int64)
+    _, weld = np.unique(np.round(p, 6), axis=0, return_inverse=True)
+    weld = weld.reshape(-1)
+    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    key = np.sort(e, axis=1)
+    ek, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    wk = np.sort(weld[e], axis=1)
+    _, winv, wcnt = np.unique(wk, axis=0, return_inverse=True, return_counts=True)
+    seam = (cnt[inv.reshape(-1)] == 1) & (wcnt[winv.reshape(-1)] == 2)
+    se = e[seam]
+    fr = np.linspace(0.1, 0.9, 9)
+    pts = (p[se[:, 0], None] * (1 - fr[None, :, None]) + p[se[:, 1], None] * fr[None, :, None]).reshape(-1, 3)
+    nrm = np.asarray(m.normals, np.float64)
+    nn = (nrm[se[:, 0], None] * (1 - fr[None, :, None]) + nrm[se[:, 1], None] * fr[None, :, None]).reshape(-1, 3)
+    cam = scene.camera
+    view, proj, *_ = camera_matrices(cam, 1.0, *m.bounds)
+    to_eye = np.asarray(cam.position, np.float64) - pts
+    facing = np.einsum("ij,ij->i", nn, to_eye / np.linalg.norm(to_eye, axis=1, keepdims=True)) > 0.5
+    clip = np.c_[pts[facing], np.ones(facing.sum())] @ (np.asarray(proj) @ np.asarray(view)).T
+    ndc = clip[:, :2] / clip[:, 3:4]
+    col = np.floor((ndc[:, 0] * 0.5 + 0.5) * size).astype(int)
+    row = np.floor((0.5 - ndc[:, 1] * 0.5) * size).astype(int)
+    lum_w = np.array([0.2126, 0.7152, 0.0722])
+    lt, ll = tsd @ lum_w, lam @ lum_w
+    lit = ll > 0.5 * ll.max()
+    q = np.where(lit, lt / np.maximum(ll, 1e-12), np.nan)
+    with warnings.catch_warnings():  # windows outside the lit region are all NaN: skipped below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        around = ndimage.generic_filter(q, np.nanmedian, size=9, mode="nearest")
+    ok = (row >= 4) & (row < size - 4) & (col >= 4) & (col < size - 4)
+    row, col = row[ok], col[ok]
+    keep = lit[row, col] & ndimage.binary_erosion(lit, iterations=4)[row, col]
+    row, col = row[keep], col[keep]
+    if len(row) == 0:
+        return 0.0, 0
+    dev = np.abs(q[row, col] / around[row, col] - 1.0)
+    return float(np.nanmax(dev)), int(len(np.unique(row * size + col)))

@@ -13,8 +13,9 @@ from dermis.environment import environment_sh
 from dermis.images import as_rgb
 from dermis.techniques.shared import LIGHT_TYPES, MAX_LIGHTS, SHARED_SAMPLERS
 
-VERTEX_FORMAT = "3f 3f 2f 4f"
-VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent")
+VERTEX_FORMAT = "3f 3f 2f 4f 2f"
+# in_uv: the asset's UVs (material maps); in_uv_ts: the texture-space set (geometry/texture_space.py)
+VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent", "in_uv_ts")
 
 
 def set_uniform(prog, name, value):
@@ -81,7 +82,8 @@ class GpuScene:
         self.ctx = ctx
         self.scene = scene
         m = scene.mesh
-        verts = np.concatenate([m.positions, m.normals, m.uvs, m.tangents], axis=1).astype(np.float32)
+        uv_ts = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
+        verts = np.concatenate([m.positions, m.normals, m.uvs, m.tangents, uv_ts], axis=1).astype(np.float32)
         self.vbo = ctx.buffer(np.ascontiguousarray(verts).tobytes())
         self.ibo = ctx.buffer(np.ascontiguousarray(m.indices, np.uint32).tobytes())
         self._vaos = {}

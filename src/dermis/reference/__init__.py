@@ -6,12 +6,12 @@ lights, profile and specular, so that each technique's error can be measured (``
 
 Modules, one concept each:
 
-* ``raycast``   - BVH (binned SAH) and Moller-Trumbore ray casting in numba: camera and shadow rays.
 * ``sampling``  - the surface cut into area-weighted lattice cells; attributes and material maps
                   looked up exactly as the shaders do (bilinear, clamp-to-edge, v up).
 * ``shading``   - lights, the irradiance that scatters (exact shadows) and the specular.
 * ``integrate`` - the profile integral by 3-D distance (KD-tree, cutoff at 1e-4 of each peak).
-* ``render``    - the image: visible points by ray casting, sub-pixel resolve (``render_reference``).
+* ``render``    - the image: visible points by ray casting (dermis.geometry.raycast, Embree),
+                  sub-pixel resolve (``render_reference``).
 * ``validate``  - FLIP, SSIM and relative RMSE of the techniques against it, with error attribution.
 * ``cli``       - ``dermis reference`` and ``dermis validate``.
 """

@@ -3,7 +3,7 @@ directly over the surface instead of in texture or screen space.
 
 For each pixel, camera rays (dermis.camera's matrices; ``spp`` sub-pixel positions, 4 = the
 standard 4x MSAA pattern the real-time renderer resolves) find the visible points x by ray casting
-(raycast.Bvh). There the renderer evaluates, as tsd/final.frag does,
+(dermis.geometry.raycast: Embree). There the renderer evaluates, as tsd/final.frag does,
 
     L_o(x) = [sum_k w_k(rgb) sum_y A_y G(v_k, |x - y|) E'(y)] albedo(x)^(1 - mix) / pi (1 - rho_s a(N.V, m) / pi)
              + specular(x)
@@ -33,8 +33,8 @@ from scipy.spatial import cKDTree
 
 from dermis.camera import camera_matrices
 from dermis.errors import DermisError
+from dermis.geometry.raycast import RayCaster
 from dermis.reference.integrate import TISSUE_TAU, gather, plan_levels
-from dermis.reference.raycast import Bvh
 from dermis.reference.sampling import SurfaceModel, coarsen, surface_cells
 from dermis.reference.shading import LightRig, scattered_irradiance, specular_and_exit
 
@@ -165,7 +165,7 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
     mm = float(scene.mm_per_unit)
     t0 = time.perf_counter()
     surface = SurfaceModel(scene)
-    bvh = Bvh(surface.positions_mm, surface.indices)
+    bvh = RayCaster(surface.positions_mm, surface.indices)
     rig = LightRig(scene, surface, bvh)
     timings["setup_s"] = time.perf_counter() - t0
 
@@ -180,7 +180,7 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
     eye_mm = np.asarray(eye, np.float64) * mm
     profile = scene.profile.normalized()
     stats = {"size": [w, h], "spp": spp, "paths": paths, "camera_rays": int(len(tri)), "visible_points": n_hits, "seed": seed,
-             "triangles": int(len(surface.indices)), "bvh_nodes": int(bvh.node_count)}
+             "triangles": int(len(surface.indices))}
 
     diffuse = np.zeros((n_hits, 3))
     specular = np.zeros((n_hits, 3))

@@ -51,10 +51,21 @@ def _data_uri(uri: str) -> bytes | None:
 
 
 def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: str, tangents=None) -> Mesh:
-    if uvs is None:
-        raise DermisError(f"{source}: mesh has no texture coordinates (UVs); dermis needs a UV layout")
     positions = np.ascontiguousarray(positions, np.float32)
     indices = np.ascontiguousarray(indices, np.int64).reshape(-1, 3)
+    if uvs is None and len(indices) and indices.min() >= 0 and indices.max() < len(positions) \
+            and np.all(np.isfinite(positions)):
+        # no UVs: an xatlas layout (unique, so texture-space diffusion can use it); vertices split
+        # along its seams keep the smooth normals computed before the split
+        from dermis.geometry.atlas import generate_atlas
+
+        if normals is None:
+            normals = vertex_normals(positions, indices)
+        atlas = generate_atlas(positions, indices)
+        positions, normals = positions[atlas.vmapping], np.asarray(normals)[atlas.vmapping]
+        indices, uvs, tangents, uv_convention = atlas.indices.astype(np.int64), atlas.uvs, None, "v-up"
+    if uvs is None:
+        raise DermisError(f"{source}: mesh has no texture coordinates (UVs) and no valid triangles to generate them from")
     uvs = np.ascontiguousarray(uvs, np.float32).copy()
     for name, a in (("positions", positions), ("uvs", uvs)):
         if not np.all(np.isfinite(a)):
@@ -243,13 +254,11 @@ class GltfAsset:
                     at = prim.attributes
                     if at.POSITION is None:
                         continue
-                    if at.TEXCOORD_0 is None:
-                        raise DermisError(f"{self.path}: mesh primitive has no TEXCOORD_0 (UVs); dermis needs a UV layout")
                     p = self.accessor(at.POSITION).astype(np.float64)
                     p = (np.c_[p, np.ones(len(p))] @ m4.T)[:, :3]
                     nm = np.linalg.inv(m4[:3, :3]).T
                     n = self.accessor(at.NORMAL).astype(np.float64) @ nm.T if at.NORMAL is not None else None
-                    uv = self.accessor(at.TEXCOORD_0).astype(np.float64)
+                    uv = self.accessor(at.TEXCOORD_0).astype(np.float64) if at.TEXCOORD_0 is not None else None
                     if at.TANGENT is not None:
                         tg = self.accessor(at.TANGENT).astype(np.float64)
                         tg[:, :3] = tg[:, :3] @ m4[:3, :3].T
@@ -278,7 +287,10 @@ class GltfAsset:
             raise DermisError(f"{self.path}: glTF has no triangle meshes")
         normals = None if any(n is None for n in N) else np.concatenate(N)
         tangents = np.concatenate(TAN) if have_tangents and TAN else None
-        mesh = finish_mesh(np.concatenate(P), normals, np.concatenate(UV), np.concatenate(I), str(self.path), uv_convention, tangents)
+        if any(u is None for u in UV) and not all(u is None for u in UV):
+            raise DermisError(f"{self.path}: some mesh primitives have TEXCOORD_0 (UVs) and others do not")
+        uvs = None if UV[0] is None else np.concatenate(UV)  # None: generated (finish_mesh)
+        mesh = finish_mesh(np.concatenate(P), normals, uvs, np.concatenate(I), str(self.path), uv_convention, tangents)
         material = {"albedo": None, "normal_map": None, "specular_map": None, "albedo_color": None}
         try:
             if material_index is not None and g.materials:
@@ -355,12 +367,13 @@ def load_obj(path: Path, uv_convention: str = "v-up", max_pixels: int = MAX_IMAG
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise DermisError(f"{path}: OBJ has no triangles")
     uv = getattr(loaded.visual, "uv", None)
-    if uv is None or len(uv) != len(loaded.vertices):
-        raise DermisError(f"{path}: mesh has no texture coordinates (UVs); dermis needs a UV layout")
+    if uv is not None and len(uv) != len(loaded.vertices):
+        raise DermisError(f"{path}: OBJ has {len(uv)} texture coordinates for {len(loaded.vertices)} vertices")
     normals = None
     if "vertex_normals" in loaded._cache.cache or getattr(loaded, "_vertex_normals_from_file", False):
         normals = np.asarray(loaded.vertex_normals)
-    mesh = finish_mesh(np.asarray(loaded.vertices), normals, np.asarray(uv), np.asarray(loaded.faces), str(path), uv_convention)
+    mesh = finish_mesh(np.asarray(loaded.vertices), normals, None if uv is None else np.asarray(uv), np.asarray(loaded.faces),
+                       str(path), uv_convention)
     material = {"albedo": None, "normal_map": None, "specular_map": None, "albedo_color": None}
     mat = getattr(loaded.visual, "material", None)
     if mat is not None:

@@ -27,13 +27,19 @@ class Mesh:
     indices: np.ndarray  # (M, 3) uint32, counter-clockwise from outside
     tangents: np.ndarray | None = None  # (N, 4) float32, w = handedness
     source: str = "<mesh>"
+    # the unique UV set texture-space diffusion works in (N, 2), v up; None: ``uvs`` serve
+    # (dermis.geometry.texture_space). "auto" | "mesh" | "generate": how it is chosen.
+    texture_space_uvs: np.ndarray | None = None
+    texture_space_uv: str = "auto"
 
     def validate(self) -> "Mesh":
         n = len(self.positions)
         if n == 0 or len(self.indices) == 0:
             raise DermisError(f"{self.source}: mesh has no triangles")
-        for name in ("positions", "normals", "uvs"):
+        for name in ("positions", "normals", "uvs", "texture_space_uvs"):
             a = getattr(self, name)
+            if a is None and name == "texture_space_uvs":
+                continue
             if a is None:
                 raise DermisError(f"{self.source}: mesh has no {name}" + (" (texture coordinates are required)" if name == "uvs" else ""))
             if len(a) != n:

@@ -22,7 +22,7 @@ from dermis.techniques.shared import MAX_LIGHTS
 # key -> expected python type(s); lists of numbers are checked for length
 _SCHEMA = {
     "scene": {"name": str, "mm_per_unit": float, "technique": str},
-    "mesh": {"file": str, "builtin": str, "uv_convention": str},
+    "mesh": {"file": str, "builtin": str, "uv_convention": str, "texture_space_uv": str},
     "material": {"albedo": str, "albedo_color": "rgb", "normal_map": str, "normal_strength": float,
                  "specular_map": str, "roughness": float, "roughness_map": str, "rho_s": float, "specular_map_bias": float,
                  "specular_map_scale": float, "mix": float, "pore_scale_mm": float, "pore_strength": float},
@@ -128,6 +128,13 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
         default_mm = 1.0
     else:
         mesh, builtin_material, default_mm = builtin_mesh(mesh_t["builtin"], source=path)
+    if "texture_space_uv" in mesh_t:  # the UV set tsd works in (dermis.geometry.texture_space)
+        from dermis.geometry.texture_space import MODES
+
+        if mesh_t["texture_space_uv"] not in MODES:
+            raise DermisError(f"{path}: [mesh] texture_space_uv must be one of {', '.join(MODES)}, "
+                              f"got '{mesh_t['texture_space_uv']}'")
+        mesh.texture_space_uv = mesh_t["texture_space_uv"]
     mm_per_unit = sc.get("mm_per_unit", default_mm)
     _positive(mm_per_unit, "[scene] mm_per_unit", path)
 

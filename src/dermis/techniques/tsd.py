@@ -17,7 +17,8 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
 
 Everything before the final pass is view-independent and cached on the renderer's lighting key:
 a camera move re-runs only the final pass (``frame.passes_run`` says what ran).
-Inputs and units: the scene's mm_per_unit; a unique UV layout (overlapping UVs are refused).
+Inputs and units: the scene's mm_per_unit; a unique texture-space UV layout: the mesh's own, or one
+generated with xatlas (dermis.geometry.texture_space) while the material keeps the asset's UVs.
 Known failure modes: UV seams (mitigated by coverage-normalised blurs and gutter dilation; light
 does not cross a seam), stretch varying faster than the blur width, translucency sums all lights'
 irradiance at the lit side for each light that shadows the point.
@@ -171,7 +172,8 @@ class TextureSpaceDiffusion(Technique):
         self.uv_overlap = overlap
         if overlap > OVERLAP_TOLERANCE:
             raise DermisError(f"{frame.scene.mesh.source}: UV layout overlaps itself ({overlap:.1%} of covered texels are "
-                              f"covered twice); technique '{self.name}' needs a unique UV layout (try --technique ssss or lambert)")
+                              f"covered twice); technique '{self.name}' needs a unique UV layout: set [mesh] texture_space_uv = "
+                              f"\"auto\" or \"generate\" for a generated one, or use --technique ssss or lambert")
         # one-texel islands' edges: derivatives are unreliable at triangle borders; take the median
         vals = data[cov][:, :2]
         self.median_stretch = float(np.median(vals))

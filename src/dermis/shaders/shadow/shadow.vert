@@ -1,11 +1,11 @@
 // Shadow / translucent-shadow-map pass: renders the mesh from light i into its atlas tile.
 layout(location = 0) in vec3 in_position;
-layout(location = 2) in vec2 in_uv;
+layout(location = 5) in vec2 in_uv_ts;  // the TSM stores texture-space UVs (tsd looks its blurs up there)
 uniform mat4 uViewProj;
 out vec3 v_world;
 out vec2 v_uv;
 void main() {
     v_world = in_position;
-    v_uv = in_uv;
+    v_uv = in_uv_ts;
     gl_Position = uViewProj * vec4(in_position, 1.0);
 }

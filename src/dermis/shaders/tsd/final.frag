@@ -21,6 +21,7 @@ uniform int uOutputMode;  // OUTPUT_FULL, OUTPUT_DIFFUSE or OUTPUT_SPECULAR (der
 in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
+in vec2 v_uv_ts;  // texture-space UVs: tsd's own textures; v_uv: the material maps
 in vec4 v_tangent;
 out vec4 f_color;
 
@@ -34,7 +35,7 @@ void main() {
     vec3 Ns = pore_normal(N, v_world * uMmPerUnit, uPoreScaleMm, uPoreStrength);
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
 
-    vec3 E = diffuse_irradiance(v_uv) + texture(uTranslucency, v_uv).rgb;
+    vec3 E = diffuse_irradiance(v_uv_ts) + texture(uTranslucency, v_uv_ts).rgb;
     vec3 albedo = albedo_at(v_uv);
     vec3 diffuse = E * pow(max(albedo, vec3(0.0)), vec3(1.0 - uMix)) * INV_PI * energy_transmitted(rho_s, ndv, m);
 

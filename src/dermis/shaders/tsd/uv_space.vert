@@ -1,9 +1,11 @@
 // Texture-space passes: the mesh is rasterised in its UV layout (d'Eon & Luebke 2007, 14.4.1):
-// gl_Position = (uv * 2 - 1, 0, 1), while lighting uses the world-space attributes.
+// gl_Position = (uv_ts * 2 - 1, 0, 1), while lighting uses the world-space attributes and the
+// material maps the asset's own UVs (v_uv).
 layout(location = 0) in vec3 in_position;
 layout(location = 1) in vec3 in_normal;
 layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec4 in_tangent;
+layout(location = 5) in vec2 in_uv_ts;  // the texture-space UV set (the mesh's own when unique)
 out vec3 v_world;
 out vec3 v_normal;
 out vec2 v_uv;
@@ -13,5 +15,5 @@ void main() {
     v_normal = in_normal;
     v_uv = in_uv;
     v_tangent = in_tangent;
-    gl_Position = vec4(in_uv * 2.0 - 1.0, 0.0, 1.0);
+    gl_Position = vec4(in_uv_ts * 2.0 - 1.0, 0.0, 1.0);
 }

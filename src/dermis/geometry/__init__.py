@@ -1,0 +1,12 @@
+"""Geometry on triangle meshes, built on maintained libraries.
+
+* ``raycast``       - ray-vs-mesh queries through Embree (``embreex``): closest hits, any-hit
+                      occlusion, batched hit distances (camera and shadow rays of the reference
+                      renderer; ambient occlusion, bent normals and thickness bakes).
+* ``rasterize``     - a triangle rasteriser in UV space (which triangle covers each texel, its
+                      barycentrics, how many triangles cover it): texture painting, overlap tests.
+* ``atlas``         - texture-space UV atlases from xatlas (charts, parameterisation, packing with
+                      gutters), cached on disk by the mesh's content hash.
+* ``texture_space`` - the UV set texture-space diffusion works in: the mesh's own when unique,
+                      else one generated with xatlas, beside the asset's UVs for its textures.
+"""

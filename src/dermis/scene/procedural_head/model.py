@@ -1,0 +1,42 @@
+"""The procedural head's data: the ProceduralHead arrays, its parts, units and the constants the
+geometry and the texture painter share (see the package docstring)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+MM_PER_UNIT = 10.0
+LABIOMENTAL_Y = -6.75  # height of the labio-mental fold (normal map), cm
+
+
+def NASOLABIAL_X(y):
+    """|x| of the naso-labial fold (normal map) at height y, cm."""
+    t = np.clip((np.asarray(y, float) + 2.3) / -3.6, 0, 1)
+    return 1.75 + 1.1 * t + 0.25 * t * t
+
+
+PORE_SPACING_MM = 1.0
+ATLAS_RESOLUTION = 1024  # texels per side the UV charts are packed for
+ATLAS_PADDING_TEXELS = 6  # xatlas padding around every chart: >= 12 texels between charts at 1024^2
+
+
+@dataclass
+class ProceduralHead:
+    positions: np.ndarray  # (N, 3) float32, centimetres, y up, face toward +z
+    normals: np.ndarray  # (N, 3) float32, unit, outward, smooth
+    uvs: np.ndarray  # (N, 2) float32, v = 0 is the bottom row of the textures
+    indices: np.ndarray  # (M, 3) uint32, counter-clockwise seen from outside
+    albedo: np.ndarray  # (H, W, 3) float32 linear RGB in [0, 1], row 0 = top
+    normal_map: np.ndarray  # (H, W, 3) float32 tangent space, n * 0.5 + 0.5, OpenGL (+y = +v)
+    specular: np.ndarray  # (H, W) float32 in [0, 1]
+    mm_per_unit: float = MM_PER_UNIT
+    pore_spacing_mm: float = PORE_SPACING_MM
+    landmarks: dict = field(default_factory=dict)  # name -> (3,) float32 point, scene units
+    islands: np.ndarray | None = None  # (M,) int8 part of each triangle (see PARTS)
+    texel_mm: float = 0.0  # mean millimetres per texel of the skin islands at this texture size
+
+
+PARTS = ("ring", "top_cap", "bottom_cap", "left_ear_front", "left_ear_back", "right_ear_front", "right_ear_back")
+ISLANDS = PARTS  # former name (the parts were the UV islands before the layout came from xatlas)
