@@ -20,7 +20,7 @@ from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial, 
 from dermis.verification import impulse_error_on_layout, seam_deviation
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_foundation_loaders import gltf_document, write_gltf  # noqa: E402
+from test_loaders import gltf_document, write_gltf  # noqa: E402
 
 LUM = np.array([0.2126, 0.7152, 0.0722])
 
