@@ -1,4 +1,4 @@
-"""``dermis compare`` (issue 5): the labelled side-by-side sheet and its JSON, run as a real
+"""``dermis compare``: the labelled side-by-side sheet and its JSON, run as a real
 subprocess like the rest of the CLI."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""On the real head, every skin technique reddens shadow penumbras compared with lambert
-(issues 3 and 5): light scatters into the shadow, red furthest."""
+"""On the real head, every skin technique reddens shadow penumbras compared with lambert:
+light scatters into the shadow, red furthest."""
 
 from __future__ import annotations
 

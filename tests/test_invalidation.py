@@ -199,3 +199,17 @@ def test_technique_options_are_validated(gl_ctx):
             tsd.multires = True  # assignment would skip validation
         with pytest.raises(DermisError, match="output_mode"):
             r.render("tsd", output_mode=7)
+
+
+def test_changing_the_scale_re_renders_the_translucent_shadow_map(gl_ctx):
+    from dermis.verification import backlit_slab_scene
+
+    sc = backlit_slab_scene(2.0, n=8)
+    with Renderer(sc, (32, 32), irradiance_size=128, ctx=gl_ctx, samples=0) as r:
+        r.render("tsd", output_mode=1)
+        sc.mm_per_unit = 0.5
+        a = r.render("tsd", output_mode=1)
+        assert "shadow" in r.stats["passes_run"]
+    with Renderer(sc, (32, 32), irradiance_size=128, ctx=gl_ctx, samples=0) as fresh:
+        b = fresh.render("tsd", output_mode=1)
+    np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6)

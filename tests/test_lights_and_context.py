@@ -1,4 +1,5 @@
-"""Point and spot lights against numpy, and the one-line error when no GL context can be made."""
+"""Point and spot lights against numpy, the shadow atlas's size limit, and the one-line error when no GL
+context can be made."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import numpy as np
 import pytest
 
 from dermis.camera import camera_matrices
+from dermis.errors import DermisError
 from dermis.renderer import Renderer
 from dermis.scene.builtin import plane_xy
 from dermis.scene.loaders import finish_mesh
@@ -86,3 +88,18 @@ def test_no_gl_context_is_one_line_error(monkeypatch, capsys):
     assert exc.value.code == 2
     err = [l for l in capsys.readouterr().err.splitlines() if l.strip()]
     assert len(err) == 1 and "eglGetDisplay failed" in err[0] and "apt-get install libegl1" in err[0]
+
+
+def test_shadow_atlas_over_the_texture_limit_is_a_user_error(gl_ctx):
+    from dermis.scene.builtin import frame_scene
+    from dermis.scene.model import Scene
+
+    from dermis.scene.builtin import builtin_mesh
+
+    mesh, _, _ = builtin_mesh("sphere")
+    scene = Scene(mesh=mesh)
+    frame_scene(scene)  # three lights
+    limit = int(gl_ctx.info.get("GL_MAX_TEXTURE_SIZE"))
+    with Renderer(scene, (16, 16), ctx=gl_ctx, samples=0, shadow_size=limit) as r:
+        with pytest.raises(DermisError, match="shadow-size"):
+            r.render("lambert")

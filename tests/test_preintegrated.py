@@ -1,4 +1,4 @@
-"""Pre-integrated skin (issue 5): its tables against independent numpy integrations, zero
+"""Pre-integrated skin: its tables against independent numpy integrations, zero
 curvature and energy on flat regions, mesh curvature, and the real head."""
 
 from __future__ import annotations

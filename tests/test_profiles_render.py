@@ -1,4 +1,4 @@
-"""Physical skin profiles in the renderer (issue 4, item 6): presets change the head as skin does."""
+"""Physical skin profiles in the renderer: presets change the head as skin does."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The offline reference renderer (issue 6): ray casting, surface sampling, the profile integral
+"""The offline reference renderer: ray casting, surface sampling, the profile integral
 against closed forms, translucency through a slab, convergence, determinism and the commands."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Separable screen-space SSS (issue 5): the screen-space kernel against closed forms, in mm,
+"""Separable screen-space SSS: the screen-space kernel against closed forms, in mm,
 silhouettes, energy, transmittance, and the real head. Flat quads facing the camera, whose pixels
 cover a known number of mm (from the camera's field of view, distance and mm_per_unit)."""
 

@@ -1,4 +1,4 @@
-"""Numeric verification of texture-space diffusion (issue 3): every check against an independent
+"""Numeric verification of texture-space diffusion: every check against an independent
 closed form or numpy computation. Flat quads with a known number of mm per texel."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Texture-space diffusion: caching, inspection, material inputs and refusals (issue 3)."""
+"""Texture-space diffusion: caching, inspection, material inputs and refusals."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Texture-space diffusion on whole scenes: translucency, seams, and the real head (issue 3)."""
+"""Texture-space diffusion on whole scenes: translucency, seams, and the real head."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Foundation (issue 2): rendering against analytic scenes evaluated in numpy.
+"""Rendering against analytic scenes evaluated in numpy, and the render API's shape.
 
 The references here ray-cast the ANALYTIC shapes (a sphere, a box over a plane) per pixel centre
 with the renderer's own camera matrices (dermis.camera.camera_matrices, image row 0 = top) and

@@ -1,4 +1,4 @@
-"""Foundation (issue 2): the ``dermis`` command line, run as a real subprocess.
+"""The ``dermis`` command line, run as a real subprocess.
 
 Bad input of every kind must give exit status 2, exactly one non-empty line on stderr that names
 the file (or option) and the problem, no traceback, and no output file (neither --out nor a temp
@@ -18,8 +18,8 @@ from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the helpers below, under any import mode
 
-from test_foundation_loaders import gltf_document, png_bytes, small_grid, texture_u8, write_glb, write_gltf  # noqa: E402
-from test_foundation_output import aces_narkowicz, read_exr, srgb_encode  # noqa: E402
+from test_loaders import gltf_document, png_bytes, small_grid, texture_u8, write_glb, write_gltf  # noqa: E402
+from test_output import aces_narkowicz, read_exr, srgb_encode  # noqa: E402
 
 DERMIS_SCRIPT = Path(sys.executable).parent / "dermis"
 

@@ -1,4 +1,4 @@
-"""Foundation (issue 2): mesh loaders, UV conventions and tangent frames.
+"""Mesh and texture loaders, UV conventions and tangent frames.
 
 Everything is checked against an independent computation: the head's counts against the glb's own
 JSON chunk (parsed here with struct/json) and the asset README; the albedo against Pillow + the
@@ -18,7 +18,9 @@ import pytest
 from PIL import Image
 from scipy.spatial.transform import Rotation
 
+import dermis
 from dermis.errors import DermisError
+from dermis.renderer import Renderer
 from dermis.scene.loaders import load_mesh_file
 
 # ---------------------------------------------------------------------------------------------
@@ -444,3 +446,21 @@ def test_gltf_image_outside_folder_is_refused(tmp_path):
     doc, binary = gltf_document(pos, uv, idx, image=("uri", str((tmp_path / "secret.png").resolve())))
     with pytest.raises(DermisError, match="refused"):
         load_mesh_file(write_gltf(tmp_path / "asset" / "abs.gltf", doc, binary))
+
+
+def _slab_toml(tmp_path, extra=""):
+    Image.fromarray(np.full((16, 16), 128, np.uint8), mode="L").save(tmp_path / "grey.png")
+    p = tmp_path / "s.toml"
+    p.write_text('[scene]\nmm_per_unit = 1.0\n[mesh]\nbuiltin = "slab"\n[material]\nalbedo = "grey.png"\n' + extra)
+    return p
+
+
+def test_grey_albedo_is_grey_not_cyan(tmp_path, gl_ctx):
+    sc = dermis.load_scene(_slab_toml(tmp_path))
+    assert sc.material.albedo.data.shape[2] == 3
+    expected = ((128 / 255 + 0.055) / 1.055) ** 2.4  # sRGB decode of 128
+    np.testing.assert_allclose(sc.material.albedo.data[0, 0], [expected] * 3, rtol=1e-5)
+    with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0) as r:
+        img = r.render("lambert")
+    lit = img[img.sum(axis=2) > 0.1]
+    assert len(lit) and np.allclose(lit[:, 0], lit[:, 1], rtol=0.2)  # not (g, 1, 1)

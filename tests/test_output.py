@@ -1,4 +1,4 @@
-"""Foundation (issue 2): image output (PNG, EXR), the output transform, atomic writes.
+"""Image output (PNG, EXR), the output transform, atomic writes.
 
 Files are read back with Pillow and OpenEXR directly; the sRGB (IEC 61966-2-1) and ACES
 (Narkowicz 2015) curves are re-implemented here in float64 from their published formulas.
