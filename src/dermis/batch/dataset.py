@@ -144,7 +144,7 @@ class Dataset:
             self._journal.write(line)
             self._journal.flush()
             os.fsync(self._journal.fileno())
-        self.rows[row["render_id"]] = row
+            self.rows[row["render_id"]] = row
 
     def write_table(self, specs) -> Path:
         """metadata.parquet from the journal: one row per render of ``specs`` that finished."""
