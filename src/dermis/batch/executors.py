@@ -22,7 +22,7 @@ import time
 from dermis.errors import DermisError
 
 PER_WORKER = 2
-INSTALL_RAY = "--ray: Ray is not installed; install it with pip install 'dermis[ray]' (or pip install 'ray[default]>=2.9')"
+INSTALL_RAY = "--ray: Ray is not installed; install it with pip install 'dermis[ray]' (or pip install 'ray>=2.9')"
 
 
 def failed_row(spec, error: str) -> dict:

@@ -25,16 +25,26 @@ class BatchResult:
     interrupted: bool = False
     startup: dict = field(default_factory=dict)
     render_s: float = 0.0  # from the workers being ready to the last result
+    first_result_s: float = 0.0  # from the workers being ready to the first result (scene load, shader compile)
 
     @property
     def renders_per_minute(self) -> float:
+        """Over the whole render phase (first renders' scene load and shader compile included)."""
         n = self.ok + self.failed
         return 60.0 * n / self.render_s if self.render_s > 0 else 0.0
+
+    @property
+    def steady_renders_per_minute(self) -> float:
+        """Between the first result and the last: the rate once the workers are warm."""
+        n = self.ok + self.failed
+        span = self.render_s - self.first_result_s
+        return 60.0 * (n - 1) / span if n > 1 and span > 0 else 0.0
 
     def as_dict(self) -> dict:
         return {"out": str(self.out), "total": self.total, "skipped": self.skipped, "ok": self.ok, "failed": self.failed,
                 "interrupted": self.interrupted, "startup": self.startup, "render_s": self.render_s,
-                "renders_per_minute": self.renders_per_minute}
+                "first_result_s": self.first_result_s, "renders_per_minute": self.renders_per_minute,
+                "steady_renders_per_minute": self.steady_renders_per_minute}
 
 
 def default_workers() -> int:
@@ -95,6 +105,8 @@ def run_batch(sweep_path, out, *, workers: int | None = None, ray: str | None = 
                 executor.submit(todo.popleft())
             for _spec, row, files in executor.results(timeout=0.5):
                 data.commit(row, files)
+                if not result.first_result_s:
+                    result.first_result_s = time.perf_counter() - t0
                 if row["status"] == "ok":
                     result.ok += 1
                 else:
