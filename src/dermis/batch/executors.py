@@ -212,8 +212,9 @@ class RayExecutor:
 
         t0 = time.perf_counter()
         if not ray.is_initialized():
-            kwargs = {"include_dashboard": False, "logging_level": logging.WARNING, "log_to_driver": False}
+            kwargs = {"logging_level": logging.WARNING, "log_to_driver": False}
             if self.address == "auto":
+                kwargs["include_dashboard"] = False  # (only for a Ray this call starts)
                 kwargs["runtime_env"] = {"env_vars": {"PYTHONPATH": os.environ.get("PYTHONPATH", "")}}
                 if self.workers:
                     kwargs["num_cpus"] = max(self.workers, os.cpu_count() or 1)
