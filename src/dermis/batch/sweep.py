@@ -18,7 +18,6 @@ import hashlib
 import itertools
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -160,15 +159,10 @@ def _is_size_pair(v) -> bool:
 
 def load_sweep(path) -> Sweep:
     """Parse and check a sweep file (names, types, distributions; not physical ranges)."""
+    from dermis.scene.toml_scene import read_toml
+
     path = Path(path)
-    if not path.is_file():
-        raise DermisError(f"{path}: sweep file not found")
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise DermisError(f"{path}: sweep file is not UTF-8 text") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise DermisError(f"{path}: invalid TOML ({exc})") from None
+    doc = read_toml(path, "sweep")
     for key in doc:
         if key not in ("sweep", "axes"):
             raise DermisError(f"{path}: unknown table '{key}' (a sweep has [sweep] and [axes])")
