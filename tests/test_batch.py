@@ -326,6 +326,8 @@ def test_interrupt_then_resume_gives_the_same_dataset(local_run, tmp_path):
         time.sleep(0.02)
     proc.send_signal(signal.SIGINT)
     err = proc.communicate(timeout=120)[1]
+    if proc.returncode == 0 and len(_rows(out)) == N_RENDERS:  # a fast GPU can finish 12 tiny renders first
+        pytest.skip("the batch finished before SIGINT arrived (renders too fast to interrupt here)")
     assert proc.returncode == 130, err
     assert "interrupted" in err and "resume" in err
     rows = _rows(out)
