@@ -44,17 +44,18 @@ def main():
         rows = [x for x in read_table(out).to_pylist() if x["status"] == "ok"]
         med = statistics.median(x["render_ms"] for x in rows)
         tot = statistics.median(x["total_ms"] for x in rows)
-        results.append({"config": name, **r.as_dict(), "wall_s": wall, "median_render_ms": med, "median_total_ms": tot,
+        cpu = statistics.median(x["cpu_ms"] for x in rows) if rows and rows[0].get("cpu_ms") is not None else float("nan")
+        results.append({"config": name, **r.as_dict(), "wall_s": wall, "median_render_ms": med, "median_total_ms": tot, "median_cpu_ms": cpu,
                         "load_before": before, "load_after": load(), "checksums": {x["render_id"]: x["png_sha256"] for x in rows}})
         print(json.dumps({k: v for k, v in results[-1].items() if k != "checksums"}, default=str), flush=True)
     same = all(x["checksums"] == results[0]["checksums"] for x in results)
     print(f"\nsame images in every configuration: {same}\n")
-    print("| executor | renders | start-up (s) | to first image (s) | renders/min (all) | renders/min (warm) | median frame (ms) | median per render (ms) | load before -> after |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| executor | renders | start-up (s) | to first image (s) | renders/min (all) | renders/min (warm) | median frame (ms) | median per render (ms) | median CPU per render (ms) | load before -> after |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for x in results:
         print(f"| {x['config']} | {x['ok']} ok, {x['failed']} failed | {x['startup'].get('startup_s', 0):.1f} | "
               f"{x['first_result_s']:.1f} | {x['renders_per_minute']:.1f} | {x['steady_renders_per_minute']:.1f} | "
-              f"{x['median_render_ms']:.0f} | {x['median_total_ms']:.0f} | {x['load_before'][13:]} -> {x['load_after'][13:]} |")
+              f"{x['median_render_ms']:.0f} | {x['median_total_ms']:.0f} | {x['median_cpu_ms']:.0f} | {x['load_before'][13:]} -> {x['load_after'][13:]} |")
     (work / "results.json").write_text(json.dumps(results, indent=1, default=str))
 
 

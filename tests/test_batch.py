@@ -282,6 +282,7 @@ def test_local_executor_dataset(local_run):
             continue
         assert r["status"] == "ok" and r["error"] is None and r["gl_renderer"]
         assert (r["width"], r["height"]) == (64, 64) and r["render_ms"] > 0 and r["total_ms"] >= r["render_ms"]
+        assert r["cpu_ms"] > 0
         data = (out / r["png"]).read_bytes()
         assert hashlib.sha256(data).hexdigest() == r["png_sha256"]
         assert r["light_colors"][0] == pytest.approx(list(blackbody_rgb(r["lights.temperature_k"])))

@@ -46,7 +46,7 @@ def _schema():
                ("camera_position", pa.list_(pa.float64())), ("light_colors", pa.list_(pa.list_(pa.float64()))),
                ("light_intensities", pa.list_(pa.float64())),
                ("png", pa.string()), ("exr", pa.string()), ("mask", pa.string()), ("depth", pa.string()),
-               ("png_sha256", pa.string()), ("render_ms", pa.float64()), ("total_ms", pa.float64()),
+               ("png_sha256", pa.string()), ("render_ms", pa.float64()), ("total_ms", pa.float64()), ("cpu_ms", pa.float64()),
                ("dermis_version", pa.string()), ("gl_renderer", pa.string()), ("worker", pa.string()),
                ("finished_utc", pa.string()), ("sweep", pa.string()), ("seed", pa.int64())]
     return pa.schema(fields)

@@ -149,7 +149,7 @@ class RenderWorker:
         from dermis.images import write_exr, write_png
         from dermis.output import output_transform
 
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         params = spec.params
         row = {"render_id": spec.render_id, "index": spec.index, "status": "failed", "error": None,
                **{k: v for k, v in params.items()}, "worker": self.name, "gl_renderer": self.gl_renderer,
@@ -192,6 +192,9 @@ class RenderWorker:
             files = {}
             row["error"] = one_line(exc)
         row["total_ms"] = (time.perf_counter() - t0) * 1e3
+        # CPU time of the whole worker process (llvmpipe's rasteriser threads included): what a
+        # render costs in core-seconds, whatever else the machine is running
+        row["cpu_ms"] = (time.process_time() - c0) * 1e3
         row["finished_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
         return row, files
 
