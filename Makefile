@@ -8,7 +8,7 @@ GL_PACKAGES := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri
 # the viewer's window tests run under a virtual X server
 TEST_PACKAGES := xvfb xauth libxrandr2 libxcursor1 libxi6 libxinerama1
 
-.PHONY: demo test sysdeps test-sysdeps install bench clean
+.PHONY: demo test sysdeps test-sysdeps install bench bench-batch clean
 
 sysdeps:
 	@scripts/ensure-system-packages.sh $(GL_PACKAGES)
@@ -37,6 +37,10 @@ test: test-sysdeps install
 
 bench: sysdeps install
 	$(VENV)/bin/dermis bench
+
+# batch throughput (1, 2 local workers, Ray with 2 actors): pip install -e ".[ray]" first
+bench-batch: sysdeps install
+	$(PY) benchmarks/batch_bench.py --renders 200
 
 clean:
 	rm -rf out .pytest_cache build *.egg-info src/*.egg-info

@@ -95,19 +95,24 @@ def parse_light(d: dict, source, index: int) -> Light:
     return light
 
 
+def read_toml(path: Path, kind: str = "scene") -> dict:
+    """A TOML file (a scene, a sweep) as a dict, with one-line errors naming the file."""
+    if not path.is_file():
+        raise DermisError(f"{path}: {kind} file not found")
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise DermisError(f"{path}: {kind} file is not UTF-8 text") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise DermisError(f"{path}: invalid TOML ({exc})") from None
+
+
 def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
     from dermis.scene.builtin import builtin_mesh
     from dermis.scene.loaders import load_mesh_file
 
     path = Path(path)
-    if not path.is_file():
-        raise DermisError(f"{path}: scene file not found")
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise DermisError(f"{path}: scene file is not UTF-8 text") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise DermisError(f"{path}: invalid TOML ({exc})") from None
+    doc = read_toml(path, "scene")
     folder = path.resolve().parent
     for key in doc:
         if key not in _TOP:
