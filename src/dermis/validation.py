@@ -17,7 +17,7 @@ from dermis.errors import DermisError
 
 MAX_SIZE = 8192  # output, texture-space and shadow-map resolutions (GL_MAX_TEXTURE_SIZE class)
 IRRADIANCE_SIZES = (64, MAX_SIZE)
-SHADOW_SIZES = (128, MAX_SIZE)
+SHADOW_SIZES = (128, 16384)  # per-light tile; the atlas of all lights is checked against the GPU (gl/shadows.py)
 MAX_SAMPLES = 64
 EXPOSURE_STOPS = (-64.0, 64.0)  # 2**64 x a half-float radiance stays finite in float32
 MAX_INTENSITY = 1e12  # light intensities and environment radiance; far above any scene (sun ~1e3)
