@@ -182,9 +182,8 @@ _register_optional()
 
 
 def quiet_libraries():
-    """The error is the only line: numpy/trimesh/pygltflib warnings and log records are dropped
-    (dermis checks what they warn about and says it in its own words)."""
-    warnings.simplefilter("ignore")
+    """The error is the only line: numpy/trimesh/pygltflib log records are dropped (dermis checks
+    what they warn about and says it in its own words; warnings are ignored around the command)."""
     root = logging.getLogger()
     if not root.handlers:
         root.addHandler(logging.NullHandler())  # no "last resort" printing of library warnings
@@ -193,7 +192,9 @@ def quiet_libraries():
 def main(argv=None):
     quiet_libraries()
     try:
-        cli.main(args=argv, prog_name="dermis", standalone_mode=False)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            cli.main(args=argv, prog_name="dermis", standalone_mode=False)
     except DermisError as exc:
         click.echo(f"dermis: error: {cli_message(str(exc))}", err=True)
         sys.exit(2)
