@@ -82,7 +82,7 @@ def shared_renderer():
     return _RENDERER
 
 
-def render_loaded(path, technique="lambert"):
+def render_loaded(path, technique=None):
     """load_scene + a 16x16 frame on the shared renderer."""
     scene = dermis.load_scene(path)
     r = shared_renderer()
@@ -148,6 +148,8 @@ def vec(n=3):
 
 
 def toml_value(v) -> str:
+    if v is None:  # TOML has no null: an empty inline table, a wrong type for every key
+        return "{}"
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, int):

@@ -417,6 +417,38 @@ def _obj_references(text: str, path: Path, folder: Path, max_pixels: int) -> dic
     return files
 
 
+_OBJ_COUNTS = {"v": (3, 7), "vt": (1, 3), "vn": (3, 3)}  # numbers per line (v may carry w or r g b)
+
+
+def check_obj_lines(text: str, path: Path):
+    """The lines dermis's OBJ reader (trimesh) relies on, checked first: numbers where numbers go,
+    face references that are non-zero integers (1-based, or negative = relative). A malformed line
+    is named with its number instead of surfacing as an exception inside the parser."""
+    for no, line in enumerate(text.splitlines(), 1):
+        head, _, rest = line.strip().partition(" ")
+        if head in _OBJ_COUNTS:
+            parts = rest.split()
+            lo, hi = _OBJ_COUNTS[head]
+            try:
+                ok = lo <= len(parts) <= hi and all(np.isfinite(float(x)) for x in parts)
+            except ValueError:
+                ok = False
+            if not ok:
+                raise DermisError(f"{path}: line {no}: '{head}' needs {lo}{'' if lo == hi else f'-{hi}'} finite numbers, "
+                                  f"got '{line.strip()[:60]}'")
+        elif head == "f":
+            refs = rest.split()
+            try:
+                ok = len(refs) >= 3 and all(
+                    all(int(x) != 0 for x in r.split("/") if x != "") and r.split("/")[0] != "" and r.count("/") <= 2
+                    for r in refs)
+            except ValueError:
+                ok = False
+            if not ok:
+                raise DermisError(f"{path}: line {no}: 'f' needs 3 or more vertex references (v, v/vt, v/vt/vn or "
+                                  f"v//vn; non-zero integers), got '{line.strip()[:60]}'")
+
+
 def _safe_resolver(folder: Path, source: Path, checked: dict):
     import trimesh.resolvers
 
@@ -447,6 +479,7 @@ def load_obj(path: Path, uv_convention: str = "v-up", max_pixels: int = MAX_IMAG
     if n_v > MAX_VERTICES or n_f > MAX_TRIANGLES:
         raise DermisError(f"{path}: OBJ has about {n_v} vertices and {n_f} faces, over dermis's limit of "
                           f"{MAX_VERTICES} / {MAX_TRIANGLES} (decimate the mesh)")
+    check_obj_lines(text, path)
     checked = _obj_references(text, path, folder, max_pixels)
     try:
         import logging
@@ -465,12 +498,15 @@ def load_obj(path: Path, uv_convention: str = "v-up", max_pixels: int = MAX_IMAG
         raise DermisError(f"{path}: cannot parse OBJ ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise DermisError(f"{path}: OBJ has no triangles")
-    uv = getattr(loaded.visual, "uv", None)
+    try:
+        uv = getattr(loaded.visual, "uv", None)
+        normals = None
+        if "vertex_normals" in loaded._cache.cache or getattr(loaded, "_vertex_normals_from_file", False):
+            normals = np.asarray(loaded.vertex_normals)
+    except Exception as exc:  # trimesh computes some of these lazily
+        raise DermisError(f"{path}: cannot parse OBJ ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
     if uv is None or len(uv) != len(loaded.vertices):
         raise DermisError(f"{path}: mesh has no texture coordinates (UVs); dermis needs a UV layout")
-    normals = None
-    if "vertex_normals" in loaded._cache.cache or getattr(loaded, "_vertex_normals_from_file", False):
-        normals = np.asarray(loaded.vertex_normals)
     mesh = finish_mesh(np.asarray(loaded.vertices), normals, np.asarray(uv), np.asarray(loaded.faces), str(path), uv_convention)
     material = {"albedo": None, "normal_map": None, "specular_map": None, "albedo_color": None}
     # without an MTL file trimesh still makes a default material (a grey 2x2 image): not the
