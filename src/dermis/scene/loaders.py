@@ -417,7 +417,7 @@ def _obj_references(text: str, path: Path, folder: Path, max_pixels: int) -> dic
     return files
 
 
-_OBJ_COUNTS = {"v": (3, 7), "vt": (1, 3), "vn": (3, 3)}  # numbers per line (v may carry w or r g b)
+_OBJ_COUNTS = {"v": (3, 7), "vt": (2, 3), "vn": (3, 3)}  # numbers per line (v: w or r g b; vt: dermis needs u, v)
 
 
 def check_obj_lines(text: str, path: Path):
