@@ -16,6 +16,7 @@ tests/test_fuzz.py runs a bounded number of cases in the normal suite; scripts/f
 from __future__ import annotations
 
 import contextlib
+import copy
 import io
 import json
 import math
@@ -351,14 +352,15 @@ def gltf_cases(draw):
     normals = np.tile([[0.0, 0.0, 1.0]], (len(pos), 1)) if draw(st.booleans()) else None
     doc, binary = gltf_document(pos, uv, idx, normals=normals, image=img)
     if draw(st.booleans()):
-        doc["nodes"][0].update(draw(st.sampled_from([{"matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]},
+        doc["nodes"][0].update(copy.deepcopy(draw(st.sampled_from([{"matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]},
                                                      {"rotation": [0, 0, 0, 1], "scale": [1, -1, 1]},
-                                                     {"children": [0]}, {"translation": [1e30, 0, 0]}])))
+                                                     {"children": [0]}, {"translation": [1e30, 0, 0]}]))))
     paths = [p for p in _paths(doc) if p]
     for _ in range(draw(st.integers(0, 3))):
         path = draw(st.sampled_from(paths))
         try:
-            _set(doc, path, draw(GLTF_VALUES), delete=draw(st.integers(0, 4)) == 0)
+            # values are copied: sampled constants must not be changed (or made cyclic) by later edits
+            _set(doc, path, copy.deepcopy(draw(GLTF_VALUES)), delete=draw(st.integers(0, 4)) == 0)
         except (KeyError, IndexError, TypeError):
             pass
         paths = [p for p in _paths(doc) if p]

@@ -22,7 +22,7 @@ from hypothesis import strategies as st  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fuzzing as fz  # noqa: E402
 
-EXAMPLES = int(os.environ.get("FUZZ_EXAMPLES", "12"))
+EXAMPLES = int(os.environ.get("FUZZ_EXAMPLES", "25"))
 _FOLDERS: dict[str, Path] = {}
 RECORD = None  # scripts/fuzz.py sets a callback(family, outcome, case) and turns STRICT off
 STRICT = True
@@ -113,3 +113,32 @@ def family_test(name, examples, seed=None):
 @pytest.mark.parametrize("family", list(FAMILIES))
 def test_fuzz_family(family):
     family_test(family, EXAMPLES)()
+
+
+@settings(max_examples=4, deadline=None, database=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(fz.cli_cases())
+def test_fuzz_cli_as_real_processes(argv):
+    """A handful of CLI cases as real processes: stderr there includes what C libraries print."""
+    import subprocess
+
+    d = folder("cli")
+    argv = [a.replace("OUT", str(d)).replace("SCENE", str(d / "s.toml")) for a in argv]
+    before = set(d.rglob("*"))
+    res = subprocess.run([sys.executable, "-m", "dermis.cli", *argv], capture_output=True, text=True, timeout=300,
+                         cwd=d)
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    new = sorted(set(d.rglob("*")) - before)
+    try:
+        if res.returncode == 0:
+            assert not lines and not [p for p in new if ".part" in p.name], res.stderr
+        else:
+            assert res.returncode == 2 and len(lines) == 1 and lines[0].startswith("dermis: error: "), res.stderr
+            assert not new, new
+    finally:
+        for p in sorted(new, reverse=True):
+            if p.is_dir() and not p.is_symlink():
+                import shutil
+
+                shutil.rmtree(p, ignore_errors=True)
+            elif os.path.lexists(p):
+                p.unlink()

@@ -122,6 +122,8 @@ def render(scene, technique, size, out, exr, stats, exposure, tonemap, samples, 
         for opt2, p2 in files[:i]:
             if p.resolve() == p2.resolve():
                 raise DermisError(f"{opt}: {p} is the same file as {opt2}")
+    if debug_buffers and any(Path(debug_buffers).resolve() == p.resolve() for _, p in files):
+        raise DermisError(f"--debug-buffers: {debug_buffers} is also the name of a file output")
     sc = scene_from_arg(scene, technique)
     technique_class(sc.technique)  # unknown names fail before any GL work
     with OutputSet() as outputs:

@@ -151,6 +151,10 @@ class OutputSet:
 
     def commit(self):
         mode = 0o666 & ~_umask()  # mkstemp makes 0600; outputs get the usual permissions
+        files = {t.resolve() for _, t in self._files}
+        for _, target in self._folders:  # everything that could fail is checked before any rename
+            if target.resolve() in files or (target.exists() and not target.is_dir()):
+                raise DermisError(f"{target}: the output folder is a file (or another output's name)")
         try:
             for tmp, target in self._files:
                 os.chmod(tmp, mode)

@@ -137,9 +137,9 @@ def validate_document(doc: dict, source, binary_length: int | None) -> None:
                 c.fail(f"{w} byteStride", f"must be a multiple of 4, got {s}")
     for i, a in enumerate(d.get("accessors", [])):
         w = f"accessors[{i}]"
-        if a.get("componentType") not in COMPONENT_TYPES:
+        if not isinstance(a.get("componentType"), int) or a.get("componentType") not in COMPONENT_TYPES:
             c.fail(f"{w} componentType", f"must be one of {sorted(COMPONENT_TYPES)}, got {a.get('componentType')!r}")
-        if a.get("type") not in TYPE_SIZES:
+        if not isinstance(a.get("type"), str) or a.get("type") not in TYPE_SIZES:
             c.fail(f"{w} type", f"must be one of {', '.join(TYPE_SIZES)}, got {a.get('type')!r}")
         c.integer(a.get("count"), f"{w} count", 1, MAX_VERTICES * 3)
         c.index(a.get("bufferView"), "bufferViews", f"{w} bufferView")
