@@ -29,7 +29,11 @@ def cli_message(message: str) -> str:
     """A library message in the CLI's words: a leading API argument name becomes its flag."""
     name, sep, rest = message.partition(":")
     if sep and name in FLAG_FOR_OPTION:
-        return FLAG_FOR_OPTION[name] + sep + rest
+        message = FLAG_FOR_OPTION[name] + sep + rest
+    # "use a smaller shadow_size" and the like, inside the message
+    for name, flag in FLAG_FOR_OPTION.items():
+        if "_" in name:
+            message = message.replace(name, flag)
     return message
 
 
