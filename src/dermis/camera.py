@@ -136,7 +136,9 @@ def check_camera(camera, where: str, center, radius: float):
     if np.linalg.norm(view) <= 1e-9 * max(np.abs(vals["position"]).max(), radius, 1e-30):
         raise DermisError(f"{where} position and target coincide: the camera has no view direction")
     up = vals["up"]
-    if np.linalg.norm(up) == 0 or abs(np.dot(normalize(view), normalize(up))) > 0.999:
+    # exactly along the view (within float rounding): no image orientation. Nearly along it is
+    # allowed (look_at then picks another up; the viewer orbits to 89 degrees of pitch)
+    if np.linalg.norm(up) == 0 or abs(np.dot(normalize(view), normalize(up))) > 1 - 1e-9:
         raise DermisError(f"{where} up must not be zero or parallel to the view direction (target - position)")
     fov = camera.fov_deg
     if isinstance(fov, bool) or not isinstance(fov, (int, float, np.floating)) or not 0 < fov < 170:
