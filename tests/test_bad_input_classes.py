@@ -250,10 +250,21 @@ def test_obj_references_escaping_the_folder_are_errors(tmp_path, obj_head, mtl, 
     one_line_error(lambda: dermis.load_scene(d / "mesh.obj"), *tokens)
 
 
-def test_malformed_obj_line_names_its_line(tmp_path):
+@pytest.mark.parametrize("first, head", [("v 0 0", "'v'"), ("vt 0", "'vt'"), ("f 1/1 0/2 3", "'f'")])
+def test_malformed_obj_line_names_its_line(tmp_path, first, head):
+    """Found by the fuzzer: 'v 0 0' and 'vt 0' raised ValueError/IndexError inside trimesh."""
     p = tmp_path / "m.obj"
-    p.write_text("v 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
-    one_line_error(lambda: dermis.load_scene(p), "m.obj", "line 1", "'v'")
+    p.write_text(first + "\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
+    one_line_error(lambda: dermis.load_scene(p), "m.obj", "line 1", head)
+
+
+def test_gltf_accessor_type_of_the_wrong_json_type(tmp_path):
+    """Found by the fuzzer: a list where componentType's number goes raised TypeError (unhashable)."""
+    doc, binary = _doc()
+    doc["accessors"][0]["componentType"] = [5126]
+    doc["accessors"][1]["type"] = {"VEC3": 1}
+    p = write_gltf(tmp_path / "t.gltf", doc, binary)
+    one_line_error(lambda: dermis.load_scene(p), "t.gltf", "accessors[0] componentType")
 
 
 # ----------------------------------------------------------------------------- images
@@ -394,6 +405,14 @@ def test_cli_bad_outputs_and_options(cli_dir, extra, tokens):
     for t in tokens:
         assert t in res.detail, (t, res.detail)
     assert not out.exists()
+
+
+def test_cli_debug_folder_named_like_the_png(cli_dir):
+    """Found by the fuzzer: --debug-buffers equal to --out renamed the PNG, then failed."""
+    out = cli_dir / "a.png"
+    res = cli_inprocess([cli_dir / "s.toml", *BASE, "--out", out, "--debug-buffers", out], cli_dir)
+    assert res.kind == fz.ERROR and "--debug-buffers" in res.detail, res
+    assert sorted(p.name for p in cli_dir.iterdir()) == ["fifo", "s.toml"]
 
 
 def test_cli_outputs_are_all_or_nothing(cli_dir):
