@@ -8,7 +8,7 @@ GL_PACKAGES := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri
 # the viewer's window tests run under a virtual X server
 TEST_PACKAGES := xvfb xauth libxrandr2 libxcursor1 libxi6 libxinerama1
 
-.PHONY: demo test sysdeps test-sysdeps install bench bench-batch clean
+.PHONY: demo test sysdeps test-sysdeps install bench bench-batch fuzz clean
 
 sysdeps:
 	@scripts/ensure-system-packages.sh $(GL_PACKAGES)
@@ -41,6 +41,12 @@ bench: sysdeps install
 # batch throughput (1, 2 local workers, Ray with 2 actors): pip install -e ".[ray]" first
 bench-batch: sysdeps install
 	$(PY) benchmarks/batch_bench.py --renders 200
+
+# >= 10,000 generated bad (and good) inputs; counts go to benchmarks/RESULTS.md "Reliability"
+# (FUZZ_CASES, FUZZ_SEED to change the count or replay a seed)
+FUZZ_CASES ?= 10000
+fuzz: sysdeps install
+	$(PY) scripts/fuzz.py --cases $(FUZZ_CASES) $(if $(FUZZ_SEED),--seed $(FUZZ_SEED))
 
 clean:
 	rm -rf out .pytest_cache build *.egg-info src/*.egg-info

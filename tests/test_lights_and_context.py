@@ -101,5 +101,5 @@ def test_shadow_atlas_over_the_texture_limit_is_a_user_error(gl_ctx):
     frame_scene(scene)  # three lights
     limit = int(gl_ctx.info.get("GL_MAX_TEXTURE_SIZE"))
     with Renderer(scene, (16, 16), ctx=gl_ctx, samples=0, shadow_size=limit) as r:
-        with pytest.raises(DermisError, match="shadow-size"):
+        with pytest.raises(DermisError, match="shadow_size"):
             r.render("lambert")

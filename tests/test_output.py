@@ -74,7 +74,9 @@ def test_output_transform_matches_independent_formulas(tonemap, exposure):
 def test_output_transform_negative_and_unknown():
     y = output_transform(np.full((1, 1, 3), -1.0, np.float32), 0.0, "aces")
     assert (y == 0).all()
-    with pytest.raises(ValueError):
+    from dermis.errors import DermisError
+
+    with pytest.raises(DermisError, match="tonemap"):
         output_transform(np.zeros((1, 1, 3), np.float32), 0.0, "reinhard")
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from dermis.errors import DermisError
@@ -15,6 +16,16 @@ def load_scene(path, *, technique: str | None = None, uv_convention: str | None 
     from dermis.scene.model import SkinMaterial
     from dermis.scene.toml_scene import load_scene_toml
 
+    from dermis.scene.loaders import UV_CONVENTIONS
+    from dermis.validation import check_scene, check_technique_arg
+
+    if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
+        raise DermisError(f"load_scene: path must be a str or os.PathLike, got {type(path).__name__}")
+    if str(path) == "":
+        raise DermisError("load_scene: path is empty")
+    check_technique_arg(technique)
+    if uv_convention is not None and uv_convention not in UV_CONVENTIONS:
+        raise DermisError(f"uv_convention: must be one of {', '.join(UV_CONVENTIONS)}, got {uv_convention!r}")
     p = Path(path)
     if p.suffix.lower() == ".toml":
         scene = load_scene_toml(p)
@@ -25,12 +36,13 @@ def load_scene(path, *, technique: str | None = None, uv_convention: str | None 
             material.albedo_color = mat["albedo_color"]
         scene = Scene(mesh=mesh, material=material, source=str(p), name=p.stem)
         frame_scene(scene)
-    elif not p.exists():
+    elif not os.path.lexists(p):
         raise DermisError(f"{p}: file not found")
     else:
         raise DermisError(f"{p}: not a scene (.toml) or mesh (.glb, .gltf, .obj) file")
     if technique:
         scene.technique = technique
+    check_scene(scene)
     return scene
 
 
@@ -42,8 +54,17 @@ def default_scene() -> Scene:
 
 
 def render(scene: Scene, technique: str | None = None, size=(512, 512), **renderer_options):
-    """Render once and return linear float32 (H, W, 3) radiance. For many frames use Renderer."""
+    """Render once and return linear float32 (H, W, 3) radiance. For many frames use Renderer.
+
+    ``renderer_options``: those of Renderer (samples, shadow_size, irradiance_size, device, ctx)."""
     from dermis.renderer import Renderer
+    from dermis.validation import check_scene, check_technique_arg
+
+    unknown = sorted(set(renderer_options) - {"samples", "shadow_size", "irradiance_size", "device", "ctx", "timing"})
+    if unknown:
+        raise DermisError(f"render: unknown option(s) {', '.join(unknown)} (samples, shadow_size, irradiance_size, device)")
+    check_technique_arg(technique)
+    check_scene(scene)  # before a GL context is made
 
     with Renderer(scene, size, **renderer_options) as r:
         return r.render(technique)

@@ -25,6 +25,8 @@ def look_at(eye, target, up) -> np.ndarray:
 
 
 def perspective(fov_y_deg, aspect, near, far) -> np.ndarray:
+    if not (0 < fov_y_deg < 180 and aspect > 0 and 0 < near < far):
+        raise ValueError(f"perspective: degenerate frustum (fov {fov_y_deg}, aspect {aspect}, near {near}, far {far})")
     f = 1.0 / np.tan(np.radians(fov_y_deg) / 2)
     m = np.zeros((4, 4))
     m[0, 0], m[1, 1] = f / aspect, f
@@ -54,11 +56,18 @@ def camera_matrices(camera, aspect: float, lo, hi):
     d = np.linalg.norm(eye - c)
     near = camera.near if camera.near else max(d - r * 1.5, r * 1e-3, 1e-4)
     far = camera.far if camera.far else d + r * 1.5
+    if not far > near:  # one of them given and beyond the other's fitted value: keep a valid range
+        if camera.far:
+            near = far * 1e-3
+        else:
+            far = near * 2.0
     return look_at(eye, camera.target, camera.up), perspective(camera.fov_deg, aspect, near, far), eye, near, far
 
 
 def orthographic_box(x0, x1, y0, y1, near, far) -> np.ndarray:
     """Off-centre orthographic projection of the view-space box [x0, x1] x [y0, y1] x [-far, -near]."""
+    if not (x1 > x0 and y1 > y0 and far > near):
+        raise ValueError(f"orthographic_box: empty box ({x0}, {x1}, {y0}, {y1}, {near}, {far})")
     m = np.eye(4)
     m[0, 0], m[1, 1] = 2 / (x1 - x0), 2 / (y1 - y0)
     m[0, 3], m[1, 3] = -(x1 + x0) / (x1 - x0), -(y1 + y0) / (y1 - y0)
@@ -106,3 +115,38 @@ def light_matrices(light, lo, hi, points=None):
     # the map's width at the scene centre's distance (the normal offset's scale)
     half = dist * np.tan(np.radians(fov) / 2)
     return perspective(fov, 1.0, near, far) @ look_at(eye, target, (0, 1, 0)), eye, half
+
+
+def check_camera(camera, where: str, center, radius: float):
+    """Refuse a camera that cannot give an image (one-line DermisError, ``where`` names it):
+    non-finite values, position == target, ``up`` along the view direction, field of view outside
+    (0, 170) degrees, near <= 0, far <= near, or a near/far range that does not reach the scene."""
+    from dermis.errors import DermisError
+
+    vals = {}
+    for k in ("position", "target", "up"):
+        try:
+            a = np.asarray(getattr(camera, k), np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            a = np.array([np.nan])
+        if a.shape != (3,) or not np.all(np.isfinite(a)) or np.abs(a).max() > 1e12:
+            raise DermisError(f"{where} {k} must be 3 finite numbers, got {getattr(camera, k)!r}")
+        vals[k] = a
+    view = vals["target"] - vals["position"]
+    if np.linalg.norm(view) <= 1e-9 * max(np.abs(vals["position"]).max(), radius, 1e-30):
+        raise DermisError(f"{where} position and target coincide: the camera has no view direction")
+    up = vals["up"]
+    # exactly along the view (within float rounding): no image orientation. Nearly along it is
+    # allowed (look_at then picks another up; the viewer orbits to 89 degrees of pitch)
+    if np.linalg.norm(up) == 0 or abs(np.dot(normalize(view), normalize(up))) > 1 - 1e-9:
+        raise DermisError(f"{where} up must not be zero or parallel to the view direction (target - position)")
+    fov = camera.fov_deg
+    if isinstance(fov, bool) or not isinstance(fov, (int, float, np.floating)) or not 0 < fov < 170:
+        raise DermisError(f"{where} fov_deg must be in (0, 170) degrees, got {fov!r}")
+    for k in ("near", "far"):
+        v = getattr(camera, k)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) or not np.isfinite(v)
+                              or v <= 0):
+            raise DermisError(f"{where} {k} must be a positive finite distance, got {v!r}")
+    if camera.near is not None and camera.far is not None and not camera.far > camera.near * (1 + 1e-6):
+        raise DermisError(f"{where} far ({camera.far}) must be greater than near ({camera.near})")

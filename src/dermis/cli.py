@@ -1,12 +1,17 @@
 """The ``dermis`` command: a thin layer over the Python API.
 
-User errors (DermisError, bad options) print one line, ``dermis: error: ...``, and exit 2.
+User errors (DermisError, bad options) print one line, ``dermis: error: ...``, and exit 2; the
+library words its errors with the API's argument names (``irradiance_size: ...``), which the CLI
+maps to its flags (FLAG_FOR_OPTION). Warnings and log messages of the libraries underneath are
+silenced so that the error is the only line. Outputs are all-or-nothing (dermis.fileio.OutputSet).
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import sys
+import warnings
 from pathlib import Path
 
 import click
@@ -14,8 +19,26 @@ import click
 from dermis.errors import DermisError
 
 
+# API argument names -> the flags that set them (messages "name: ..." become "--flag: ...")
+FLAG_FOR_OPTION = {"size": "--size", "technique": "--technique", "irradiance_size": "--irradiance-size",
+                   "shadow_size": "--shadow-size", "samples": "--samples", "exposure": "--exposure",
+                   "tonemap": "--tonemap", "device": "--device"}
+
+
+def cli_message(message: str) -> str:
+    """A library message in the CLI's words: a leading API argument name becomes its flag."""
+    name, sep, rest = message.partition(":")
+    if sep and name in FLAG_FOR_OPTION:
+        message = FLAG_FOR_OPTION[name] + sep + rest
+    # "use a smaller shadow_size" and the like, inside the message
+    for name, flag in FLAG_FOR_OPTION.items():
+        if "_" in name:
+            message = message.replace(name, flag)
+    return message
+
+
 def parse_size(value: str, option="--size") -> tuple[int, int]:
-    from dermis.renderer import check_size
+    from dermis.validation import check_size
 
     try:
         w, h = value.lower().split("x")
@@ -83,43 +106,63 @@ def info(device, as_json):
 def render(scene, technique, size, out, exr, stats, exposure, tonemap, samples, irradiance_size, shadow_size, debug_buffers,
            device):
     """Render SCENE (a .toml scene or a .glb/.gltf/.obj mesh; default: the built-in head)."""
-    from dermis.images import write_exr, write_png
+    from dermis.fileio import OutputSet
+    from dermis.images import exr_writer, png_writer
     from dermis.output import output_transform
     from dermis.renderer import Renderer
     from dermis.techniques import technique_class
+    from dermis.validation import check_exposure, check_renderer_options
 
     w, h = parse_size(size)
-    if not 64 <= irradiance_size <= 8192:
-        raise DermisError(f"--irradiance-size must be in [64, 8192], got {irradiance_size}")
-    if not 128 <= shadow_size <= 8192:
-        raise DermisError(f"--shadow-size must be in [128, 8192], got {shadow_size}")
+    check_renderer_options((w, h), samples, shadow_size, irradiance_size, device)
+    if exposure is not None:
+        check_exposure(exposure)
+    named = [("--out", out), ("--exr", exr), ("--stats", stats)]
+    for opt, p in named + [("--debug-buffers", debug_buffers)]:
+        if p is not None and str(p).strip() == "":
+            raise DermisError(f"{opt}: the path is empty")
+    files = [(opt, Path(p)) for opt, p in named if p is not None]
+    for i, (opt, p) in enumerate(files):
+        for opt2, p2 in files[:i]:
+            if p.resolve() == p2.resolve():
+                raise DermisError(f"{opt}: {p} is the same file as {opt2}")
+    if debug_buffers and any(Path(debug_buffers).resolve() == p.resolve() for _, p in files):
+        raise DermisError(f"--debug-buffers: {debug_buffers} is also the name of a file output")
     sc = scene_from_arg(scene, technique)
     technique_class(sc.technique)  # unknown names fail before any GL work
-    outputs = [Path(p) for p in (out, exr, stats) if p]
-    for p in outputs:
-        if not p.parent.exists():
-            if p.parent == Path("out"):
+    with OutputSet() as outputs:
+        for opt, p in files:  # temporaries made now: an unwritable place fails before the render
+            if not p.parent.exists() and p.parent == Path("out"):
                 p.parent.mkdir(parents=True, exist_ok=True)
-            else:
-                raise DermisError(f"{p}: output folder {p.parent} does not exist")
-    with Renderer(sc, (w, h), device=device, samples=samples, irradiance_size=irradiance_size,
-                  shadow_size=shadow_size) as r:
-        img = r.render()
-        if not np.isfinite(img).all():
-            raise DermisError(f"{sc.source}: the render produced NaN or infinite values (bad scene values?)")
-        o = sc.output
-        write_png(out, output_transform(img, exposure if exposure is not None else o.exposure, tonemap or o.tonemap,
-                                        o.bloom, o.bloom_radius))
-        if exr:
-            write_exr(exr, img)
-        if stats:
-            write_json_atomic(stats, r.stats)
+            try:
+                outputs.reserve(p)
+            except DermisError as exc:
+                raise DermisError(f"{opt}: {exc}") from None
+        dbg = None
         if debug_buffers:
-            d = Path(debug_buffers)
-            d.mkdir(parents=True, exist_ok=True)
-            for name, arr in r.debug_buffers().items():
-                write_exr(d / f"{name}.exr", arr[:, :, :3] if arr.shape[2] >= 3 else np.repeat(arr[:, :, :1], 3, axis=2))
-        click.echo(f"wrote {out} ({w}x{h}, {sc.technique}, {r.stats['frame_ms']:.0f} ms)")
+            try:
+                dbg = outputs.folder(debug_buffers)
+            except DermisError as exc:
+                raise DermisError(f"--debug-buffers: {exc}") from None
+        with Renderer(sc, (w, h), device=device, samples=samples, irradiance_size=irradiance_size,
+                      shadow_size=shadow_size) as r:
+            img = r.render()
+            o = sc.output
+            display = output_transform(img, exposure if exposure is not None else o.exposure, tonemap or o.tonemap,
+                                       o.bloom, o.bloom_radius)
+            outputs.add(out, png_writer(display))
+            if exr:
+                outputs.add(exr, exr_writer(img))
+            if stats:
+                text = json.dumps(r.stats, indent=2, default=float)
+                outputs.add(stats, lambda tmp: Path(tmp).write_text(text))
+            if dbg is not None:
+                for name, arr in r.debug_buffers().items():
+                    rgb = arr[:, :, :3] if arr.shape[2] >= 3 else np.repeat(arr[:, :, :1], 3, axis=2)
+                    exr_writer(rgb)(dbg / f"{name}.exr")
+            frame_ms = r.stats["frame_ms"]
+        outputs.commit()
+    click.echo(f"wrote {out} ({w}x{h}, {sc.technique}, {frame_ms:.0f} ms)")
 
 
 import numpy as np  # noqa: E402  (used by commands above)
@@ -144,11 +187,22 @@ def _register_optional():
 _register_optional()
 
 
+def quiet_libraries():
+    """The error is the only line: numpy/trimesh/pygltflib log records are dropped (dermis checks
+    what they warn about and says it in its own words; warnings are ignored around the command)."""
+    root = logging.getLogger()
+    if not root.handlers:
+        root.addHandler(logging.NullHandler())  # no "last resort" printing of library warnings
+
+
 def main(argv=None):
+    quiet_libraries()
     try:
-        cli.main(args=argv, prog_name="dermis", standalone_mode=False)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            cli.main(args=argv, prog_name="dermis", standalone_mode=False)
     except DermisError as exc:
-        click.echo(f"dermis: error: {exc}", err=True)
+        click.echo(f"dermis: error: {cli_message(str(exc))}", err=True)
         sys.exit(2)
     except click.exceptions.Abort:
         click.echo("dermis: aborted", err=True)

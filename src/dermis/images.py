@@ -3,19 +3,22 @@
 - Input: size-limited BEFORE decoding (the header is read first), decoded sRGB -> linear for
   colour maps, kept as-is for data maps (normals, specular masks). One-line errors.
 - Output: written to a temporary name in the destination folder and renamed, so no reader ever
-  sees a half-written file. PNG (8-bit sRGB after the output transform) and EXR (linear half/float).
+  sees a half-written file (dermis.fileio: the policy for special files and symbolic links).
+  PNG (8-bit sRGB after the output transform) and EXR (linear half/float).
+- Readers: Pillow for 8-bit images, imagecodecs (maintained, on PyPI) for 16-bit PNG (Pillow
+  reduces 16-bit RGB to 8 bits) and Radiance RGBE .hdr (Ward, "Real Pixels", Graphics Gems II),
+  OpenEXR for .exr.
 """
 
 from __future__ import annotations
 
 import io
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.fileio import atomic_write, read_bytes, regular_file  # noqa: F401  (atomic_write: re-exported)
 
 MAX_IMAGE_PIXELS = 8192 * 8192  # refuse larger images before decoding (64 Mpx)
 
@@ -43,7 +46,12 @@ def _decode_bytes(data: bytes, source: str, max_pixels: int) -> np.ndarray:
             if w * h > max_pixels:
                 raise DermisError(f"{source}: image is {w}x{h}, over the limit of {max_pixels} pixels; refused before decoding")
             mode = im.mode
-            if mode in ("I;16", "I;16B", "I;16L", "I"):
+            if _png_bit_depth(data) == 16:
+                import imagecodecs
+
+                # Pillow decodes 16-bit RGB(A) PNG to 8 bits; imagecodecs keeps all 16
+                arr = np.asarray(imagecodecs.png_decode(data), dtype=np.float32) / 65535.0
+            elif mode in ("I;16", "I;16B", "I;16L", "I"):
                 arr = np.asarray(im, dtype=np.float32) / 65535.0
             else:
                 if mode not in ("L", "RGB", "RGBA", "LA"):
@@ -56,6 +64,13 @@ def _decode_bytes(data: bytes, source: str, max_pixels: int) -> np.ndarray:
     if arr.ndim == 2:
         arr = arr[:, :, None]
     return arr
+
+
+def _png_bit_depth(data: bytes) -> int | None:
+    """A PNG's bit depth from its IHDR chunk (byte 24), None for other formats."""
+    if len(data) >= 25 and data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR":
+        return data[24]
+    return None
 
 
 def _read_exr(path: Path, max_pixels: int) -> np.ndarray:
@@ -86,14 +101,12 @@ def read_image(path, *, srgb: bool, max_pixels: int = MAX_IMAGE_PIXELS, data: by
     src = source or str(path)
     hdr = False
     if data is None:
-        p = Path(path)
-        if not p.is_file():
-            raise DermisError(f"{p}: image file not found")
+        p = regular_file(path, "image file")
         if p.suffix.lower() in (".exr", ".hdr"):
             arr = _read_exr(p, max_pixels) if p.suffix.lower() == ".exr" else _read_hdr(p, max_pixels)
             hdr = True
         else:
-            data = p.read_bytes()
+            data = read_bytes(p, "image file")
     if not hdr:
         arr = _decode_bytes(data, src, max_pixels)
         if srgb:
@@ -115,80 +128,62 @@ def as_rgb(arr: np.ndarray) -> np.ndarray:
 
 
 def _read_hdr(path: Path, max_pixels: int) -> np.ndarray:
-    """Radiance RGBE (.hdr) through imageio, with the size read from the header first."""
-    with open(path, "rb") as f:
-        head = f.read(65536)
+    """Radiance RGBE (.hdr) through imagecodecs, with the size read from the header first."""
+    data = read_bytes(path, "image file")
     size = None
-    for line in head.split(b"\n"):
+    end = data.find(b"\n\n")  # the header ends with an empty line; the resolution line follows
+    for line in (data[end + 2:end + 2 + 64].split(b"\n")[:1] if end >= 0 else []):
         parts = line.split()
         if len(parts) == 4 and parts[0] in (b"-Y", b"+Y", b"-X", b"+X") and parts[2] in (b"-Y", b"+Y", b"-X", b"+X"):
             try:
-                size = int(parts[1]) * int(parts[3])
-                dims = f"{int(parts[3])}x{int(parts[1])}"
+                a, b = int(parts[1]), int(parts[3])
             except ValueError:
-                pass
-            break
+                break
+            if a > 0 and b > 0:
+                size, dims = a * b, f"{b}x{a}"
     if size is None:
-        raise DermisError(f"{path}: not a Radiance HDR image (no resolution line in its header)")
+        raise DermisError(f"{path}: not a Radiance HDR image (no valid resolution line after its header)")
     if size > max_pixels:
         raise DermisError(f"{path}: image is {dims}, over the limit of {max_pixels} pixels; refused before decoding")
     try:
-        import imageio.v3 as iio
+        import imagecodecs
 
-        arr = np.asarray(iio.imread(path), dtype=np.float32)
+        arr = np.asarray(imagecodecs.rgbe_decode(data), dtype=np.float32)
     except Exception as exc:
-        raise DermisError(f"{path}: cannot read HDR image ({type(exc).__name__})") from None
-    return arr[:, :, :3] if arr.ndim == 3 else arr[:, :, None]
+        raise DermisError(f"{path}: cannot read HDR image ({type(exc).__name__}: "
+                          f"{str(exc).splitlines()[0] if str(exc) else 'corrupt data'})") from None
+    if arr.ndim != 3 or arr.shape[0] * arr.shape[1] != size:
+        raise DermisError(f"{path}: cannot read HDR image (decoded size does not match its header)")
+    return arr[:, :, :3]
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def atomic_write(path, write_fn) -> Path:
-    """Call write_fn(temporary_path) in the destination's folder, then rename over ``path``;
-    on any failure the temporary file is removed and ``path`` is left as it was."""
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise DermisError(f"{path}: output folder {folder} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part" + path.suffix, dir=folder)
-    os.close(fd)
-    try:
-        write_fn(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path
-
-
-def write_png(path, rgb_srgb_float: np.ndarray) -> Path:
-    """Write an (H, W, 3) array already in display (sRGB-encoded) [0, 1] values as 8-bit PNG."""
+def png_writer(rgb_srgb_float: np.ndarray):
+    """write_fn(path) writing an (H, W, 3) array of display (sRGB-encoded) [0, 1] values as 8-bit PNG."""
     from PIL import Image
 
-    arr = np.clip(np.asarray(rgb_srgb_float, np.float32) * 255.0 + 0.5, 0, 255).astype(np.uint8)
-    return atomic_write(path, lambda tmp: Image.fromarray(arr).save(tmp, format="PNG"))
+    arr = np.clip(np.nan_to_num(np.asarray(rgb_srgb_float, np.float32)) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    return lambda tmp: Image.fromarray(arr).save(tmp, format="PNG")
 
 
-def write_exr(path, rgb_linear: np.ndarray, half: bool = False) -> Path:
-    """Write a linear (H, W, 3) image as OpenEXR (float32 by default, or half)."""
+def exr_writer(rgb_linear: np.ndarray, half: bool = False):
+    """write_fn(path) writing a linear (H, W, 3) image as OpenEXR (float32 by default, or half)."""
     import OpenEXR
 
     arr = np.ascontiguousarray(np.asarray(rgb_linear, np.float16 if half else np.float32))
 
     def write(tmp):
         header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-        channels = {"RGB": arr}
-        with OpenEXR.File(header, channels) as f:
-            f.write(tmp)
+        with OpenEXR.File(header, {"RGB": arr}) as f:
+            f.write(str(tmp))
 
-    return atomic_write(path, write)
+    return write
 
 
+def write_png(path, rgb_srgb_float: np.ndarray) -> Path:
+    """Write an (H, W, 3) array already in display (sRGB-encoded) [0, 1] values as 8-bit PNG."""
+    return atomic_write(path, png_writer(rgb_srgb_float))
+
+
+def write_exr(path, rgb_linear: np.ndarray, half: bool = False) -> Path:
+    """Write a linear (H, W, 3) image as OpenEXR (float32 by default, or half)."""
+    return atomic_write(path, exr_writer(rgb_linear, half))

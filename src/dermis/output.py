@@ -15,7 +15,9 @@ TONEMAPS = ("aces", "linear")
 
 
 def aces_narkowicz(x):
-    x = np.maximum(np.asarray(x, np.float32), 0.0)
+    # f(x) -> 2.51 / 2.43 > 1 for large x, clipped to 1 from x ~ 3.6 on: capping x at 1e4 changes
+    # nothing and keeps x * x finite in float32 (inf / inf would be NaN)
+    x = np.clip(np.nan_to_num(np.asarray(x, np.float32), nan=0.0), 0.0, 1e4)
     return np.clip((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
 
 
@@ -37,11 +39,16 @@ def output_transform(linear_rgb, exposure: float = 0.0, tonemap: str = "aces", b
                      bloom_radius: float = 0.015) -> np.ndarray:
     """Linear HDR (H, W, 3) -> display-encoded sRGB values in [0, 1]: bloom (optional), exposure,
     tone map, sRGB encoding."""
+    from dermis.validation import check_exposure
+
+    exposure = check_exposure(exposure)
     x = bloom(linear_rgb, bloom_strength, bloom_radius) * np.float32(2.0 ** exposure)
     if tonemap == "aces":
         y = aces_narkowicz(x)
     elif tonemap == "linear":
         y = np.clip(x, 0.0, 1.0)
     else:
-        raise ValueError(f"unknown tone map '{tonemap}' (one of {', '.join(TONEMAPS)})")
+        from dermis.errors import DermisError
+
+        raise DermisError(f"tonemap: unknown tone map {tonemap!r} (one of {', '.join(TONEMAPS)})")
     return linear_to_srgb(y)

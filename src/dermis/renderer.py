@@ -22,21 +22,7 @@ from dermis.invalidation import product_keys, scene_inputs
 from dermis.techniques import technique_class
 from dermis.techniques.base import Frame, PassTimer
 from dermis.techniques.shared import OutputMode
-
-MAX_SIZE = 8192
-
-
-def check_size(size, what="--size") -> tuple[int, int]:
-    try:
-        w, h = (int(size[0]), int(size[1]))
-    except Exception:
-        raise DermisError(f"{what}: size must be two integers WxH, got {size!r}") from None
-    if w < 1 or h < 1:
-        raise DermisError(f"{what}: size {w}x{h} must be at least 1x1")
-    if w > MAX_SIZE or h > MAX_SIZE:
-        raise DermisError(f"{what}: size {w}x{h} exceeds the limit of {MAX_SIZE}x{MAX_SIZE}")
-    return w, h
-
+from dermis.validation import MAX_SIZE, check_render_call, check_rendered, check_renderer_options, check_scene, check_size  # noqa: F401
 
 class Renderer:
     """Keeps a context and a scene's GPU state; renders any technique.
@@ -48,6 +34,7 @@ class Renderer:
 
     def __init__(self, scene=None, size=(512, 512), *, device: int | None = None, samples: int = 4,
                  shadow_size: int = 2048, irradiance_size: int = 1024, ctx=None, timing: bool = True):
+        check_renderer_options(size, samples, shadow_size, irradiance_size, device)
         self._owns_ctx = ctx is None
         self.ctx = ctx or create_context(device)
         self.info = gl_info(self.ctx)
@@ -76,6 +63,7 @@ class Renderer:
 
     # ------------------------------------------------------------------ scene state
     def set_scene(self, scene):
+        check_scene(scene)
         self.scene = scene
         self._built = {}
         self._texture_space_mesh()
@@ -228,6 +216,7 @@ class Renderer:
         except ValueError:
             raise DermisError(f"output_mode must be one of {', '.join(f'{int(m)} ({m.name.lower()})' for m in OutputMode)}, "
                               f"got {output_mode!r}") from None
+        check_render_call(self.scene, technique, camera)
         name = technique or self.scene.technique
         tech = self.technique(name)
         size = check_size(size or self.size)
@@ -256,6 +245,7 @@ class Renderer:
             self.ctx.copy_framebuffer(t["resolve_fbo"], t["fbo"])
             t["resolved"].read_into(t["readback"])
         img = t["readback"][::-1].copy()
+        check_rendered(img, scene, name)
         total = (time.perf_counter() - t0) * 1e3
         self.stats = {"technique": name, "size": list(size), "renderer": self.info["renderer"],
                       "passes_ms": dict(self.timer.times_ms), "passes_run": list(frame.passes_run),

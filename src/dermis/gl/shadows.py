@@ -51,8 +51,8 @@ class ShadowAtlas:
             return
         limit = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE") or 16384)
         if max(size) > limit:
-            raise DermisError(f"--shadow-size {self.tile_size}: {n_lights} lights need a {size[0]}x{size[1]} shadow atlas, "
-                              f"over this GPU's texture limit of {limit}; use a smaller --shadow-size")
+            raise DermisError(f"shadow_size: {self.tile_size} per light: {n_lights} lights need a {size[0]}x{size[1]} shadow "
+                              f"atlas, over this GPU's texture limit of {limit}; use a smaller shadow_size")
         self._release_targets()
         self._size = size
         self.depth = self.ctx.depth_texture(size)

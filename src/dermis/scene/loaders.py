@@ -12,42 +12,54 @@ bottom (OpenGL). ``uv_convention`` says what the FILE uses: "v-down" (glTF spec)
 from __future__ import annotations
 
 import base64
+import json
 from pathlib import Path
 from urllib.parse import unquote
 
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.fileio import os_error_text, read_bytes, regular_file
 from dermis.images import MAX_IMAGE_PIXELS, as_rgb, read_image
+from dermis.scene import gltf_document
+from dermis.scene.gltf_document import MAX_TRIANGLES, MAX_VERTICES, PROGRESS_VERTICES
 from dermis.scene.model import Mesh, Texture
 from dermis.scene.tangents import generate_tangents
 
 UV_CONVENTIONS = ("v-up", "v-down")
+# UVs far outside the unit square: a texture repeated thousands of times across a triangle costs
+# the rasteriser (and tsd's texture space) without bound; UDIM layouts stay well inside this
+UV_LIMIT = 64.0
 
 
 def resolve_inside(folder: Path, uri: str, what: str, source) -> Path:
     """Resolve a relative URI inside ``folder``; refuse anything that escapes it."""
     if "://" in uri or uri.startswith("/") or uri.startswith("\\") or (len(uri) > 1 and uri[1] == ":"):
         raise DermisError(f"{source}: {what} URI '{uri}' is not a relative path inside the asset folder; refused")
-    folder = folder.resolve()
-    target = (folder / unquote(uri)).resolve()
+    try:
+        folder = folder.resolve()
+        target = (folder / unquote(uri)).resolve()
+    except (OSError, RuntimeError, ValueError) as exc:
+        raise DermisError(f"{source}: {what} URI '{uri[:80]}' cannot be resolved ({type(exc).__name__})") from None
     try:
         target.relative_to(folder)
     except ValueError:
         raise DermisError(f"{source}: {what} URI '{uri}' points outside the asset folder {folder}; refused") from None
-    if not target.is_file():
-        raise DermisError(f"{source}: {what} '{uri}' not found in {folder}")
+    try:
+        regular_file(target, what)
+    except DermisError as exc:
+        raise DermisError(f"{source}: {what} '{uri[:80]}': {str(exc).split(': ', 1)[-1]}") from None
     return target
 
 
-def _data_uri(uri: str) -> bytes | None:
+def _data_uri(uri: str, source="glTF") -> bytes | None:
     if not uri.startswith("data:"):
         return None
     try:
         head, payload = uri.split(",", 1)
-        return base64.b64decode(payload) if ";base64" in head else unquote(payload).encode()
+        return base64.b64decode(payload, validate=True) if ";base64" in head else unquote(payload).encode()
     except Exception:
-        raise DermisError("malformed data: URI") from None
+        raise DermisError(f"{source}: malformed data: URI") from None
 
 
 def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: str, tangents=None) -> Mesh:
@@ -72,8 +84,17 @@ def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: st
             raise DermisError(f"{source}: mesh {name} contain NaN or infinite values")
     if len(indices) == 0:
         raise DermisError(f"{source}: mesh has no triangles")
+    if len(positions) > MAX_VERTICES or len(indices) > MAX_TRIANGLES:
+        raise DermisError(f"{source}: mesh has {len(positions)} vertices and {len(indices)} triangles, over dermis's "
+                          f"limit of {MAX_VERTICES} / {MAX_TRIANGLES} (decimate the mesh)")
     if indices.min() < 0 or indices.max() >= len(positions):
         raise DermisError(f"{source}: triangle indices out of range")
+    if len(uvs) != len(positions):
+        raise DermisError(f"{source}: mesh has {len(uvs)} UVs for {len(positions)} vertices")
+    span = float(np.abs(uvs).max()) if len(uvs) else 0.0
+    if span > UV_LIMIT:
+        raise DermisError(f"{source}: texture coordinates reach {span:g}; dermis needs a UV layout within "
+                          f"[-{UV_LIMIT:g}, {UV_LIMIT:g}] (the unit square, or UDIM tiles)")
     if uv_convention == "v-down":
         uvs[:, 1] = 1.0 - uvs[:, 1]
     elif uv_convention != "v-up":
@@ -83,13 +104,45 @@ def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: st
     normals = np.asarray(normals, np.float32)
     if not np.all(np.isfinite(normals)):
         raise DermisError(f"{source}: mesh normals contain NaN or infinite values")
+    if len(normals) != len(positions):
+        raise DermisError(f"{source}: mesh has {len(normals)} normals for {len(positions)} vertices")
+    progress = _Progress(source, len(positions))
     nl = np.linalg.norm(normals, axis=1, keepdims=True)
     normals = np.where(nl > 1e-12, normals / np.maximum(nl, 1e-12), vertex_normals(positions, indices)).astype(np.float32)
+    # a vertex of zero-area triangles only has no normal: any unit vector (its triangles cover no
+    # pixel on screen, but they do in texture space, where normalize(0) would be NaN)
+    normals[np.linalg.norm(normals, axis=1) < 0.5] = (0.0, 0.0, 1.0)
+    progress.step("normals")
     indices = indices.astype(np.uint32)
     if tangents is None or uv_convention == "v-down":
         # Provided tangents follow the file's v direction; regenerate after a flip.
         tangents = generate_tangents(positions, normals, uvs, indices)
+    elif len(tangents) != len(positions) or not np.all(np.isfinite(tangents)):
+        raise DermisError(f"{source}: mesh tangents must be {len(positions)} finite values")
+    progress.step("tangents")
+    progress.close()
     return Mesh(positions, normals, uvs, indices, np.asarray(tangents, np.float32), source=source).validate()
+
+
+class _Progress:
+    """Progress on stderr for meshes over PROGRESS_VERTICES (tqdm; the line is cleared when done)."""
+
+    def __init__(self, source, n_vertices, steps=("normals", "tangents")):
+        self.bar = None
+        if n_vertices > PROGRESS_VERTICES:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=len(steps), desc=f"loading {Path(str(source)).name} ({n_vertices} vertices)",
+                            leave=False, unit="step")
+
+    def step(self, name):
+        if self.bar is not None:
+            self.bar.set_postfix_str(name)
+            self.bar.update(1)
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
 
 
 def vertex_normals(positions, indices) -> np.ndarray:
@@ -116,19 +169,19 @@ class GltfAsset:
         import pygltflib
 
         self.path = Path(path)
-        if not self.path.is_file():
-            raise DermisError(f"{self.path}: mesh file not found")
+        raw = read_bytes(self.path, "mesh file")
         self.folder = self.path.resolve().parent
+        if self.path.suffix.lower() == ".glb" or raw[:4] == b"glTF":
+            text, self._binary = gltf_document.parse_glb(raw, self.path)
+        else:
+            try:
+                text, self._binary = raw.decode("utf-8"), None
+            except UnicodeDecodeError:
+                raise DermisError(f"{self.path}: cannot parse glTF (not UTF-8 JSON text)") from None
+        doc = gltf_document.parse_json(text, self.path)
+        gltf_document.validate_document(doc, self.path, None if self._binary is None else len(self._binary))
         try:
-            if self.path.suffix.lower() == ".glb":
-                raw = self.path.read_bytes()
-                if len(raw) < 12 or raw[:4] != b"glTF":
-                    raise ValueError("not a binary glTF (bad magic)")
-                self.gltf = pygltflib.GLTF2.load_from_bytes(raw)
-            else:
-                self.gltf = pygltflib.GLTF2.gltf_from_json(self.path.read_text(encoding="utf-8"))
-        except DermisError:
-            raise
+            self.gltf = pygltflib.GLTF2.gltf_from_json(json.dumps(doc))
         except Exception as exc:
             raise DermisError(f"{self.path}: cannot parse glTF ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
         self._buffers: dict[int, bytes] = {}
@@ -137,15 +190,14 @@ class GltfAsset:
         if i not in self._buffers:
             b = self.gltf.buffers[i]
             if b.uri is None:
-                blob = self.gltf.binary_blob()
-                if blob is None:
-                    raise DermisError(f"{self.path}: buffer {i} has no data")
-                self._buffers[i] = bytes(blob)
+                data = self._binary
             else:
-                data = _data_uri(b.uri)
+                data = _data_uri(b.uri, self.path)
                 if data is None:
-                    data = resolve_inside(self.folder, b.uri, "buffer", self.path).read_bytes()
-                self._buffers[i] = data
+                    data = read_bytes(resolve_inside(self.folder, b.uri, "buffer", self.path), "buffer")
+            if len(data) < b.byteLength:
+                raise DermisError(f"{self.path}: buffer {i} has {len(data)} bytes, its byteLength says {b.byteLength} (truncated?)")
+            self._buffers[i] = data
         return self._buffers[i]
 
     def view_bytes(self, view_index: int) -> tuple[bytes, int | None]:
@@ -187,7 +239,7 @@ class GltfAsset:
             data, _ = self.view_bytes(img.bufferView)
             arr = read_image(None, srgb=srgb, max_pixels=max_pixels, data=data, source=label)
         elif img.uri:
-            data = _data_uri(img.uri)
+            data = _data_uri(img.uri, self.path)
             if data is not None:
                 arr = read_image(None, srgb=srgb, max_pixels=max_pixels, data=data, source=label)
             else:
@@ -219,18 +271,25 @@ class GltfAsset:
                 s[0, 0], s[1, 1], s[2, 2] = node.scale
             return t @ r @ s
 
-        def walk(i, parent, depth=0):
-            if depth > 64:
-                raise DermisError(f"{self.path}: node hierarchy too deep or cyclic")
-            m = parent @ local(g.nodes[i])
-            mats.setdefault(i, m)
-            for c in g.nodes[i].children or []:
-                walk(c, m, depth + 1)
+        def walk(root):
+            # glTF 2.0 3.5.3: nodes form disjoint trees (one parent each); a node met twice is
+            # a cycle or a shared child, refused (re-walking shared children grows exponentially)
+            stack = [(root, np.eye(4))]
+            while stack:
+                i, parent = stack.pop()
+                if i in mats:
+                    raise DermisError(f"{self.path}: node {i} is reached twice (cyclic hierarchy or several parents)")
+                mats[i] = parent @ local(g.nodes[i])
+                stack.extend((c, mats[i]) for c in (g.nodes[i].children or []))
 
         scene = g.scenes[g.scene or 0] if g.scenes else None
-        roots = scene.nodes if scene else range(len(g.nodes))
+        if scene:
+            roots = scene.nodes or []
+        else:  # no scene: every node that is nobody's child
+            children = {c for n in g.nodes for c in (n.children or [])}
+            roots = [i for i in range(len(g.nodes)) if i not in children]
         for r_ in roots:
-            walk(r_, np.eye(4))
+            walk(r_)
         return mats
 
     def load(self, uv_convention: str, max_pixels: int = MAX_IMAGE_PIXELS):
@@ -256,6 +315,10 @@ class GltfAsset:
                         continue
                     p = self.accessor(at.POSITION).astype(np.float64)
                     p = (np.c_[p, np.ones(len(p))] @ m4.T)[:, :3]
+                    det = np.linalg.det(m4[:3, :3])
+                    if not np.isfinite(det) or abs(det) < 1e-30:
+                        raise DermisError(f"{self.path}: a node's transform of mesh {mi} is singular or not finite "
+                                          f"(scale 0, or numbers too large)")
                     nm = np.linalg.inv(m4[:3, :3]).T
                     n = self.accessor(at.NORMAL).astype(np.float64) @ nm.T if at.NORMAL is not None else None
                     uv = self.accessor(at.TEXCOORD_0).astype(np.float64) if at.TEXCOORD_0 is not None else None
@@ -317,75 +380,162 @@ class GltfAsset:
 # ----------------------------------------------------------------------------- OBJ + MTL
 
 
-def _safe_resolver(folder: Path, source: Path, max_pixels: int):
+def _check_image_header(p: Path, data: bytes, max_pixels: int):
+    """Size-check an image's header before anything decodes it (trimesh decodes map_Kd itself)."""
+    import io
+
+    from PIL import Image
+
+    try:
+        with Image.open(io.BytesIO(data)) as im:
+            w, h = im.size
+    except Exception:
+        raise DermisError(f"{p}: cannot decode image") from None
+    if w * h > max_pixels:
+        raise DermisError(f"{p}: image is {w}x{h}, over the limit of {max_pixels} pixels; refused before decoding")
+
+
+_MAP_KD = "<map_Kd>"  # key of the map_Kd images, in file order, among the checked files
+_MTL_MAPS = ("map_kd", "map_ka", "map_ks", "map_ns", "map_d", "map_bump", "bump", "norm", "disp")
+
+
+def _obj_references(text: str, path: Path, folder: Path, max_pixels: int) -> dict:
+    """Every file an OBJ names (mtllib, and the maps of those MTL files), resolved and checked
+    here, so that a reference escaping the folder, missing or unreadable is an error naming it
+    (trimesh would log it and load the mesh without its material). Returns name -> bytes."""
+    files = {}
+    for line in text.splitlines():
+        if line.startswith("mtllib"):
+            name = line[6:].strip()
+            if not name:
+                raise DermisError(f"{path}: 'mtllib' without a file name")
+            mtl = resolve_inside(folder, name, "material library (mtllib)", path)
+            data = read_bytes(mtl, "material library")
+            files[name] = data
+            try:
+                mtl_text = data.decode("utf-8")
+            except UnicodeDecodeError:
+                raise DermisError(f"{mtl}: material library is not UTF-8 text") from None
+            for mline in mtl_text.splitlines():
+                parts = mline.split()
+                if parts and parts[0].lower() in _MTL_MAPS and len(parts) > 1:
+                    ref = parts[-1]  # options (-s 1 1 1, -bm 0.5, ...) come before the file name
+                    img = resolve_inside(mtl.parent, ref, f"{parts[0]} image", mtl)
+                    idata = read_bytes(img, "image file")
+                    _check_image_header(img, idata, max_pixels)
+                    files[ref] = idata
+                    if parts[0].lower() == "map_kd":
+                        files.setdefault(_MAP_KD, []).append((img, idata))
+    return files
+
+
+_OBJ_COUNTS = {"v": (3, 7), "vt": (2, 3), "vn": (3, 3)}  # numbers per line (v: w or r g b; vt: dermis needs u, v)
+
+
+def check_obj_lines(text: str, path: Path):
+    """The lines dermis's OBJ reader (trimesh) relies on, checked first: numbers where numbers go,
+    face references that are non-zero integers (1-based, or negative = relative). A malformed line
+    is named with its number instead of surfacing as an exception inside the parser."""
+    for no, line in enumerate(text.splitlines(), 1):
+        head, _, rest = line.strip().partition(" ")
+        if head in _OBJ_COUNTS:
+            parts = rest.split()
+            lo, hi = _OBJ_COUNTS[head]
+            try:
+                ok = lo <= len(parts) <= hi and all(np.isfinite(float(x)) for x in parts)
+            except ValueError:
+                ok = False
+            if not ok:
+                raise DermisError(f"{path}: line {no}: '{head}' needs {lo}{'' if lo == hi else f'-{hi}'} finite numbers, "
+                                  f"got '{line.strip()[:60]}'")
+        elif head == "f":
+            refs = rest.split()
+            try:
+                ok = len(refs) >= 3 and all(
+                    all(int(x) != 0 for x in r.split("/") if x != "") and r.split("/")[0] != "" and r.count("/") <= 2
+                    for r in refs)
+            except ValueError:
+                ok = False
+            if not ok:
+                raise DermisError(f"{path}: line {no}: 'f' needs 3 or more vertex references (v, v/vt, v/vt/vn or "
+                                  f"v//vn; non-zero integers), got '{line.strip()[:60]}'")
+
+
+def _safe_resolver(folder: Path, source: Path, checked: dict):
     import trimesh.resolvers
 
-    class InsideFolderResolver(trimesh.resolvers.FilePathResolver):
-        """trimesh resolver that refuses names escaping the OBJ's folder and oversized images."""
+    class CheckedFilesResolver(trimesh.resolvers.FilePathResolver):
+        """Serves only the files _obj_references checked; anything else is refused."""
 
         def get(self, name):
-            p = resolve_inside(folder, name, "referenced file", source)
-            data = p.read_bytes()
-            if p.suffix.lower() not in (".mtl", ".obj"):
-                # anything else a material names is an image to trimesh: size-check its header
-                # (whatever its suffix) before anything decodes it
-                from PIL import Image
-                import io
+            if name in checked:
+                return checked[name]
+            raise DermisError(f"{source}: referenced file '{name}' was not checked; refused")
 
-                try:
-                    with Image.open(io.BytesIO(data)) as im:
-                        w, h = im.size
-                except Exception:
-                    raise DermisError(f"{p}: cannot decode image") from None
-                if w * h > max_pixels:
-                    raise DermisError(f"{p}: image is {w}x{h}, over the limit of {max_pixels} pixels; refused before decoding")
-            return data
-
-    return InsideFolderResolver(str(source))
+    return CheckedFilesResolver(str(source))
 
 
 def load_obj(path: Path, uv_convention: str = "v-up", max_pixels: int = MAX_IMAGE_PIXELS):
     import trimesh
 
     path = Path(path)
-    if not path.is_file():
-        raise DermisError(f"{path}: mesh file not found")
+    raw = read_bytes(path, "mesh file")
     folder = path.resolve().parent
     try:
-        path.read_bytes().decode("utf-8")
+        text = raw.decode("utf-8")
     except UnicodeDecodeError:
         # trimesh would guess the encoding with charset_normalizer (not a dependency) and fail with
         # a misleading ModuleNotFoundError; OBJ is ASCII text, like the TOML scenes (UTF-8)
         raise DermisError(f"{path}: cannot parse OBJ (not UTF-8 text; corrupt or binary file?)") from None
+    n_v, n_f = text.count("\nv "), text.count("\nf ")  # before parsing: refuse what cannot fit
+    if n_v > MAX_VERTICES or n_f > MAX_TRIANGLES:
+        raise DermisError(f"{path}: OBJ has about {n_v} vertices and {n_f} faces, over dermis's limit of "
+                          f"{MAX_VERTICES} / {MAX_TRIANGLES} (decimate the mesh)")
+    check_obj_lines(text, path)
+    checked = _obj_references(text, path, folder, max_pixels)
     try:
-        loaded = trimesh.load(str(path), file_type="obj", process=False, maintain_order=True, force="mesh",
-                              resolver=_safe_resolver(folder, path, max_pixels))
+        import logging
+
+        quiet = logging.getLogger("trimesh")
+        level = quiet.level
+        quiet.setLevel(logging.CRITICAL)  # its warnings are about what dermis checks itself
+        try:
+            loaded = trimesh.load(str(path), file_type="obj", process=False, maintain_order=True, force="mesh",
+                                  resolver=_safe_resolver(folder, path, checked))
+        finally:
+            quiet.setLevel(level)
     except DermisError:
         raise
     except Exception as exc:
         raise DermisError(f"{path}: cannot parse OBJ ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise DermisError(f"{path}: OBJ has no triangles")
-    uv = getattr(loaded.visual, "uv", None)
+    try:
+        uv = getattr(loaded.visual, "uv", None)
+        normals = None
+        if "vertex_normals" in loaded._cache.cache or getattr(loaded, "_vertex_normals_from_file", False):
+            normals = np.asarray(loaded.vertex_normals)
+    except Exception as exc:  # trimesh computes some of these lazily
+        raise DermisError(f"{path}: cannot parse OBJ ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
+    # no UVs: texture space gets a generated layout (dermis.geometry.texture_space)
     if uv is not None and len(uv) != len(loaded.vertices):
         raise DermisError(f"{path}: OBJ has {len(uv)} texture coordinates for {len(loaded.vertices)} vertices")
-    normals = None
-    if "vertex_normals" in loaded._cache.cache or getattr(loaded, "_vertex_normals_from_file", False):
-        normals = np.asarray(loaded.vertex_normals)
     mesh = finish_mesh(np.asarray(loaded.vertices), normals, None if uv is None else np.asarray(uv), np.asarray(loaded.faces),
                        str(path), uv_convention)
     material = {"albedo": None, "normal_map": None, "specular_map": None, "albedo_color": None}
-    mat = getattr(loaded.visual, "material", None)
+    # without an MTL file trimesh still makes a default material (a grey 2x2 image): not the
+    # file's, so the scene's [material] applies
+    mat = getattr(loaded.visual, "material", None) if checked else None
     if mat is not None:
         img = getattr(mat, "image", None) or getattr(mat, "baseColorTexture", None)
-        if img is not None:
-            arr = np.asarray(img.convert("RGB"), np.float32) / 255.0
-            from dermis.images import srgb_to_linear
-
-            material["albedo"] = Texture(srgb_to_linear(arr), f"{path} map_Kd")
+        if img is not None and checked.get(_MAP_KD):
+            # decoded by dermis (16-bit maps keep 16 bits; trimesh's PIL image has 8)
+            kd_path, kd_data = checked[_MAP_KD][0]
+            arr = read_image(None, srgb=True, max_pixels=max_pixels, data=kd_data, source=str(kd_path))
+            material["albedo"] = Texture(as_rgb(arr), f"{kd_path} (map_Kd)")
         col = getattr(mat, "diffuse", None)
         if col is not None and img is None:
-            material["albedo_color"] = tuple(np.asarray(col[:3], np.float32) / 255.0)
+            material["albedo_color"] = tuple(float(x) for x in np.asarray(col[:3], np.float32) / 255.0)
     return mesh, material
 
 

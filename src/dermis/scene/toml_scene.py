@@ -14,10 +14,12 @@ from pathlib import Path
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.fileio import read_text, regular_file
 from dermis.images import MAX_IMAGE_PIXELS, as_rgb, read_image
 from dermis.output import TONEMAPS
 from dermis.scene.model import SKIN_COLORS, Camera, Environment, Light, Output, Scene, SkinMaterial, Texture
 from dermis.techniques.shared import MAX_LIGHTS
+from dermis.validation import check_exposure, check_scene
 
 # key -> expected python type(s); lists of numbers are checked for length
 _SCHEMA = {
@@ -65,8 +67,10 @@ def _check(table: dict, section: str, source) -> dict:
 def _texture(folder: Path, rel: str, srgb: bool, source, max_pixels: int, rgb: bool = True) -> Texture:
     """A texture file as float32; ``rgb``: grey images are replicated to three channels."""
     p = (folder / rel)
-    if not p.is_file():
-        raise DermisError(f"{source}: texture '{rel}' not found (looked for {p})")
+    try:
+        regular_file(p, "texture")
+    except DermisError as exc:
+        raise DermisError(f"{source}: texture '{rel[:200]}': {str(exc).split(': ', 1)[-1]} (looked for {str(p)[:300]})") from None
     arr = read_image(p, srgb=srgb, max_pixels=max_pixels)
     return Texture(as_rgb(arr) if rgb else arr, str(p))
 
@@ -97,12 +101,9 @@ def parse_light(d: dict, source, index: int) -> Light:
 
 def read_toml(path: Path, kind: str = "scene") -> dict:
     """A TOML file (a scene, a sweep) as a dict, with one-line errors naming the file."""
-    if not path.is_file():
-        raise DermisError(f"{path}: {kind} file not found")
+    text = read_text(path, f"{kind} file")  # regular files only; OS errors as one line
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise DermisError(f"{path}: {kind} file is not UTF-8 text") from None
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise DermisError(f"{path}: invalid TOML ({exc})") from None
 
@@ -182,6 +183,7 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
     out = Output(**_check(doc.get("output", {}), "output", path))
     if not 0.0 <= out.bloom <= 1.0 or not 0.0 < out.bloom_radius <= 0.5:
         raise DermisError(f"{path}: [output] bloom must be in [0, 1] and bloom_radius in (0, 0.5]")
+    check_exposure(out.exposure, f"{path}: [output] exposure")
     if out.tonemap not in TONEMAPS:
         raise DermisError(f"{path}: [output] tonemap must be one of {', '.join(TONEMAPS)}, got '{out.tonemap}'")
 
@@ -198,6 +200,7 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
         from dermis.scene.builtin import frame_camera
 
         frame_camera(scene)
+    check_scene(scene)
     return scene
 
 

@@ -35,5 +35,5 @@ def technique_names() -> list[str]:
 def technique_class(name: str):
     reg = _registry()
     if name not in reg:
-        raise DermisError(f"--technique: unknown technique '{name}' (available: {', '.join(reg)})")
+        raise DermisError(f"technique: unknown technique '{name}' (available: {', '.join(reg)})")
     return reg[name]

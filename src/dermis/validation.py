@@ -1,0 +1,196 @@
+"""Argument and scene checks at the API's entry (Renderer, render): every value a user can get
+wrong is refused up front with one line in the API's own words (``irradiance_size``, ``size``,
+``technique``); the CLI maps those names to its flags (dermis.cli.FLAG_FOR_OPTION).
+
+Ranges are chosen so that nothing downstream overflows float32 (3.4e38) or the frame buffer's half
+floats (65504, checked after the frame as well) and no projection divides by zero.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+from dermis.errors import DermisError
+
+MAX_SIZE = 8192  # output, texture-space and shadow-map resolutions (GL_MAX_TEXTURE_SIZE class)
+IRRADIANCE_SIZES = (64, MAX_SIZE)
+SHADOW_SIZES = (128, 16384)  # per-light tile; the atlas of all lights is checked against the GPU (gl/shadows.py)
+MAX_SAMPLES = 64
+EXPOSURE_STOPS = (-64.0, 64.0)  # 2**64 x a half-float radiance stays finite in float32
+MAX_INTENSITY = 1e12  # light intensities and environment radiance; far above any scene (sun ~1e3)
+MAX_MM_PER_UNIT = 1e6  # 1 km per scene unit
+MAX_COORDINATE = 1e9  # |position| in scene units; float32 keeps ~7 digits
+FRAMEBUFFER_MAX = 65504.0  # the largest half float: the frame buffer's format
+
+
+def check_int(value, name: str, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise DermisError(f"{name}: must be an integer in [{lo}, {hi}], got {value!r}")
+    if not lo <= int(value) <= hi:
+        raise DermisError(f"{name}: must be in [{lo}, {hi}], got {value}")
+    return int(value)
+
+
+def check_size(size, name: str = "size") -> tuple[int, int]:
+    """(width, height), each an integer in [1, MAX_SIZE]."""
+    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2:
+        raise DermisError(f"{name}: size must be two integers (width, height), got {size!r}")
+    w, h = size
+    for v in (w, h):
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+            raise DermisError(f"{name}: size must be two integers (width, height), got {size!r}")
+    w, h = int(w), int(h)
+    if w < 1 or h < 1:
+        raise DermisError(f"{name}: size {w}x{h} must be at least 1x1")
+    if w > MAX_SIZE or h > MAX_SIZE:
+        raise DermisError(f"{name}: size {w}x{h} exceeds the limit of {MAX_SIZE}x{MAX_SIZE}")
+    return w, h
+
+
+def check_renderer_options(size, samples, shadow_size, irradiance_size, device):
+    """The Renderer's constructor arguments (dermis.renderer.Renderer)."""
+    check_size(size)
+    check_int(samples, "samples", 0, MAX_SAMPLES)
+    check_int(shadow_size, "shadow_size", *SHADOW_SIZES)
+    check_int(irradiance_size, "irradiance_size", *IRRADIANCE_SIZES)
+    if device is not None:
+        check_int(device, "device", 0, 1024)
+
+
+def check_technique_arg(technique):
+    """A technique argument's type (its name is checked by dermis.techniques.technique_class)."""
+    if technique is not None and not isinstance(technique, str):
+        raise DermisError(f"technique: must be a technique name (str), got {technique!r}")
+
+
+def check_exposure(value, name: str = "exposure") -> float:
+    lo, hi = EXPOSURE_STOPS
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value) or not lo <= value <= hi:
+        raise DermisError(f"{name}: must be a finite number of stops in [{lo:g}, {hi:g}], got {value!r}")
+    return float(value)
+
+
+def _vec(value, where, n=3, lo=-math.inf, hi=math.inf):
+    try:
+        a = np.asarray(value, np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise DermisError(f"{where} must be {n} finite numbers, got {value!r}") from None
+    if a.shape != (n,) or not np.all(np.isfinite(a)):
+        raise DermisError(f"{where} must be {n} finite numbers, got {value!r}")
+    if np.any(a < lo) or np.any(a > hi):
+        raise DermisError(f"{where} must be in [{lo:g}, {hi:g}], got {value!r}")
+    return a
+
+
+def _num(value, where, lo, hi, lo_open=False):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise DermisError(f"{where} must be a finite number, got {value!r}")
+    if value < lo or (lo_open and value == lo) or value > hi:
+        raise DermisError(f"{where} must be in {'(' if lo_open else '['}{lo:g}, {hi:g}], got {value!r}")
+    return float(value)
+
+
+def _texture_values(tex, where, lo=0.0, hi=MAX_INTENSITY):
+    if tex is None:
+        return
+    d = np.asarray(tex.data)
+    if not np.all(np.isfinite(d)):
+        raise DermisError(f"{where} ({tex.source}) contains NaN or infinite values")
+    if d.size and (d.min() < lo or d.max() > hi):
+        raise DermisError(f"{where} ({tex.source}) values must be in [{lo:g}, {hi:g}], got [{d.min():g}, {d.max():g}]")
+
+
+def check_render_call(scene, technique, camera=None):
+    """Per frame (Renderer.render): the technique argument and the scene's scalar values (cheap:
+    lights, camera, material and output numbers; the mesh and textures were checked by set_scene)."""
+    check_technique_arg(technique)
+    check_scene(scene, full=False)
+    if camera is not None:
+        from dermis.camera import check_camera
+
+        lo, hi = scene.bounds()
+        check_camera(camera, "camera", (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2)
+
+
+def _skip(*args, **kw):
+    pass
+
+
+def check_mesh(mesh):
+    """Finite values, indices in range (Mesh.validate), coordinates in range, non-zero extent."""
+    mesh.validate()
+    p = np.asarray(mesh.positions, np.float64)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    big = float(np.abs(p).max())
+    if big > MAX_COORDINATE:
+        raise DermisError(f"{mesh.source}: mesh coordinates reach {big:g}, over the limit of {MAX_COORDINATE:g} units")
+    diag = float(np.linalg.norm(hi - lo))
+    if not diag > 1e-6 * max(big, 1e-30):  # all vertices at (float32-)one point
+        raise DermisError(f"{mesh.source}: mesh has zero extent (all vertices at one point)")
+
+
+def check_scene(scene, full: bool = True):
+    """Every value of a Scene that can break a render: names the scene's source and the key in the
+    scene file's words ([camera] near, [[lights]] #2 intensity, ...). ``full``: also the mesh and
+    the textures' values (O(size); once per scene)."""
+    from dermis.camera import check_camera
+    from dermis.scene.model import Scene
+
+    if not isinstance(scene, Scene):
+        raise DermisError(f"scene: must be a dermis Scene (from dermis.load_scene or dermis.default_scene), "
+                          f"got {type(scene).__name__}")
+    src = scene.source
+    if full:
+        check_mesh(scene.mesh)
+    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds())
+    diag = float(np.linalg.norm(hi - lo))
+    _num(scene.mm_per_unit, f"{src}: [scene] mm_per_unit", 0.0, MAX_MM_PER_UNIT, lo_open=True)
+    m = scene.material
+    _vec(m.albedo_color, f"{src}: [material] albedo_color", 3, 0.0, 1.0)
+    tv = _texture_values if full else _skip  # textures: checked once, by set_scene
+    tv(m.albedo, f"{src}: [material] albedo", 0.0, 1.0)
+    tv(m.normal_map, f"{src}: [material] normal_map", -1.0, 1.0)
+    tv(m.specular_map, f"{src}: [material] specular_map", 0.0, 16.0)
+    tv(m.roughness_map, f"{src}: [material] roughness_map", 0.0, 1.0)
+    _num(m.roughness, f"{src}: [material] roughness", 0.0, 1.0, lo_open=True)
+    _num(m.rho_s, f"{src}: [material] rho_s", 0.0, 1.0)
+    _num(m.mix, f"{src}: [material] mix", 0.0, 1.0)
+    for k in ("normal_strength", "specular_map_bias", "specular_map_scale", "pore_strength"):
+        _num(getattr(m, k), f"{src}: [material] {k}", -1e3, 1e3)
+    _num(m.pore_scale_mm, f"{src}: [material] pore_scale_mm", 0.0, 1e6, lo_open=True)
+    for i, L in enumerate(scene.lights):
+        w = f"{src}: [[lights]] #{i + 1}"
+        if L.kind not in ("directional", "point", "spot"):
+            raise DermisError(f"{w} type must be directional, point or spot, got {L.kind!r}")
+        _vec(L.color, f"{w} color", 3, 0.0, MAX_INTENSITY)
+        _num(L.intensity, f"{w} intensity", 0.0, MAX_INTENSITY)
+        d = _vec(L.direction, f"{w} direction")
+        if np.linalg.norm(d) < 1e-9:
+            raise DermisError(f"{w} direction must not be zero")
+        _vec(L.position, f"{w} position", 3, -MAX_COORDINATE, MAX_COORDINATE)
+        _num(L.spot_angle_deg, f"{w} spot_angle_deg", 0.0, 89.0, lo_open=True)
+        _num(L.spot_blend, f"{w} spot_blend", 0.0, 1.0)
+        _num(L.shadow_softness, f"{w} shadow_softness", 0.0, 64.0)
+        _num(L.shadow_bias, f"{w} shadow_bias", -1.0, 1.0)
+    check_camera(scene.camera, f"{src}: [camera]", (lo + hi) / 2, diag / 2)
+    env = scene.environment
+    _vec(env.color, f"{src}: [environment] color", 3, 0.0, MAX_INTENSITY)
+    _num(env.intensity, f"{src}: [environment] intensity", 0.0, MAX_INTENSITY)
+    tv(env.image, f"{src}: [environment] image", 0.0, MAX_INTENSITY)
+    o = scene.output
+    check_exposure(o.exposure, f"{src}: [output] exposure")
+    _vec(o.background, f"{src}: [output] background", 3, 0.0, FRAMEBUFFER_MAX)
+    if o.tonemap not in ("aces", "linear"):
+        raise DermisError(f"{src}: [output] tonemap must be aces or linear, got {o.tonemap!r}")
+    _num(o.bloom, f"{src}: [output] bloom", 0.0, 1.0)
+    _num(o.bloom_radius, f"{src}: [output] bloom_radius", 0.0, 0.5, lo_open=True)
+
+
+def check_rendered(img, scene, technique: str):
+    """Never hand back NaN or infinity: a frame that overflowed is the scene's fault."""
+    if not np.all(np.isfinite(img)):
+        raise DermisError(f"{scene.source}: technique '{technique}' produced NaN or infinite radiance (over the frame "
+                          f"buffer's half-float range of {FRAMEBUFFER_MAX:g}?): lower the light or environment intensities")
