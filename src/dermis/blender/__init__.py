@@ -1,0 +1,57 @@
+"""Blender Cycles as ground truth: export any dermis scene to a .blend, render it in Cycles through
+``bpy`` (Blender as a Python module, the ``cycles`` extra), and score the real-time techniques
+against the path-traced render (``dermis export``, ``dermis cycles``, ``dermis validate --against
+cycles``).
+
+Only this package imports ``bpy``; everything else of dermis works without it.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+from dermis.errors import DermisError
+
+INSTALL_HINT = ("Blender's Python module (bpy) is not installed: pip install -e \".[cycles]\" "
+                "(CPython 3.11, Linux/macOS/Windows x86_64, about 370 MB)")
+
+_bpy = None
+
+
+def bpy_available() -> bool:
+    """True when ``import bpy`` can work (without importing it: the import costs about a second)."""
+    import importlib.util
+
+    return importlib.util.find_spec("bpy") is not None
+
+
+def require_bpy():
+    """The ``bpy`` module, imported once; DermisError with the install line when it is absent.
+
+    bpy's audio module is built against numpy 1.x and prints a long warning under numpy 2 (it
+    then runs without audio, which rendering does not use): the import's stderr is captured and
+    shown only when the import fails.
+    """
+    global _bpy
+    if _bpy is not None:
+        return _bpy
+    if not bpy_available():
+        raise DermisError(INSTALL_HINT)
+    with tempfile.TemporaryFile() as cap:
+        saved = os.dup(2)
+        os.dup2(cap.fileno(), 2)
+        try:
+            import bpy  # noqa: F401
+        except Exception as exc:
+            os.dup2(saved, 2)
+            cap.seek(0)
+            detail = cap.read().decode(errors="replace").strip().splitlines()
+            raise DermisError(f"bpy failed to import ({exc}){': ' + detail[-1] if detail else ''}") from None
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+    import bpy
+
+    _bpy = bpy
+    return bpy
