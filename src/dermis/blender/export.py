@@ -333,6 +333,6 @@ def export_blend(scene, path, opts: ExportOptions | None = None, size=(512, 512)
     bpy = require_bpy()
     build_scene(scene, opts, size)
     tmp = path.with_name(f".{path.name}.tmp.blend")
-    bpy.ops.wm.save_as_mainfile(filepath=str(tmp.resolve()), compress=True, copy=True)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp.resolve()), compress=True, copy=True, relative_remap=False)
     os.replace(tmp, path)
     return path
