@@ -149,8 +149,9 @@ def cycles_subsurface(scene, table=None) -> CyclesSubsurface:
 
 # ----------------------------------------------------------------------------- measurement (bpy)
 
-def measure_edge_response(albedos_rgb, *, half_width_mm=4.0, px=320, rows=16, spp=128, seed=0, threads=0):
-    """Render Cycles' edge response at radius 1 mm for three albedos at once (one per channel).
+def measure_edge_response(albedos_rgb, *, half_width_mm=4.0, px=320, rows=16, spp=128, seed=0, threads=0,
+                          radius_mm=(1.0, 1.0, 1.0)):
+    """Render Cycles' edge response at ``radius_mm`` (per channel) for three base colours at once.
     Returns (x_mm (px,), e (3, px)) normalised by the lit plateau, and the plateau / (E / pi)
     (the total diffuse reflectance, which Cycles makes equal to the base colour)."""
     from dermis.blender import require_bpy
@@ -159,24 +160,25 @@ def measure_edge_response(albedos_rgb, *, half_width_mm=4.0, px=320, rows=16, sp
     bpy = require_bpy()
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
-    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, -0.025))
+    side = max(0.1, 0.02 * max(radius_mm))  # >= 20 radii wide and 10 deep: semi-infinite
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, -side / 4))
     slab = bpy.context.object
-    slab.scale = (0.1, 0.1, 0.05)
+    slab.scale = (side, side, side / 2)
     mat = bpy.data.materials.new("medium")
     mat.use_nodes = True
     b = mat.node_tree.nodes.get("Principled BSDF")
     b.inputs["Base Color"].default_value = (*[float(a) for a in albedos_rgb], 1.0)
     b.subsurface_method = METHOD
     b.inputs["Subsurface Weight"].default_value = 1.0
-    b.inputs["Subsurface Radius"].default_value = (1.0, 1.0, 1.0)
+    b.inputs["Subsurface Radius"].default_value = tuple(float(r) for r in radius_mm)
     b.inputs["Subsurface Scale"].default_value = 1e-3
     b.inputs["IOR"].default_value = IOR
     b.inputs["Subsurface Anisotropy"].default_value = ANISOTROPY
     b.inputs["Specular IOR Level"].default_value = 0.0
     slab.data.materials.append(mat)
-    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(-0.25, 0, 0.01))
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(-side, 0, 0.01))
     occ = bpy.context.object
-    occ.scale = (0.5, 0.5, 1)  # covers x < 0 at z = 10 mm
+    occ.scale = (2 * side, 2 * side, 1)  # covers x < 0 at z = 10 mm
     occ.visible_camera = occ.visible_diffuse = occ.visible_glossy = occ.visible_transmission = False
     sun = bpy.data.lights.new("sun", "SUN")
     sun.energy, sun.angle = 1.0, 0.0
