@@ -13,8 +13,8 @@ import tempfile
 
 from dermis.errors import DermisError
 
-INSTALL_HINT = ("Blender's Python module (bpy) is not installed: pip install -e \".[cycles]\" "
-                "(CPython 3.11, Linux/macOS/Windows x86_64, about 370 MB)")
+INSTALL_HINT = ("Blender's Python module (bpy) is not installed: run `make cycles`, i.e. "
+                "pip install --no-deps \"bpy>=4.2,<5\" (the cycles extra; CPython 3.11, about 370 MB)")
 
 _bpy = None
 

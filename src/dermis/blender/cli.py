@@ -29,8 +29,8 @@ def export_cmd(scene, out, size, sss, specular):
         raise DermisError(f"{out}: the output must be a .blend file")
     if not Path(out).parent.exists():
         raise DermisError(f"{out}: output folder {Path(out).parent} does not exist")
-    sc = scene_from_arg(scene)
     require_bpy()
+    sc = scene_from_arg(scene)
     export_blend(sc, out, ExportOptions(sss=sss, specular=specular), (w, h))
     msg = f"wrote {out} ({len(sc.lights)} lights, {w}x{h})"
     if sss:
@@ -63,8 +63,8 @@ def cycles_cmd(scene, size, out, spp, seed, sss, specular):
         raise DermisError(f"--out {out}: use a .exr or .png file name")
     if not Path(out).parent.exists():
         raise DermisError(f"{out}: output folder {Path(out).parent} does not exist")
-    sc = scene_from_arg(scene)
     require_bpy()
+    sc = scene_from_arg(scene)
     img, st = render_cycles(sc, (w, h), spp=spp, seed=seed, sss=sss, specular=specular)
     if Path(out).suffix.lower() == ".exr":
         write_exr(out, img)

@@ -213,6 +213,64 @@ def measure_edge_response(albedos_rgb, *, half_width_mm=4.0, px=320, rows=16, sp
     return x, prof / plateau[:, None], plateau * math.pi
 
 
+def measure_total_reflectance(albedos_rgb, *, n_angles=8, px=8, spp=256, seed=0):
+    """Cycles' total diffuse reflectance of a lit semi-infinite slab for three base colours: the
+    exit radiance L(theta) seen by an orthographic camera at n_angles Gauss-Legendre view angles,
+    integrated over the hemisphere, R = 2 pi int L cos sin dtheta / E (E = 1 W/m^2 from a sun
+    straight down). The random walk's exit radiance is not Lambertian (at normal view it is about
+    0.8 of R / pi), so a base-colour correction from the normal view alone would over-brighten
+    every oblique view."""
+    from dermis.blender import require_bpy
+    from dermis.blender.render import read_render
+
+    bpy = require_bpy()
+    mu, wts = np.polynomial.legendre.leggauss(n_angles)
+    mu = 0.5 * (mu + 1.0)  # cos(theta) in (0, 1)
+    wts = 0.5 * wts
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, -0.1))
+    slab = bpy.context.object
+    slab.scale = (2.0, 2.0, 0.2)
+    mat = bpy.data.materials.new("medium")
+    mat.use_nodes = True
+    b = mat.node_tree.nodes.get("Principled BSDF")
+    b.inputs["Base Color"].default_value = (*[float(a) for a in albedos_rgb], 1.0)
+    b.subsurface_method = METHOD
+    b.inputs["Subsurface Weight"].default_value = 1.0
+    b.inputs["Subsurface Radius"].default_value = (1.0, 1.0, 1.0)
+    b.inputs["Subsurface Scale"].default_value = 1e-3
+    b.inputs["IOR"].default_value = IOR
+    b.inputs["Subsurface Anisotropy"].default_value = ANISOTROPY
+    b.inputs["Specular IOR Level"].default_value = 0.0
+    slab.data.materials.append(mat)
+    sun = bpy.data.lights.new("sun", "SUN")
+    sun.energy, sun.angle = 1.0, 0.0
+    sc.collection.objects.link(bpy.data.objects.new("sun", sun))
+    cam = bpy.data.cameras.new("cam")
+    cam.type = "ORTHO"
+    cam.ortho_scale = 0.01
+    cam.clip_start, cam.clip_end = 1e-3, 2.0
+    co = bpy.data.objects.new("cam", cam)
+    sc.collection.objects.link(co)
+    sc.camera = co
+    sc.world = bpy.data.worlds.new("black")
+    sc.world.color = (0, 0, 0)
+    sc.render.engine = "CYCLES"
+    sc.cycles.device = "CPU"
+    sc.cycles.samples, sc.cycles.seed, sc.cycles.use_denoising = spp, seed, False
+    sc.cycles.max_bounces = 12
+    sc.render.resolution_x = sc.render.resolution_y = px
+    L = []
+    for c in mu:
+        th = math.acos(c)
+        co.rotation_euler = (th, 0.0, 0.0)  # tilt about x: looks at the slab's centre from theta
+        co.location = (0.0, -0.5 * math.sin(th), 0.5 * c)
+        L.append(read_render(bpy).reshape(-1, 3).mean(axis=0))
+    L = np.asarray(L)  # (n, 3)
+    return 2 * math.pi * (wts[:, None] * mu[:, None] * L).sum(axis=0), mu, L
+
+
 def main(argv=None):
     import argparse
     import time
@@ -222,18 +280,28 @@ def main(argv=None):
     ap.add_argument("--spp", type=int, default=128)
     ap.add_argument("--px", type=int, default=320)
     ap.add_argument("--out", default=str(TABLE))
+    ap.add_argument("--reflectance-only", action="store_true", help="Re-measure only the total reflectance column.")
     a = ap.parse_args(argv)
     if not a.measure:
         ap.print_help()
         return
     albedos = np.array([0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95])
-    edges, refl = {}, {}
+    edges, refl, normal = {}, {}, {}
     t0 = time.time()
+    if a.reflectance_only:
+        old = json.loads(Path(a.out).read_text())
+        x = np.asarray(old["x_mm"])
+        edges = {k: np.asarray(e) for k, e in zip(old["albedos"], old["edge"])}
+        normal = dict(zip(old["albedos"], old.get("normal_view_reflectance", old["total_reflectance"])))
     for k in range(0, len(albedos), 3):
         trio = albedos[k:k + 3]
-        x, e, r = measure_edge_response(trio, px=a.px, spp=a.spp)
+        if not a.reflectance_only:
+            x, e, r0 = measure_edge_response(trio, px=a.px, spp=a.spp)
+        r, _, _ = measure_total_reflectance(trio)
         for c, al in enumerate(trio):
-            edges[float(al)] = e[c]
+            if not a.reflectance_only:
+                edges[float(al)] = e[c]
+                normal[float(al)] = float(r0[c])
             refl[float(al)] = float(r[c])
         print(f"albedos {trio}: total reflectance {r} ({time.time() - t0:.0f} s)", flush=True)
     keys = sorted(edges)
@@ -243,6 +311,8 @@ def main(argv=None):
         "method": METHOD, "ior": IOR, "anisotropy": ANISOTROPY, "spp": a.spp, "px": a.px,
         "x_mm": [round(float(v), 5) for v in x], "albedos": keys,
         "total_reflectance": [refl[k] for k in keys],
+        "total_reflectance_what": "hemispherical: exit radiance at 8 Gauss-Legendre view angles integrated",
+        "normal_view_reflectance": [normal[k] for k in keys],
         "edge": [[round(float(v), 5) for v in edges[k]] for k in keys]}, indent=0))
     print(f"wrote {a.out}")
 
