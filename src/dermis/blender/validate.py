@@ -12,6 +12,22 @@ skin and on regions derived from the mesh and lights (ray casts, dermis.referenc
 * ``backlit_thin``: pixels facing away from a light whose body toward the light is thinner than
   BACKLIT_THICKNESS_MM (ears, nose wings, lit from behind).
 
+Face parts, for a head facing +z with +y up (dermis's convention for heads), located from the nose
+tip (the mesh's most forward vertex) with adult anthropometric offsets in millimetres (Farkas 1994,
+"Anthropometry of the Head and Face": subnasale-stomion ~20 mm, stomion-lower lip ~ 10 mm,
+endocanthion-endocanthion ~ 32 mm, exocanthion-exocanthion ~ 90 mm, eye level ~ 30-40 mm above
+the nose tip):
+
+* ``back_lit_ear``: backlit_thin more than EAR_LATERAL_MM to the side of the nose tip, at ear
+  height and depth (EAR_BOX_MM: the ear canal lies ~ 90 mm behind the nose tip);
+* ``nose_shadow_penumbra``: shadow_edge within the box around the nose;
+* ``lips``: the box below the nose tip, the redder half of its albedo (lips are redder than the
+  skin around them);
+* ``eyelids``: the boxes around the eyes, front-facing points within EYE_DEPTH_MM of the nose tip's
+  depth (the lids, not the deeper eye sockets' sides).
+Scenes without a head-sized mesh (slabs, boxes) simply get no face regions (fewer than 8 pixels
+are not scored).
+
 The control row is Cycles itself without subsurface scattering (plain diffuse with the same
 colour): a technique not closer than that has not shown its scattering helps. The seed-to-seed
 floor (seed 0 vs seed 1, same metrics) stands beside every number.
@@ -28,6 +44,12 @@ from dermis.errors import DermisError
 
 BACKLIT_THICKNESS_MM = 8.0
 EDGE_PX = 2
+EAR_LATERAL_MM = 55.0
+EAR_BOX_MM = ((-45.0, 35.0), (-135.0, -50.0))  # (y range, z range) about the nose tip
+NOSE_BOX_MM = ((-25.0, 25.0), (-25.0, 15.0))  # (x range, y range) about the nose tip
+LIPS_BOX_MM = ((-30.0, 30.0), (-50.0, -15.0))
+EYE_BOX_MM = ((12.0, 50.0), (15.0, 50.0))  # |x|, y about the nose tip
+EYE_DEPTH_MM = 40.0
 
 
 def _dilate(m, r):
@@ -77,7 +99,56 @@ def region_masks(scene, size, skin) -> dict:
         te, tre, _ = bvh.closest_hit(P - N * eps, Ld, 0.0, far)
         thin = behind & (tre >= 0) & (te * float(scene.mm_per_unit) < BACKLIT_THICKNESS_MM)
         backlit |= thin.reshape(h, w)
-    return {"shadow_edge": edge & skin, "backlit_thin": backlit & skin}
+    out = {"shadow_edge": edge & skin, "backlit_thin": backlit & skin}
+    out.update(face_regions(scene, P, hit, tri, bc, N, (h, w), out))
+    return {k: v & skin for k, v in out.items()}
+
+
+def face_regions(scene, P, hit, tri, bc, N, shape, base) -> dict:
+    """back_lit_ear, nose_shadow_penumbra, lips, eyelids (see the module docstring); empty for a
+    mesh smaller than a head."""
+    m = scene.mesh
+    mm = float(scene.mm_per_unit)
+    pos = np.asarray(m.positions, np.float64)
+    lo, hi = pos.min(axis=0), pos.max(axis=0)
+    if np.min(hi - lo) * mm < 100.0:  # not head-sized: no face parts
+        return {}
+    tip = pos[np.argmax(pos[:, 2])]
+    rel = (P - tip) * mm  # mm from the nose tip
+    x, y, z = rel[:, 0], rel[:, 1], rel[:, 2]
+
+    def box(bx, by):
+        return hit & (x >= bx[0]) & (x <= bx[1]) & (y >= by[0]) & (y <= by[1])
+
+    ear = ((np.abs(x) > EAR_LATERAL_MM) & (y >= EAR_BOX_MM[0][0]) & (y <= EAR_BOX_MM[0][1])
+           & (z >= EAR_BOX_MM[1][0]) & (z <= EAR_BOX_MM[1][1]))
+    out = {"back_lit_ear": base["backlit_thin"] & ear.reshape(shape),
+           "nose_shadow_penumbra": base["shadow_edge"] & box(*NOSE_BOX_MM).reshape(shape)}
+    lips = box(*LIPS_BOX_MM) & (N[:, 2] > 0)
+    if lips.any() and scene.material.albedo is not None:
+        a = _albedo_at(scene, tri, bc)
+        red = a[:, 0] / np.maximum(a[:, 1], 1e-4)
+        lips &= red > np.median(red[lips])
+    out["lips"] = lips.reshape(shape)
+    ax = np.abs(x)
+    eyes = hit & (ax >= EYE_BOX_MM[0][0]) & (ax <= EYE_BOX_MM[0][1]) & (y >= EYE_BOX_MM[1][0]) & (y <= EYE_BOX_MM[1][1])
+    out["eyelids"] = (eyes & (z > -EYE_DEPTH_MM) & (N[:, 2] > 0.3)).reshape(shape)
+    return out
+
+
+def _albedo_at(scene, tri, bc) -> np.ndarray:
+    """Albedo (linear) at the hit points: UVs interpolated, nearest texel (v up, row 0 = top)."""
+    m = scene.mesh
+    idx = np.asarray(m.indices, np.int64).reshape(-1, 3)
+    uv = np.asarray(m.uvs, np.float64)
+    t = np.where(tri >= 0, tri, 0)
+    b1, b2 = bc[:, 0], bc[:, 1]
+    u = uv[idx[t, 0]] * (1 - b1 - b2)[:, None] + uv[idx[t, 1]] * b1[:, None] + uv[idx[t, 2]] * b2[:, None]
+    img = np.asarray(scene.material.albedo.data)
+    hh, ww = img.shape[:2]
+    col = np.clip((u[:, 0] % 1.0 * ww).astype(int), 0, ww - 1)
+    row = np.clip(((1.0 - u[:, 1] % 1.0) * hh).astype(int), 0, hh - 1)
+    return img[row, col, :3]
 
 
 def _score(scene, ref, img, mask, regions):
@@ -130,7 +201,11 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
     out = Path(out_dir) if out_dir else None
     report = {"against": "cycles", "size": list(size), "floor_target": floor_target, "techniques": run, "scenes": {},
               "regions": {"shadow_edge": f"front-facing pixels within {EDGE_PX} px of a cast-shadow boundary",
-                          "backlit_thin": f"pixels facing away from a light, body toward it < {BACKLIT_THICKNESS_MM} mm"},
+                          "backlit_thin": f"pixels facing away from a light, body toward it < {BACKLIT_THICKNESS_MM} mm",
+                          "back_lit_ear": f"backlit_thin more than {EAR_LATERAL_MM} mm beside the nose tip, ear height/depth",
+                          "nose_shadow_penumbra": "shadow_edge in the box around the nose",
+                          "lips": "below the nose tip, the redder half of the albedo",
+                          "eyelids": "the eye boxes, front-facing, within 40 mm of the nose tip's depth"},
               "notes": ["pore_strength = 0 on both sides", "Cycles: random-walk SSS fitted to the scene's profile "
                         "(dermis.blender.sss), occluded environment light, interreflections",
                         "control: Cycles without subsurface scattering"]}
