@@ -253,3 +253,67 @@ def test_sss_fit_holds_in_cycles():
     # with the base-colour gain, Cycles' total (hemispherical) diffuse reflectance is the skin's albedo
     total, _, _ = measure_total_reflectance(np.clip(p.albedo * p.base_gain, 0, 1), n_angles=8, px=8, spp=256, seed=5)
     assert np.allclose(total, p.albedo, rtol=0.03), (total, p.albedo)
+
+
+SLAB_TOML = """
+[scene]
+name = "flat-skin"
+mm_per_unit = 50.0
+technique = "lambert"
+
+[mesh]
+builtin = "slab"
+
+[material]
+albedo_color = [0.55, 0.33, 0.26]
+rho_s = 0.0
+pore_strength = 0.0
+
+[skin]
+profile = "deon"
+
+[[lights]]
+type = "directional"
+direction = [0.3, -0.2, -0.93]
+intensity = 2.0
+
+[camera]
+position = [1.0, 0.5, 30.0]
+target = [0.0, 0.0, 0.0]
+fov_deg = 8.0
+
+[environment]
+color = [0.0, 0.0, 0.0]
+"""
+
+
+@needs_bpy
+def test_validate_against_cycles_on_flat_skin(tmp_path):
+    """`validate --against cycles` on a flat, uniformly lit slab of skin (1 m wide, 50 mm thick)
+    seen head-on: far from edges scattering moves no light sideways on average, so the one
+    difference is the random walk's exit radiance, which is not Lambertian - head-on it is the
+    table's normal-view reflectance (measured on another set-up, the edge slab), not the albedo.
+    dermis lambert and the no-SSS control (both Lambertian, albedo) must stand to Cycles' skin in
+    exactly that ratio, within 3% per channel; the report carries the floor, control and images."""
+    import json
+
+    from dermis.blender.sss import TABLE, base_color_gain
+    from dermis.blender.validate import markdown_table, validate_cycles
+
+    f = tmp_path / "flat.toml"
+    f.write_text(SLAB_TOML)
+    rep = validate_cycles([f], ["lambert"], (32, 32), out_dir=tmp_path / "img", spp=16, max_spp=16,
+                          specular_modes=(False,), echo=lambda *a: None)
+    e = rep["scenes"]["flat/nospec"]
+    assert e["cycles"]["spp"] == 16 and e["cycles"]["converged"] == (e["cycles"]["floor_flip"] <= 0.01)
+    assert set(e["techniques"]) == {"cycles-no-sss (control)", "lambert"}
+    t = json.loads(TABLE.read_text())
+    albedo = np.array([0.55, 0.33, 0.26])
+    base = albedo * base_color_gain(albedo)
+    expected = albedo / np.interp(base, t["albedos"], t["normal_view_reflectance"])
+    assert np.all(expected > 1.05)  # head-on, the random walk is visibly darker than Lambert
+    for name, m in e["techniques"].items():
+        assert np.allclose(m["mean_ratio"], expected, rtol=0.03), (name, m["mean_ratio"], expected)
+    assert "lips" not in e["region_pixels"]  # not a head: no face parts
+    assert (tmp_path / "img" / "flat" / "nospec_side_by_side.png").is_file()
+    assert "cycles-no-sss (control)" in markdown_table(rep)
