@@ -26,6 +26,24 @@ def bpy_available() -> bool:
     return importlib.util.find_spec("bpy") is not None
 
 
+class quiet_fds:
+    """Silence fds 1 and 2 (Blender's C code prints status and the numpy-1.x audio warning)."""
+
+    def __enter__(self):
+        self._null = os.open(os.devnull, os.O_WRONLY)
+        self._saved = [os.dup(1), os.dup(2)]
+        os.dup2(self._null, 1)
+        os.dup2(self._null, 2)
+        return self
+
+    def __exit__(self, *exc):
+        for fd, saved in zip((1, 2), self._saved):
+            os.dup2(saved, fd)
+            os.close(saved)
+        os.close(self._null)
+        return False
+
+
 def require_bpy():
     """The ``bpy`` module, imported once; DermisError with the install line when it is absent.
 

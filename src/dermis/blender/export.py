@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dermis.blender import convert, require_bpy
+from dermis.blender import convert, quiet_fds, require_bpy
 from dermis.errors import DermisError
 
 
@@ -290,7 +290,8 @@ def build_scene(scene, opts: ExportOptions | None = None, size=(512, 512)):
     """Replace the current Blender session's data with ``scene``; returns the bpy scene."""
     bpy = require_bpy()
     opts = opts or ExportOptions()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    with quiet_fds():
+        bpy.ops.wm.read_factory_settings(use_empty=True)
     bsc = bpy.context.scene
     bsc.name = scene.name or "dermis"
     bsc.unit_settings.system = "METRIC"

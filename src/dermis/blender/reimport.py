@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dermis.blender import convert, require_bpy
+from dermis.blender import convert, quiet_fds, require_bpy
 from dermis.errors import DermisError
 from dermis.scene.model import Camera, Light
 
@@ -21,7 +21,8 @@ def read_blend(path) -> dict:
     p = Path(path)
     if not p.is_file():
         raise DermisError(f"{p}: no such .blend file")
-    bpy.ops.wm.open_mainfile(filepath=str(p.resolve()))
+    with quiet_fds():
+        bpy.ops.wm.open_mainfile(filepath=str(p.resolve()))
     sc = bpy.context.scene
     if "dermis_mm_per_unit" not in sc:
         raise DermisError(f"{p}: not written by dermis export (no dermis_mm_per_unit)")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import tempfile
 import time
 from pathlib import Path
@@ -25,15 +24,10 @@ def read_render(bpy, alpha=False) -> np.ndarray:
     with tempfile.TemporaryDirectory(prefix="dermis-cycles-") as d:
         out = Path(d) / "render.exr"
         sc.render.filepath = str(out)
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        saved = os.dup(1)
-        os.dup2(devnull, 1)  # Cycles prints a status line per tile to stdout
-        try:
+        from dermis.blender import quiet_fds
+
+        with quiet_fds():  # Cycles prints a status line per tile
             bpy.ops.render.render(write_still=True)
-        finally:
-            os.dup2(saved, 1)
-            os.close(saved)
-            os.close(devnull)
         img = _read_exr_rgba(out)
     return np.ascontiguousarray(img[:, :, :4] if alpha else img[:, :, :3], np.float32)
 

@@ -154,11 +154,12 @@ def measure_edge_response(albedos_rgb, *, half_width_mm=4.0, px=320, rows=16, sp
     """Render Cycles' edge response at ``radius_mm`` (per channel) for three base colours at once.
     Returns (x_mm (px,), e (3, px)) normalised by the lit plateau, and the plateau / (E / pi)
     (the total diffuse reflectance, which Cycles makes equal to the base colour)."""
-    from dermis.blender import require_bpy
+    from dermis.blender import quiet_fds, require_bpy
     from dermis.blender.render import read_render
 
     bpy = require_bpy()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    with quiet_fds():
+        bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
     side = max(0.1, 0.02 * max(radius_mm))  # >= 20 radii wide and 10 deep: semi-infinite
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, -side / 4))
@@ -220,14 +221,15 @@ def measure_total_reflectance(albedos_rgb, *, n_angles=8, px=8, spp=256, seed=0)
     straight down). The random walk's exit radiance is not Lambertian (at normal view it is about
     0.8 of R / pi), so a base-colour correction from the normal view alone would over-brighten
     every oblique view."""
-    from dermis.blender import require_bpy
+    from dermis.blender import quiet_fds, require_bpy
     from dermis.blender.render import read_render
 
     bpy = require_bpy()
     mu, wts = np.polynomial.legendre.leggauss(n_angles)
     mu = 0.5 * (mu + 1.0)  # cos(theta) in (0, 1)
     wts = 0.5 * wts
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    with quiet_fds():
+        bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, -0.1))
     slab = bpy.context.object
