@@ -237,6 +237,22 @@ def test_sss_fit_residual_per_channel():
     assert np.all(np.diff(w) > 0), w
 
 
+@pytest.mark.parametrize("preset,bound", [("fair", 0.012), ("dark", 0.04)])
+def test_sss_fit_residual_physical_presets(preset, bound):
+    """Physical presets reach Cycles through the same fit (one homogeneous medium per channel).
+    Dark skin's total reflectance (1-3%) lies below the table's lowest base colour (0.05), where
+    Cycles' edge is sharper-cornered than any sum of Gaussians: residual up to 3.5% (blue)."""
+    from dermis.blender.sss import cycles_subsurface
+    from dermis.profiles.scene_skin import resolve_skin_profile
+
+    sc = _deon_scene()
+    sc.profile = resolve_skin_profile({"profile": preset}, REPO, "test")
+    sc.skin_color = "profile"
+    p = cycles_subsurface(sc)
+    assert np.allclose(p.albedo, np.clip(sc.profile.total_reflectance, 0, 1))
+    assert np.all(p.residual < bound), p.residual
+
+
 @needs_bpy
 def test_sss_fit_holds_in_cycles():
     """Cycles' own edge response with the fitted radii and base colour matches dermis's closed-form

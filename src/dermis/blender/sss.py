@@ -17,10 +17,22 @@ profile channel with albedo A_c the radius is the least-squares scale r_c minimi
 int (e(x / r_c; A_c) - E_c(x))^2 dx over |x| <= 4 sigma_max; the residual reported is the RMS
 difference at that optimum (edge responses run 0..1, so 0.01 = 1% of the edge's height).
 
-Physical profiles: a profile computed from absorption/scattering coefficients (dermis.profiles
-presets 'physical', dipole/multipole) reaches Cycles only through the same fit, because Cycles'
-random walk takes one homogeneous medium per channel (radius = mean free path, albedo from the
-base colour), not dermis's layered medium; what the fit cannot represent shows as its residual.
+Physical profiles: a profile computed from absorption/scattering coefficients (the presets fair,
+asian, dark and [skin] physical parameters: layered photon-beam diffusion, dermis.profiles) reaches
+Cycles only through the same fit. Cycles' random walk takes ONE homogeneous medium per channel: its
+single-scattering albedo is derived from the base colour (here the profile's total reflectance,
+skin_color = "profile") and its extinction from the radius, so the epidermis/dermis layering,
+melanin's absorption in a thin top layer and the layers' separate scattering coefficients cannot
+be passed on; they survive only as the fitted width and the total reflectance. The cost is the
+fit's residual: with the shipped table, deon 0.009/0.008/0.008 (R/G/B), fair 0.010/0.009/0.008,
+asian 0.019/0.015/0.022, dark 0.016/0.022/0.035 - dark skin reflects 1-3%, below the table's
+lowest base colour (0.05), where Cycles' edge has a sharper corner than a sum of Gaussians.
+
+Exit radiance: the random walk's exit is not Lambertian (head-on it is 0.77-0.94 of its total
+reflectance / pi, brighter at grazing angles; ``normal_view_reflectance`` in the table), while
+dermis's diffuse is. The base colour is matched on the HEMISPHERICAL total reflectance
+(``total_reflectance``, measure_total_reflectance), which for Cycles' albedo inversion is within
+1-2% of the base colour below 0.9; the angular difference is left visible as a model difference.
 """
 
 from __future__ import annotations
