@@ -333,3 +333,42 @@ def test_validate_against_cycles_on_flat_skin(tmp_path):
     assert "lips" not in e["region_pixels"]  # not a head: no face parts
     assert (tmp_path / "img" / "flat" / "nospec_side_by_side.png").is_file()
     assert "cycles-no-sss (control)" in markdown_table(rep)
+
+
+@needs_bpy
+def test_equirect_environment_same_orientation(tmp_path):
+    """A cube under an equirect sky whose radiance is linear in direction, L(d) = 1 + b.d: the SH
+    irradiance dermis uses is then exact (pi + 2 pi / 3 b.n), and so is Cycles' (a convex cube sees
+    the whole hemisphere). Each visible face (+x, +y, +z) agrees within 2%; a mirrored or turned
+    environment would swap the signs of b's components between faces (tens of percent)."""
+    from dermis.environment import equirect_directions
+    from dermis.images import read_image, write_exr
+    from dermis.blender.render import render_cycles
+    from dermis.reference.raycast import Bvh
+    from dermis.reference.render import camera_rays
+
+    b = np.array([0.5, 0.3, -0.4])
+    d, _ = equirect_directions(128, 256)
+    sky = (1.0 + d @ b)[..., None] * np.array([1.0, 0.9, 0.8])
+    write_exr(tmp_path / "sky.exr", sky.astype(np.float32))
+    p, n, uv, t = slab(size=20.0, thickness=20.0, n=2)
+    mesh = finish_mesh(p, n, uv, t, "builtin:cube", "v-up")
+    sc = Scene(mesh=mesh, material=SkinMaterial(albedo_color=(0.5, 0.5, 0.5), rho_s=0.0, pore_strength=0.0),
+               camera=Camera(position=(40.0, 35.0, 45.0), target=(0.0, 0.0, 0.0), fov_deg=30.0),
+               environment=Environment(image=Texture(read_image(tmp_path / "sky.exr", srgb=False), str(tmp_path / "sky.exr"))),
+               output=Output(background=(0, 0, 0)), mm_per_unit=1.0, technique="lambert", name="cube")
+    size = (48, 48)
+    ref = _dermis(sc, size)
+    cyc, _ = render_cycles(sc, size, spp=32, sss=False, specular=False, alpha=True)
+    o, dirs, tmax, _ = camera_rays(sc, size, 1)
+    _, tri, _ = Bvh(mesh.positions, mesh.indices).closest_hit(o, dirs, 0.0, tmax)
+    fn = np.asarray(mesh.normals)[np.asarray(mesh.indices)[np.where(tri >= 0, tri, 0), 0]]
+    from scipy.ndimage import binary_erosion
+
+    for axis in range(3):
+        face = binary_erosion(((tri >= 0) & (fn[:, axis] > 0.99)).reshape(size[1], size[0]), iterations=1)
+        face &= cyc[..., 3] >= 0.999
+        assert face.sum() > 30
+        expected = 0.5 * (1.0 + 2.0 / 3.0 * b[axis]) * np.array([1.0, 0.9, 0.8])  # albedo / pi * E
+        assert np.allclose(ref[face].mean(axis=0), expected, rtol=0.02), (axis, ref[face].mean(axis=0), expected)
+        assert np.allclose(cyc[..., :3][face].mean(axis=0), expected, rtol=0.02), (axis, cyc[..., :3][face].mean(axis=0), expected)
