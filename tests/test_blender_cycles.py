@@ -372,3 +372,22 @@ def test_equirect_environment_same_orientation(tmp_path):
         expected = 0.5 * (1.0 + 2.0 / 3.0 * b[axis]) * np.array([1.0, 0.9, 0.8])  # albedo / pi * E
         assert np.allclose(ref[face].mean(axis=0), expected, rtol=0.02), (axis, ref[face].mean(axis=0), expected)
         assert np.allclose(cyc[..., :3][face].mean(axis=0), expected, rtol=0.02), (axis, cyc[..., :3][face].mean(axis=0), expected)
+
+
+@needs_bpy
+def test_export_cli(tmp_path, capsys):
+    from dermis.cli import main
+
+    f = tmp_path / "flat.toml"
+    f.write_text(SLAB_TOML)
+    with pytest.raises(SystemExit) as e:
+        main(["export", str(f), str(tmp_path / "flat.blend")])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert (tmp_path / "flat.blend").stat().st_size > 1000
+    assert "subsurface radius" in out and "residual" in out
+    with pytest.raises(SystemExit) as e:
+        main(["export", str(f), str(tmp_path / "flat.obj")])
+    assert e.value.code == 2
+    assert capsys.readouterr().err.strip() == f"dermis: error: {tmp_path / 'flat.obj'}: the output must be a .blend file"
+    assert not (tmp_path / "flat.obj").exists()
