@@ -161,22 +161,18 @@ def cycles_subsurface(scene, table=None) -> CyclesSubsurface:
 
 # ----------------------------------------------------------------------------- measurement (bpy)
 
-def measure_edge_response(albedos_rgb, *, half_width_mm=4.0, px=320, rows=16, spp=128, seed=0, threads=0,
-                          radius_mm=(1.0, 1.0, 1.0)):
-    """Render Cycles' edge response at ``radius_mm`` (per channel) for three base colours at once.
-    Returns (x_mm (px,), e (3, px)) normalised by the lit plateau, and the plateau / (E / pi)
-    (the total diffuse reflectance, which Cycles makes equal to the base colour)."""
+def _medium_slab_scene(albedos_rgb, radius_mm, half_side_m, depth_m, spp, seed, ortho_scale_m):
+    """A fresh Blender scene: a slab (top face z = 0) of the random-walk medium, a sun of 1 W/m^2
+    straight down, an orthographic camera, a black world. Returns (bpy, scene, camera object)."""
     from dermis.blender import quiet_fds, require_bpy
-    from dermis.blender.render import read_render
 
     bpy = require_bpy()
     with quiet_fds():
         bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
-    side = max(0.1, 0.02 * max(radius_mm))  # >= 20 radii wide and 10 deep: semi-infinite
-    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, -side / 4))
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, -depth_m / 2))
     slab = bpy.context.object
-    slab.scale = (side, side, side / 2)
+    slab.scale = (2 * half_side_m, 2 * half_side_m, depth_m)
     mat = bpy.data.materials.new("medium")
     mat.use_nodes = True
     b = mat.node_tree.nodes.get("Principled BSDF")
@@ -189,36 +185,43 @@ def measure_edge_response(albedos_rgb, *, half_width_mm=4.0, px=320, rows=16, sp
     b.inputs["Subsurface Anisotropy"].default_value = ANISOTROPY
     b.inputs["Specular IOR Level"].default_value = 0.0
     slab.data.materials.append(mat)
-    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(-side, 0, 0.01))
-    occ = bpy.context.object
-    occ.scale = (2 * side, 2 * side, 1)  # covers x < 0 at z = 10 mm
-    occ.visible_camera = occ.visible_diffuse = occ.visible_glossy = occ.visible_transmission = False
     sun = bpy.data.lights.new("sun", "SUN")
     sun.energy, sun.angle = 1.0, 0.0
-    so = bpy.data.objects.new("sun", sun)
-    sc.collection.objects.link(so)
+    sc.collection.objects.link(bpy.data.objects.new("sun", sun))
     cam = bpy.data.cameras.new("cam")
     cam.type = "ORTHO"
-    cam.ortho_scale = 2 * half_width_mm * 1e-3
+    cam.ortho_scale = ortho_scale_m
     cam.sensor_fit = "HORIZONTAL"
-    cam.clip_start, cam.clip_end = 1e-3, 1.0
+    cam.clip_start, cam.clip_end = 1e-3, 4.0
     co = bpy.data.objects.new("cam", cam)
-    co.location = (0, 0, 0.05)
     sc.collection.objects.link(co)
     sc.camera = co
     sc.world = bpy.data.worlds.new("black")
     sc.world.color = (0, 0, 0)
     sc.render.engine = "CYCLES"
     sc.cycles.device = "CPU"
-    sc.cycles.samples = spp
-    sc.cycles.seed = seed
-    sc.cycles.use_denoising = False
+    sc.cycles.samples, sc.cycles.seed, sc.cycles.use_denoising = spp, seed, False
     sc.cycles.max_bounces = 12
     sc.cycles.sample_clamp_direct = sc.cycles.sample_clamp_indirect = 0.0
+    return bpy, sc, co
+
+
+def measure_edge_response(albedos_rgb, *, half_width_mm=4.0, px=320, rows=16, spp=128, seed=0,
+                          radius_mm=(1.0, 1.0, 1.0)):
+    """Render Cycles' edge response at ``radius_mm`` (per channel) for three base colours at once.
+    Returns (x_mm (px,), e (3, px)) normalised by the lit plateau, and the plateau / (E / pi)
+    (the head-on reflectance; the total is measure_total_reflectance's)."""
+    from dermis.blender.render import read_render
+
+    side = max(0.1, 0.02 * max(radius_mm))  # >= 20 radii wide and 10 deep: semi-infinite
+    bpy, sc, co = _medium_slab_scene(albedos_rgb, radius_mm, side / 2, side / 2, spp, seed, 2 * half_width_mm * 1e-3)
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(-side, 0, 0.01))
+    occ = bpy.context.object
+    occ.scale = (2 * side, 2 * side, 1)  # covers x < 0 at z = 10 mm
+    occ.visible_camera = occ.visible_diffuse = occ.visible_glossy = occ.visible_transmission = False
+    co.location = (0, 0, 0.05)
     sc.render.resolution_x, sc.render.resolution_y = px, rows
     sc.render.filter_size = 0.01  # no pixel filter: each column is its own x
-    if threads:
-        sc.render.threads_mode, sc.render.threads = "FIXED", threads
     img = read_render(bpy)
     prof = img.mean(axis=0).T  # (3, px)
     x = (np.arange(px) + 0.5) / px * 2 * half_width_mm - half_width_mm
@@ -233,47 +236,12 @@ def measure_total_reflectance(albedos_rgb, *, n_angles=8, px=8, spp=256, seed=0)
     straight down). The random walk's exit radiance is not Lambertian (at normal view it is about
     0.8 of R / pi), so a base-colour correction from the normal view alone would over-brighten
     every oblique view."""
-    from dermis.blender import quiet_fds, require_bpy
     from dermis.blender.render import read_render
 
-    bpy = require_bpy()
     mu, wts = np.polynomial.legendre.leggauss(n_angles)
     mu = 0.5 * (mu + 1.0)  # cos(theta) in (0, 1)
     wts = 0.5 * wts
-    with quiet_fds():
-        bpy.ops.wm.read_factory_settings(use_empty=True)
-    sc = bpy.context.scene
-    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, -0.1))
-    slab = bpy.context.object
-    slab.scale = (2.0, 2.0, 0.2)
-    mat = bpy.data.materials.new("medium")
-    mat.use_nodes = True
-    b = mat.node_tree.nodes.get("Principled BSDF")
-    b.inputs["Base Color"].default_value = (*[float(a) for a in albedos_rgb], 1.0)
-    b.subsurface_method = METHOD
-    b.inputs["Subsurface Weight"].default_value = 1.0
-    b.inputs["Subsurface Radius"].default_value = (1.0, 1.0, 1.0)
-    b.inputs["Subsurface Scale"].default_value = 1e-3
-    b.inputs["IOR"].default_value = IOR
-    b.inputs["Subsurface Anisotropy"].default_value = ANISOTROPY
-    b.inputs["Specular IOR Level"].default_value = 0.0
-    slab.data.materials.append(mat)
-    sun = bpy.data.lights.new("sun", "SUN")
-    sun.energy, sun.angle = 1.0, 0.0
-    sc.collection.objects.link(bpy.data.objects.new("sun", sun))
-    cam = bpy.data.cameras.new("cam")
-    cam.type = "ORTHO"
-    cam.ortho_scale = 0.01
-    cam.clip_start, cam.clip_end = 1e-3, 2.0
-    co = bpy.data.objects.new("cam", cam)
-    sc.collection.objects.link(co)
-    sc.camera = co
-    sc.world = bpy.data.worlds.new("black")
-    sc.world.color = (0, 0, 0)
-    sc.render.engine = "CYCLES"
-    sc.cycles.device = "CPU"
-    sc.cycles.samples, sc.cycles.seed, sc.cycles.use_denoising = spp, seed, False
-    sc.cycles.max_bounces = 12
+    bpy, sc, co = _medium_slab_scene(albedos_rgb, (1.0, 1.0, 1.0), 2.0, 0.4, spp, seed, 0.01)
     sc.render.resolution_x = sc.render.resolution_y = px
     L = []
     for c in mu:
