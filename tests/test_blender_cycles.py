@@ -208,6 +208,30 @@ def test_export_reimport_round_trip(tmp_path):
     assert back["images"] == {"albedo": str((tmp_path / "ramp.png").resolve())}
 
 
+@needs_bpy
+def test_exported_blend_renders_what_dermis_renders(tmp_path):
+    """Open the written .blend (as an artist would) and render it: the same pixels as Cycles
+    rendering the scene straight from dermis, and that matches dermis lambert (the calibration)."""
+    from dermis.blender import quiet_fds, require_bpy
+    from dermis.blender.export import ExportOptions, export_blend
+    from dermis.blender.render import read_render, render_cycles
+
+    light = Light(kind="directional", direction=(0.3, -0.2, -0.93), intensity=3.0)
+    sc = _slab_scene(tmp_path, light)
+    size = (48, 48)
+    direct, _ = render_cycles(sc, size, spp=8, seed=4, sss=False, specular=False)
+    export_blend(sc, tmp_path / "slab.blend", ExportOptions(sss=False, specular=False), size)
+    bpy = require_bpy()
+    with quiet_fds():
+        bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "slab.blend"))
+    bpy.context.scene.cycles.samples, bpy.context.scene.cycles.seed = 8, 4
+    opened = read_render(bpy)
+    assert np.allclose(opened, direct, rtol=1e-4, atol=1e-6)
+    ref = _dermis(sc, size)
+    c = (slice(12, 36), slice(12, 36))
+    assert np.allclose(opened[c].mean(axis=(0, 1)), ref[c].mean(axis=(0, 1)), rtol=0.02)
+
+
 # ---------------------------------------------------------------- the skin mapping
 
 def _deon_scene():
