@@ -208,7 +208,8 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
                           "eyelids": "the eye boxes, front-facing, within 40 mm of the nose tip's depth"},
               "notes": ["pore_strength = 0 on both sides", "Cycles: random-walk SSS fitted to the scene's profile "
                         "(dermis.blender.sss), occluded environment light, interreflections",
-                        "control: Cycles without subsurface scattering"]}
+                        "control: Cycles without subsurface scattering",
+                        "floor: seed 0 vs seed 1 at the final spp, same metrics; the reference is their mean"]}
     for f in scene_files:
         name = Path(f).stem
         for spec in specular_modes:
