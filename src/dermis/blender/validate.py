@@ -235,18 +235,22 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
             rows = {"cycles-no-sss (control)": ctrl}
             for t in run:
                 rows[t], _ = _render(sc, t, size)
-            strip = [display(sc, ref)]
+            strip = [("Cycles (SSS)", display(sc, ref), f"{conv['spp']} spp x 2")]
             for t, img in rows.items():
                 m, fmap = _score(sc, ref, img, skin, regions)
                 entry["techniques"][t] = m
                 reg = "  ".join(f"{k} {v['flip']:.4f}" for k, v in m["regions"].items())
                 echo(f"[{key}] {t:24s} FLIP {m['flip']:.4f} (floor {floor['flip']:.4f})  SSIM {m['ssim']:.4f}  "
                      f"relRMSE {m['rel_rmse']:.4f}  mean ratio {' '.join(f'{x:.3f}' for x in m['mean_ratio'])}  {reg}")
-                strip += [display(sc, img), _magma(np.where(skin, fmap, 0.0))]
+                label = "no SSS" if t.startswith("cycles-no-sss") else t
+                strip += [(label, display(sc, img), f"FLIP {m['flip']:.3f}"), ("FLIP map", _magma(np.where(skin, fmap, 0.0)), "")]
             if out:
                 d = out / name
                 d.mkdir(parents=True, exist_ok=True)
-                _save_png(d / f"{'spec' if spec else 'nospec'}_side_by_side.png", np.concatenate(strip, axis=1))
+                from dermis.compare import contact_sheet
+
+                sheet = contact_sheet(strip, [f"{key}: seed-to-seed floor FLIP {floor['flip']:.3f}"])
+                _save_png(d / f"{'spec' if spec else 'nospec'}_side_by_side.png", sheet.astype(np.float32) / 255.0)
                 from dermis.images import write_exr
 
                 write_exr(d / f"cycles_{'spec' if spec else 'nospec'}.exr", ref)
