@@ -27,7 +27,7 @@ class ExportOptions:
     texture_dir: Path | None = None  # where in-memory textures (no source file) are written
 
 
-def _image_path(tex, name, opts, hdr=False) -> str:
+def _image_path(tex, name, opts) -> str:
     """The file behind a dermis Texture: its own source file when there is one (absolute path),
     else the array written beside the export (EXR, linear) so nothing is lost."""
     src = getattr(tex, "source", "") or ""
@@ -262,7 +262,7 @@ def build_world(bpy, scene, opts: ExportOptions):
     light_bg.inputs["Strength"].default_value = float(env.intensity)
     if env.image is not None:
         tex = nodes.new("ShaderNodeTexEnvironment")
-        tex.image = _load_image(bpy, _image_path(env.image, "environment", opts, hdr=True), _linear_space(bpy))
+        tex.image = _load_image(bpy, _image_path(env.image, "environment", opts), _linear_space(bpy))
         tex.projection = "EQUIRECTANGULAR"
         coord = nodes.new("ShaderNodeTexCoord")
         mapping = nodes.new("ShaderNodeMapping")

@@ -253,6 +253,17 @@ def measure_total_reflectance(albedos_rgb, *, n_angles=8, px=8, spp=256, seed=0)
     return 2 * math.pi * (wts[:, None] * mu[:, None] * L).sum(axis=0), mu, L
 
 
+def _write_table(path, d: dict):
+    """One line per field and per measured edge (a reviewable diff when re-measured)."""
+    rows = []
+    for k, v in d.items():
+        if k == "edge":
+            rows.append(f'"edge": [\n' + ",\n".join("  " + json.dumps(r, separators=(",", ":")) for r in v) + "\n]")
+        else:
+            rows.append(f"{json.dumps(k)}: {json.dumps(v, separators=(',', ':'))}")
+    Path(path).write_text("{\n" + ",\n".join(rows) + "\n}\n")
+
+
 def main(argv=None):
     import argparse
     import time
@@ -287,7 +298,7 @@ def main(argv=None):
             refl[float(al)] = float(r[c])
         print(f"albedos {trio}: total reflectance {r} ({time.time() - t0:.0f} s)", flush=True)
     keys = sorted(edges)
-    Path(a.out).write_text(json.dumps({
+    _write_table(a.out, {
         "what": "Cycles random-walk edge response e(x; A) at Subsurface Radius 1 mm (lit for x > 0), "
                 "normalised by the lit plateau; measured by python -m dermis.blender.sss --measure",
         "method": METHOD, "ior": IOR, "anisotropy": ANISOTROPY, "spp": a.spp, "px": a.px,
@@ -295,7 +306,7 @@ def main(argv=None):
         "total_reflectance": [refl[k] for k in keys],
         "total_reflectance_what": "hemispherical: exit radiance at 8 Gauss-Legendre view angles integrated",
         "normal_view_reflectance": [normal[k] for k in keys],
-        "edge": [[round(float(v), 5) for v in edges[k]] for k in keys]}, indent=0))
+        "edge": [[round(float(v), 5) for v in edges[k]] for k in keys]})
     print(f"wrote {a.out}")
 
 
