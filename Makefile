@@ -8,7 +8,7 @@ GL_PACKAGES := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri
 # the viewer's window tests run under a virtual X server
 TEST_PACKAGES := xvfb xauth libxrandr2 libxcursor1 libxi6 libxinerama1
 
-.PHONY: demo test sysdeps test-sysdeps install bench bench-batch fuzz clean
+.PHONY: demo test sysdeps test-sysdeps install cycles bench bench-batch fuzz clean
 
 sysdeps:
 	@scripts/ensure-system-packages.sh $(GL_PACKAGES)
@@ -27,12 +27,23 @@ $(VENV)/.installed: $(VENV)/bin/python pyproject.toml
 
 install: $(VENV)/.installed
 
+# Blender as a Python module (the `cycles` extra, ~370 MB): --no-deps because bpy's metadata pins
+# numpy<2 (see pyproject.toml); without it the Cycles tests skip and the Cycles commands say so.
+BPY_SPEC := bpy>=4.2,<5
+$(VENV)/.cycles: $(VENV)/.installed
+	@$(PY) -m pip install --quiet --no-deps "$(BPY_SPEC)" \
+		&& $(PY) -c 'import bpy' 2>/dev/null \
+		|| echo "note: bpy ($(BPY_SPEC)) did not install for this Python; the Cycles tests will skip"
+	@touch $@
+
+cycles: $(VENV)/.cycles
+
 demo: sysdeps install
 	@mkdir -p out
 	$(VENV)/bin/dermis render --out out/demo.png --size 768x768
 	@echo "demo image: $(CURDIR)/out/demo.png"
 
-test: test-sysdeps install
+test: test-sysdeps install cycles
 	$(PY) -m pytest -q -ra
 
 bench: sysdeps install

@@ -173,7 +173,8 @@ def _register_optional():
     for mod, attr in (("dermis.profiles.cli", "profile_cmd"), ("dermis.bench", "bench_cmd"),
                       ("dermis.compare", "compare_cmd"), ("dermis.reference.cli", "reference_cmd"),
                       ("dermis.reference.cli", "validate_cmd"), ("dermis.viewer.cli", "view_cmd"),
-                      ("dermis.viewer.cli", "turntable_cmd"), ("dermis.batch.cli", "batch_cmd")):
+                      ("dermis.viewer.cli", "turntable_cmd"), ("dermis.batch.cli", "batch_cmd"),
+                      ("dermis.blender.cli", "export_cmd"), ("dermis.blender.cli", "cycles_cmd")):
         try:
             m = __import__(mod, fromlist=[attr])
         except ModuleNotFoundError as exc:

@@ -81,7 +81,11 @@ def reference_cmd(scene, size, out, png, spp, spacing, seed, paths, stats, quiet
 @click.option("--attribution/--no-attribution", default=True, show_default=True,
               help="Re-render tsd with one pipeline part toggled at a time, to say what costs its error.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
-def validate_cmd(scenes, techniques, size, json_path, images, spp, spacing, attribution, quiet):
+@click.option("--against", type=click.Choice(["reference", "cycles"]), default="reference", show_default=True,
+              help="reference: dermis's offline reference; cycles: Blender Cycles through bpy (the cycles extra); "
+                   "then --spp is Cycles' starting samples, doubled until two seeds differ by FLIP <= 0.01.")
+@click.option("--max-spp", type=int, default=1024, show_default=True, help="--against cycles: the most samples per pixel.")
+def validate_cmd(scenes, techniques, size, json_path, images, spp, spacing, attribution, quiet, against, max_spp):
     """Compare techniques with the offline reference on SCENES (default: examples/reference/*.toml):
     mean FLIP, SSIM and relative RMSE on the skin pixels, with FLIP error images."""
     from dermis.cli import parse_size, write_json_atomic
@@ -101,6 +105,14 @@ def validate_cmd(scenes, techniques, size, json_path, images, spp, spacing, attr
     else:
         img_dir = Path(images) if images else Path("out/validate")
     _check_out(img_dir)
+    if against == "cycles":  # dermis.blender owns it (bpy)
+        from dermis.blender.validate import markdown_table as cycles_table, validate_cycles
+
+        report = validate_cycles(files, names, (w, h), out_dir=img_dir, spp=spp, max_spp=max_spp, echo=click.echo)
+        click.echo(cycles_table(report))
+        if json_path:
+            write_json_atomic(json_path, report)
+        return
     report = validate(files, names, (w, h), out_dir=img_dir, spp=spp, spacing_mm=spacing, attribution=attribution,
                       progress=not quiet, echo=click.echo)
     report["images"] = str(img_dir)
