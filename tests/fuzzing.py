@@ -31,7 +31,7 @@ import numpy as np
 from hypothesis import strategies as st
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_foundation_loaders import gltf_document, small_grid  # noqa: E402
+from test_loaders import gltf_document, small_grid  # noqa: E402
 
 import dermis  # noqa: E402
 from dermis.errors import DermisError  # noqa: E402
@@ -296,7 +296,7 @@ def prepare_folder(d: Path):
     (d.parent / "outside.png").write_bytes((d / "tex.png").read_bytes())
     pos, uv, idx = small_grid(3)
     (d / "grid.obj").write_text(obj_text(pos, uv, idx))
-    from test_foundation_loaders import write_glb
+    from test_loaders import write_glb
 
     doc, binary = gltf_document(pos, uv, idx)
     write_glb(d / "grid.glb", doc, binary)
@@ -345,7 +345,7 @@ GLTF_VALUES = st.one_of(JSON_SCALARS, st.sampled_from([-1, 0, 1, 2, 99, 2**31, 1
 @st.composite
 def gltf_cases(draw):
     """(container, doc, binary, GLB header patch) from a small valid textured grid, changed."""
-    from test_foundation_loaders import png_bytes, texture_u8
+    from test_loaders import png_bytes, texture_u8
 
     pos, uv, idx = small_grid(2)
     img = draw(st.sampled_from([None, ("view", png_bytes(texture_u8())), ("uri", "tex.png")]))
@@ -639,7 +639,7 @@ def prepare_cli_folder(d: Path):
         (d / "dangling.png").symlink_to(d / "nowhere.png")
     pos, uv, idx = small_grid(3)
     (d / "grid.obj").write_text(obj_text(pos, uv, idx))
-    from test_foundation_loaders import write_glb
+    from test_loaders import write_glb
 
     doc, binary = gltf_document(pos, uv, idx)
     write_glb(d / "grid.glb", doc, binary)

@@ -17,7 +17,7 @@ from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fuzzing as fz  # noqa: E402
-from test_foundation_loaders import gltf_document, small_grid, write_glb, write_gltf  # noqa: E402
+from test_loaders import gltf_document, small_grid, write_glb, write_gltf  # noqa: E402
 
 import dermis  # noqa: E402
 from dermis.errors import DermisError  # noqa: E402
