@@ -46,7 +46,7 @@ def output_paths(index: int, render_id: str, outputs) -> dict:
 def depth_map(scene, camera, size, bvh) -> np.ndarray:
     """Distance along the camera's view axis to the first surface through each pixel centre, in
     mm (scene units x mm_per_unit); 0 where the ray misses the mesh. Ray cast on the CPU through
-    dermis.reference.raycast's BVH with the renderer's own camera matrices (dermis.camera)."""
+    dermis.geometry.raycast's Embree ray caster with the renderer's own camera matrices (dermis.camera)."""
     from dermis.camera import camera_matrices
 
     w, h = size
@@ -199,11 +199,11 @@ class RenderWorker:
         return row, files
 
     def _mesh_bvh(self, scene):
-        from dermis.reference.raycast import Bvh
+        from dermis.geometry.raycast import RayCaster
 
         key = id(scene.mesh)
         if key not in self._bvh:
-            self._bvh[key] = (scene.mesh, Bvh(scene.mesh.positions, scene.mesh.indices))
+            self._bvh[key] = (scene.mesh, RayCaster(scene.mesh.positions, scene.mesh.indices))
         return self._bvh[key][1]
 
     def close(self):

@@ -5,7 +5,7 @@ dermis.blender.export) at two seeds, the samples doubled until the two differ by
 ``floor_target`` on the skin pixels (or ``max_spp`` is reached, reported as not converged); the
 reference is the two seeds' mean. Each technique is scored with dermis.reference.validate.metrics
 (mean FLIP, SSIM, relative RMSE on the skin pixels) plus the per-channel mean ratio, on the whole
-skin and on regions derived from the mesh and lights (ray casts, dermis.reference.raycast):
+skin and on regions derived from the mesh and lights (ray casts, dermis.geometry.raycast):
 
 * ``shadow_edge``: front-facing pixels within 2 px of a cast-shadow boundary of any light (the nose
   shadow's penumbra in the front and side scenes);
@@ -60,14 +60,14 @@ def _dilate(m, r):
 
 def region_masks(scene, size, skin) -> dict:
     """{name: (H, W) bool} from ray casts of the camera's pixel centres against the mesh."""
-    from dermis.reference.raycast import Bvh
+    from dermis.geometry.raycast import RayCaster
     from dermis.reference.render import camera_rays
 
     w, h = size
     m = scene.mesh
     pos = np.asarray(m.positions, np.float64)
     idx = np.asarray(m.indices, np.int64).reshape(-1, 3)
-    bvh = Bvh(pos, idx)
+    bvh = RayCaster(pos, idx)
     o, d, tmax, _ = camera_rays(scene, size, 1)
     t, tri, bc = bvh.closest_hit(o, d, 0.0, tmax)
     hit = tri >= 0
