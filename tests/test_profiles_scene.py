@@ -35,7 +35,7 @@ def test_default_and_deon_give_deons_table(tmp_path):
         np.testing.assert_array_equal(profile.weights, DEON_WEIGHTS_RGB)
     four = resolve_skin_profile({"profile": "deon", "gaussians": 4}, tmp_path, SOURCE)
     assert four.k == 4 and np.allclose(four.total_reflectance, 1.0, atol=3e-3)
-    assert set(PRESETS) == {"deon", "fair", "asian", "dark"}
+    assert set(PRESETS) == {"deon", "fair", "asian", "dark", "very-light", "light", "intermediate", "tan", "brown"}
 
 
 def test_presets_carry_colour_and_dark_skin_is_darker_with_less_red_bleed(tmp_path):
@@ -44,7 +44,8 @@ def test_presets_carry_colour_and_dark_skin_is_darker_with_less_red_bleed(tmp_pa
     assert fair.k == dark.k == 6
     expected = skin_profile(SKIN_PRESETS["fair"], "pbd").total_reflectance_rgb
     np.testing.assert_allclose(fair.total_reflectance, expected, rtol=3e-3)
-    assert np.all(dark.total_reflectance < 0.2 * fair.total_reflectance)
+    # the measured counterparts (ColorChecker dark / light skin) are 0.31, 0.25, 0.22 of each other
+    assert np.all(dark.total_reflectance < 0.4 * fair.total_reflectance)
 
     def red_mean_radius(p):  # of the red channel's Gaussians; one of variance v has mean radius sqrt(pi v / 2)
         return float(p.weights[:, 0] @ np.sqrt(np.pi * p.variances_mm2 / 2) / p.weights[:, 0].sum())
