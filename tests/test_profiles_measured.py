@@ -224,3 +224,29 @@ def test_multipole_thin_slab_agrees_with_photon_beam_diffusion(thickness_mm):
         r, t = multipole_profiles(grid.radius_mm, slab, thickness_mm, 1.4, 1.0, from_below=from_below)
         total_r, total_t = grid.total(r), grid.total(t)
         assert np.all(total_t > 0) and np.all(total_r + total_t <= 1.0), (total_r, total_t)
+
+
+def test_scene_model_mc_fits_the_monte_carlo_shape_and_caches_it(tmp_path, monkeypatch):
+    """[skin] model = "mc": the Gaussians fit the Monte Carlo's profile (few photons here) and carry
+    its total; the second request is served from the disk cache without running it again."""
+    from dermis.profiles import monte_carlo, scene_skin
+    from dermis.profiles.scene_skin import resolve_skin_profile
+
+    monkeypatch.setenv("DERMIS_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(scene_skin, "MC_SCENE_PHOTONS", 4000)
+    scene_skin._fitted_medium.cache_clear()
+    section = {"profile": "medium", "layer": [{"sigma_a": [0.02, 0.1, 0.4], "sigma_s_reduced": 2.0}],
+               "model": "mc", "gaussians": 4}
+    first = resolve_skin_profile(section, tmp_path, "s.toml")
+    reference = _profile(_medium_file(tmp_path, section["layer"]), "pbd")
+    # MC totals carry a binomial error of ~0.008 at 4000 photons; pbd is within ~5 % of MC
+    np.testing.assert_allclose(first.total_reflectance, reference.total_reflectance_rgb, rtol=0.08)
+    scene_skin._fitted_medium.cache_clear()
+
+    def no_monte_carlo(*args, **kwargs):
+        raise AssertionError("the cached fit should have been used")
+
+    monkeypatch.setattr(monte_carlo, "monte_carlo_reflectance", no_monte_carlo)
+    again = resolve_skin_profile(section, tmp_path, "s.toml")
+    np.testing.assert_array_equal(again.weights, first.weights)
+    scene_skin._fitted_medium.cache_clear()

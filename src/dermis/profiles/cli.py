@@ -130,7 +130,9 @@ def _check_output(path, suffix: str, option: str):
 @click.command("profile")
 @click.option("--model", type=click.Choice(["dipole", "multipole", "pbd", "burley", "mc", "deon"]), default=None,
               help=MODEL_HELP)
-@click.option("--preset", default=None, help="fair | asian | dark (Donner & Jensen 2006) | deon")
+@click.option("--preset", default=None,
+              help="fair | asian | dark | very-light | light | intermediate | tan | brown (fitted to measured skin) "
+                   "| deon")
 @click.option("--melanin", type=float, default=None, help="melanin volume fraction C_m, 0..1")
 @click.option("--melanin-blend", type=float, default=None, help="eumelanin share of the melanin beta_m, 0..1 [0.7]")
 @click.option("--hemoglobin", type=float, default=None, help="blood volume fraction C_h, 0..1")

@@ -2,14 +2,16 @@
 
     [skin]
     profile = "deon"            # default: d'Eon et al. 2007's six Gaussians
-    profile = "fair"            # a preset of Donner & Jensen 2006: fair, asian, dark
+    profile = "fair"            # a preset (presets.py): fair, asian, dark, very-light, light,
+                                #   intermediate, tan, brown
     profile = "physical"        # skin parameters:
     melanin = 0.05              #   C_m, melanin volume fraction      (required)
     hemoglobin = 0.01           #   C_h, blood volume fraction        (required)
     melanin_blend = 0.7         #   beta_m, eumelanin share           (default 0.7)
     oxygenation = 0.75          #   gamma, oxy-haemoglobin share      (default 0.75)
     epidermis_mm = 0.25         #   epidermis thickness               (default 0.25)
-    model = "pbd"               #   dipole, multipole, pbd or burley  (default pbd)
+    model = "pbd"               #   dipole, multipole, pbd, burley or mc (default pbd; mc: the
+                                #   Monte Carlo's shape, ~1-2 min once, then cached on disk)
     gaussians = 6               #   K, the number of Gaussians        (default 6)
     profile = "skin.json"       # a file written by `dermis profile --json` (relative to the scene)
     profile = "medium"          # optical coefficients per layer (profiles/medium_file.py), top first:
@@ -47,7 +49,14 @@ PHYSICAL_KEYS = {"melanin": "melanin_fraction", "melanin_blend": "melanin_blend"
                  "epidermis_mm": "epidermis_thickness_mm"}
 MEDIUM_KEYS = ("layer", "wavelength_nm")
 SKIN_KEYS = ("profile", *PHYSICAL_KEYS, "model", "gaussians", *MEDIUM_KEYS)
-SCENE_MODELS = ("dipole", "multipole", "pbd", "burley")
+SCENE_MODELS = ("dipole", "multipole", "pbd", "burley", "mc")
+#: model = "mc": the Monte Carlo's R(r) as the shape the Gaussians are fitted to (the layered
+#: diffusion models lose lateral transport across a thin epidermis: pbd's red tail is 30-45 % low
+#: at 2 mm, benchmarks/RESULTS.md). Photons per wavelength and the wavelengths it samples; about
+#: 1 s per 10,000 photons and wavelength on 2 cores, so a preset costs about 1-2 minutes once and
+#: is then read from the disk cache.
+MC_SCENE_PHOTONS = 50_000
+MC_SCENE_WAVELENGTHS_NM = np.arange(400.0, 701.0, 20.0)
 CACHE_VERSION = 2  # bump when a model's numbers change (2: multipole thin-slab pole depth)
 
 
@@ -73,8 +82,13 @@ def _fitted_physical(model: str, parameters: tuple, k: int):
     from dermis.profiles.fit import fit_sum_of_gaussians
     from dermis.profiles.spectral import DEFAULT_WAVELENGTHS_NM, SkinParameters
 
-    key = json.dumps([CACHE_VERSION, model, parameters, k, DEFAULT_WAVELENGTHS_NM.tolist()])
-    return _cached_fit(key, lambda: fit_sum_of_gaussians(models.skin_profile(SkinParameters(*parameters), model), k))
+    if model == "mc":
+        wavelength, options = MC_SCENE_WAVELENGTHS_NM, {"photons": MC_SCENE_PHOTONS}
+    else:
+        wavelength, options = DEFAULT_WAVELENGTHS_NM, {}
+    key = json.dumps([CACHE_VERSION, model, parameters, k, wavelength.tolist(), options])
+    return _cached_fit(key, lambda: fit_sum_of_gaussians(
+        models.skin_profile(SkinParameters(*parameters), model, wavelength_nm=wavelength, **options), k))
 
 
 def physical_gaussians(parameters, model: str = "pbd", k: int = 6, name: str = "physical") -> SumOfGaussians:
@@ -125,7 +139,8 @@ def _fitted_medium(model: str, description: str, k: int):
 
     def compute():
         layers, wavelength = layers_from_description(json.loads(description), "[skin]")
-        return fit_sum_of_gaussians(medium_profile(layers, model, wavelength_nm=wavelength), k)
+        options = {"photons": MC_SCENE_PHOTONS} if model == "mc" else {}
+        return fit_sum_of_gaussians(medium_profile(layers, model, wavelength_nm=wavelength, **options), k)
 
     return _cached_fit(json.dumps([CACHE_VERSION, "medium", model, description, k]), compute)
 
