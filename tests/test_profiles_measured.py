@@ -19,13 +19,13 @@ from dermis.profiles.measured_skin import (NIST_CATEGORIES, colorchecker_skin, m
                                            model_measurand, nist_skin, normal_incidence_fresnel)
 from dermis.profiles.models import layered_diffusion_reflectance, medium_profile, skin_profile
 from dermis.profiles.presets import MEASURED_COUNTERPARTS, SKIN_PRESETS
-from dermis.profiles.spectral import SkinParameters, skin_layers, spectral_to_linear_srgb
+from dermis.profiles.spectral import DEFAULT_WAVELENGTHS_NM, SkinParameters, skin_layers, spectral_to_linear_srgb
 
 # The fitted presets' measured gaps (benchmarks/RESULTS.md): every channel within 15 % of measured
-# skin (NIST); the ColorChecker paints rise more steeply to 700 nm than the two-layer model can,
-# so fair's and dark's red stay up to 25 % low while green and blue meet 15 %.
+# skin, except fair's red against the ColorChecker "light skin" paint, 19 % low (the paint rises
+# more steeply to 700 nm than the two-layer model can; presets.py).
 TOLERANCE = 0.15
-COLORCHECKER_RED_TOLERANCE = 0.25
+FAIR_RED_TOLERANCE = 0.20
 
 
 def test_measured_data_is_what_its_sources_say():
@@ -55,9 +55,9 @@ def test_measurand_adds_the_surface_reflection_as_fresnel_says():
 
 @pytest.mark.parametrize("preset", sorted(MEASURED_COUNTERPARTS))
 def test_preset_reflectance_matches_its_measured_counterpart(preset):
-    """pbd total reflectance of each preset, in its counterpart's measurand, per linear-sRGB
-    channel (20 nm steps keep the test short: the colour moves by < 0.5 % against 10 nm)."""
-    wavelength = np.arange(400.0, 701.0, 20.0)
+    """pbd total reflectance of each preset (400-700 nm, 10 nm steps as rendered), in its
+    counterpart's measurand, per linear-sRGB channel."""
+    wavelength = DEFAULT_WAVELENGTHS_NM
     measured = measured_counterpart(preset)
     parameters = SKIN_PRESETS[preset]
     totals = layered_diffusion_reflectance(skin_layers(parameters, wavelength), "pbd").total_reflectance
@@ -65,10 +65,11 @@ def test_preset_reflectance_matches_its_measured_counterpart(preset):
                                     wavelength)
     target = measured.linear_srgb(wavelength)
     ratio = model / target
-    print(f"{preset}: model {np.round(model, 4)} measured ({measured.name}) {np.round(target, 4)} ratio {np.round(ratio, 3)}")
+    print(f"{preset}: model {np.round(model, 4)} measured ({measured.name}) {np.round(target, 4)}",
+          f"ratio {np.round(ratio, 3)}")
     tolerance = np.full(3, TOLERANCE)
-    if not measured.specular_included:  # a ColorChecker paint
-        tolerance[0] = COLORCHECKER_RED_TOLERANCE
+    if preset == "fair":
+        tolerance[0] = FAIR_RED_TOLERANCE
     assert np.all(np.abs(ratio - 1.0) <= tolerance), ratio
     # the comparison has teeth: the old presets (C_m 0.005 / 0.15 / 0.5 over 0.25 mm) are far off
     old = {"fair": SkinParameters(0.005, 0.7, 0.005), "dark": SkinParameters(0.5, 0.7, 0.05)}.get(preset)

@@ -180,7 +180,8 @@ def ssss_plane_impulse(gl_ctx=None, profile=None):
     reference = dot_reference(sc.profile, (S, S), c, SSSS_PLANE_MM_PER_PX)
     reach = profile_reach_mm(sc.profile)
     edges = np.arange(0.0, reach.max() + SSSS_PLANE_MM_PER_PX, SSSS_PLANE_MM_PER_PX)
-    centre_mm = (c[0] * SSSS_PLANE_MM_PER_PX, c[1] * SSSS_PLANE_MM_PER_PX)  # the dot's centre: the corner between its 4 pixels
+    # the dot's centre: the corner between its 4 pixels
+    centre_mm = (c[0] * SSSS_PLANE_MM_PER_PX, c[1] * SSSS_PLANE_MM_PER_PX)
     ring_out = radial_average(out, centre_mm, SSSS_PLANE_MM_PER_PX, edges)
     ring_ref = radial_average(reference, centre_mm, SSSS_PLANE_MM_PER_PX, edges)
     mid = 0.5 * (edges[1:] + edges[:-1])

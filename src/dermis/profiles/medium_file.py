@@ -112,7 +112,8 @@ def layers_from_description(description, source: str) -> tuple[list[Layer], np.n
         if wavelength.size < 2 or np.any(np.diff(wavelength) <= 0) or wavelength[0] < 360 or wavelength[-1] > 830:
             raise DermisError(f"{source}: wavelength_nm must increase within 360-830 nm (at least 2 values)")
     channels = 3 if wavelength is None else wavelength.size
-    stack = [_layer(layer, f"{source}: layer {i + 1}", channels, i == len(layers) - 1) for i, layer in enumerate(layers)]
+    last = len(layers) - 1
+    stack = [_layer(layer, f"{source}: layer {i + 1}", channels, i == last) for i, layer in enumerate(layers)]
     return stack, wavelength
 
 

@@ -269,7 +269,8 @@ def _monte_carlo_profile(layers, wavelength, illuminant, photons, seed, progress
     if progress is True:
         from tqdm import tqdm
 
-        bar = tqdm(total=int(photons) * layers[0].medium.wavelength_count, unit="photon", unit_scale=True, desc="Monte Carlo")
+        bar = tqdm(total=int(photons) * layers[0].medium.wavelength_count, unit="photon", unit_scale=True,
+                   desc="Monte Carlo")
     values, errors, totals = [], [], []
     try:
         for i in range(layers[0].medium.wavelength_count):
