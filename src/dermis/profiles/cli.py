@@ -77,7 +77,7 @@ def _plot(path, profile, fit, title: str, measured=(), refractive_index: float =
         wavelength = profile.spectral["wavelength_nm"]
         totals = profile.spectral["total_reflectance"]
         lower = figure.add_subplot(2, 1, 2)
-        rgb = profile.total_reflectance_rgb
+        rgb = model_measurand(profile.total_reflectance_rgb, refractive_index, False)  # linear: per channel too
         lower.plot(wavelength, model_measurand(totals, refractive_index, False), color="k", lw=2.0,
                    label="model, body reflectance (1 - F0) R_d, RGB " + " ".join(f"{v:.3f}" for v in rgb))
         lower.plot(wavelength, model_measurand(totals, refractive_index, True), color="k", lw=1.0, ls="--",
