@@ -9,6 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from dermis.profiles.cli import profile_cmd
+from dermis.profiles.presets import SKIN_PRESETS
 
 
 def run(args, folder, monkeypatch):
@@ -36,7 +37,11 @@ def test_fair_preset_fit_plot_and_json(tmp_path):
     # the stored curve integrates to the stored total (2 pi r R dr on the log grid, tails omitted)
     integral = np.trapezoid(2 * np.pi * radii[:, None] * profile, radii, axis=0)
     np.testing.assert_allclose(integral, totals, rtol=0.03)
-    assert document["parameters"]["melanin_fraction"] == 0.005
+    assert document["parameters"]["melanin_fraction"] == SKIN_PRESETS["fair"].melanin_fraction
+    # the optical coefficients behind it: epidermis slab over semi-infinite dermis, 1/mm
+    layers = document["medium"]["layer"]
+    assert len(layers) == 2 and layers[1]["thickness_mm"] == "inf" and layers[0]["thickness_mm"] == 0.25
+    assert len(layers[0]["sigma_a"]) == len(document["medium"]["wavelength_nm"]) == 31
     assert not list(tmp_path.glob(".*.tmp"))  # atomic writes leave no temporaries
 
 
@@ -66,7 +71,9 @@ def test_monte_carlo_model_writes_standard_errors(tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["--preset", "pale"], "unknown"),
     (["--melanin", "-0.1", "--hemoglobin", "0.01"], "melanin fraction must lie in [0, 1]"),
-    (["--preset", "fair", "--epidermis-mm", "0"], "epidermis thickness"),
+    (["--preset", "fair", "--epidermis-mm", "-0.1"], "epidermis thickness"),
+    (["--medium", "no_such.toml"], "--medium"),
+    (["--medium", "no_such.toml", "--preset", "fair"], "--medium"),
     (["--preset", "fair", "--fit", "0"], "--fit 0"),
     (["--preset", "fair", "--wavelength-step", "0"], "--wavelength-step"),
     (["--melanin", "0.1"], "--hemoglobin"),

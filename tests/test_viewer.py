@@ -194,7 +194,10 @@ def test_viewer_params_are_checked():
         ViewerParams().update({"technique": "raytrace"})
     p = ViewerParams()
     p.apply_preset("dark")
-    assert (p.profile, p.melanin, p.hemoglobin) == ("dark", 0.5, 0.05)
+    from dermis.profiles.presets import SKIN_PRESETS
+
+    dark = SKIN_PRESETS["dark"]
+    assert (p.profile, p.melanin, p.hemoglobin) == ("dark", dark.melanin_fraction, dark.hemoglobin_fraction)
 
 
 def test_scene_editor_colours_skin_only_with_spectral_profiles():

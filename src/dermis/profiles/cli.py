@@ -4,6 +4,7 @@
     dermis profile --model multipole --melanin 0.1 --melanin-blend 0.5 --hemoglobin 0.02 --fit 4
     dermis profile --model mc --preset dark --photons 200000 --json dark-mc.json
     dermis profile --model deon --fit 4
+    dermis profile --medium layers.toml --model mc --photons 20000    (coefficients per layer: medium_file.py)
 
 The plot shows r R(r) (the energy per unit radius, 1/mm) per linear-sRGB channel against log
 radius, with the fitted Gaussians dashed on top. The JSON (profile_json.py) holds the radii, the
@@ -40,8 +41,10 @@ def _parameters(preset, overrides: dict):
     return replace(base, **overrides)
 
 
-def _plot(path, profile, fit, title: str) -> None:
-    """r R(r) per channel on a log radius axis, the fit dashed; written atomically as PNG."""
+def _plot(path, profile, fit, title: str, measured=(), refractive_index: float = 1.4) -> None:
+    """r R(r) per channel on a log radius axis, the fit dashed; for a spectral profile a second
+    panel with its reflectance spectrum beside measured skin (``measured``: MeasuredSkin, each in
+    its own measurand, measured_skin.py). Written atomically as PNG."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -51,9 +54,10 @@ def _plot(path, profile, fit, title: str) -> None:
     r_high = float(min(profile.radius_mm[-1], 60.0))
     radius = np.geomspace(r_low, r_high, 400)
     values = radius[:, None] * profile.evaluate(radius)
-    figure = Figure(figsize=(7.5, 4.5), dpi=120)
+    spectral = "wavelength_nm" in profile.spectral
+    figure = Figure(figsize=(7.5, 8.0 if spectral else 4.5), dpi=120)
     FigureCanvasAgg(figure)
-    axes = figure.add_subplot(1, 1, 1)
+    axes = figure.add_subplot(2 if spectral else 1, 1, 1)
     colours = ("#d62728", "#2ca02c", "#1f77b4")
     for c, (label, colour) in enumerate(zip("RGB", colours)):
         axes.plot(radius, values[:, c], color=colour, lw=1.8, label=f"{label} profile")
@@ -67,6 +71,34 @@ def _plot(path, profile, fit, title: str) -> None:
     axes.set_title(title, fontsize=10)
     axes.grid(True, which="both", alpha=0.3)
     axes.legend(fontsize=7, ncol=2 if fit is not None else 1)
+    if spectral:
+        from dermis.profiles.measured_skin import model_measurand
+
+        wavelength = profile.spectral["wavelength_nm"]
+        totals = profile.spectral["total_reflectance"]
+        lower = figure.add_subplot(2, 1, 2)
+        rgb = model_measurand(profile.total_reflectance_rgb, refractive_index, False)  # linear: per channel too
+        lower.plot(wavelength, model_measurand(totals, refractive_index, False), color="k", lw=2.0,
+                   label="model, body reflectance (1 - F0) R_d, RGB " + " ".join(f"{v:.3f}" for v in rgb))
+        lower.plot(wavelength, model_measurand(totals, refractive_index, True), color="k", lw=1.0, ls="--",
+                   label="model + surface reflection F0 (as NIST measures)")
+        palette = ("#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf", "#9467bd", "#ff7f0e")
+        for i, sample in enumerate(measured):
+            keep = (sample.wavelength_nm >= 400) & (sample.wavelength_nm <= 700)
+            colour = palette[i % len(palette)]
+            lower.plot(sample.wavelength_nm[keep], sample.reflectance[keep], color=colour, lw=1.3,
+                       ls="--" if sample.specular_included else "-",
+                       label=f"measured: {sample.name}, RGB " + " ".join(f"{v:.3f}" for v in sample.linear_srgb()))
+            if sample.spread is not None:
+                lower.fill_between(sample.wavelength_nm[keep], (sample.reflectance - sample.spread)[keep],
+                                   (sample.reflectance + sample.spread)[keep], color=colour, alpha=0.12, lw=0)
+        lower.set_xlabel("wavelength (nm)")
+        lower.set_ylabel("reflectance")
+        lower.set_xlim(400, 700)
+        lower.set_ylim(bottom=0)
+        lower.grid(True, alpha=0.3)
+        lower.legend(fontsize=6)
+        lower.set_title("total reflectance beside measured skin (dashed: specular included)", fontsize=9)
     figure.tight_layout()
     write_atomic(path, lambda stream: figure.savefig(stream, format="png"))
 
@@ -98,12 +130,17 @@ def _check_output(path, suffix: str, option: str):
 @click.command("profile")
 @click.option("--model", type=click.Choice(["dipole", "multipole", "pbd", "burley", "mc", "deon"]), default=None,
               help=MODEL_HELP)
-@click.option("--preset", default=None, help="fair | asian | dark (Donner & Jensen 2006) | deon")
+@click.option("--preset", default=None,
+              help="fair | asian | dark | very-light | light | intermediate | tan | brown (fitted to measured skin) "
+                   "| deon")
 @click.option("--melanin", type=float, default=None, help="melanin volume fraction C_m, 0..1")
 @click.option("--melanin-blend", type=float, default=None, help="eumelanin share of the melanin beta_m, 0..1 [0.7]")
 @click.option("--hemoglobin", type=float, default=None, help="blood volume fraction C_h, 0..1")
 @click.option("--oxygenation", type=float, default=None, help="oxygenated share of haemoglobin, 0..1 [0.75]")
-@click.option("--epidermis-mm", type=float, default=None, help="epidermis thickness in mm [0.25]")
+@click.option("--epidermis-mm", type=float, default=None, help="epidermis thickness in mm [0.25]; 0: dermis only")
+@click.option("--medium", "medium_path", default=None,
+              help="a .toml/.json file of optical coefficients per layer (sigma_a, sigma_s' or sigma_s and g, eta, "
+                   "thickness_mm; or mfp_mm and albedo) instead of skin parameters")
 @click.option("--fit", "fit_k", type=int, default=None, help="fit K Gaussians with shared variances")
 @click.option("--plot", "plot_path", default=None, help="write a PNG of r R(r) with the fit")
 @click.option("--json", "json_path", default=None, help="write the profile (and fit) as JSON")
@@ -114,8 +151,8 @@ def _check_output(path, suffix: str, option: str):
               help="nm between the wavelengths sampled in 400-700 nm")
 @click.option("--albedo", default=None, help="burley, artist-facing: surface albedo R,G,B (linear, 0..1)")
 @click.option("--mfp-mm", default=None, help="burley, artist-facing: mean free path R,G,B in mm")
-def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, epidermis_mm, fit_k, plot_path,
-                json_path, photons, seed, illuminant, wavelength_step, albedo, mfp_mm):
+def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, epidermis_mm, medium_path, fit_k,
+                plot_path, json_path, photons, seed, illuminant, wavelength_step, albedo, mfp_mm):
     """Compute a skin diffusion profile from physics, fit Gaussians to it, plot it, save it."""
     from dermis.profiles.fit import fit_sum_of_gaussians
     from dermis.profiles.presets import PRESETS
@@ -146,8 +183,24 @@ def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, 
         raise click.UsageError("--albedo and --mfp-mm go together (the artist-facing Burley profile)")
     if albedo is not None and (model not in (None, "burley") or preset is not None or overrides):
         raise click.UsageError("--albedo/--mfp-mm define a Burley profile: no --preset, skin parameters or other --model")
+    if medium_path is not None and (preset is not None or overrides or albedo is not None or model == "deon"):
+        raise click.UsageError("--medium gives the optical coefficients: no --preset, skin parameters, --albedo "
+                               "or --model deon with it")
+    medium = None
     try:
-        if albedo is not None:
+        if medium_path is not None:
+            from dermis.profiles.medium_file import read_medium_file
+            from dermis.profiles.models import medium_profile
+
+            try:
+                layers, medium_wavelength = read_medium_file(medium_path)
+            except DermisError as exc:
+                raise click.UsageError(f"--medium {exc}") from None
+            model = model or "pbd"
+            medium = (layers, medium_wavelength)
+            profile = medium_profile(layers, model, wavelength_nm=medium_wavelength, illuminant=illuminant,
+                                     photons=photons, seed=seed, progress=model == "mc", name=Path(medium_path).stem)
+        elif albedo is not None:
             from dermis.profiles.models import burley_artist_profile
 
             model, profile = "burley", burley_artist_profile(_rgb(albedo, "--albedo"), _rgb(mfp_mm, "--mfp-mm"))
@@ -167,6 +220,10 @@ def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, 
 
     label = profile.name if model != "deon" else "deon"
     click.echo(f"profile: {label}, model {model}")
+    if medium is not None:
+        for i, layer in enumerate(medium[0]):
+            thickness = "semi-infinite" if layer.semi_infinite else f"{layer.thickness_mm:g} mm"
+            click.echo(f"  layer {i + 1}: {thickness}, g {layer.medium.g:g}, eta {layer.medium.n:g}")
     if parameters is not None:
         click.echo("  melanin %.4g, blend %.3g, hemoglobin %.4g, oxygenation %.3g, epidermis %.3g mm"
                    % (parameters.melanin_fraction, parameters.melanin_blend, parameters.hemoglobin_fraction,
@@ -181,13 +238,24 @@ def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, 
 
     document = profile_document(profile, fit, parameters.to_dict() if parameters is not None else None,
                                 illuminant if model != "deon" else None)
+    # The optical coefficients behind the profile (1/mm, mm), for skin parameters and --medium alike
+    if medium is not None or parameters is not None:
+        from dermis.profiles.medium_file import medium_document
+        from dermis.profiles.spectral import skin_layers
+
+        layers, medium_wavelength = medium if medium is not None else (skin_layers(parameters, wavelength), wavelength)
+        document["medium"] = medium_document(layers, medium_wavelength)
     try:
         if json_target is not None:
             write_profile_json(json_target, document)
             click.echo(f"wrote {json_target}")
         if plot_target is not None:
             title = f"{label} skin, {model} model" + (f", {fit.profile.k}-Gaussian fit" if fit is not None else "")
-            _plot(plot_target, profile, fit, title)
+            from dermis.profiles.measured_skin import measured_for_plot
+
+            index = medium[0][0].medium.n if medium is not None else (
+                parameters.refractive_index if parameters is not None else 1.4)
+            _plot(plot_target, profile, fit, title, measured_for_plot(preset), index)
             click.echo(f"wrote {plot_target}")
     except (OSError, DermisError) as exc:
         raise click.ClickException(f"cannot write output: {exc}") from None

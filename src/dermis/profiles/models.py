@@ -151,16 +151,21 @@ def layered_diffusion_reflectance(layers: list[Layer], model: str, grid: LogRadi
     return combine_layers(responses, grid)
 
 
+def _channel_matrix(wavelength_nm, illuminant):
+    """Spectral samples -> linear sRGB, or the identity when the 'wavelengths' are the RGB channels."""
+    return np.eye(3) if wavelength_nm is None else spectrum_to_linear_srgb_matrix(wavelength_nm, illuminant)
+
+
 def _spectral_to_profile(radius, spectral_values, spectral_totals, wavelength_nm, illuminant, model, name,
                          spectral_errors=None) -> RadialProfile:
-    matrix = spectrum_to_linear_srgb_matrix(wavelength_nm, illuminant)
+    matrix = _channel_matrix(wavelength_nm, illuminant)
     # Saturated reds far from the entry point can fall (by < 1e-5 of the peak) outside the sRGB
     # gamut: clip those negative channel values to 0
     rgb = np.maximum(spectral_values @ matrix.T, 0.0)
     errors = None if spectral_errors is None else np.sqrt((spectral_errors**2) @ (matrix**2).T)
-    return RadialProfile(radius, rgb, matrix @ spectral_totals, model, name,
-                         {"wavelength_nm": np.asarray(wavelength_nm, dtype=float),
-                          "total_reflectance": np.asarray(spectral_totals, dtype=float)}, errors)
+    spectral = {} if wavelength_nm is None else {"wavelength_nm": np.asarray(wavelength_nm, dtype=float),
+                                                 "total_reflectance": np.asarray(spectral_totals, dtype=float)}
+    return RadialProfile(radius, rgb, matrix @ spectral_totals, model, name, spectral, errors)
 
 
 def deon_profile() -> RadialProfile:
@@ -193,9 +198,30 @@ def skin_profile(parameters: SkinParameters, model: str = "pbd", *, wavelength_n
     wavelength = np.asarray(wavelength_nm, dtype=np.float64)
     if model == "burley":
         return burley_skin_profile(parameters, wavelength_nm=wavelength, illuminant=illuminant, name=name)
-    layers = skin_layers(parameters, wavelength)
+    return medium_profile(skin_layers(parameters, wavelength), model, wavelength_nm=wavelength, illuminant=illuminant,
+                          photons=photons, seed=seed, progress=progress, name=name)
+
+
+def medium_profile(layers: list[Layer], model: str = "pbd", *, wavelength_nm=None, illuminant: str = "D65",
+                   photons: int = 100_000, seed: int = 0, progress=False, name: str = "medium") -> RadialProfile:
+    """The RGB profile of a stack of layers (top first) given by its coefficients.
+
+    ``wavelength_nm``: the wavelengths of the coefficients' entries (integrated to linear sRGB),
+    or None when the coefficients have three entries, the linear-sRGB channels themselves.
+    ``model``: dipole, multipole, pbd, burley (matched to pbd) or mc.
+    """
+    if model not in ("dipole", "multipole", "pbd", "burley", "mc"):
+        raise DermisError(f"model '{model}' does not take a medium (use dipole, multipole, pbd, burley, mc)")
+    wavelength = None if wavelength_nm is None else np.asarray(wavelength_nm, dtype=np.float64)
+    count = layers[0].medium.wavelength_count
+    if any(layer.medium.wavelength_count != count for layer in layers) or (wavelength is None and count != 3) or (
+            wavelength is not None and wavelength.size != count):
+        raise DermisError("every layer needs one coefficient per wavelength (or 3, the RGB channels)")
+    if model == "burley":
+        reference = medium_profile(layers, "pbd", wavelength_nm=wavelength, illuminant=illuminant, name=name)
+        return burley_matched_profile(reference, name)
     if model == "mc":
-        return _monte_carlo_skin_profile(layers, wavelength, illuminant, photons, seed, progress, name)
+        return _monte_carlo_profile(layers, wavelength, illuminant, photons, seed, progress, name)
     result = layered_diffusion_reflectance(layers, model)
     radius = result.grid.radius_mm
     keep = (radius >= OUTPUT_RANGE_MM[0]) & (radius <= OUTPUT_RANGE_MM[1])
@@ -209,6 +235,11 @@ def burley_skin_profile(parameters: SkinParameters, *, wavelength_nm=DEFAULT_WAV
     the mean free path chosen so that the mean radius equals the pbd profile's."""
     if reference is None:
         reference = skin_profile(parameters, "pbd", wavelength_nm=wavelength_nm, illuminant=illuminant, name=name)
+    return burley_matched_profile(reference, name)
+
+
+def burley_matched_profile(reference: RadialProfile, name: str) -> RadialProfile:
+    """Christensen-Burley per RGB channel with the total reflectance and mean radius of ``reference``."""
     albedo = np.clip(reference.total_reflectance_rgb, 1e-6, 1.0)
     mean_free_path = burley_mean_free_path_for_mean_radius(albedo, reference.mean_radius_mm())
     radius = reference.radius_mm
@@ -231,17 +262,18 @@ def burley_artist_profile(albedo_rgb, mean_free_path_mm_rgb, name: str = "burley
 MONTE_CARLO_BIN_EDGES_MM = np.concatenate([[0.0], np.geomspace(0.01, 40.0, 73)])
 
 
-def _monte_carlo_skin_profile(layers, wavelength, illuminant, photons, seed, progress, name) -> RadialProfile:
+def _monte_carlo_profile(layers, wavelength, illuminant, photons, seed, progress, name) -> RadialProfile:
     from dermis.profiles.monte_carlo import monte_carlo_reflectance
 
     bar = progress
     if progress is True:
         from tqdm import tqdm
 
-        bar = tqdm(total=int(photons) * wavelength.size, unit="photon", unit_scale=True, desc="Monte Carlo")
+        bar = tqdm(total=int(photons) * layers[0].medium.wavelength_count, unit="photon", unit_scale=True,
+                   desc="Monte Carlo")
     values, errors, totals = [], [], []
     try:
-        for i in range(wavelength.size):
+        for i in range(layers[0].medium.wavelength_count):
             stack = [Layer(layer.medium.select([i]), layer.thickness_mm) for layer in layers]
             result = monte_carlo_reflectance(stack, photons, MONTE_CARLO_BIN_EDGES_MM, seed=seed + 7919 * i,
                                              progress=bar)

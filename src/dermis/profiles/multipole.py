@@ -106,8 +106,10 @@ def multipole_profiles(radius_mm, medium: Medium, thickness_mm: float, eta_top: 
             raise ValueError("a semi-infinite slab has no lower boundary to enter through")
         source_depth = mean_free_path
     else:
-        # keep the pole inside a slab thinner than one transport mean free path
-        depth = np.minimum(mean_free_path, thickness_mm)
+        # A slab thinner than two transport mean free paths: keep the pole at mid-depth. A pole ON
+        # a boundary (depth = thickness) has no flux through it (s = 0): T collapsed to ~0.3 of
+        # the Monte Carlo's for a 0.1 mm epidermis and T from below turned negative
+        depth = np.minimum(mean_free_path, 0.5 * thickness_mm)
         source_depth = thickness_mm - depth if from_below else depth
     if pair_count is None:
         pair_count = default_pair_count(thickness_mm, sigma_tr, extrapolation_top, extrapolation_bottom)

@@ -2,16 +2,26 @@
 
     [skin]
     profile = "deon"            # default: d'Eon et al. 2007's six Gaussians
-    profile = "fair"            # a preset of Donner & Jensen 2006: fair, asian, dark
+    profile = "fair"            # a preset (presets.py): fair, asian, dark, very-light, light,
+                                #   intermediate, tan, brown
     profile = "physical"        # skin parameters:
     melanin = 0.05              #   C_m, melanin volume fraction      (required)
     hemoglobin = 0.01           #   C_h, blood volume fraction        (required)
     melanin_blend = 0.7         #   beta_m, eumelanin share           (default 0.7)
     oxygenation = 0.75          #   gamma, oxy-haemoglobin share      (default 0.75)
     epidermis_mm = 0.25         #   epidermis thickness               (default 0.25)
-    model = "pbd"               #   dipole, multipole, pbd or burley  (default pbd)
+    model = "pbd"               #   dipole, multipole, pbd, burley or mc (default pbd; mc: the
+                                #   Monte Carlo's shape, ~1-2 min once, then cached on disk)
     gaussians = 6               #   K, the number of Gaussians        (default 6)
     profile = "skin.json"       # a file written by `dermis profile --json` (relative to the scene)
+    profile = "medium"          # optical coefficients per layer (profiles/medium_file.py), top first:
+    [[skin.layer]]              #   sigma_a, sigma_s_reduced (or sigma_s and g), eta, thickness_mm,
+    sigma_a = [0.3, 0.6, 1.2]   #   or mfp_mm and albedo; 1 value or R,G,B (or one per
+    sigma_s_reduced = 2.5       #   [skin] wavelength_nm = [...]); model and gaussians apply
+    thickness_mm = 0.1
+    [[skin.layer]]
+    mfp_mm = [1.2, 0.6, 0.3]
+    albedo = [0.995, 0.98, 0.95]
 
 A preset accepts the physical keys too, as overrides of its values. The weights of the result
 carry colour: per channel they split the total diffuse reflectance among the Gaussians (the
@@ -37,9 +47,17 @@ from dermis.profiles.gaussians import SumOfGaussians, deon_skin
 PHYSICAL_KEYS = {"melanin": "melanin_fraction", "melanin_blend": "melanin_blend",
                  "hemoglobin": "hemoglobin_fraction", "oxygenation": "oxygenation",
                  "epidermis_mm": "epidermis_thickness_mm"}
-SKIN_KEYS = ("profile", *PHYSICAL_KEYS, "model", "gaussians")
-SCENE_MODELS = ("dipole", "multipole", "pbd", "burley")
-CACHE_VERSION = 1  # bump when a model's numbers change
+MEDIUM_KEYS = ("layer", "wavelength_nm")
+SKIN_KEYS = ("profile", *PHYSICAL_KEYS, "model", "gaussians", *MEDIUM_KEYS)
+SCENE_MODELS = ("dipole", "multipole", "pbd", "burley", "mc")
+#: model = "mc": the Monte Carlo's R(r) as the shape the Gaussians are fitted to (the layered
+#: diffusion models lose lateral transport across a thin epidermis: pbd's red tail is 30-45 % low
+#: at 2 mm, benchmarks/RESULTS.md). Photons per wavelength and the wavelengths it samples; about
+#: 1 s per 10,000 photons and wavelength on 2 cores, so a preset costs about 1-2 minutes once and
+#: is then read from the disk cache.
+MC_SCENE_PHOTONS = 50_000
+MC_SCENE_WAVELENGTHS_NM = np.arange(400.0, 701.0, 20.0)
+CACHE_VERSION = 2  # bump when a model's numbers change (2: multipole thin-slab pole depth)
 
 
 def _cache_folder() -> Path | None:
@@ -64,7 +82,31 @@ def _fitted_physical(model: str, parameters: tuple, k: int):
     from dermis.profiles.fit import fit_sum_of_gaussians
     from dermis.profiles.spectral import DEFAULT_WAVELENGTHS_NM, SkinParameters
 
-    key = json.dumps([CACHE_VERSION, model, parameters, k, DEFAULT_WAVELENGTHS_NM.tolist()])
+    if model == "mc":
+        wavelength, options = MC_SCENE_WAVELENGTHS_NM, {"photons": MC_SCENE_PHOTONS}
+    else:
+        wavelength, options = DEFAULT_WAVELENGTHS_NM, {}
+    key = json.dumps([CACHE_VERSION, model, parameters, k, wavelength.tolist(), options])
+    return _cached_fit(key, lambda: fit_sum_of_gaussians(
+        models.skin_profile(SkinParameters(*parameters), model, wavelength_nm=wavelength, **options), k))
+
+
+def physical_gaussians(parameters, model: str = "pbd", k: int = 6, name: str = "physical") -> SumOfGaussians:
+    """The K-Gaussian fit of the skin profile of ``parameters`` (SkinParameters), cached."""
+    from dermis.profiles.fit import _check_k
+
+    if model not in SCENE_MODELS:
+        raise DermisError(f"model '{model}' is not available here (use {', '.join(SCENE_MODELS)})")
+    k = _check_k(k)
+    fields = (parameters.melanin_fraction, parameters.melanin_blend, parameters.hemoglobin_fraction,
+              parameters.oxygenation, parameters.epidermis_thickness_mm, parameters.refractive_index,
+              parameters.anisotropy)
+    variances, weights, _ = _fitted_physical(model, tuple(float(v) for v in fields), k)
+    return SumOfGaussians(np.array(variances), np.array(weights), name)
+
+
+def _cached_fit(key: str, compute):
+    """(variances, weights, error) stored on disk under ``key`` or computed by ``compute()``."""
     path = _disk_cache_path(key)
     if path is not None and path.is_file():
         try:
@@ -73,8 +115,7 @@ def _fitted_physical(model: str, parameters: tuple, k: int):
                 return tuple(stored["variances_mm2"]), tuple(map(tuple, stored["weights_rgb"])), stored["error"]
         except (OSError, ValueError, KeyError, TypeError):
             pass  # a damaged cache entry is recomputed
-    profile = models.skin_profile(SkinParameters(*parameters), model)
-    fit = fit_sum_of_gaussians(profile, k)
+    fit = compute()
     result = (tuple(fit.profile.variances_mm2.tolist()), tuple(map(tuple, fit.profile.weights.tolist())),
               fit.relative_error)
     if path is not None:
@@ -90,17 +131,29 @@ def _fitted_physical(model: str, parameters: tuple, k: int):
     return result
 
 
-def physical_gaussians(parameters, model: str = "pbd", k: int = 6, name: str = "physical") -> SumOfGaussians:
-    """The K-Gaussian fit of the skin profile of ``parameters`` (SkinParameters), cached."""
+@lru_cache(maxsize=32)
+def _fitted_medium(model: str, description: str, k: int):
+    from dermis.profiles.fit import fit_sum_of_gaussians
+    from dermis.profiles.medium_file import layers_from_description
+    from dermis.profiles.models import medium_profile
+
+    def compute():
+        layers, wavelength = layers_from_description(json.loads(description), "[skin]")
+        options = {"photons": MC_SCENE_PHOTONS} if model == "mc" else {}
+        return fit_sum_of_gaussians(medium_profile(layers, model, wavelength_nm=wavelength, **options), k)
+
+    return _cached_fit(json.dumps([CACHE_VERSION, "medium", model, description, k]), compute)
+
+
+def medium_gaussians(description: dict, model: str = "pbd", k: int = 6, name: str = "medium") -> SumOfGaussians:
+    """The K-Gaussian fit of the profile of a medium description (medium_file.py), cached."""
     from dermis.profiles.fit import _check_k
+    from dermis.profiles.medium_file import layers_from_description
 
     if model not in SCENE_MODELS:
         raise DermisError(f"model '{model}' is not available here (use {', '.join(SCENE_MODELS)})")
-    k = _check_k(k)
-    fields = (parameters.melanin_fraction, parameters.melanin_blend, parameters.hemoglobin_fraction,
-              parameters.oxygenation, parameters.epidermis_thickness_mm, parameters.refractive_index,
-              parameters.anisotropy)
-    variances, weights, _ = _fitted_physical(model, tuple(float(v) for v in fields), k)
+    layers_from_description(description, "[skin]")  # validate before the cache sees it
+    variances, weights, _ = _fitted_medium(model, json.dumps(description, sort_keys=True), _check_k(k))
     return SumOfGaussians(np.array(variances), np.array(weights), name)
 
 
@@ -139,6 +192,19 @@ def resolve_skin_profile(section: dict, base_dir: Path, source: str) -> SumOfGau
     physical = {key: _number(section, key, source) for key in PHYSICAL_KEYS if key in section}
     model = section.get("model")
     name = profile.strip().lower()
+    medium_keys = [key for key in MEDIUM_KEYS if key in section]
+    if name == "medium":
+        if physical:
+            raise DermisError(f"{source}: [skin] '{next(iter(physical))}' does not apply to profile = \"medium\"")
+        if model is not None and model not in SCENE_MODELS:
+            raise DermisError(f"{source}: [skin] model '{model}' is unknown (use {', '.join(SCENE_MODELS)})")
+        description = {key: section[key] for key in medium_keys}
+        try:
+            return medium_gaussians(description, model or "pbd", k or 6, "medium")
+        except DermisError as exc:
+            raise DermisError(f"{source}: {exc}") from None
+    if medium_keys:
+        raise DermisError(f"{source}: [skin] '{medium_keys[0]}' needs profile = \"medium\"")
 
     if name in SKIN_PRESETS or name == "physical":
         if model is not None and model not in SCENE_MODELS:
@@ -166,7 +232,7 @@ def resolve_skin_profile(section: dict, base_dir: Path, source: str) -> SumOfGau
     # A profile file written by `dermis profile --json`, relative to the scene's folder
     if not profile.lower().endswith(".json"):
         raise DermisError(f"{source}: [skin] profile '{profile}' is unknown "
-                          f"(use {', '.join(PRESETS)}, physical, or a profile .json file)")
+                          f"(use {', '.join(PRESETS)}, physical, medium, or a profile .json file)")
     if extras:
         raise DermisError(f"{source}: [skin] '{extras[0]}' does not apply to a profile file")
     base = Path(base_dir).resolve()

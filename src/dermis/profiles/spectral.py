@@ -53,7 +53,8 @@ SKIN_ANISOTROPY = 0.0
 
 @dataclass(frozen=True)
 class SkinParameters:
-    """Donner & Jensen 2006 skin parameters. Fractions lie in [0, 1]; thickness in mm (> 0)."""
+    """Donner & Jensen 2006 skin parameters. Fractions lie in [0, 1]; thickness in mm (>= 0; 0: no
+    epidermis, the dermis alone, so melanin has no effect)."""
 
     melanin_fraction: float  # C_m
     melanin_blend: float  # beta_m, eumelanin share of the melanin
@@ -76,8 +77,8 @@ class SkinParameters:
         thickness = self.epidermis_thickness_mm
         if isinstance(thickness, bool) or not isinstance(thickness, (int, float, np.floating, np.integer)):
             raise DermisError(f"epidermis thickness must be a number of mm, got {thickness!r}")
-        if not (np.isfinite(thickness) and 0.0 < float(thickness) <= 10.0):
-            raise DermisError(f"epidermis thickness must lie in (0, 10] mm, got {thickness}")
+        if not (np.isfinite(thickness) and 0.0 <= float(thickness) <= 10.0):
+            raise DermisError(f"epidermis thickness must lie in [0, 10] mm (0: dermis only), got {thickness}")
         object.__setattr__(self, "epidermis_thickness_mm", float(thickness))
         if not 1.0 <= float(self.refractive_index) <= 3.0:
             raise DermisError(f"refractive index must lie in [1, 3], got {self.refractive_index}")
@@ -158,7 +159,8 @@ def dermis_reduced_scattering_per_mm(wavelength_nm):
 
 
 def skin_layers(parameters: SkinParameters, wavelength_nm=DEFAULT_WAVELENGTHS_NM):
-    """[epidermis slab, semi-infinite dermis] with coefficients over ``wavelength_nm``."""
+    """[epidermis slab, semi-infinite dermis] with coefficients over ``wavelength_nm`` ([dermis]
+    alone when the epidermis is 0 mm thick)."""
     g, n = parameters.anisotropy, parameters.refractive_index
     epidermis = Medium.from_reduced(
         epidermis_absorption_per_mm(wavelength_nm, parameters.melanin_fraction, parameters.melanin_blend),
@@ -166,6 +168,8 @@ def skin_layers(parameters: SkinParameters, wavelength_nm=DEFAULT_WAVELENGTHS_NM
     dermis = Medium.from_reduced(
         dermis_absorption_per_mm(wavelength_nm, parameters.hemoglobin_fraction, parameters.oxygenation),
         dermis_reduced_scattering_per_mm(wavelength_nm), g, n)
+    if parameters.epidermis_thickness_mm == 0.0:
+        return [Layer(dermis, np.inf)]
     return [Layer(epidermis, parameters.epidermis_thickness_mm), Layer(dermis, np.inf)]
 
 

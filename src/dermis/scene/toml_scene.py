@@ -219,7 +219,7 @@ def resolve_profile_section(section: dict, folder: Path, source):
     color = section.pop("color", None)
     kind = section.get("profile", "deon")
     if color is None:
-        color = "profile" if kind in ("fair", "asian", "dark", "physical") else "albedo"
+        color = "profile" if kind in (*profiles.SKIN_PRESETS, "physical", "medium") else "albedo"
     if color not in SKIN_COLORS:
         raise DermisError(f"{source}: [skin] color must be one of {', '.join(SKIN_COLORS)}, got {color!r}")
     return profiles.resolve_skin_profile(section, folder, str(source)), color

@@ -15,8 +15,8 @@ void main() {
         wsum[k] = 1.0;
     }
     if (c.a > 0.0) {
-        SsssKernel K = ssss_kernel(c.a);
-        float edge[MAX_GAUSSIANS];  // erf at the outer edge of the previous bin
+        SsssKernel K = ssss_kernel(c.a, p, 0);
+        float edge[MAX_GAUSSIANS];  // the centre bin's weight
         for (int k = 0; k < MAX_GAUSSIANS; ++k) {
             edge[k] = ssss_centre_weight(K, k);
             wsum[k] = edge[k];
@@ -27,9 +27,7 @@ void main() {
             float wx[MAX_GAUSSIANS];
             for (int k = 0; k < MAX_GAUSSIANS; ++k) {
                 if (x - 0.5 * float(K.step_px) > K.reach_px[k]) { wx[k] = 0.0; continue; }  // also k >= count
-                float e = ssss_erf((x + 0.5 * float(K.step_px)) * K.inv_sqrt2_sigma[k]);
-                wx[k] = 0.5 * (e - edge[k]);
-                edge[k] = e;
+                wx[k] = ssss_bin_weight(x - 0.5 * float(K.step_px), x + 0.5 * float(K.step_px), K.inv_sqrt2_sigma[k]);
             }
             for (int side = -1; side <= 1; side += 2) {
                 ivec2 q = p + uDirection * (side * j * K.step_px);
@@ -43,6 +41,25 @@ void main() {
                     sum[k] += w * t.rgb;
                     wsum[k] += w;
                 }
+            }
+        }
+        // Gaussians wider than uMaxTaps pixels: their own jittered taps (ssss/kernel.glsl)
+        for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+            if (K.wide_step_px[k] == 0) continue;
+            sum[k] = vec3(0.0);
+            wsum[k] = 0.0;
+            for (int j = -K.wide_taps[k]; j <= K.wide_taps[k]; ++j) {
+                int d = ssss_wide_offset(K, k, j);
+                float w = ssss_wide_weight(K, k, d);
+                if (w <= 0.0) continue;
+                ivec2 q = p + uDirection * d;
+                if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+                vec4 t = texelFetch(uIrradiance, q, 0);
+                float dz_px = ssss_tap_dz_px(K, c.a, t.a);
+                if (dz_px < 0.0) continue;
+                w *= ssss_depth_factor(K, k, dz_px);
+                sum[k] += w * t.rgb;
+                wsum[k] += w;
             }
         }
     }

@@ -14,7 +14,7 @@ void main() {
         f_scattered = vec4(0.0);
         return;
     }
-    SsssKernel K = ssss_kernel(depth);
+    SsssKernel K = ssss_kernel(depth, p, 1);
     vec3 sum[MAX_GAUSSIANS];
     float wsum[MAX_GAUSSIANS];
     float edge[MAX_GAUSSIANS];
@@ -28,9 +28,7 @@ void main() {
         float wx[MAX_GAUSSIANS];
         for (int k = 0; k < MAX_GAUSSIANS; ++k) {
             if (x - 0.5 * float(K.step_px) > K.reach_px[k]) { wx[k] = 0.0; continue; }
-            float e = ssss_erf((x + 0.5 * float(K.step_px)) * K.inv_sqrt2_sigma[k]);
-            wx[k] = 0.5 * (e - edge[k]);
-            edge[k] = e;
+            wx[k] = ssss_bin_weight(x - 0.5 * float(K.step_px), x + 0.5 * float(K.step_px), K.inv_sqrt2_sigma[k]);
         }
         for (int side = -1; side <= 1; side += 2) {
             ivec2 q = p + uDirection * (side * j * K.step_px);
@@ -43,6 +41,24 @@ void main() {
                 sum[k] += w * texelFetch(uGaussian[k], q, 0).rgb;
                 wsum[k] += w;
             }
+        }
+    }
+    // Gaussians wider than uMaxTaps pixels: their own jittered taps (ssss/kernel.glsl)
+    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+        if (K.wide_step_px[k] == 0) continue;
+        sum[k] = vec3(0.0);
+        wsum[k] = 0.0;
+        for (int j = -K.wide_taps[k]; j <= K.wide_taps[k]; ++j) {
+            int d = ssss_wide_offset(K, k, j);
+            float w = ssss_wide_weight(K, k, d);
+            if (w <= 0.0) continue;
+            ivec2 q = p + uDirection * d;
+            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+            float dz_px = ssss_tap_dz_px(K, depth, texelFetch(uIrradiance, q, 0).a);
+            if (dz_px < 0.0) continue;
+            w *= ssss_depth_factor(K, k, dz_px);
+            sum[k] += w * texelFetch(uGaussian[k], q, 0).rgb;
+            wsum[k] += w;
         }
     }
     vec3 scattered = vec3(0.0);

@@ -8,11 +8,19 @@
 // view depth is z mm, ppm = uPixelsPerMmAtUnitDepth / z (uPixelsPerMmAtUnitDepth = size / 2 * P[i][i]
 // = size / (2 tan(fov / 2)) along the blur's axis): Jimenez et al. 2009, eq. 2, whose gradient
 // term comes here from following the surface (below).
-// Taps sit at multiples of an integer step (1 pixel unless 3 sigma of the widest Gaussian exceeds
-// uMaxTaps pixels); each tap's weight is the 1-D Gaussian integrated over the tap's bin (erf), so
-// each output pixel holds the light landing on its footprint, an impulse reproduces
-// sum_k w_k G(v_k) integrated over pixels (tests/test_ssss.py), and Gaussians narrower than a
-// pixel stay exact. Each Gaussian stops at 3 sigma; weights are renormalised over the taps used.
+// Reach: each Gaussian is followed out to where it falls below 1e-3 of its peak,
+// sqrt(2 ln 1000) = 3.717 sigma (so the whole profile is covered to below 1e-3 of its own peak).
+// Taps: each tap's weight is the 1-D Gaussian integrated over the tap's bin (erf), so each output
+// pixel holds the light landing on its footprint, an impulse reproduces sum_k w_k G(v_k)
+// integrated over pixels (tests/test_ssss.py), and Gaussians narrower than a pixel stay exact.
+// A Gaussian whose reach fits in uMaxTaps pixels is sampled at every pixel (shared taps). A wider
+// one gets its own step of s = ceil(reach / uMaxTaps) pixels, bins s pixels wide, and a per-pixel
+// offset o in [0, s) of its tap grid (taps at o + j s): a fixed grid sees only every s-th pixel,
+// which turned an impulse into +-10-20 % rings; with the offset drawn per pixel (a hash, so the
+// image is stable from frame to frame) every pixel is covered with probability 1/s and weight
+// about s g(x), so the blur is exact in expectation and the rings become fine noise that smooth
+// irradiance averages away (Jimenez et al. 2015 jitter/rotate their kernels per pixel for the
+// same reason). Weights are renormalised over the taps used.
 //
 // Following the surface (Jimenez et al. 2009, sec. 4; 2015, SSSS_FOLLOW_SURFACE): a tap whose
 // depth differs by dz mm lies that much further away on the surface, so its weight also carries
@@ -29,38 +37,94 @@ uniform int uMaxTaps;                   // taps per side at most
 uniform float uDepthCutoffMm;           // taps whose depth differs more are another surface
 uniform float uFollowSurface;           // 1: weigh taps by the depth difference; 0: ignore depth (tests)
 
+const float SSSS_REACH_SIGMAS = 3.7169;  // sqrt(2 ln 1000): a Gaussian at 1e-3 of its peak
+
 struct SsssKernel {
     float ppm;                           // pixels per mm at this pixel's depth
-    int step_px;                         // tap spacing, pixels
-    int taps;                            // taps per side
+    int step_px;                         // tap spacing of the shared taps: 1 pixel
+    int taps;                            // shared taps per side (Gaussians with step 1)
     float inv_sqrt2_sigma[MAX_GAUSSIANS]; // 1 / (sqrt(2) sigma_k), 1/px
     float inv_2var[MAX_GAUSSIANS];       // 1 / (2 v_k ppm^2), 1/px^2
-    float reach_px[MAX_GAUSSIANS];       // 3 sigma_k + half a step, pixels (-1: unused)
+    float reach_px[MAX_GAUSSIANS];       // 3.717 sigma_k + half a pixel (-1: unused, or a wide Gaussian)
+    int wide_step_px[MAX_GAUSSIANS];     // 0: shared taps; s > 1: own jittered taps s pixels apart
+    int wide_offset_px[MAX_GAUSSIANS];   // o in [0, s): this pixel's offset of its tap grid
+    int wide_taps[MAX_GAUSSIANS];        // its taps per side
 };
 
-// Abramowitz & Stegun 1964, 7.1.26: |error| < 1.5e-7.
-float ssss_erf(float x) {
-    float s = sign(x);
-    x = abs(x);
-    float t = 1.0 / (1.0 + 0.3275911 * x);
-    float y = 1.0 - (((((1.061405429 * t - 1.453152027) * t) + 1.421413741) * t - 0.284496736) * t + 0.254829592) * t * exp(-x * x);
-    return s * y;
+// An integer hash (Wang 1997 / Jenkins' 32-bit mix) -> [0, 1): per-pixel, per-Gaussian, per-pass.
+float ssss_hash01(ivec2 p, int k, int pass_index) {
+    uint h = uint(p.x) * 1973u + uint(p.y) * 9277u + uint(k) * 26699u + uint(pass_index) * 104729u + 1u;
+    h = (h ^ 61u) ^ (h >> 16u);
+    h *= 9u;
+    h ^= h >> 4u;
+    h *= 0x27d4eb2du;
+    h ^= h >> 15u;
+    return float(h >> 8u) / 16777216.0;
 }
 
-SsssKernel ssss_kernel(float depth_mm) {
+// erfc(x) for x >= 0, Abramowitz & Stegun 1964, 7.1.26 (|error of erf| < 1.5e-7), kept as the
+// small number it is: a bin far out in a Gaussian's tail is the DIFFERENCE of two erfc values, and
+// as 1 - erfc in float32 it cancelled to nothing or to twice its value (the impulse's tail beyond
+// 3 sigma came out 1.2-2.7x the Gaussian's).
+float ssss_erfc_positive(float x) {
+    float t = 1.0 / (1.0 + 0.3275911 * x);
+    return (((((1.061405429 * t - 1.453152027) * t) + 1.421413741) * t - 0.284496736) * t + 0.254829592) * t * exp(-x * x);
+}
+
+float ssss_erf(float x) {
+    return sign(x) * (1.0 - ssss_erfc_positive(abs(x)));
+}
+
+// integral over [low, high] (pixels) of the unit 1-D Gaussian of 1 / (sqrt 2 sigma) = inv.
+float ssss_bin_weight(float low, float high, float inv) {
+    float a = low * inv, b = high * inv;
+    if (a >= 0.0) return 0.5 * (ssss_erfc_positive(a) - ssss_erfc_positive(b));
+    if (b <= 0.0) return 0.5 * (ssss_erfc_positive(-b) - ssss_erfc_positive(-a));
+    return 0.5 * (ssss_erf(b) - ssss_erf(a));
+}
+
+// The kernel at a pixel p whose view depth is depth_mm; pass_index 0 horizontal, 1 vertical.
+SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index) {
     SsssKernel K;
     K.ppm = uPixelsPerMmAtUnitDepth / depth_mm;
-    float widest = 3.0 * sqrt(uVariances[max(uGaussianCount - 1, 0)]) * K.ppm;
-    K.step_px = max(1, int(ceil(widest / float(uMaxTaps) - 1e-4)));
-    float step = float(K.step_px);
+    K.step_px = 1;
+    float shared_reach = 0.0;
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         float sigma_px = max(sqrt(uVariances[k]) * K.ppm, 1e-4);
+        float reach = SSSS_REACH_SIGMAS * sigma_px + 0.5;
         K.inv_sqrt2_sigma[k] = 0.70710678 / sigma_px;
         K.inv_2var[k] = 0.5 / (sigma_px * sigma_px);
-        K.reach_px[k] = k < uGaussianCount ? 3.0 * sigma_px + 0.5 * step : -1.0;
+        K.wide_step_px[k] = 0;
+        K.wide_offset_px[k] = 0;
+        K.wide_taps[k] = 0;
+        K.reach_px[k] = -1.0;
+        if (k >= uGaussianCount) continue;
+        if (reach <= float(uMaxTaps)) {
+            K.reach_px[k] = reach;
+            shared_reach = max(shared_reach, reach);
+        } else {
+            int s = int(ceil(reach / float(uMaxTaps)));
+            K.wide_step_px[k] = s;
+            K.wide_offset_px[k] = min(int(ssss_hash01(p, k, pass_index) * float(s)), s - 1);
+            K.wide_taps[k] = int(ceil(reach / float(s))) + 1;
+        }
     }
-    K.taps = min(int(floor(K.reach_px[max(uGaussianCount - 1, 0)] / step)), uMaxTaps);
+    K.taps = min(int(floor(shared_reach)), uMaxTaps);
     return K;
+}
+
+// Weight of a wide Gaussian's tap at signed offset d pixels: its bin [d - s/2, d + s/2].
+float ssss_wide_weight(SsssKernel K, int k, int d) {
+    float half_step = 0.5 * float(K.wide_step_px[k]);
+    float low = float(d) - half_step, high = float(d) + half_step;
+    float reach = SSSS_REACH_SIGMAS * 0.70710678 / K.inv_sqrt2_sigma[k] + half_step;
+    if (high < -reach || low > reach) return 0.0;
+    return ssss_bin_weight(low, high, K.inv_sqrt2_sigma[k]);
+}
+
+// Signed offset (pixels) of a wide Gaussian's j-th tap (j in [-wide_taps, wide_taps]).
+int ssss_wide_offset(SsssKernel K, int k, int j) {
+    return j * K.wide_step_px[k] + K.wide_offset_px[k];
 }
 
 // Centre bin of Gaussian k: integral over [-step/2, step/2].
