@@ -1,5 +1,5 @@
 """Fitting a sum of Gaussians to a radial RGB profile (d'Eon, Luebke & Enderton 2007, GPU Gems 3
-ch. 14.4.2; ../shared/docs/skin-rendering.md section 2).
+ch. 14.4.2; docs/skin-rendering.md section 2).
 
 The renderer blurs once per Gaussian for all three channels, so the K variances are SHARED by
 red, green and blue; only the weights are per channel, and they must be >= 0. For given

@@ -81,7 +81,7 @@ class SumOfGaussians:
 
 # d'Eon, Luebke & Enderton 2007, GPU Gems 3 ch. 14, table 14-1: the three-layer skin profile
 # fitted with six Gaussians; each column sums to 1. Green 0.0484 weight is 0.336 (the book),
-# not the seed's 0.338. See ../shared/docs/skin-rendering.md section 1.
+# not the seed's 0.338. See docs/skin-rendering.md section 1.
 DEON_VARIANCES_MM2 = np.array([0.0064, 0.0484, 0.187, 0.567, 1.99, 7.41])
 DEON_WEIGHTS_RGB = np.array([
     [0.233, 0.455, 0.649],

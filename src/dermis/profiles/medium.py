@@ -1,7 +1,7 @@
 """Homogeneous scattering media and the layers of a layered medium.
 
 Coefficients are in 1/mm and may be scalars or 1-D arrays over wavelength (all profile functions
-then return one column per wavelength). Notation of ../shared/docs/skin-rendering.md section 2:
+then return one column per wavelength). Notation of docs/skin-rendering.md section 2:
 
     sigma_s' = sigma_s (1 - g)              reduced scattering coefficient
     sigma_t' = sigma_a + sigma_s'           reduced extinction coefficient

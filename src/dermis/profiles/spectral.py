@@ -4,7 +4,7 @@ EGSR 2006), and the conversion of spectral profiles to linear sRGB.
 Skin is two layers: an epidermis (about 0.25 mm) coloured by melanin over a semi-infinite dermis
 coloured by blood, both with refractive index 1.4. Four parameters (and the epidermis
 thickness) set the absorption of both layers at every wavelength lambda (nm); coefficients in
-1/mm (Donner & Jensen 2006, section 3; ../shared/docs/skin-rendering.md section 2):
+1/mm (Donner & Jensen 2006, section 3; docs/skin-rendering.md section 2):
 
     eumelanin    sigma_a,em(lambda) = 6.6e10 lambda^-3.33
     pheomelanin  sigma_a,pm(lambda) = 2.9e14 lambda^-4.75
