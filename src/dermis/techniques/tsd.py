@@ -314,6 +314,7 @@ class TextureSpaceDiffusion(Technique):
                 set_uniform(prog, "uTranslucencyMinVariance", TRANSLUCENCY_MIN_VARIANCE_MM2)
                 set_uniform(prog, "uTranslucencyStrength", float(self.translucency_strength))
                 self._profile_uniforms(prog, profile, 4)
+                self._bind(prog, "uStretch", self.tex["stretch_0"], 2)  # surface distance to the entry point
                 self._uv_pass(frame, prog, trans)
             frame.passes_run.append("tsd_translucency")
         else:
