@@ -23,16 +23,51 @@ float shadow_tap(int i, vec2 uv, float z) {
     return texture(uShadowAtlas, vec3(uShadowTile[i].xy + uv * uShadowTile[i].zw, z - uShadowParams[i].y));
 }
 
+// Receiver-plane depth bias (Isidoro 2006, "Shadow Mapping: GPU-based Tips and Techniques", GDC):
+// the light-space coordinates c of P itself and the depth gradient dz/d(uv) of P's tangent plane
+// (normal N), so that a PCF tap at c.xy + delta compares against c.z + dot(dz, delta), the depth
+// the receiver has THERE. A normal offset (King 2004) avoids acne by moving the lookup along N,
+// which on a receiver grazed by the light shifts it sideways by up to the offset: where that
+// crossed an occluder's silhouette in the map (the side view's eye socket behind the nose bridge,
+// the nose wing) a lit blob several mm wide appeared inside the shadow. The gradient is clamped at
+// a slope of MAX_RECEIVER_SLOPE (about 84 degrees), where N.L is ~0 anyway.
+const float MAX_RECEIVER_SLOPE = 10.0;
+bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz) {
+    if (!shadow_coords(i, P, vec3(0.0), c)) return false;
+    float h = max(uShadowParams[i].z, 1e-6);  // a few texels, scene units
+    vec3 t1 = normalize(cross(N, abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
+    vec3 t2 = cross(N, t1);
+    vec3 c1, c2, cl;
+    shadow_coords(i, P + t1 * h, vec3(0.0), c1);
+    shadow_coords(i, P + t2 * h, vec3(0.0), c2);
+    vec3 L;
+    light_incident(i, P, L);
+    shadow_coords(i, P - L * h, vec3(0.0), cl);  // depth change over h straight along the light
+    vec3 d1 = c1 - c, d2 = c2 - c;
+    mat2 M = mat2(d1.x, d2.x, d1.y, d2.y);  // rows: d1.xy, d2.xy
+    float det = determinant(M);
+    float zl = abs(cl.z - c.z);              // depth of h along the light
+    float xl = length((c1 - c).xy) + length((c2 - c).xy) + 1e-9;  // ~ uv of h across the light
+    float gmax = MAX_RECEIVER_SLOPE * zl / (0.5 * xl);
+    if (abs(det) < 1e-12) { dz = vec2(0.0); return true; }
+    dz = inverse(transpose(M)) * vec2(d1.z, d2.z);
+    float g = length(dz);
+    if (g > gmax) dz *= gmax / g;
+    return true;
+}
+
 // Sharp shadow (one bilinear-compare tap): for specular, d'Eon 2007 sec. 14.3.
 float shadow_sharp(int i, vec3 P, vec3 N) {
     if (uLightRadiance[i].w < 0.5) return 1.0;
     vec3 c;
-    if (!shadow_coords(i, P, N, c)) return 1.0;
-    return shadow_tap(i, c.xy, c.z);
+    vec2 dz;
+    if (!shadow_receiver(i, P, N, c, dz)) return 1.0;
+    // the bilinear 2x2 reaches one texel: bias by the receiver's slope over it
+    return shadow_tap(i, c.xy, c.z - length(dz) * uShadowParams[i].w);
 }
 
 // Soft shadow: percentage-closer filtering over a disc of uShadowParams.x texels (Reeves 1987),
-// 16 rotated Poisson taps, each a hardware 2x2 compare.
+// 16 rotated Poisson taps, each a hardware 2x2 compare, each against the receiver plane's depth.
 const vec2 POISSON16[16] = vec2[](
     vec2(-0.94201624, -0.39906216), vec2(0.94558609, -0.76890725), vec2(-0.09418410, -0.92938870),
     vec2(0.34495938, 0.29387760), vec2(-0.91588581, 0.45771432), vec2(-0.81544232, -0.87912464),
@@ -44,11 +79,17 @@ const vec2 POISSON16[16] = vec2[](
 float shadow_soft(int i, vec3 P, vec3 N) {
     if (uLightRadiance[i].w < 0.5) return 1.0;
     vec3 c;
-    if (!shadow_coords(i, P, N, c)) return 1.0;
-    float radius = uShadowParams[i].x * uShadowParams[i].w;
-    if (radius <= 0.0) return shadow_tap(i, c.xy, c.z);
+    vec2 dz;
+    if (!shadow_receiver(i, P, N, c, dz)) return 1.0;
+    float texel = uShadowParams[i].w;
+    float z = c.z - 2.0 * length(dz) * texel;  // the bilinear 2x2 footprint of each tap, and curvature
+    float radius = uShadowParams[i].x * texel;
+    if (radius <= 0.0) return shadow_tap(i, c.xy, z);
     float sum = 0.0;
-    for (int k = 0; k < 16; ++k) sum += shadow_tap(i, c.xy + POISSON16[k] * radius, c.z);
+    for (int k = 0; k < 16; ++k) {
+        vec2 delta = POISSON16[k] * radius;
+        sum += shadow_tap(i, c.xy + delta, z + dot(dz, delta));
+    }
     return sum / 16.0;
 }
 
