@@ -26,3 +26,23 @@ def test_mix_one_black_albedo_texel_receives_scattered_light(gl_ctx):
     # the red profile puts ~40% of its weight in Gaussians wider than 1 mm (sigma 1.4, 2.7 mm)
     assert centre[0] > 0.15 * lit[0], (centre, lit)
     assert centre[0] > centre[2]  # red scatters farther than blue
+
+
+def _elongation(shape_mm, gl_ctx):
+    from dermis.verification import impulse_response
+
+    S = 256
+    _, comb, c, _ = impulse_response(S, shape_mm, gl_ctx)
+    yy, xx = np.mgrid[:S, :S]
+    dx, dy = (xx - c[1]) * shape_mm[0] / S, (yy - c[0]) * shape_mm[1] / S
+    w = comb[:, :, 0]  # red: the widest Gaussians, run at the coarsest levels
+    return np.sqrt((w * dy * dy).sum() / (w * dx * dx).sum())
+
+
+def test_squashed_uv_layout_impulse_response_is_less_elongated(gl_ctx):
+    """A quad whose UVs are squashed 2:1 (texels 0.1 x 0.2 mm): the red impulse response's
+    sqrt(second moment v / u) in mm. Before issue 12: 1.032 (the 2x2 reductions' added variance
+    subtracted isotropically); with the per-axis correction 1.022 (square layout: 1.0005).
+    PARTIAL: the remaining 2% is the bilinear taps' added variance at the coarse levels."""
+    assert abs(_elongation((25.6, 25.6), gl_ctx) - 1.0) < 0.002
+    assert abs(_elongation((25.6, 51.2), gl_ctx) - 1.0) < 0.026

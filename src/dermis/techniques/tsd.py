@@ -159,6 +159,9 @@ class TextureSpaceDiffusion(Technique):
         # one-texel islands' edges: derivatives are unreliable at triangle borders; take the median
         vals = data[cov][:, :2]
         self.median_stretch = float(np.median(vals))
+        # per axis too: a layout squashed along one axis adds more variance (mm^2) along it when
+        # reduced 2x2 (_step_variances)
+        self.median_stretch_uv = np.median(vals, axis=0).astype(np.float64)
         idx = ndimage.distance_transform_edt(~cov, return_distances=False, return_indices=True)
         filled = data[idx[0], idx[1]]
         filled[:, :, 3] = cov.astype(np.float32)
@@ -185,17 +188,24 @@ class TextureSpaceDiffusion(Technique):
         return levels
 
     def _step_variances(self, profile, levels):
-        """Per-step variances, less what the 2x2 reductions between levels already added."""
+        """Per-step variances (K, 2) along u and v, less what the 2x2 reductions between levels
+        already added along each axis: a 2-texel box adds texel_mm^2 / 4, and a layout squashed
+        along one axis has longer texels (mm) along it (with one isotropic correction a UV layout
+        squashed 2:1 gave an impulse response elongated 3% along the squashed axis)."""
         v = np.concatenate([[0.0], profile.variances_mm2])
         steps = np.diff(v)
+        stretch_uv = getattr(self, "median_stretch_uv", None)
+        if stretch_uv is None:
+            stretch_uv = np.full(2, self.median_stretch or 1.0)
+        stretch_uv = np.maximum(np.asarray(stretch_uv, np.float64), 1e-9)
         prev = 0
         out = []
         for k, lvl in enumerate(levels):
-            added = 0.0
+            added = np.zeros(2)
             for l in range(prev + 1, lvl + 1):
-                texel_mm = (2 ** (l - 1)) / max(self.median_stretch or 1.0, 1e-9)
+                texel_mm = (2 ** (l - 1)) / stretch_uv
                 added += 0.25 * texel_mm ** 2
-            out.append(max(steps[k] - added, 0.0))
+            out.append(np.maximum(steps[k] - added, 0.0))
             prev = lvl
         return np.array(out)
 
@@ -207,11 +217,13 @@ class TextureSpaceDiffusion(Technique):
         return dst
 
     def _blur(self, src, stretch, sigma_mm, level, out_key, footprint=False):
+        """U then V pass; ``sigma_mm`` a number or a (u, v) pair."""
+        sigma_u, sigma_v = np.broadcast_to(np.asarray(sigma_mm, np.float64), (2,))
         size = src.size
         tmp = self._texture(("tmp", out_key), size)
         out = self._texture(out_key, size)
         prog = self.p_blur
-        set_uniform(prog, "uSigmaMm", float(sigma_mm))
+        set_uniform(prog, "uSigmaMm", float(sigma_u))
         set_uniform(prog, "uLevelScale", float(2.0 ** -level))
         set_uniform(prog, "uMaxTaps", self.max_taps)
         set_uniform(prog, "uFootprint", 1.0 if footprint else 0.0)
@@ -220,6 +232,7 @@ class TextureSpaceDiffusion(Technique):
         self._bind(prog, "uSource", src, 0)
         self._fullscreen(prog, tmp)
         set_uniform(prog, "uDirection", (0.0, 1.0))
+        set_uniform(prog, "uSigmaMm", float(sigma_v))
         self._bind(prog, "uSource", tmp, 0)
         self._fullscreen(prog, out)
         return out
@@ -282,7 +295,7 @@ class TextureSpaceDiffusion(Technique):
             self._fullscreen(self.p_dilate, dil)
         frame.passes_run.append("tsd_irradiance")
         # chained blurs of the irradiance and (once per mesh) of the stretch
-        chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12)))
+        chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12).ravel()))
         redo_stretch = chain_key != getattr(self, "_stretch_chain_key", None)
         src, st = dil, self.tex["stretch_0"]
         level = 0
@@ -295,7 +308,7 @@ class TextureSpaceDiffusion(Technique):
                         st = self._down(st, ("stretch_down", k, level), level)
                     else:
                         st = self.tex[("stretch_down", k, level)]
-                sigma = math.sqrt(var)
+                sigma = np.sqrt(var)  # (u, v)
                 if redo_stretch:
                     st = self._blur(st, st, sigma, level, ("stretch", k))
                 else:
