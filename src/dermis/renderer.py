@@ -230,6 +230,10 @@ class Renderer:
         self._update_scene_products(keys, passes)
         lights = self._lights
         cam = camera or scene.camera
+        if getattr(cam, "fit", False):
+            from dermis.framing import fit_camera, head_vertices
+
+            cam = fit_camera(cam, head_vertices(scene.mesh.positions, cam.up), size[0] / size[1])
         lo, hi = scene.bounds()
         view, proj, eye, near, far = camera_matrices(cam, size[0] / size[1], lo, hi)
         t = self._targets

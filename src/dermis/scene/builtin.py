@@ -150,6 +150,7 @@ def frame_camera(scene: Scene, azimuth_deg: float = 0.0, elevation_deg: float = 
     d = np.array([np.sin(az) * np.cos(el), np.sin(el), np.cos(az) * np.cos(el)])
     scene.camera.position = tuple(c + d * dist)
     scene.camera.target = tuple(c)
+    scene.camera.fit = True  # the render fits the mesh exactly for its aspect (dermis.framing)
 
 
 def default_lights(scene: Scene):

@@ -111,6 +111,7 @@ class Camera:
     fov_deg: float = 30.0  # vertical field of view
     near: float | None = None  # None: derived from the scene bounds
     far: float | None = None
+    fit: bool = False  # True: moved along and across its direction to fit the mesh (dermis.framing)
 
 
 @dataclass

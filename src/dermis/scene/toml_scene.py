@@ -31,7 +31,8 @@ _SCHEMA = {
     "light": {"type": str, "color": "rgb", "intensity": float, "direction": "vec3", "position": "vec3",
               "target": "vec3", "spot_angle_deg": float, "spot_blend": float, "cast_shadows": bool,
               "shadow_softness": float, "shadow_bias": float},
-    "camera": {"position": "vec3", "target": "vec3", "up": "vec3", "fov_deg": float, "near": float, "far": float},
+    "camera": {"position": "vec3", "target": "vec3", "up": "vec3", "fov_deg": float, "near": float, "far": float,
+               "fit": bool},
     "environment": {"color": "rgb", "image": str, "intensity": float},
     "output": {"exposure": float, "tonemap": str, "background": "rgb", "bloom": float, "bloom_radius": float},
 }

@@ -180,6 +180,9 @@ class TextureSpaceDiffusion(Technique):
         # the tap count of each blur pass is set for 90% of the layout; where the stretch is larger the
         # taps space out (integer steps, Sheppard-corrected bins) instead of every texel paying for more
         self.tap_stretch = float(np.percentile(vals, 90.0))
+        # per axis too: a layout squashed along one axis adds more variance (mm^2) along it when
+        # reduced 2x2 (_step_variances)
+        self.median_stretch_uv = np.median(vals, axis=0).astype(np.float64)
         idx = ndimage.distance_transform_edt(~cov, return_distances=False, return_indices=True)
         filled = data[idx[0], idx[1]]
         filled[:, :, 3] = cov.astype(np.float32)
@@ -206,17 +209,24 @@ class TextureSpaceDiffusion(Technique):
         return levels
 
     def _step_variances(self, profile, levels):
-        """Per-step variances, less what the 2x2 reductions between levels already added."""
+        """Per-step variances (K, 2) along u and v, less what the 2x2 reductions between levels
+        already added along each axis: a 2-texel box adds texel_mm^2 / 4, and a layout squashed
+        along one axis has longer texels (mm) along it (with one isotropic correction a UV layout
+        squashed 2:1 gave an impulse response elongated 3% along the squashed axis)."""
         v = np.concatenate([[0.0], profile.variances_mm2])
         steps = np.diff(v)
+        stretch_uv = getattr(self, "median_stretch_uv", None)
+        if stretch_uv is None:
+            stretch_uv = np.full(2, self.median_stretch or 1.0)
+        stretch_uv = np.maximum(np.asarray(stretch_uv, np.float64), 1e-9)
         prev = 0
         out = []
         for k, lvl in enumerate(levels):
-            added = 0.0
+            added = np.zeros(2)
             for l in range(prev + 1, lvl + 1):
-                texel_mm = (2 ** (l - 1)) / max(self.median_stretch or 1.0, 1e-9)
+                texel_mm = (2 ** (l - 1)) / stretch_uv
                 added += 0.25 * texel_mm ** 2
-            out.append(max(steps[k] - added, 0.0))
+            out.append(np.maximum(steps[k] - added, 0.0))
             prev = lvl
         return np.array(out)
 
@@ -246,11 +256,13 @@ class TextureSpaceDiffusion(Technique):
         return prog
 
     def _blur(self, src, stretch, sigma_mm, level, out_key, footprint=False):
+        """U then V pass; ``sigma_mm`` a number or a (u, v) pair."""
+        sigma_u, sigma_v = np.broadcast_to(np.asarray(sigma_mm, np.float64), (2,))
         size = src.size
         tmp = self._texture(("tmp", out_key), size)
         out = self._texture(out_key, size)
-        prog = self._blur_program(sigma_mm, level)
-        set_uniform(prog, "uSigmaMm", float(sigma_mm))
+        prog = self._blur_program(max(sigma_u, sigma_v), level)
+        set_uniform(prog, "uSigmaMm", float(sigma_u))
         set_uniform(prog, "uLevelScale", float(2.0 ** -level))
         set_uniform(prog, "uFootprint", 1.0 if footprint else 0.0)
         bind_sampler(prog, "uStretch", stretch, 1)
@@ -258,6 +270,7 @@ class TextureSpaceDiffusion(Technique):
         bind_sampler(prog, "uSource", src, 0)
         self._fullscreen(prog, tmp)
         set_uniform(prog, "uDirection", (0.0, 1.0))
+        set_uniform(prog, "uSigmaMm", float(sigma_v))
         bind_sampler(prog, "uSource", tmp, 0)
         self._fullscreen(prog, out)
         return out
@@ -265,7 +278,7 @@ class TextureSpaceDiffusion(Technique):
     def _blur_chain(self, dil, levels, steps):
         """I_1..I_K from the dilated irradiance: step k blurs I_(k-1) by variance steps[k] at
         resolution level levels[k]; the stretch map goes through the same chain (once per mesh)."""
-        chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12)))
+        chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12).ravel()))
         redo_stretch = chain_key != self._stretch_chain_key
         src, st = dil, self.tex["stretch_0"]
         level = 0
@@ -277,7 +290,7 @@ class TextureSpaceDiffusion(Technique):
                     st = self._down(st, ("stretch_down", k, level), level)
                 else:
                     st = self.tex[("stretch_down", k, level)]
-            sigma = math.sqrt(var)
+            sigma = np.sqrt(var)  # (u, v), mm
             if redo_stretch:
                 st = self._blur(st, st, sigma, level, ("stretch", k))
             else:
@@ -340,6 +353,8 @@ class TextureSpaceDiffusion(Technique):
                 set_uniform(prog, "uMmPerUnit", float(scene.mm_per_unit))
                 translucency_uniforms(prog, True, self.options.translucency_strength)
                 self._profile_uniforms(prog, profile, Unit.FIRST_FREE)
+                # surface distance to the entry point (uv distance / stretch); past the blurs' units
+                bind_sampler(prog, "uStretch", self.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
                 self._uv_pass(frame, prog, trans)
             frame.passes_run.append("tsd_translucency")
         else:

@@ -7,6 +7,7 @@
 // pass 1 saw at its pixel (an MSAA edge sample of another surface) takes the scattered light of
 // the 3x3 neighbour nearest in depth.
 #include "common/surface.glsl"
+#include "common/albedo_mix.glsl"
 #include "common/noise.glsl"
 #include "common/energy.glsl"
 #include "common/skin_specular.glsl"
@@ -57,7 +58,7 @@ void main() {
 
     float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
     vec3 albedo = albedo_at(v_uv);
-    vec3 diffuse = scattered_here(depth_mm) * pow(albedo, vec3(1.0 - uMix)) * INV_PI * energy_transmitted(rho_s, ndv, m);
+    vec3 diffuse = scattered_here(depth_mm) * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uBeckmannTex);
 
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec : diffuse + spec;

@@ -6,6 +6,7 @@
 //   a   = view-space depth in mm (> 0; the target is cleared to 0 = no surface)
 // The blur passes scale their kernels by this depth and compare depths to follow the surface.
 #include "common/surface.glsl"
+#include "common/albedo_mix.glsl"
 #include "common/skin_irradiance.glsl"
 #include "common/transmittance.glsl"
 
@@ -25,5 +26,5 @@ void main() {
     vec3 E = skin_irradiance(v_world, Ng, N, rho_s, m) + transmitted_irradiance(v_world, Ng);
     vec3 albedo = albedo_at(v_uv);
     float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
-    f_irradiance = vec4(E * pow(albedo, vec3(uMix)), depth_mm);
+    f_irradiance = vec4(E * albedo_power(albedo, uMix), depth_mm);
 }

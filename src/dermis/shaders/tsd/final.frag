@@ -4,6 +4,7 @@
 // Radiance is physical (d'Eon's BRDFs carry no 1/pi; dermis divides both terms by pi).
 #include "common/shadow.glsl"
 #include "common/surface.glsl"
+#include "common/albedo_mix.glsl"
 #include "common/environment.glsl"
 #include "common/brdf.glsl"
 #include "common/noise.glsl"
@@ -37,7 +38,7 @@ void main() {
 
     vec3 E = diffuse_irradiance(v_uv_ts) + texture(uTranslucency, v_uv_ts).rgb;
     vec3 albedo = albedo_at(v_uv);
-    vec3 diffuse = E * pow(max(albedo, vec3(0.0)), vec3(1.0 - uMix)) * INV_PI * energy_transmitted(rho_s, ndv, m);
+    vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uBeckmannTex);
 

@@ -3,6 +3,7 @@
 // Alpha is coverage (1 on the mesh), for the normalised blurs that hide seams.
 #include "common/shadow.glsl"
 #include "common/surface.glsl"
+#include "common/albedo_mix.glsl"
 #include "common/environment.glsl"
 #include "common/brdf.glsl"
 #include "common/energy.glsl"
@@ -22,5 +23,5 @@ void main() {
     float m = roughness_at(v_uv);
     vec3 E = skin_irradiance(v_world, Ng, N, rho_s, m);  // lights, soft shadows, ambient, energy
     vec3 albedo = albedo_at(v_uv);
-    f_irradiance = vec4(E * pow(max(albedo, vec3(0.0)), vec3(uMix)), 1.0);
+    f_irradiance = vec4(E * albedo_power(albedo, uMix), 1.0);
 }
