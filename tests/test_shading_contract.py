@@ -101,7 +101,7 @@ def test_specular_tables_are_uploaded_once_per_renderer(gl_ctx, monkeypatch):
     calls = []
     real = tables.upload_specular_tables
     monkeypatch.setattr(tables, "upload_specular_tables", lambda ctx: calls.append(1) or real(ctx))
-    with Renderer(backlit_slab_scene(2.0, n=4), (16, 16), ctx=gl_ctx, samples=0, irradiance_size=32,
+    with Renderer(backlit_slab_scene(2.0, n=4), (16, 16), ctx=gl_ctx, samples=0, irradiance_size=64,
                   shadow_size=128) as r:
         for name in ("tsd", "ssss", "preintegrated"):
             r.render(name)
@@ -114,7 +114,7 @@ def test_every_technique_program_fits_the_guaranteed_sampler_units(gl_ctx):
     from dermis.renderer import Renderer
     from dermis.verification import backlit_slab_scene
 
-    with Renderer(backlit_slab_scene(2.0, n=4), (16, 16), ctx=gl_ctx, samples=0, irradiance_size=32,
+    with Renderer(backlit_slab_scene(2.0, n=4), (16, 16), ctx=gl_ctx, samples=0, irradiance_size=64,
                   shadow_size=128) as r:
         progs = [r.shadows.prog]
         for name in TECHNIQUE_MODULES:
