@@ -1,4 +1,4 @@
-"""The fuzz harness (issue 10): hypothesis strategies for every kind of input a user hands dermis,
+"""The fuzz harness: hypothesis strategies for every kind of input a user hands dermis,
 and a strict classification of what came back.
 
 Families: scene TOML, glTF/GLB (JSON and binary chunk), OBJ/MTL, images (PNG 1/8/16-bit, JPEG,

@@ -1,6 +1,6 @@
 """Issue 10: every class of bad input that escaped, each with its minimal input, gives one clear
 DermisError (in-process) or one ``dermis: error:`` line with exit 2 and no output (CLI).
-Also issue 12's loader bugs: 16-bit PNG keeps 16 bits, [material] albedo_color on a bare OBJ.
+Also two loader bugs: 16-bit PNG keeps 16 bits, [material] albedo_color on a bare OBJ.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """dermis.blender: the export to Blender and Cycles as ground truth.
 
-Calibration (issue 11): dermis `lambert` and Cycles' diffuse on the same scene agree in mean
+Calibration: dermis `lambert` and Cycles' diffuse on the same scene agree in mean
 radiance within 2% per channel - a wrong camera, light unit, UV convention or colour space moves
 them by far more. The renders are tiny (64-96 px) and, the lights being delta lights, converge in
 a few samples. Tests that need bpy skip without the ``cycles`` extra.

@@ -1,4 +1,4 @@
-"""Framing (issue 12): [camera] fit = true fits the mesh (a bust: its head) in view."""
+"""Framing: [camera] fit = true fits the mesh (a bust: its head) in view."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Fuzz the loaders, the API and the CLI (issue 10): hypothesis cases from tests/fuzzing.py, each
+"""Fuzz the loaders, the API and the CLI: hypothesis cases from tests/fuzzing.py, each
 strictly classified; anything but a finite image or a clean one-line error fails the test.
 
 The normal run is bounded (FUZZ_EXAMPLES cases per family, a fixed derandomised seed, 16x16

@@ -1,4 +1,4 @@
-"""Small bugs found through the public interface (issue 12)."""
+"""Small image bugs found through the public interface."""
 
 from __future__ import annotations
 
@@ -41,7 +41,7 @@ def _elongation(shape_mm, gl_ctx):
 
 def test_squashed_uv_layout_impulse_response_is_less_elongated(gl_ctx):
     """A quad whose UVs are squashed 2:1 (texels 0.1 x 0.2 mm): the red impulse response's
-    sqrt(second moment v / u) in mm. Before issue 12: 1.032 (the 2x2 reductions' added variance
+    sqrt(second moment v / u) in mm. Before the per-axis correction: 1.032 (the 2x2 reductions' added variance
     subtracted isotropically); with the per-axis correction 1.022 (square layout: 1.0005).
     PARTIAL: the remaining 2% is the bilinear taps' added variance at the coarse levels."""
     assert abs(_elongation((25.6, 25.6), gl_ctx) - 1.0) < 0.002

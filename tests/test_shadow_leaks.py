@@ -1,4 +1,4 @@
-"""Shadows without leaks (issue 12): the side view's shadowed eye socket, behind the nose bridge."""
+"""Shadows without leaks: the side view's shadowed eye socket, behind the nose bridge."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""ssss's kernel on the plane of issue 13 (dermis.verification.ssss_plane_impulse): a flat plane
+"""ssss's kernel on a measured plane (dermis.verification.ssss_plane_impulse): a flat plane
 from straight above, 10 deg field of view, 0.05 mm per pixel, a 2 x 2 pixel white dot, mix 1. The
 ring-averaged (radial) response against the analytic sum of Gaussians, out to where the profile
 falls below 1e-3 of its peak, within 5 % r-weighted per channel. At this scale d'Eon's widest
