@@ -234,7 +234,7 @@ def test_batch_cli_errors_are_one_line(tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "ray", None)  # as if Ray were not installed
     for args, message in ((["--out", str(tmp_path / "o1"), "--ray", "auto"], "pip install 'dermis[ray]'"),
                           (["--out", str(occupied)], "not empty and holds no dermis batch dataset"),
-                          (["--out", str(tmp_path / "o2"), "--workers", "0"], "--workers must be >= 1")):
+                          (["--out", str(tmp_path / "o2"), "--workers", "0"], "--workers: must be >= 1")):
         with pytest.raises(SystemExit) as exc:
             main(["batch", str(sweep), *args])
         err = capsys.readouterr().err.strip()

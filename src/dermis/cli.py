@@ -22,7 +22,9 @@ from dermis.errors import DermisError
 # API argument names -> the flags that set them (messages "name: ..." become "--flag: ...")
 FLAG_FOR_OPTION = {"size": "--size", "technique": "--technique", "irradiance_size": "--irradiance-size",
                    "shadow_size": "--shadow-size", "samples": "--samples", "exposure": "--exposure",
-                   "tonemap": "--tonemap", "device": "--device"}
+                   "tonemap": "--tonemap", "device": "--device", "techniques": "--techniques", "frames": "--frames",
+                   "fps": "--fps", "degrees": "--degrees", "spp": "--spp", "min_spacing_mm": "--spacing", "out": "--out",
+                   "workers": "--workers", "ray": "--ray"}
 
 
 def cli_message(message: str) -> str:

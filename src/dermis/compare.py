@@ -37,7 +37,7 @@ def parse_techniques(text: str) -> list[str]:
         if name and name not in names:
             names.append(name)
     if not names:
-        raise DermisError("--techniques: give at least one technique name")
+        raise DermisError("techniques: give at least one technique name")
     for name in names:
         technique_class(name)  # DermisError: unknown technique 'x' (available: ...)
     return names
@@ -141,9 +141,9 @@ def compare_cmd(scene, techniques, size, out, json_out, frames, samples, irradia
     names = parse_techniques(techniques)
     w, h = parse_size(size)
     if not 64 <= irradiance_size <= 8192:
-        raise DermisError(f"--irradiance-size must be in [64, 8192], got {irradiance_size}")
+        raise DermisError(f"irradiance_size: must be in [64, 8192], got {irradiance_size}")
     if not 1 <= frames <= 1000:
-        raise DermisError(f"--frames must be in [1, 1000], got {frames}")
+        raise DermisError(f"frames: must be in [1, 1000], got {frames}")
     for p in (Path(x) for x in (out, json_out) if x):
         if not p.parent.exists():
             if p.parent == Path("out"):

@@ -80,17 +80,17 @@ class Dataset:
         self.root = Path(out)
         self.sweep = sweep
         if self.root.exists() and not self.root.is_dir():
-            raise DermisError(f"--out {self.root}: exists and is not a folder")
+            raise DermisError(f"out: {self.root}: exists and is not a folder")
         if not self.root.parent.is_dir():
-            raise DermisError(f"--out {self.root}: its parent folder {self.root.parent} does not exist")
+            raise DermisError(f"out: {self.root}: its parent folder {self.root.parent} does not exist")
         _schema()  # pyarrow present: fail before rendering anything
         stored = self.root / "sweep.json"
         if stored.is_file():
             if stored.read_text() != sweep.identity():
-                raise DermisError(f"--out {self.root}: holds a dataset of a different sweep (its sweep.json differs "
+                raise DermisError(f"out: {self.root}: holds a dataset of a different sweep (its sweep.json differs "
                                   f"from {sweep.path}); use another --out folder")
         elif self.root.is_dir() and any(self.root.iterdir()):
-            raise DermisError(f"--out {self.root}: folder is not empty and holds no dermis batch dataset")
+            raise DermisError(f"out: {self.root}: folder is not empty and holds no dermis batch dataset")
         self.root.mkdir(exist_ok=True)
         for name in FOLDERS:
             (self.root / name).mkdir(exist_ok=True)

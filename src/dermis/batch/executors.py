@@ -71,7 +71,7 @@ class LocalExecutor:
         self.config = dict(config)
         self.workers = int(workers)
         if self.workers < 1:
-            raise DermisError(f"--workers must be >= 1, got {workers}")
+            raise DermisError(f"workers: must be >= 1, got {workers}")
         if self.config.get("lp_num_threads") is None:
             self.config["lp_num_threads"] = llvmpipe_threads(self.workers)
         self._mp = multiprocessing.get_context("spawn")
@@ -223,14 +223,14 @@ class RayExecutor:
                 try:
                     ray.init(address=self.address, **kwargs)
                 except Exception as exc:
-                    raise DermisError(f"--ray {self.address}: cannot connect ({str(exc).strip().splitlines()[0]})") from None
+                    raise DermisError(f"ray: {self.address}: cannot connect ({str(exc).strip().splitlines()[0]})") from None
             self._started_ray = True
         t_init = time.perf_counter() - t0
         resources = ray.cluster_resources()
         gpus = int(resources.get("GPU", 0))
         n = self.workers or gpus or int(resources.get("CPU", 1))
         if n < 1:
-            raise DermisError(f"--workers must be >= 1, got {n}")
+            raise DermisError(f"workers: must be >= 1, got {n}")
         if self.address == "auto" and self.config.get("lp_num_threads") is None:
             self.config["lp_num_threads"] = llvmpipe_threads(n)
         options = {"num_gpus": 1, "num_cpus": 1} if gpus else {"num_cpus": 1}

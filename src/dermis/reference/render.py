@@ -65,7 +65,7 @@ def subpixel_offsets(spp: int) -> np.ndarray:
         return MSAA4.copy()
     n = int(round(math.sqrt(spp)))
     if n * n != spp:
-        raise DermisError(f"--spp must be 1, 4 or a square number, got {spp}")
+        raise DermisError(f"spp: must be 1, 4 or a square number, got {spp}")
     g = (np.arange(n) + 0.5) / n - 0.5
     xx, yy = np.meshgrid(g, g)
     return np.stack([xx.ravel(), yy.ravel()], 1)
@@ -157,7 +157,7 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
 
     w, h = check_size(size)
     if spp < 1:
-        raise DermisError(f"--spp must be >= 1, got {spp}")
+        raise DermisError(f"spp: must be >= 1, got {spp}")
     if len(scene.lights) > LightRig.MAX_LIGHTS:
         raise DermisError(f"{scene.source}: the reference handles at most {LightRig.MAX_LIGHTS} lights, as the techniques do")
     t_start = time.perf_counter()
@@ -194,7 +194,7 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
         if min_spacing_mm is None:
             min_spacing_mm = min(DEFAULT_MAX_SPACING_MM, SPACING_PER_PIXEL * pixel_mm)
         if not min_spacing_mm > 0:
-            raise DermisError(f"--spacing must be > 0 mm, got {min_spacing_mm}")
+            raise DermisError(f"min_spacing_mm: must be > 0 mm, got {min_spacing_mm}")
         levels, sets = plan_levels(profile, min_spacing_mm)
         stats.update({"pixel_footprint_mm": pixel_mm, "min_spacing_mm": float(min_spacing_mm),
                       "gaussians": [{"variance_mm2": l.variance_mm2, "integrated_variance_mm2": l.effective_variance_mm2,

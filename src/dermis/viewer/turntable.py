@@ -155,11 +155,11 @@ def turntable(scene, out, *, frames: int = 60, size=(512, 512), technique: str |
     from dermis.renderer import Renderer, check_size
 
     if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or not 1 <= int(frames) <= MAX_FRAMES:
-        raise DermisError(f"--frames must be an integer in [1, {MAX_FRAMES}], got {frames!r}")
+        raise DermisError(f"frames: must be an integer in [1, {MAX_FRAMES}], got {frames!r}")
     if not (math.isfinite(fps) and 0 < fps <= 240):
-        raise DermisError(f"--fps must lie in (0, 240], got {fps}")
+        raise DermisError(f"fps: must lie in (0, 240], got {fps}")
     if not math.isfinite(degrees):
-        raise DermisError(f"--degrees must be a finite number, got {degrees}")
+        raise DermisError(f"degrees: must be a finite number, got {degrees}")
     w, h = check_size(size)
     out = Path(out)
     kind = output_kind(out)
