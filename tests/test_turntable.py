@@ -74,7 +74,7 @@ def test_turntable_user_errors(box_toml, tmp_path):
     scene = dermis.load_scene(box_toml)
     with pytest.raises(DermisError, match="unsupported turntable output '.avi'"):
         turntable(scene, tmp_path / "x.avi", frames=2, size=(32, 32))
-    with pytest.raises(DermisError, match="--frames"):
+    with pytest.raises(DermisError, match="frames: must be"):
         turntable(scene, tmp_path / "x.gif", frames=0, size=(32, 32))
     res = subprocess.run([sys.executable, "-m", "dermis.cli", "turntable", str(box_toml), "--out",
                           str(tmp_path / "missing" / "x.gif")], capture_output=True, text=True, timeout=120,

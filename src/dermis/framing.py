@@ -70,3 +70,12 @@ def fit_camera(camera, positions, aspect: float, margin: float = 0.04):
     dist = max(d_x, d_y, 1e-6)
     position = c + s_x * r + s_y * u - dist * f
     return dataclasses.replace(camera, position=tuple(position), target=tuple(position + dist * f))
+
+
+def framed_camera(camera, mesh, aspect: float):
+    """The camera a frame is rendered with: ``camera`` itself, or, when ``camera.fit`` is set, a
+    copy fitted to the mesh (a bust: to its head). The renderer, the viewer's starting view and
+    anything that must match the rendered pixels (a batch's depth map) use this one function."""
+    if not getattr(camera, "fit", False):
+        return camera
+    return fit_camera(camera, head_vertices(mesh.positions, camera.up), aspect)

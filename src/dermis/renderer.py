@@ -14,6 +14,7 @@ import numpy as np
 
 from dermis.camera import camera_matrices
 from dermis.errors import DermisError
+from dermis.framing import framed_camera
 from dermis.gl.context import create_context, gl_info, is_software
 from dermis.geometry.texture_space import scene_texture_space
 from dermis.gl.resources import GpuScene, LightUniforms
@@ -229,11 +230,7 @@ class Renderer:
         passes = []
         self._update_scene_products(keys, passes)
         lights = self._lights
-        cam = camera or scene.camera
-        if getattr(cam, "fit", False):
-            from dermis.framing import fit_camera, head_vertices
-
-            cam = fit_camera(cam, head_vertices(scene.mesh.positions, cam.up), size[0] / size[1])
+        cam = framed_camera(camera or scene.camera, scene.mesh, size[0] / size[1])
         lo, hi = scene.bounds()
         view, proj, eye, near, far = camera_matrices(cam, size[0] / size[1], lo, hi)
         t = self._targets

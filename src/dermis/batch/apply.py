@@ -66,6 +66,10 @@ def place_camera(camera, azimuth_deg=None, elevation_deg=None, distance=None, fo
         raise DermisError(f"camera.elevation_deg must be in [-90, 90], got {math.degrees(el)}")
     direction = np.array([math.sin(az) * math.cos(el), math.sin(el), math.cos(az) * math.cos(el)])
     camera.position = tuple(float(x) for x in np.asarray(camera.target, np.float64) + dist * direction)
+    if distance is not None:
+        # an explicit distance is the framing asked for: [camera] fit (which moves the camera along
+        # its direction to frame the head) would override it; a turned camera alone is still fitted
+        camera.fit = False
     if fov_deg is not None:
         if not 0.0 < fov_deg <= 170.0:
             raise DermisError(f"camera.fov_deg must be in (0, 170], got {fov_deg}")

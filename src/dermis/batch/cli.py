@@ -24,7 +24,7 @@ def batch_cmd(sweep, out, workers, ray_address, device, limit, dry_run, stats, n
     from dermis.errors import DermisError
 
     if workers is not None and workers < 1:
-        raise DermisError(f"--workers must be >= 1, got {workers}")
+        raise DermisError(f"--workers: must be >= 1, got {workers}")
     if limit is not None and limit < 0:
         raise DermisError(f"--limit must be >= 0, got {limit}")
     if dry_run:

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.framing import framed_camera
 
 DEFAULT_SIZE = "512x512"
 
@@ -183,7 +184,8 @@ class RenderWorker:
                 mask = np.repeat(np.clip(rgba[:, :, 3:4], 0.0, 1.0), 3, axis=2)
                 files[paths["mask"]] = self._encode("mask.png", lambda p: write_png(p, mask))
             if "depth" in paths:
-                depth = depth_map(scene, scene.camera, size, self._mesh_bvh(scene))
+                depth = depth_map(scene, framed_camera(scene.camera, scene.mesh, size[0] / size[1]), size,
+                                  self._mesh_bvh(scene))
                 files[paths["depth"]] = self._encode("depth.exr", lambda p: write_exr(p, np.repeat(depth[:, :, None], 3, axis=2)))
             row.update({k: v for k, v in paths.items()})
             row["png_sha256"] = hashlib.sha256(files[paths["png"]]).hexdigest()

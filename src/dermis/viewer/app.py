@@ -106,7 +106,11 @@ class Viewer:
         lo, hi = scene.bounds()
         self.scene_center = (np.asarray(lo, np.float64) + hi) / 2
         self.scene_radius = float(np.linalg.norm(np.asarray(hi, np.float64) - lo) / 2)
-        self.orbit = OrbitCamera.from_camera(scene.camera, self.scene_radius)
+        from dermis.framing import framed_camera
+
+        fb = self.framebuffer_size()
+        # the scene's view as `dermis render` frames it ([camera] fit: the head fills the window)
+        self.orbit = OrbitCamera.from_camera(framed_camera(scene.camera, scene.mesh, fb[0] / fb[1]), self.scene_radius)
         self.editor = SceneEditor(scene)
         self.profiles = SkinProfileWorker(scene.profile)
         self._light_orbit = None
