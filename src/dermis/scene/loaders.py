@@ -578,7 +578,7 @@ def bake_vertex_colours(positions, normals, indices, colours, factor, source: st
     img = img[near[0], near[1]]
     if factor is not None:
         img = img * np.asarray(factor, np.float64)
-    tex = Texture(img.astype(np.float32), source)
+    tex = Texture(np.clip(img, 0.0, 1.0).astype(np.float32), source)  # barycentric rounding: -1e-9
     return (positions[atlas.vmapping], np.asarray(normals)[atlas.vmapping], atlas.indices.astype(np.int64),
             atlas.uvs, tex)
 
