@@ -495,3 +495,31 @@ def test_tsd_on_repeating_uvs_uses_a_generated_layout(tmp_path, gl_ctx):
     assert mask.mean() > 0.5
     for axis in (0, 1):
         assert len(row_runs(img, mask, axis)) == 6
+
+
+def test_reference_renderer_samples_repeating_maps_like_the_gpu():
+    """The CPU reference applies REPEAT before its clamp-to-edge bilinear lookup."""
+    from dermis.reference.sampling import bilinear, wrapped_uv
+    from dermis.scene.model import Texture
+
+    img = checker(4).astype(np.float64)
+    uv = np.array([[0.3, 0.6], [2.3, -0.4], [-1.7, 3.6]])
+    rep = Texture(img, wrap=("repeat", "repeat"))
+    got = bilinear(img, *wrapped_uv(uv, rep))
+    np.testing.assert_allclose(got, np.repeat(got[:1], 3, axis=0))  # one place, three periods apart
+    clamped = bilinear(img, *wrapped_uv(uv, Texture(img)))
+    assert not np.allclose(clamped, np.repeat(clamped[:1], 3, axis=0))
+
+
+def test_unapplied_features_are_named(tmp_path, capsys):
+    doc, binary = build([quad()], materials=[{"pbrMetallicRoughness": {}, "occlusionTexture": {"index": 0}}],
+                        images=[checker()])
+    doc["extensionsUsed"] = ["KHR_materials_clearcoat"]
+    doc["nodes"][0]["camera"] = 0
+    doc["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}}]
+    load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
+    err = capsys.readouterr().err.splitlines()
+    assert all(line.startswith("dermis: warning: ") for line in err)
+    for feature in ("KHR_materials_clearcoat is not supported", "glTF cameras are not used",
+                    "occlusionTexture is not supported"):
+        assert sum(feature in line for line in err) == 1, (feature, err)

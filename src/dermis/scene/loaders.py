@@ -357,10 +357,22 @@ class GltfAsset:
             ignored.append(f"alphaMode {mat['alphaMode']}")
         if (mat.get("normalTexture") or {}).get("scale", 1.0) != 1.0:
             ignored.append("normalTexture scale (use [material] normal_strength)")
-        ignored += [f"extension {k}" for k in (mat.get("extensions") or {})]
         for feature in ignored:
             warn(f"{self.path}: skin material {label}: {feature} is not supported and ignored")
         return mat, label
+
+    def _warn_unsupported(self, prims):
+        """One line per glTF feature the file uses that dermis does not apply."""
+        doc = self.doc
+        for ext in doc.get("extensionsUsed", []) if isinstance(doc.get("extensionsUsed"), list) else []:
+            if ext not in gltf_document.SUPPORTED_EXTENSIONS:
+                warn(f"{self.path}: glTF extension {ext} is not supported and ignored")
+        if any(p.get("targets") for _, _, p in prims):
+            warn(f"{self.path}: morph targets are not applied (the base shape renders)")
+        if any("skin" in n for n in doc.get("nodes", [])):
+            warn(f"{self.path}: skinning (node skin) is not applied (the mesh renders in its bind pose)")
+        if any("camera" in n for n in doc.get("nodes", [])):
+            warn(f"{self.path}: glTF cameras are not used (the scene's [camera] is)")
 
     def _maps(self, mat: dict, label: str):
         """The skin material's maps ('albedo', 'normal_map' -> textureInfo), the UV set they share
@@ -422,6 +434,7 @@ class GltfAsset:
                 warn(f"{self.path}: primitives with material {self._material_label(m)} (not skin) are not rendered: "
                      f"glTF metallic-roughness shading is not supported yet")
         prims = [x for x in prims if x[2].get("material") in skin]
+        self._warn_unsupported(prims)
         mat, label = self._skin_material(skin)
         refs, uv_set, uv_transform = self._maps(mat, label)
         texcoord = f"TEXCOORD_{uv_set}"
