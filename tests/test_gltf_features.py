@@ -523,3 +523,15 @@ def test_unapplied_features_are_named(tmp_path, capsys):
     for feature in ("KHR_materials_clearcoat is not supported", "glTF cameras are not used",
                     "occlusionTexture is not supported"):
         assert sum(feature in line for line in err) == 1, (feature, err)
+
+
+def test_tsd_refuses_repeating_uvs_as_its_own_layout(tmp_path, gl_ctx):
+    """With texture_space_uv = "mesh" tsd would diffuse in UVs 0..3, of which its coverage count
+    sees only [0, 1]: refused with one line instead of a wrong image."""
+    doc, binary = build([quad(QUAD_UV * 3)], materials=textured(), images=[checker()], samplers=[{}])
+    toml = scene_file(tmp_path, doc, binary, "tsd")
+    toml.write_text(toml.read_text().replace('texture_space_uv = "auto"', 'texture_space_uv = "mesh"'))
+    sc = dermis.load_scene(toml)
+    with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0) as r:
+        with pytest.raises(DermisError, match=r"UVs run outside \[0, 1\] \(from -2 to 3.*texture_space_uv = \"auto\""):
+            r.render("tsd")
