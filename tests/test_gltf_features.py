@@ -366,9 +366,28 @@ def test_vertex_colours_baked_with_the_base_colour_factor(tmp_path):
         np.testing.assert_allclose(tex[row, col], cols[src, :3] * [0.5, 1.0, 0.25], atol=0.03)
 
 
-def test_vertex_colours_with_a_texture_are_refused(tmp_path):
-    doc, binary = build([quad(COLOR_0=CORNERS)], materials=textured(), images=[checker()])
-    with pytest.raises(DermisError, match=r"COLOR_0\) .*not supported|COLOR_0 with a textured material is not supported"):
+def test_vertex_colours_multiply_a_texture_in_its_own_layout(tmp_path):
+    """COLOR_0 x baseColorTexture: baked into the map in the mesh's own (unique) UV layout. The
+    texels at the corners carry the corner colours times the map, the centre texel (on the shared
+    diagonal 0-2) the mean of colours 0 and 2 times the map."""
+    tex = np.full((64, 64, 3), 200, np.uint8)
+    doc, binary = build([quad(COLOR_0=CORNERS)], materials=textured(), images=[tex], samplers=[{}])
+    mesh, mat = load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
+    grey = ((200 / 255 + 0.055) / 1.055) ** 2.4
+    a = mat["albedo"].data
+    assert a.shape == (64, 64, 3) and "COLOR_0" in mat["albedo"].source
+    # dermis convention: row 0 = top = v 1; corner k sits at mesh.uvs[k]
+    for k in range(4):
+        u, v = mesh.uvs[k]
+        row, col = min(int((1 - v) * 64), 63), min(int(u * 64), 63)
+        np.testing.assert_allclose(a[row, col], CORNERS[k] * grey, atol=0.04 * grey + 1e-3)
+    np.testing.assert_allclose(a[32, 32], 0.5 * (CORNERS[0] + CORNERS[2]) * grey, atol=0.04 * grey)
+
+
+def test_vertex_colours_with_a_repeating_texture_are_refused(tmp_path):
+    doc, binary = build([quad(QUAD_UV * 3, COLOR_0=CORNERS)], materials=textured(), images=[checker()])
+    with pytest.raises(DermisError, match=r"vertex colours \(COLOR_0\).*outside \[0, 1\].*COLOR_0 with this textured "
+                                          r"material is not supported"):
         load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
 
 

@@ -415,7 +415,8 @@ class GltfAsset:
         no metallic-roughness shading yet). The skin material's maps are sampled through the UV
         set they name (texCoord), with their KHR_texture_transform applied to the UVs and their
         samplers' wrap modes and filters kept on the Textures; COLOR_0 is multiplied into the base
-        colour by baking it into an albedo texture on a generated layout (untextured materials)."""
+        colour by baking it into an albedo texture: on a generated layout (materials without maps),
+        or into the albedo in the maps' own layout (which must be unique and inside [0, 1])."""
         g, doc = self.gltf, self.doc
         if not g.meshes:
             raise DermisError(f"{self.path}: glTF has no meshes")
@@ -495,14 +496,21 @@ class GltfAsset:
         pbr = mat.get("pbrMetallicRoughness") or {}
         factor = np.asarray(pbr["baseColorFactor"][:3], np.float32) if "baseColorFactor" in pbr else None
         material = {"albedo": None, "normal_map": None, "specular_map": None, "albedo_color": None}
-        if np.any(np.abs(colours - 1.0) > 1e-6):
-            if refs:
-                raise DermisError(f"{self.path}: material {label} has maps and the mesh vertex colours (COLOR_0): "
-                                  f"COLOR_0 with a textured material is not supported")
+        vertex_coloured = bool(np.any(np.abs(colours - 1.0) > 1e-6))
+        if vertex_coloured and not refs:  # no maps: the UVs are free for a generated layout
             positions, normals, indices, uvs, albedo = bake_vertex_colours(positions, normals, indices, colours, factor,
                                                                            f"{self.path} COLOR_0")
             material["albedo"], tangents, uv_convention = albedo, None, "v-up"
+            vertex_coloured = False
         mesh = finish_mesh(positions, normals, uvs, indices, str(self.path), uv_convention, tangents)
+        if vertex_coloured:  # maps: COLOR_0 goes into the albedo in the maps' own layout, which must be unique
+            from dermis.geometry.texture_space import layout_problem
+
+            problem = layout_problem(mesh.uvs, mesh.indices)
+            if problem is not None:
+                raise DermisError(f"{self.path}: material {label} has maps and the mesh has vertex colours (COLOR_0), "
+                                  f"which dermis bakes into the albedo in the maps' UV layout, but {problem}: COLOR_0 "
+                                  f"with this textured material is not supported")
         try:
             for key, ref in refs.items():
                 tex = self.image(ref["index"], srgb=key == "albedo", max_pixels=max_pixels)
@@ -511,6 +519,15 @@ class GltfAsset:
                 if key == "albedo" and factor is not None:  # glTF 2.0: base colour = factor x texture
                     data = data * factor
                 material[key] = Texture(data, tex.source, wrap=wrap, filters=filters)
+            if vertex_coloured:
+                albedo = material["albedo"]
+                if albedo is None:  # a white map x factor at the bake's resolution
+                    R = VERTEX_COLOUR_RESOLUTION
+                    albedo = Texture(np.ones((R, R, 3), np.float32) * (1.0 if factor is None else factor), f"{self.path}")
+                H, W = albedo.data.shape[:2]
+                data = albedo.data[:, :, :3] * colour_image(mesh.uvs, mesh.indices, colours, W, H)
+                material["albedo"] = Texture(data.astype(np.float32), f"{albedo.source} x COLOR_0", wrap=albedo.wrap,
+                                             filters=albedo.filters)
             if material["albedo"] is None and factor is not None:
                 material["albedo_color"] = tuple(float(x) for x in factor)
         except DermisError:
@@ -572,28 +589,36 @@ def bake_vertex_colours(positions, normals, indices, colours, factor, source: st
     colours interpolated linearly over each triangle, as the rasteriser interpolates a vertex
     attribute, and spread into the gutters (nearest covered texel) for filtering. Returns the
     mesh split along the layout's seams: (positions, normals, indices, uvs v-up, Texture)."""
-    from scipy import ndimage
-
     from dermis.geometry.atlas import generate_atlas
-    from dermis.geometry.rasterize import rasterize_uv
 
     R = VERTEX_COLOUR_RESOLUTION
     positions = np.asarray(positions, np.float32)
     if normals is None:
         normals = vertex_normals(positions, indices)
     atlas = generate_atlas(positions, indices, resolution=R)
-    tri, bary = rasterize_uv(atlas.uvs, atlas.indices, R, R)
-    col = np.asarray(colours, np.float64)[atlas.vmapping]
-    corners = np.asarray(atlas.indices, np.int64)[np.maximum(tri, 0)]  # (R, R, 3)
-    img = np.einsum("hwk,hwkc->hwc", bary.astype(np.float64), col[corners])
-    cov = tri >= 0
-    near = ndimage.distance_transform_edt(~cov, return_distances=False, return_indices=True)
-    img = img[near[0], near[1]]
+    img = colour_image(atlas.uvs, atlas.indices, np.asarray(colours)[atlas.vmapping], R, R)
     if factor is not None:
-        img = img * np.asarray(factor, np.float64)
-    tex = Texture(np.clip(img, 0.0, 1.0).astype(np.float32), source)  # barycentric rounding: -1e-9
+        img = img * np.asarray(factor, np.float32)
     return (positions[atlas.vmapping], np.asarray(normals)[atlas.vmapping], atlas.indices.astype(np.int64),
-            atlas.uvs, tex)
+            atlas.uvs, Texture(img, source))
+
+
+def colour_image(uvs, indices, colours, width: int, height: int) -> np.ndarray:
+    """Per-vertex colours (N, 3) as a (height, width, 3) float32 image in the UV layout ``uvs`` (v up,
+    unique, inside [0, 1]): interpolated linearly over each triangle, as the GPU interpolates a
+    vertex attribute, and spread into the gutters from the nearest covered texel for filtering."""
+    from scipy import ndimage
+
+    from dermis.geometry.rasterize import rasterize_uv
+
+    tri, bary = rasterize_uv(uvs, indices, width, height)
+    corners = np.asarray(indices, np.int64)[np.maximum(tri, 0)]  # (H, W, 3)
+    img = np.einsum("hwk,hwkc->hwc", bary.astype(np.float64), np.asarray(colours, np.float64)[corners])
+    cov = tri >= 0
+    if not cov.any():
+        return np.ones((height, width, 3), np.float32)
+    near = ndimage.distance_transform_edt(~cov, return_distances=False, return_indices=True)
+    return np.clip(img[near[0], near[1]], 0.0, 1.0).astype(np.float32)  # barycentric rounding: -1e-9
 
 
 # ----------------------------------------------------------------------------- OBJ + MTL
