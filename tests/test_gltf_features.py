@@ -554,3 +554,27 @@ def test_tsd_refuses_repeating_uvs_as_its_own_layout(tmp_path, gl_ctx):
     with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0) as r:
         with pytest.raises(DermisError, match=r"UVs run outside \[0, 1\] \(from -2 to 3.*texture_space_uv = \"auto\""):
             r.render("tsd")
+
+
+@pytest.mark.parametrize("v_down", [True, False])
+@pytest.mark.parametrize("mode", ["mirror", "repeat", "clamp"])
+def test_mirror_doubling_along_v_follows_the_file_convention(mode, v_down):
+    """Along v the doubled image's first half is the top (glTF, v down) or the bottom (v up) one."""
+    from dermis.scene.loaders import _mirror_doubled
+
+    img = np.arange(4, dtype=np.float32)[:, None, None].repeat(2, 1)  # 4 rows x 2 texels, row 0 = top
+
+    def nearest(data, v, wrap):  # v in the file's convention -> the row GL samples
+        H = data.shape[0]
+        if wrap == "repeat":
+            v = v % 1.0
+        elif wrap == "mirror":
+            v = 1.0 - np.abs((v % 2.0) - 1.0)
+        v = np.clip(v, 0.0, 1.0 - 1e-9)
+        rows_from_top = v if v_down else 1.0 - 1e-9 - v
+        return data[(rows_from_top * H).astype(int), 0, 0]
+
+    v = np.linspace(-1.9, 2.9, 97) + 1e-3
+    doubled, wrap = _mirror_doubled(img, ("clamp", mode), (False, True), v_down=v_down)
+    assert doubled.shape == (8, 2, 1)
+    np.testing.assert_array_equal(nearest(doubled, v / 2, wrap[1]), nearest(img, v, mode))
