@@ -51,7 +51,7 @@ def fingerprint(a) -> tuple | None:
 
 
 def _texture(t):
-    return None if t is None else fingerprint(t.data)
+    return None if t is None else (fingerprint(t.data), tuple(t.wrap), t.filters)
 
 
 def light_geometry(L) -> tuple:

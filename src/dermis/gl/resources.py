@@ -46,8 +46,14 @@ def read_texture(tex) -> np.ndarray:
     return data[::-1].copy()
 
 
-def upload_texture(ctx, data: np.ndarray, *, components=None, dtype="f4", mipmaps=True, repeat=False):
-    """Upload an (H, W, C) float image (row 0 = top) as a linear-filtered texture."""
+_MIPMAP_FILTERS = (9984, 9985, 9986, 9987)  # GL *_MIPMAP_* min filters (glTF 2.0 sampler.minFilter)
+
+
+def upload_texture(ctx, data: np.ndarray, *, components=None, dtype="f4", mipmaps=True, repeat=False, wrap=None,
+                   filters=None):
+    """Upload an (H, W, C) float image (row 0 = top) as a linear-filtered texture. ``wrap``: per axis
+    ("clamp" | "repeat", s then t; overrides ``repeat``); ``filters``: (min, mag) GL enums of a
+    material map's sampler (glTF sampler), None = trilinear with mipmaps."""
     arr = np.asarray(data, np.float32)
     if arr.ndim == 2:
         arr = arr[:, :, None]
@@ -64,7 +70,14 @@ def upload_texture(ctx, data: np.ndarray, *, components=None, dtype="f4", mipmap
         payload = arr.tobytes()
     tex = ctx.texture((arr.shape[1], arr.shape[0]), c, payload, dtype=dtype)
     tex.repeat_x = tex.repeat_y = repeat
-    if mipmaps:
+    if wrap is not None:
+        tex.repeat_x, tex.repeat_y = (w == "repeat" for w in wrap)
+    if filters is not None:
+        lo, hi = filters
+        if lo is None or lo in _MIPMAP_FILTERS:
+            tex.build_mipmaps()
+        tex.filter = (lo if lo is not None else ctx.LINEAR_MIPMAP_LINEAR, hi if hi is not None else ctx.LINEAR)
+    elif mipmaps:
         tex.build_mipmaps()
         tex.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
         tex.anisotropy = 8.0
@@ -114,16 +127,23 @@ class GpuScene:
         for t in self.textures.values():
             t.release()
         self.textures = {}
+
+        def sampler(t):  # the map's own wrap modes and filters (glTF samplers)
+            return {"wrap": t.wrap, "filters": t.filters}
+
         if mat.albedo is not None:
-            self.textures["albedo"] = upload_texture(self.ctx, as_rgb(mat.albedo.data), components=3, dtype="f2")
+            self.textures["albedo"] = upload_texture(self.ctx, as_rgb(mat.albedo.data), components=3, dtype="f2",
+                                                     **sampler(mat.albedo))
         else:
             self.textures["albedo"] = upload_texture(self.ctx, np.array([[mat.albedo_color]], np.float32), mipmaps=False)
         if mat.normal_map is not None:
-            self.textures["normal"] = upload_texture(self.ctx, mat.normal_map.data[:, :, :3], components=3, dtype="f1")
+            self.textures["normal"] = upload_texture(self.ctx, mat.normal_map.data[:, :, :3], components=3, dtype="f1",
+                                                     **sampler(mat.normal_map))
         else:
             self.textures["normal"] = upload_texture(self.ctx, np.array([[[0.5, 0.5, 1.0]]], np.float32), mipmaps=False)
         if mat.specular_map is not None:
-            self.textures["specular"] = upload_texture(self.ctx, mat.specular_map.data[:, :, :1], components=1, dtype="f1")
+            self.textures["specular"] = upload_texture(self.ctx, mat.specular_map.data[:, :, :1], components=1, dtype="f1",
+                                                     **sampler(mat.specular_map))
         else:
             self.textures["specular"] = upload_texture(self.ctx, np.array([[[1.0]]], np.float32), mipmaps=False)
             # no map: rho_s as given (bias + scale * 1 would rescale it)
@@ -136,7 +156,8 @@ class GpuScene:
         else:
             self.albedo_mean = np.asarray(mat.albedo_color, np.float64)
         if mat.roughness_map is not None:
-            self.textures["roughness"] = upload_texture(self.ctx, mat.roughness_map.data[:, :, :1], components=1, dtype="f2")
+            self.textures["roughness"] = upload_texture(self.ctx, mat.roughness_map.data[:, :, :1], components=1, dtype="f2",
+                                                     **sampler(mat.roughness_map))
         else:
             self.textures["roughness"] = upload_texture(self.ctx, np.array([[[mat.roughness]]], np.float32), mipmaps=False)
 

@@ -182,6 +182,15 @@ def coarsen(tri, ij, factor: int):
     return group.reshape(-1), len(uniq)
 
 
+def wrapped_uv(uv, texture):
+    """(u, v) copies with the map's REPEAT wrap applied (fractional part; glTF samplers, the
+    Texture's ``wrap``); clamp-to-edge axes unchanged. Bilinear taps across a period's edge clamp
+    instead of wrapping: half a texel along the edges differs from the GPU."""
+    u, v = uv[:, 0].copy(), uv[:, 1].copy()
+    wrap = ("clamp", "clamp") if texture is None else texture.wrap
+    return (u % 1.0 if wrap[0] == "repeat" else u), (v % 1.0 if wrap[1] == "repeat" else v)
+
+
 @numba.njit(cache=True, parallel=True)
 def bilinear(img, u, v):
     """OpenGL bilinear, clamp-to-edge, of an (H, W, C) image with row 0 at the TOP and v = 0 at
@@ -299,7 +308,7 @@ class SurfaceModel:
     # ------------------------------------------------------------------ material
     def albedo(self, attrs):
         uv = attrs["uv"]
-        return np.maximum(bilinear(self.albedo_map, uv[:, 0].copy(), uv[:, 1].copy()), 0.0)
+        return np.maximum(bilinear(self.albedo_map, *wrapped_uv(uv, self.material.albedo)), 0.0)
 
     def shading_normal(self, attrs):
         """perturb_normal() of common/surface.glsl."""
@@ -308,7 +317,7 @@ class SurfaceModel:
         t = _normalize(T[:, :3] - n * np.sum(n * T[:, :3], axis=1, keepdims=True))
         b = T[:, 3:4] * np.cross(n, t)
         uv = attrs["uv"]
-        m = bilinear(self.normal_map, uv[:, 0].copy(), uv[:, 1].copy()) * 2.0 - 1.0
+        m = bilinear(self.normal_map, *wrapped_uv(uv, self.material.normal_map)) * 2.0 - 1.0
         m[:, :2] *= float(self.material.normal_strength)
         return _normalize(t * m[:, 0:1] + b * m[:, 1:2] + n * m[:, 2:3])
 
@@ -318,7 +327,7 @@ class SurfaceModel:
         if self.specular_map is None:
             return np.full(len(attrs["uv"]), rho)
         uv = attrs["uv"]
-        s = bilinear(self.specular_map, uv[:, 0].copy(), uv[:, 1].copy())[:, 0]
+        s = bilinear(self.specular_map, *wrapped_uv(uv, self.material.specular_map))[:, 0]
         bias, scale = self.spec_bias_scale
         return rho * (bias + scale * s)
 

@@ -28,8 +28,13 @@ _ATTRIBUTE_RULES = {  # semantic -> (types, component types) allowed (spec 3.7.2
     "POSITION": (("VEC3",), (5126,)),
     "NORMAL": (("VEC3",), (5126,)),
     "TANGENT": (("VEC4",), (5126,)),
-    "TEXCOORD_0": (("VEC2",), (5126, 5121, 5123)),
+    "TEXCOORD_n": (("VEC2",), (5126, 5121, 5123)),
+    "COLOR_0": (("VEC3", "VEC4"), (5126, 5121, 5123)),
 }
+WRAP_MODES = {33071: "clamp", 33648: "mirror", 10497: "repeat"}  # sampler.wrapS/T (spec 5.26)
+MAG_FILTERS = (9728, 9729)  # NEAREST, LINEAR
+MIN_FILTERS = (9728, 9729, 9984, 9985, 9986, 9987)  # and the four *_MIPMAP_* ones
+SUPPORTED_EXTENSIONS = ("KHR_texture_transform",)
 _GLB_JSON, _GLB_BIN = 0x4E4F534A, 0x004E4942
 
 
@@ -147,14 +152,27 @@ def validate_document(doc: dict, source, binary_length: int | None) -> None:
         if not isinstance(a.get("normalized", False), bool):
             c.fail(f"{w} normalized", "must be true or false")
         if a.get("sparse") is not None:
-            c.fail(w, "is sparse: sparse accessors are not supported")
+            _sparse(c, a, w)
     for i, im in enumerate(d.get("images", [])):
         w = f"images[{i}]"
         c.index(im.get("bufferView"), "bufferViews", f"{w} bufferView")
         if "uri" in im and not isinstance(im["uri"], str):
             c.fail(f"{w} uri", "must be a string")
+    req = d.get("extensionsRequired", [])
+    if not isinstance(req, list) or not all(isinstance(x, str) for x in req):
+        c.fail("'extensionsRequired'", "must be an array of strings")
+    for ext in req:
+        if ext not in SUPPORTED_EXTENSIONS:
+            c.fail("'extensionsRequired'", f"names {ext}, a glTF extension dermis does not support")
+    for i, sm in enumerate(c.array("samplers")):
+        w = f"samplers[{i}]"
+        for key, allowed in (("wrapS", WRAP_MODES), ("wrapT", WRAP_MODES), ("magFilter", MAG_FILTERS),
+                             ("minFilter", MIN_FILTERS)):
+            if key in sm and (isinstance(sm[key], bool) or sm[key] not in allowed):
+                c.fail(f"{w} {key}", f"must be one of {', '.join(map(str, allowed))}, got {sm[key]!r}")
     for i, t in enumerate(d.get("textures", [])):
         c.index(t.get("source"), "images", f"textures[{i}] source")
+        c.index(t.get("sampler"), "samplers", f"textures[{i}] sampler")
     for i, m in enumerate(d.get("materials", [])):
         w = f"materials[{i}]"
         pbr = m.get("pbrMetallicRoughness")
@@ -164,7 +182,11 @@ def validate_document(doc: dict, source, binary_length: int | None) -> None:
             if "baseColorFactor" in pbr:
                 c.numbers(pbr["baseColorFactor"], f"{w} baseColorFactor", 4, 0.0, 1.0)
             _texture_ref(c, pbr.get("baseColorTexture"), f"{w} baseColorTexture")
-        _texture_ref(c, m.get("normalTexture"), f"{w} normalTexture")
+            _texture_ref(c, pbr.get("metallicRoughnessTexture"), f"{w} metallicRoughnessTexture")
+        for key in ("normalTexture", "occlusionTexture", "emissiveTexture"):
+            _texture_ref(c, m.get(key), f"{w} {key}")
+        if "name" in m and not isinstance(m["name"], str):
+            c.fail(f"{w} name", "must be a string")
     nodes = d.get("nodes", [])
     for i, n in enumerate(nodes):
         w = f"nodes[{i}]"
@@ -206,20 +228,47 @@ def validate_document(doc: dict, source, binary_length: int | None) -> None:
             if mode != 4 or "POSITION" not in at:
                 continue
             count = accessors[at["POSITION"]]["count"]
-            for sem, (types, comps) in _ATTRIBUTE_RULES.items():
-                if sem not in at:
+            for sem in at:
+                rule = "TEXCOORD_n" if sem.startswith("TEXCOORD_") else sem
+                if rule not in _ATTRIBUTE_RULES:
                     continue
+                types, comps = _ATTRIBUTE_RULES[rule]
                 a = accessors[at[sem]]
                 if a["type"] not in types or a["componentType"] not in comps:
                     c.fail(f"{w} attribute {sem}", f"has type {a['type']}/{a['componentType']}; glTF 2.0 allows "
                            f"{'/'.join(types)} of {', '.join(map(str, comps))}")
                 if a["count"] != count:
                     c.fail(f"{w} attribute {sem}", f"has {a['count']} elements but POSITION has {count}")
+            mat = d["materials"][p["material"]] if p.get("material") is not None else {}
+            for where, ref in material_maps(mat):
+                ts = f"TEXCOORD_{texcoord_set(ref)}"
+                if ts not in at:
+                    c.fail(w, f"has no {ts}, which its material's {where} samples through")
             if p.get("indices") is not None:
                 a = accessors[c.index(p["indices"], "accessors", f"{w} indices")]
                 if a["type"] != "SCALAR" or a["componentType"] not in (5121, 5123, 5125):
                     c.fail(f"{w} indices", "must be a SCALAR accessor of unsigned integers")
     _check_totals(c, d)
+
+
+def material_maps(mat: dict) -> list:
+    """(name, textureInfo) of the maps a (checked) material samples."""
+    pbr = mat.get("pbrMetallicRoughness") or {}
+    refs = [("baseColorTexture", pbr.get("baseColorTexture")), ("metallicRoughnessTexture", pbr.get("metallicRoughnessTexture"))]
+    refs += [(k, mat.get(k)) for k in ("normalTexture", "occlusionTexture", "emissiveTexture")]
+    return [(k, r) for k, r in refs if r is not None]
+
+
+def texture_transform(ref: dict) -> dict | None:
+    """A (checked) textureInfo's KHR_texture_transform, or None."""
+    return (ref.get("extensions") or {}).get("KHR_texture_transform")
+
+
+def texcoord_set(ref: dict) -> int:
+    """The TEXCOORD_n set a (checked) textureInfo samples through (KHR_texture_transform's texCoord
+    overrides the textureInfo's, KHR_texture_transform README)."""
+    tt = texture_transform(ref) or {}
+    return int(tt.get("texCoord", ref.get("texCoord", 0)))
 
 
 def _texture_ref(c: _Checker, ref, where):
@@ -228,8 +277,35 @@ def _texture_ref(c: _Checker, ref, where):
     if not isinstance(ref, dict):
         c.fail(where, "must be an object with an index")
     c.index(ref.get("index"), "textures", f"{where} index", required=True)
+    c.integer(ref.get("texCoord", 0), f"{where} texCoord", 0, 31)
+    ext = ref.get("extensions", {})
+    if not isinstance(ext, dict):
+        c.fail(f"{where} extensions", "must be an object")
+    tt = ext.get("KHR_texture_transform")
+    if tt is not None:
+        w = f"{where} KHR_texture_transform"
+        if not isinstance(tt, dict):
+            c.fail(w, "must be an object")
+        c.numbers(tt.get("offset", [0, 0]), f"{w} offset", 2)
+        c.numbers([tt.get("rotation", 0)], f"{w} rotation", 1)
+        c.numbers(tt.get("scale", [1, 1]), f"{w} scale", 2)
+        c.integer(tt.get("texCoord", 0), f"{w} texCoord", 0, 31)
     if c.doc["textures"][ref["index"]].get("source") is None:
         c.fail(where, "names a texture without an image source")
+
+
+def _sparse(c: _Checker, a: dict, w: str):
+    """glTF 2.0 3.6.2.3: ``count`` indices (unsigned, strictly increasing, checked on read) into the
+    accessor and as many replacement values, each in a bufferView."""
+    sp = a["sparse"]
+    if not isinstance(sp, dict) or not isinstance(sp.get("indices"), dict) or not isinstance(sp.get("values"), dict):
+        c.fail(f"{w} sparse", "must be an object with indices and values")
+    c.integer(sp.get("count"), f"{w} sparse count", 1, a["count"])
+    for part in ("indices", "values"):
+        c.index(sp[part].get("bufferView"), "bufferViews", f"{w} sparse {part} bufferView", required=True)
+        c.integer(sp[part].get("byteOffset", 0), f"{w} sparse {part} byteOffset", 0)
+    if sp["indices"].get("componentType") not in (5121, 5123, 5125):
+        c.fail(f"{w} sparse indices componentType", f"must be 5121, 5123 or 5125, got {sp['indices'].get('componentType')!r}")
 
 
 def _check_totals(c: _Checker, d: dict):

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import base64
 import json
+import sys
 from pathlib import Path
 from urllib.parse import unquote
 
@@ -180,6 +181,7 @@ class GltfAsset:
                 raise DermisError(f"{self.path}: cannot parse glTF (not UTF-8 JSON text)") from None
         doc = gltf_document.parse_json(text, self.path)
         gltf_document.validate_document(doc, self.path, None if self._binary is None else len(self._binary))
+        self.doc = doc  # checked: materials, textures and samplers are read from it
         try:
             self.gltf = pygltflib.GLTF2.gltf_from_json(json.dumps(doc))
         except Exception as exc:
@@ -224,12 +226,27 @@ class GltfAsset:
                 raise DermisError(f"{self.path}: accessor {index} runs past its bufferView (file truncated?)")
             arr = np.ndarray((a.count, n), dtype=dtype, buffer=data, offset=off, strides=(stride, dtype.itemsize))
             out = np.array(arr)
-        if getattr(a, "sparse", None) is not None:
-            raise DermisError(f"{self.path}: sparse accessors are not supported")
+        sparse = self.doc["accessors"][index].get("sparse")
+        if sparse is not None:  # glTF 2.0 3.6.2.3: base values (or zeros), then count replacements
+            k = sparse["count"]
+            where = np.ravel(self._packed(sparse["indices"], np.dtype(_COMPONENT[sparse["indices"]["componentType"]]), k, 1,
+                                          f"accessor {index} sparse indices"))
+            if np.any(where >= a.count) or np.any(np.diff(where.astype(np.int64)) <= 0):
+                raise DermisError(f"{self.path}: accessor {index} sparse indices must increase strictly and stay below "
+                                  f"its count {a.count}")
+            out[where] = self._packed(sparse["values"], dtype, k, n, f"accessor {index} sparse values")
         if a.normalized and dtype.kind in "iu":
             info = np.iinfo(dtype)
             out = np.maximum(out.astype(np.float32) / info.max, -1.0)
         return out
+
+    def _packed(self, ref: dict, dtype, count: int, n: int, what: str) -> np.ndarray:
+        """``count`` tightly packed elements of ``n`` components at a bufferView + byteOffset."""
+        data, _ = self.view_bytes(ref["bufferView"])
+        off = ref.get("byteOffset", 0)
+        if off + count * n * dtype.itemsize > len(data):
+            raise DermisError(f"{self.path}: {what} run past their bufferView (file truncated?)")
+        return np.frombuffer(data, dtype, count * n, off).reshape(count, n).copy()
 
     def image(self, texture_index: int, srgb: bool, max_pixels: int) -> Texture:
         tex = self.gltf.textures[texture_index]
@@ -292,89 +309,316 @@ class GltfAsset:
             walk(r_)
         return mats
 
-    def load(self, uv_convention: str, max_pixels: int = MAX_IMAGE_PIXELS):
-        """Returns (Mesh, material dict with 'albedo', 'normal_map', 'specular_map' Textures or None)."""
-        g = self.gltf
+    def _material_label(self, mi) -> str:
+        if mi is None:
+            return "(no material)"
+        name = self.doc["materials"][mi].get("name")
+        return f"'{name}'" if name else f"#{mi}"
+
+    def _skin_set(self, used: list, skin_materials) -> set:
+        """The materials (indices; None = no material) rendered as skin: those the scene names
+        (names or indices), else the mesh's single one."""
+        labels = ", ".join(self._material_label(m) for m in used)
+        if skin_materials is None:
+            if len(used) == 1:
+                return set(used)
+            raise DermisError(f"{self.path}: the mesh has {len(used)} materials ({labels}); name the skin ones in the "
+                              f"scene's [skin] materials = [...]")
+        chosen = set()
+        for entry in skin_materials:
+            hits = [m for m in used if m is not None and (
+                entry == m if isinstance(entry, int) else self.doc["materials"][m].get("name") == entry)]
+            if not hits:
+                raise DermisError(f"{self.path}: [skin] materials names {entry!r}, a material no triangle primitive "
+                                  f"uses (materials: {labels})")
+            chosen.update(hits)
+        return chosen
+
+    def _skin_material(self, skin: set) -> tuple[dict, str]:
+        """The one material every skin primitive shares (by content), and its label."""
+        mats = {m: ({} if m is None else self.doc["materials"][m]) for m in sorted(skin, key=lambda m: -1 if m is None else m)}
+
+        def used_part(mat):  # what dermis reads from a skin material
+            pbr = mat.get("pbrMetallicRoughness") or {}
+            return json.dumps([pbr.get("baseColorFactor"), pbr.get("baseColorTexture"), mat.get("normalTexture")], sort_keys=True)
+
+        first = next(iter(mats))
+        for m, mat in mats.items():
+            if used_part(mat) != used_part(mats[first]):
+                raise DermisError(f"{self.path}: skin materials {self._material_label(first)} and {self._material_label(m)} "
+                                  f"have different base colours or maps; dermis renders one skin material per mesh")
+        mat, label = mats[first], self._material_label(first)
+        pbr = mat.get("pbrMetallicRoughness") or {}
+        ignored = [k for k in ("metallicRoughnessTexture",) if k in pbr]
+        ignored += [k for k in ("occlusionTexture", "emissiveTexture") if k in mat]
+        if any(x != 0 for x in mat.get("emissiveFactor", [0, 0, 0])):
+            ignored.append("emissiveFactor")
+        if mat.get("alphaMode", "OPAQUE") != "OPAQUE":
+            ignored.append(f"alphaMode {mat['alphaMode']}")
+        if (mat.get("normalTexture") or {}).get("scale", 1.0) != 1.0:
+            ignored.append("normalTexture scale (use [material] normal_strength)")
+        for feature in ignored:
+            warn(f"{self.path}: skin material {label}: {feature} is not supported and ignored")
+        return mat, label
+
+    def _warn_unsupported(self, prims):
+        """One line per glTF feature the file uses that dermis does not apply."""
+        doc = self.doc
+        for ext in doc.get("extensionsUsed", []) if isinstance(doc.get("extensionsUsed"), list) else []:
+            if ext not in gltf_document.SUPPORTED_EXTENSIONS:
+                warn(f"{self.path}: glTF extension {ext} is not supported and ignored")
+        if any(p.get("targets") for _, _, p in prims):
+            warn(f"{self.path}: morph targets are not applied (the base shape renders)")
+        if any("skin" in n for n in doc.get("nodes", [])):
+            warn(f"{self.path}: skinning (node skin) is not applied (the mesh renders in its bind pose)")
+        if any("camera" in n for n in doc.get("nodes", [])):
+            warn(f"{self.path}: glTF cameras are not used (the scene's [camera] is)")
+
+    def _maps(self, mat: dict, label: str):
+        """The skin material's maps ('albedo', 'normal_map' -> textureInfo), the UV set they share
+        and their shared KHR_texture_transform (offset, rotation, scale) or None."""
+        pbr = mat.get("pbrMetallicRoughness") or {}
+        refs = {k: r for k, r in (("albedo", pbr.get("baseColorTexture")), ("normal_map", mat.get("normalTexture")))
+                if r is not None}
+        sets = {gltf_document.texcoord_set(r) for r in refs.values()}
+        if len(sets) > 1:
+            raise DermisError(f"{self.path}: material {label} samples its maps through different UV sets "
+                              f"({', '.join(f'TEXCOORD_{k}' for k in sorted(sets))}): per-map texCoord sets are not supported")
+
+        def transform(r):
+            tt = gltf_document.texture_transform(r)
+            if tt is None:
+                return None
+            t = (tuple(tt.get("offset", (0.0, 0.0))), float(tt.get("rotation", 0.0)), tuple(tt.get("scale", (1.0, 1.0))))
+            return None if t == ((0, 0), 0.0, (1, 1)) else t
+
+        transforms = {transform(r) for r in refs.values()}
+        if len(transforms) > 1:
+            raise DermisError(f"{self.path}: material {label} gives its maps different KHR_texture_transform "
+                              f"transforms: per-map texture transforms are not supported")
+        return refs, (sets.pop() if sets else 0), (transforms.pop() if transforms else None)
+
+    def _sampler(self, texture_index: int) -> tuple[tuple, tuple]:
+        """((wrapS, wrapT) as 'clamp' | 'mirror' | 'repeat', (minFilter, magFilter) GL enums or None);
+        no sampler: repeat and automatic filtering (glTF 2.0 5.26)."""
+        si = self.doc["textures"][texture_index].get("sampler")
+        sm = {} if si is None else self.doc["samplers"][si]
+        wrap = tuple(gltf_document.WRAP_MODES[sm.get(k, 10497)] for k in ("wrapS", "wrapT"))
+        filters = (sm.get("minFilter"), sm.get("magFilter"))
+        return wrap, (None if filters == (None, None) else filters)
+
+    def load(self, uv_convention: str, max_pixels: int = MAX_IMAGE_PIXELS, skin_materials=None):
+        """Returns (Mesh, material dict with 'albedo', 'normal_map', 'specular_map' Textures or None).
+
+        Only the primitives whose material is skin (``skin_materials``: names or indices; None =
+        the mesh's single material) are loaded; the others are dropped with a warning (dermis has
+        no metallic-roughness shading yet). The skin material's maps are sampled through the UV
+        set they name (texCoord), with their KHR_texture_transform applied to the UVs and their
+        samplers' wrap modes and filters kept on the Textures; COLOR_0 is multiplied into the base
+        colour by baking it into an albedo texture: on a generated layout (materials without maps),
+        or into the albedo in the maps' own layout (which must be unique and inside [0, 1])."""
+        g, doc = self.gltf, self.doc
         if not g.meshes:
             raise DermisError(f"{self.path}: glTF has no meshes")
-        P, N, UV, I, TAN = [], [], [], [], []
-        base = 0
-        material_index = None
         mats = self._node_matrices()
         node_meshes = [(mats[i], n.mesh) for i, n in enumerate(g.nodes) if n.mesh is not None and i in mats]
         if not node_meshes:
             node_meshes = [(np.eye(4), i) for i in range(len(g.meshes))]
+        prims = [(m4, mi, p) for m4, mi in node_meshes for p in doc["meshes"][mi]["primitives"]
+                 if p.get("mode", 4) == 4 and "POSITION" in p["attributes"]]  # points/lines: not skin
+        if not prims:
+            raise DermisError(f"{self.path}: glTF has no triangle meshes")
+        used = list(dict.fromkeys(p.get("material") for _, _, p in prims))
+        skin = self._skin_set(used, skin_materials)
+        for m in used:
+            if m not in skin:
+                warn(f"{self.path}: primitives with material {self._material_label(m)} (not skin) are not rendered: "
+                     f"glTF metallic-roughness shading is not supported yet")
+        prims = [x for x in prims if x[2].get("material") in skin]
+        self._warn_unsupported(prims)
+        mat, label = self._skin_material(skin)
+        refs, uv_set, uv_transform = self._maps(mat, label)
+        texcoord = f"TEXCOORD_{uv_set}"
+        P, N, UV, I, TAN, COL = [], [], [], [], [], []
+        base = 0
         have_tangents = True
         try:
-            for m4, mi in node_meshes:
-                for prim in g.meshes[mi].primitives:
-                    if prim.mode not in (None, 4):
-                        continue  # points/lines: not skin
-                    at = prim.attributes
-                    if at.POSITION is None:
-                        continue
-                    p = self.accessor(at.POSITION).astype(np.float64)
-                    p = (np.c_[p, np.ones(len(p))] @ m4.T)[:, :3]
-                    det = np.linalg.det(m4[:3, :3])
-                    if not np.isfinite(det) or abs(det) < 1e-30:
-                        raise DermisError(f"{self.path}: a node's transform of mesh {mi} is singular or not finite "
-                                          f"(scale 0, or numbers too large)")
-                    nm = np.linalg.inv(m4[:3, :3]).T
-                    n = self.accessor(at.NORMAL).astype(np.float64) @ nm.T if at.NORMAL is not None else None
-                    uv = self.accessor(at.TEXCOORD_0).astype(np.float64) if at.TEXCOORD_0 is not None else None
-                    if at.TANGENT is not None:
-                        tg = self.accessor(at.TANGENT).astype(np.float64)
-                        tg[:, :3] = tg[:, :3] @ m4[:3, :3].T
-                        if np.linalg.det(m4[:3, :3]) < 0:  # a mirroring transform flips handedness
-                            tg[:, 3] = -tg[:, 3]
-                        TAN.append(tg)
-                    else:
-                        have_tangents = False
-                    idx = self.accessor(prim.indices).reshape(-1) if prim.indices is not None else np.arange(len(p))
-                    if len(idx) % 3:
-                        raise DermisError(f"{self.path}: index count {len(idx)} is not a multiple of 3")
-                    if len(idx) and (idx.max() >= len(p)):
-                        raise DermisError(f"{self.path}: triangle indices out of range")
-                    P.append(p)
-                    N.append(n)
-                    UV.append(uv)
-                    I.append(idx.reshape(-1, 3).astype(np.int64) + base)
-                    base += len(p)
-                    if material_index is None:
-                        material_index = prim.material
+            for m4, mi, prim in prims:
+                at = prim["attributes"]
+                p = self.accessor(at["POSITION"]).astype(np.float64)
+                p = (np.c_[p, np.ones(len(p))] @ m4.T)[:, :3]
+                det = np.linalg.det(m4[:3, :3])
+                if not np.isfinite(det) or abs(det) < 1e-30:
+                    raise DermisError(f"{self.path}: a node's transform of mesh {mi} is singular or not finite "
+                                      f"(scale 0, or numbers too large)")
+                nm = np.linalg.inv(m4[:3, :3]).T
+                n = self.accessor(at["NORMAL"]).astype(np.float64) @ nm.T if "NORMAL" in at else None
+                uv = self.accessor(at[texcoord]).astype(np.float64) if texcoord in at else None
+                # glTF 2.0 3.7.2.1: COLOR_0 multiplies the base colour (linear; alpha unused here)
+                col = self.accessor(at["COLOR_0"]).astype(np.float64)[:, :3] if "COLOR_0" in at else np.ones((len(p), 3))
+                if "TANGENT" in at and uv_set == 0:  # tangents follow TEXCOORD_0
+                    tg = self.accessor(at["TANGENT"]).astype(np.float64)
+                    tg[:, :3] = tg[:, :3] @ m4[:3, :3].T
+                    if np.linalg.det(m4[:3, :3]) < 0:  # a mirroring transform flips handedness
+                        tg[:, 3] = -tg[:, 3]
+                    TAN.append(tg)
+                else:
+                    have_tangents = False
+                idx = self.accessor(prim["indices"]).reshape(-1) if prim.get("indices") is not None else np.arange(len(p))
+                if len(idx) % 3:
+                    raise DermisError(f"{self.path}: index count {len(idx)} is not a multiple of 3")
+                if len(idx) and (idx.max() >= len(p)):
+                    raise DermisError(f"{self.path}: triangle indices out of range")
+                P.append(p)
+                N.append(n)
+                UV.append(uv)
+                COL.append(col)
+                I.append(idx.reshape(-1, 3).astype(np.int64) + base)
+                base += len(p)
         except DermisError:
             raise
         except Exception as exc:
             raise DermisError(f"{self.path}: malformed glTF mesh data ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
-        if not P:
-            raise DermisError(f"{self.path}: glTF has no triangle meshes")
         normals = None if any(n is None for n in N) else np.concatenate(N)
         tangents = np.concatenate(TAN) if have_tangents and TAN else None
         if any(u is None for u in UV) and not all(u is None for u in UV):
-            raise DermisError(f"{self.path}: some mesh primitives have TEXCOORD_0 (UVs) and others do not")
+            raise DermisError(f"{self.path}: some mesh primitives have {texcoord} (UVs) and others do not")
+        positions, indices, colours = np.concatenate(P), np.concatenate(I), np.concatenate(COL)
         uvs = None if UV[0] is None else np.concatenate(UV)  # None: generated (finish_mesh)
-        mesh = finish_mesh(np.concatenate(P), normals, uvs, np.concatenate(I), str(self.path), uv_convention, tangents)
+        halve = (False, False)
+        if uvs is not None and refs:
+            uvs = apply_texture_transform(uvs, uv_transform)
+            if uv_transform is not None:
+                tangents = None  # regenerated for the transformed UVs
+            wraps = [self._sampler(r["index"])[0] for r in refs.values()]
+            halve = tuple(any(w[a] == "mirror" for w in wraps) for a in (0, 1))
+            uvs = uvs * np.where(halve, 0.5, 1.0)  # mirrored repeat baked into a doubled image (_mirror_doubled)
+        pbr = mat.get("pbrMetallicRoughness") or {}
+        factor = np.asarray(pbr["baseColorFactor"][:3], np.float32) if "baseColorFactor" in pbr else None
         material = {"albedo": None, "normal_map": None, "specular_map": None, "albedo_color": None}
+        vertex_coloured = bool(np.any(np.abs(colours - 1.0) > 1e-6))
+        if vertex_coloured and not refs:  # no maps: the UVs are free for a generated layout
+            positions, normals, indices, uvs, albedo = bake_vertex_colours(positions, normals, indices, colours, factor,
+                                                                           f"{self.path} COLOR_0")
+            material["albedo"], tangents, uv_convention = albedo, None, "v-up"
+            vertex_coloured = False
+        mesh = finish_mesh(positions, normals, uvs, indices, str(self.path), uv_convention, tangents)
+        if vertex_coloured:  # maps: COLOR_0 goes into the albedo in the maps' own layout, which must be unique
+            from dermis.geometry.texture_space import layout_problem
+
+            problem = layout_problem(mesh.uvs, mesh.indices)
+            if problem is not None:
+                raise DermisError(f"{self.path}: material {label} has maps and the mesh has vertex colours (COLOR_0), "
+                                  f"which dermis bakes into the albedo in the maps' UV layout, but {problem}: COLOR_0 "
+                                  f"with this textured material is not supported")
         try:
-            if material_index is not None and g.materials:
-                mat = g.materials[material_index]
-                pbr = mat.pbrMetallicRoughness
-                factor = np.asarray(pbr.baseColorFactor[:3], np.float32) if pbr is not None and pbr.baseColorFactor else None
-                if pbr is not None and pbr.baseColorTexture is not None:
-                    tex = self.image(pbr.baseColorTexture.index, srgb=True, max_pixels=max_pixels)
-                    if factor is not None:  # glTF 2.0: base colour = factor x texture
-                        tex = Texture(tex.data * factor, tex.source)
-                    material["albedo"] = tex
-                elif factor is not None:
-                    material["albedo_color"] = tuple(float(x) for x in factor)
-                if mat.normalTexture is not None:
-                    material["normal_map"] = self.image(mat.normalTexture.index, srgb=False, max_pixels=max_pixels)
+            for key, ref in refs.items():
+                tex = self.image(ref["index"], srgb=key == "albedo", max_pixels=max_pixels)
+                wrap, filters = self._sampler(ref["index"])
+                data, wrap = _mirror_doubled(tex.data, wrap, halve, v_down=uv_convention == "v-down")
+                if key == "albedo" and factor is not None:  # glTF 2.0: base colour = factor x texture
+                    data = data * factor
+                material[key] = Texture(data, tex.source, wrap=wrap, filters=filters)
+            if vertex_coloured:
+                albedo = material["albedo"]
+                if albedo is None:  # a white map x factor at the bake's resolution
+                    R = VERTEX_COLOUR_RESOLUTION
+                    albedo = Texture(np.ones((R, R, 3), np.float32) * (1.0 if factor is None else factor), f"{self.path}")
+                H, W = albedo.data.shape[:2]
+                data = albedo.data[:, :, :3] * colour_image(mesh.uvs, mesh.indices, colours, W, H)
+                material["albedo"] = Texture(data.astype(np.float32), f"{albedo.source} x COLOR_0", wrap=albedo.wrap,
+                                             filters=albedo.filters)
+            if material["albedo"] is None and factor is not None:
+                material["albedo_color"] = tuple(float(x) for x in factor)
         except DermisError:
             raise
         except Exception as exc:
             raise DermisError(f"{self.path}: malformed glTF material ({type(exc).__name__}: "
                               f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
         return mesh, material
+
+
+def warn(message: str):
+    """A one-line warning on stderr (the CLI silences Python's warnings module)."""
+    print(f"dermis: warning: {message}", file=sys.stderr)
+
+
+def apply_texture_transform(uvs, transform):
+    """KHR_texture_transform: uv' = T(offset) R(rotation) S(scale) uv, in the file's UV space, with
+    R = [[cos, -sin], [sin, cos]] (the extension's GLSL: mat3(cos, sin, 0, -sin, cos, 0, 0, 0, 1),
+    column-major). Exact per vertex: the transform is affine, so it commutes with interpolation."""
+    if transform is None:
+        return uvs
+    (ou, ov), r, (su, sv) = transform
+    u, v = uvs[:, 0] * su, uvs[:, 1] * sv
+    c, s = np.cos(r), np.sin(r)
+    return np.c_[c * u - s * v + ou, s * u + c * v + ov]
+
+
+def _mirror_doubled(data, wrap, halve, v_down: bool):
+    """glTF MIRRORED_REPEAT without a mirrored sampler: when any map mirrors along an axis the UVs
+    along it are halved (GltfAsset.load) and every map is doubled along it, so that REPEAT (or
+    CLAMP) of the doubled image at u/2 equals the map's own wrap at u: mirror -> image + flipped
+    image, repeat -> the image twice, clamp -> the image + its edge texels."""
+    wrap = list(wrap)
+    for axis, img_axis in ((0, 1), (1, 0)):  # u runs along columns, v along rows
+        if not halve[axis]:
+            if wrap[axis] == "mirror":  # cannot happen (halve covers every mirrored map)
+                wrap[axis] = "repeat"
+            continue
+        # the half of the doubled image that u/2 in [0, 0.5) covers: v = 0 is the top row when
+        # the file's v points down (glTF), the bottom row when it points up
+        first = not (axis == 1 and not v_down)
+        edge_at = -1 if first else 0  # the edge texel where the coordinate reaches 1
+        if wrap[axis] == "mirror":
+            other = np.flip(data, img_axis)
+        elif wrap[axis] == "repeat":
+            other = data
+        else:
+            other = np.repeat(np.take(data, [edge_at], axis=img_axis), data.shape[img_axis], axis=img_axis)
+        data = np.concatenate([data, other] if first else [other, data], axis=img_axis)
+        wrap[axis] = "clamp" if wrap[axis] == "clamp" else "repeat"
+    return data, tuple(wrap)
+
+
+VERTEX_COLOUR_RESOLUTION = 512  # texels per side of the albedo texture COLOR_0 is baked into
+
+
+def bake_vertex_colours(positions, normals, indices, colours, factor, source: str):
+    """COLOR_0 x baseColorFactor as an albedo texture on a generated unique layout (xatlas): the
+    colours interpolated linearly over each triangle, as the rasteriser interpolates a vertex
+    attribute, and spread into the gutters (nearest covered texel) for filtering. Returns the
+    mesh split along the layout's seams: (positions, normals, indices, uvs v-up, Texture)."""
+    from dermis.geometry.atlas import generate_atlas
+
+    R = VERTEX_COLOUR_RESOLUTION
+    positions = np.asarray(positions, np.float32)
+    if normals is None:
+        normals = vertex_normals(positions, indices)
+    atlas = generate_atlas(positions, indices, resolution=R)
+    img = colour_image(atlas.uvs, atlas.indices, np.asarray(colours)[atlas.vmapping], R, R)
+    if factor is not None:
+        img = img * np.asarray(factor, np.float32)
+    return (positions[atlas.vmapping], np.asarray(normals)[atlas.vmapping], atlas.indices.astype(np.int64),
+            atlas.uvs, Texture(img, source))
+
+
+def colour_image(uvs, indices, colours, width: int, height: int) -> np.ndarray:
+    """Per-vertex colours (N, 3) as a (height, width, 3) float32 image in the UV layout ``uvs`` (v up,
+    unique, inside [0, 1]): interpolated linearly over each triangle, as the GPU interpolates a
+    vertex attribute, and spread into the gutters from the nearest covered texel for filtering."""
+    from scipy import ndimage
+
+    from dermis.geometry.rasterize import rasterize_uv
+
+    tri, bary = rasterize_uv(uvs, indices, width, height)
+    corners = np.asarray(indices, np.int64)[np.maximum(tri, 0)]  # (H, W, 3)
+    img = np.einsum("hwk,hwkc->hwc", bary.astype(np.float64), np.asarray(colours, np.float64)[corners])
+    cov = tri >= 0
+    if not cov.any():
+        return np.ones((height, width, 3), np.float32)
+    near = ndimage.distance_transform_edt(~cov, return_distances=False, return_indices=True)
+    return np.clip(img[near[0], near[1]], 0.0, 1.0).astype(np.float32)  # barycentric rounding: -1e-9
 
 
 # ----------------------------------------------------------------------------- OBJ + MTL
@@ -539,12 +783,15 @@ def load_obj(path: Path, uv_convention: str = "v-up", max_pixels: int = MAX_IMAG
     return mesh, material
 
 
-def load_mesh_file(path, uv_convention: str | None = None, max_pixels: int = MAX_IMAGE_PIXELS):
-    """Load a .glb/.gltf/.obj; ``uv_convention`` None picks the format's own convention."""
+def load_mesh_file(path, uv_convention: str | None = None, max_pixels: int = MAX_IMAGE_PIXELS, skin_materials=None):
+    """Load a .glb/.gltf/.obj; ``uv_convention`` None picks the format's own convention;
+    ``skin_materials``: the glTF materials (names or indices) rendered as skin (GltfAsset.load)."""
     path = Path(path)
     ext = path.suffix.lower()
     if ext in (".glb", ".gltf"):
-        return GltfAsset(path).load(uv_convention or "v-down", max_pixels)
+        return GltfAsset(path).load(uv_convention or "v-down", max_pixels, skin_materials)
+    if skin_materials is not None:
+        raise DermisError(f"{path}: [skin] materials chooses glTF materials; this mesh is not glTF")
     if ext == ".obj":
         return load_obj(path, uv_convention or "v-up", max_pixels)
     raise DermisError(f"{path}: unsupported mesh format '{ext}' (use .glb, .gltf or .obj)")

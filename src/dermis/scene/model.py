@@ -61,6 +61,11 @@ class Texture:
 
     data: np.ndarray
     source: str = "<texture>"
+    # sampler state on upload, per axis (s = u, t = v): "clamp" or "repeat" (a glTF
+    # MIRRORED_REPEAT is baked into the image by the loader); filters: (min, mag) as GL enums
+    # (glTF sampler minFilter/magFilter), None = trilinear with mipmaps
+    wrap: tuple = ("clamp", "clamp")
+    filters: tuple | None = None
 
     @property
     def size(self) -> tuple[int, int]:

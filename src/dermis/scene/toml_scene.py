@@ -131,9 +131,12 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
     material_from_file = {}
     builtin_material = None
     if "file" in mesh_t:
-        mesh, material_from_file = load_mesh_file(folder / mesh_t["file"], mesh_t.get("uv_convention"), max_pixels)
+        mesh, material_from_file = load_mesh_file(folder / mesh_t["file"], mesh_t.get("uv_convention"), max_pixels,
+                                                  skin_materials(doc.get("skin", {}), path))
         default_mm = 1.0
     else:
+        if skin_materials(doc.get("skin", {}), path) is not None:
+            raise DermisError(f"{path}: [skin] materials chooses a glTF mesh's materials; [mesh] builtin has none")
         mesh, builtin_material, default_mm = builtin_mesh(mesh_t["builtin"], source=path)
     if "texture_space_uv" in mesh_t:  # the UV set tsd works in (dermis.geometry.texture_space)
         from dermis.geometry.texture_space import MODES
@@ -207,6 +210,17 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
 
 
 
+def skin_materials(section, source) -> list | None:
+    """[skin] materials: the glTF materials rendered as skin, by name or index (None: not given)."""
+    if not isinstance(section, dict) or "materials" not in section:
+        return None
+    v = section["materials"]
+    if not isinstance(v, list) or not v or not all(
+            isinstance(x, str) or (isinstance(x, int) and not isinstance(x, bool) and x >= 0) for x in v):
+        raise DermisError(f"{source}: [skin] materials must be a non-empty array of material names or indices, got {v!r}")
+    return v
+
+
 def resolve_profile_section(section: dict, folder: Path, source):
     """[skin] -> (SumOfGaussians, skin_color). ``color`` says where the skin's total diffuse
     colour comes from: "albedo" (the map; default for "deon" and profile files) or "profile" (the
@@ -217,6 +231,7 @@ def resolve_profile_section(section: dict, folder: Path, source):
     from dermis import profiles
 
     section = dict(section)
+    section.pop("materials", None)  # the mesh's skin materials (skin_materials), not the profile's
     color = section.pop("color", None)
     kind = section.get("profile", "deon")
     if color is None:

@@ -34,6 +34,7 @@ import moderngl
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.geometry.texture_space import UV_RANGE_TOLERANCE
 from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh
@@ -161,6 +162,14 @@ class TextureSpaceDiffusion(Technique):
         cov = data[:, :, 3] > 0.5
         if not cov.any():
             raise DermisError(f"{frame.scene.mesh.source}: mesh covers no texel of its UV layout (all UVs outside [0, 1]?)")
+        # the count below sees only [0, 1]^2 (the viewport): UVs beyond it (REPEAT tiling) would pass it
+        m = frame.scene.mesh
+        uv_ts = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
+        lo, hi = float(np.min(uv_ts)), float(np.max(uv_ts))
+        if lo < -UV_RANGE_TOLERANCE or hi > 1.0 + UV_RANGE_TOLERANCE:
+            raise DermisError(f"{m.source}: UVs run outside [0, 1] (from {lo:.3g} to {hi:.3g}, a repeating texture?); "
+                              f"technique '{self.name}' needs a unique UV layout: set [mesh] texture_space_uv = \"auto\" "
+                              f"or \"generate\" for a generated one, or use --technique ssss or lambert")
         # texture space needs a unique layout: count coverage with additive blending
         count = self._texture("uv_count", (S, S), 4, "f4")
         self.ctx.enable(moderngl.BLEND)
