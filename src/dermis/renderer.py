@@ -206,7 +206,7 @@ class Renderer:
         from dermis.geometry.visibility import mesh_visibility, open_visibility
 
         m = self.scene.mesh
-        if getattr(self.scene.environment, "occlusion", True):
+        if self.scene.environment.occlusion:
             with self.timer("visibility"):
                 vis = mesh_visibility(m)
                 self.gpu.set_visibility(vis.attribute())

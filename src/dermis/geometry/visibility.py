@@ -100,8 +100,13 @@ def bake_vertex_visibility(positions, normals, indices, *, rays: int = BAKE_RAYS
     n64 = np.where(ln > 0, n64 / np.maximum(ln, 1e-300), [[0.0, 0.0, 1.0]])
     diag = float(np.linalg.norm(p.max(0) - p.min(0))) if len(p) else 1.0
     caster = RayCaster(p, t)
-    ao, bent = caster.ambient_occlusion(p, n64, rays, offset=OFFSET_REL * diag, seed=seed)
-    v = VertexVisibility(ao.astype(np.float32), bent.astype(np.float32), time.perf_counter() - t0, False)
+    # one bake per distinct (position, normal): the copies of a vertex split along UV seams get the
+    # same rays, so the Monte Carlo noise does not draw the seams
+    _, first, inverse = np.unique(np.concatenate([p, nrm], axis=1), axis=0, return_index=True, return_inverse=True)
+    ao, bent = caster.ambient_occlusion(p[first], n64[first], rays, offset=OFFSET_REL * diag, seed=seed)
+    inverse = inverse.reshape(-1)
+    v = VertexVisibility(ao[inverse].astype(np.float32), bent[inverse].astype(np.float32), time.perf_counter() - t0,
+                         False)
     if cache:
         _remember(key, v)
     if path is not None:

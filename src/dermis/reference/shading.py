@@ -57,7 +57,7 @@ class LightRig:
         lo, hi = scene.bounds()
         self.epsilon_mm = SHADOW_EPSILON_REL * float(np.linalg.norm((hi - lo) * mm)) + 1e-9
         self.ambient_offset_mm = OFFSET_REL * float(np.linalg.norm((hi - lo) * mm))
-        self.occlusion = bool(getattr(scene.environment, "occlusion", True))
+        self.occlusion = bool(scene.environment.occlusion)
         self._ambient_batches = 0  # seeds successive ambient-occlusion batches differently, deterministically
 
     def ambient_visibility(self, attrs):
