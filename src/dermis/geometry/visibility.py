@@ -39,7 +39,7 @@ from dermis.profiles.scene_skin import _cache_folder
 
 BAKE_RAYS = 256
 """Cosine-weighted rays per vertex: a standard error of at most 0.5/sqrt(256) = 0.031 in A."""
-CACHE_VERSION = 1  # bump when the bake changes meaning
+CACHE_VERSION = 2  # bump when the bake changes meaning (2: control-variate bent normals)
 OFFSET_REL = 1e-5
 """Ray-origin offset along the vertex normal, relative to the mesh's bounding diagonal (float32
 hits of the triangles around the vertex are not counted as occluders)."""
