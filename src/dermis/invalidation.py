@@ -28,8 +28,11 @@ PRODUCTS = {
     "mesh_curvature": ("mesh", "scale"),
     "stretch": ("mesh", "scale", "irradiance_size"),
     "profile_tables": ("profile",),
-    "texture_space": ("mesh", "scale", "lights", "environment", "material_maps", "material_scalars", "profile",
-                      "irradiance_size", "epoch"),
+    # ambient occlusion and bent normals (geometry/visibility.py, cached per mesh content), or the
+    # open sky's (1, normal) with [environment] occlusion = false, in the vertex buffer
+    "environment_visibility": ("mesh", "environment_occlusion"),
+    "texture_space": ("mesh", "scale", "lights", "environment", "environment_occlusion", "material_maps",
+                      "material_scalars", "profile", "irradiance_size", "epoch"),
 }
 """Every cached product and what it depends on. "epoch" is bumped by Renderer.invalidate()."""
 
@@ -78,6 +81,7 @@ def scene_inputs(scene, *, irradiance_size: int, epoch: int) -> dict:
         "light_geometry": [light_geometry(L) for L in scene.lights],
         "lights": [light_state(L) for L in scene.lights],
         "environment": (tuple(env.color), env.intensity, _texture(env.image)),
+        "environment_occlusion": bool(env.occlusion),
         "profile": (fingerprint(np.asarray(scene.profile.variances_mm2, np.float64)),
                     fingerprint(np.asarray(scene.profile.weights, np.float64)), scene.skin_color),
         "irradiance_size": int(irradiance_size),

@@ -56,6 +56,7 @@ class Renderer:
         self._lights = None  # LightUniforms of the key self._built["light_uniforms"]
         self._epoch = 0  # bumped by invalidate(): an input of the products that invalidate() re-runs
         self._last_camera = None
+        self.visibility = None  # the last VertexVisibility uploaded (geometry/visibility.py), None when off
         self._texture_space_checked = None  # the mesh object _texture_space_mesh last returned
         self.stats = {}
         self.last_frame = None
@@ -180,6 +181,10 @@ class Renderer:
                 self._rebuild_gpu_scene()
             self._built["gpu_mesh"] = keys["gpu_mesh"]
             self._built["material_textures"] = keys["material_textures"]
+        # a GpuScene made since the last upload (a new mesh) starts with the open sky's visibility
+        if self._stale("environment_visibility", keys) or not self.gpu.visibility_uploaded:
+            self._upload_visibility(passes)
+            self._built["environment_visibility"] = keys["environment_visibility"]
         if self._stale("material_textures", keys):
             self.gpu.upload_material()
             self._built["material_textures"] = keys["material_textures"]
@@ -195,6 +200,22 @@ class Renderer:
             passes.append("shadow")
         else:
             self.shadows.update_params(self._lights)
+
+    def _upload_visibility(self, passes: list):
+        """in_visibility: the mesh's baked ambient occlusion and bent normals (cached per mesh
+        content, in memory and on disk), or (1, normal) with [environment] occlusion = false."""
+        from dermis.geometry.visibility import mesh_visibility, open_visibility
+
+        m = self.scene.mesh
+        if self.scene.environment.occlusion:
+            with self.timer("visibility"):
+                vis = mesh_visibility(m)
+                self.gpu.set_visibility(vis.attribute())
+            self.visibility = vis
+            passes.append("visibility")
+        else:
+            self.gpu.set_visibility(open_visibility(len(m.positions), m.normals))
+            self.visibility = None
 
     def side_render(self, technique: str, output_mode: int):
         """The last frame's view again with another output mode (e.g. specular only), for debug

@@ -10,12 +10,14 @@ import numpy as np
 
 from dermis.camera import light_matrices
 from dermis.environment import environment_sh
+from dermis.geometry.visibility import open_visibility
 from dermis.images import as_rgb
 from dermis.techniques.shared import LIGHT_TYPES, MAX_LIGHTS, SHARED_SAMPLERS
 
-VERTEX_FORMAT = "3f 3f 2f 4f 2f"
-# in_uv: the asset's UVs (material maps); in_uv_ts: the texture-space set (geometry/texture_space.py)
-VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent", "in_uv_ts")
+VERTEX_FORMAT = "3f 3f 2f 4f 2f 4f"
+# in_uv: the asset's UVs (material maps); in_uv_ts: the texture-space set (geometry/texture_space.py);
+# in_visibility: (ambient occlusion, bent normal) of geometry/visibility.py, location 6
+VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent", "in_uv_ts", "in_visibility")
 
 
 def set_uniform(prog, name, value):
@@ -96,12 +98,21 @@ class GpuScene:
         self.scene = scene
         m = scene.mesh
         uv_ts = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
-        verts = np.concatenate([m.positions, m.normals, m.uvs, m.tangents, uv_ts], axis=1).astype(np.float32)
-        self.vbo = ctx.buffer(np.ascontiguousarray(verts).tobytes())
+        self._attributes = np.concatenate([m.positions, m.normals, m.uvs, m.tangents, uv_ts], axis=1).astype(np.float32)
+        self.vbo = ctx.buffer(self._interleave(open_visibility(len(m.positions), m.normals)))
+        self.visibility_uploaded = False  # set_visibility() not called yet: open sky
         self.ibo = ctx.buffer(np.ascontiguousarray(m.indices, np.uint32).tobytes())
         self._vaos = {}
         self.textures = {}
         self.upload_material()
+
+    def _interleave(self, visibility) -> bytes:
+        return np.ascontiguousarray(np.concatenate([self._attributes, np.asarray(visibility, np.float32)], axis=1)).tobytes()
+
+    def set_visibility(self, visibility):
+        """Replace in_visibility ((n, 4): ambient occlusion, bent normal) in place: VAOs stay valid."""
+        self.vbo.write(self._interleave(visibility))
+        self.visibility_uploaded = True
 
     def vertex_content(self, prog) -> tuple:
         """(buffer, format, attributes...) of the vertex buffer for ``prog``: attributes the program

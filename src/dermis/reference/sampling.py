@@ -350,5 +350,6 @@ class SurfaceModel:
         return 1.0 - rho_s * self.specular_albedo(cos_theta, float(self.material.roughness)) / np.pi
 
     def ambient(self, n):
-        """environment_irradiance() of common/environment.glsl (unoccluded SH irradiance)."""
+        """environment_irradiance() of common/environment.glsl (SH irradiance, unoccluded;
+        shading.py applies the ambient visibility)."""
         return irradiance_sh_eval(self.env_sh, n)

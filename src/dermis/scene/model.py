@@ -126,6 +126,7 @@ class Environment:
     color: tuple = (0.03, 0.03, 0.035)
     image: Texture | None = None  # linear equirect; projected to 9 SH coefficients
     intensity: float = 1.0
+    occlusion: bool = True  # ambient occlusion and bent normals of the mesh (geometry/visibility.py)
 
 
 @dataclass

@@ -11,3 +11,26 @@ vec3 environment_irradiance(vec3 n) {
            + uEnvSH[7] * 1.092548 * n.x * n.z + uEnvSH[8] * 0.546274 * (n.x * n.x - n.y * n.y);
     return max(e, vec3(0.0));
 }
+
+// Occluded environment light (dermis/geometry/visibility.py, whose numpy twins these are).
+// vis: the interpolated per-vertex visibility attribute, (A, B): A the cosine-weighted ambient
+// occlusion, B the bent normal (Zhukov et al. 1998; Landis 2002). With environment occlusion off
+// vis = (1, vertex normal) and these reduce to the unoccluded terms.
+
+// The shading normal N (normal-mapped) bent as the geometric normal Ng is: N + (B - Ng).
+vec3 bent_shading_normal(vec3 N, vec3 Ng, vec4 vis) {
+    float lb = length(vis.yzw);
+    if (lb < 1e-6) return N;
+    return normalize(N + (vis.yzw / lb - normalize(Ng)));
+}
+
+// Landis 2002, sec. 4: E_env = A * E_sh(bent normal); exact for a constant environment.
+vec3 environment_irradiance_occluded(vec3 N, vec3 Ng, vec4 vis) {
+    return vis.x * environment_irradiance(bent_shading_normal(N, Ng, vis));
+}
+
+// Specular occlusion from ambient occlusion (Lagarde & de Rousiers 2014, "Moving Frostbite to
+// PBR", sec. 4.10.2, listing 26), m the lobe's roughness (Beckmann m ~ GGX alpha, Walter 2007).
+float specular_occlusion(float ndv, float ao, float m) {
+    return clamp(pow(ndv + ao, exp2(-16.0 * m - 1.0)) - 1.0 + ao, 0.0, 1.0);
+}

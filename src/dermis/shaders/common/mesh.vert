@@ -4,6 +4,7 @@ layout(location = 1) in vec3 in_normal;
 layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec4 in_tangent;
 layout(location = 5) in vec2 in_uv_ts;  // texture-space UV set (tsd's textures); in_uv: material maps
+layout(location = 6) in vec4 in_visibility;  // (ambient occlusion, bent normal): geometry/visibility.py
 #ifdef DERMIS_VERTEX_CURVATURE
 layout(location = 4) in float in_curvature;  // a technique's own per-vertex scalar (preintegrated: 1/mm)
 out float v_curvature;
@@ -14,8 +15,10 @@ out vec3 v_normal;
 out vec2 v_uv;
 out vec4 v_tangent;
 out vec2 v_uv_ts;
+out vec4 v_visibility;
 void main() {
     v_uv_ts = in_uv_ts;
+    v_visibility = in_visibility;
     v_world = in_position;
     v_normal = in_normal;
     v_uv = in_uv;

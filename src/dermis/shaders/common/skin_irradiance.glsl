@@ -3,12 +3,13 @@
 //   E = sum_lights E_i max(N.L, 0) shadow_soft (1 - rho_s a(N.L, m) / pi) + ambient,
 // the ambient being the environment's irradiance less the average energy the specular takes
 // (a at cos 0.5). The caller multiplies by albedo^mix (pre-scatter colour).
-// P: world position; Ng: geometric normal (shadow lookups); N: shading (normal-mapped) normal.
+// P: world position; Ng: geometric normal (shadow lookups); N: shading (normal-mapped) normal;
+// vis: the ambient visibility (common/environment.glsl), occluding the environment's irradiance.
 #include "common/shadow.glsl"
 #include "common/environment.glsl"
 #include "common/energy.glsl"
 
-vec3 skin_irradiance(vec3 P, vec3 Ng, vec3 N, float rho_s, float m) {
+vec3 skin_irradiance(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis) {
     vec3 E = vec3(0.0);
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
@@ -17,6 +18,6 @@ vec3 skin_irradiance(vec3 P, vec3 Ng, vec3 N, float rho_s, float m) {
         if (ndl <= 0.0) continue;
         E += Ei * ndl * shadow_soft(i, P, Ng) * energy_transmitted(rho_s, ndl, m);
     }
-    E += environment_irradiance(N) * energy_transmitted(rho_s, 0.5, m);
+    E += environment_irradiance_occluded(N, Ng, vis) * energy_transmitted(rho_s, 0.5, m);
     return E;
 }

@@ -9,8 +9,10 @@
 // d'Eon & Luebke 2007 (GPU Gems 3, 14.3): sum over lights of E_i * SHARP shadow * KS_Skin_Specular
 // / pi on the (pore-detailed) normal Ns, plus the environment's specular: its mean radiance
 // (irradiance / pi in the reflected direction) times the specular albedo rho_s a(N.V, m) / pi.
-// P: world position; Ng: geometric normal (shadow lookups, back-facing lights); V: to the eye.
-vec3 skin_specular_radiance(vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho_s, sampler2D beckmannTex) {
+// The environment's term is scaled by the specular occlusion of common/environment.glsl.
+// P: world position; Ng: geometric normal (shadow lookups, back-facing lights); V: to the eye;
+// vis: the ambient visibility (ambient occlusion, bent normal).
+vec3 skin_specular_radiance(vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho_s, sampler2D beckmannTex, vec4 vis) {
     vec3 spec = vec3(0.0);
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
@@ -19,6 +21,7 @@ vec3 skin_specular_radiance(vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho
         spec += Ei * shadow_sharp(i, P, Ng) * ks_skin_specular(Ns, L, V, m, rho_s, beckmannTex) * INV_PI;
     }
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
-    spec += environment_irradiance(reflect(-V, Ns)) * INV_PI * rho_s * rho_dt_lookup(uRhoDtTex, ndv, m) * INV_PI;
+    spec += environment_irradiance(reflect(-V, Ns)) * INV_PI * rho_s * rho_dt_lookup(uRhoDtTex, ndv, m) * INV_PI
+            * specular_occlusion(ndv, vis.x, m);
     return spec;
 }

@@ -11,6 +11,7 @@ in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
+in vec4 v_visibility;  // (ambient occlusion, bent normal)
 out vec4 f_color;
 
 
@@ -27,7 +28,7 @@ void main() {
     // incidence equals KS_Skin_Specular's, rho_s F0 / (4 m^2 pi) (d'Eon 2007, 14.3), i.e.
     // ks (n + 8) / (8 pi) = rho_s F0 / (4 m^2 pi). No Fresnel: the baseline's highlight is flat.
     float ks = rho_s * 0.028 * 2.0 / (m * m * (shininess + 8.0));
-    vec3 color = albedo * INV_PI * environment_irradiance(N);
+    vec3 color = albedo * INV_PI * environment_irradiance_occluded(N, Ng, v_visibility);
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
         vec3 E = light_incident(i, v_world, L);

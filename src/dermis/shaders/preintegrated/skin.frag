@@ -32,6 +32,7 @@ in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
+in vec4 v_visibility;  // (ambient occlusion, bent normal)
 in float v_curvature;
 out vec4 f_color;
 
@@ -115,12 +116,14 @@ void main() {
             S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), ds, pixel_mm));
         E += Ei * D * S * energy_transmitted(rho_s, clamp(dot(N, L), 0.0, 1.0), m);
     }
-    vec3 ambient = vec3(environment_irradiance(N_red).r, environment_irradiance(N_green).g, environment_irradiance(N_blue).b);
+    vec3 ambient = vec3(environment_irradiance_occluded(N_red, Ngeo, v_visibility).r,
+                        environment_irradiance_occluded(N_green, Ngeo, v_visibility).g,
+                        environment_irradiance_occluded(N_blue, Ngeo, v_visibility).b);
     E += ambient * energy_transmitted(rho_s, 0.5, m);
     E += transmitted_irradiance(v_world, Ngeo);
 
     vec3 diffuse = E * albedo_at(v_uv) * INV_PI * energy_transmitted(rho_s, ndv, m);
-    vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uBeckmannTex);
+    vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uBeckmannTex, v_visibility);
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec
                 : uOutputMode == OUTPUT_CURVATURE ? vec3(curvature) : diffuse + spec;
     f_color = vec4(color, 1.0);

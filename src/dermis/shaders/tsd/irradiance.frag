@@ -14,6 +14,7 @@ in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
+in vec4 v_visibility;  // (ambient occlusion, bent normal)
 out vec4 f_irradiance;
 
 void main() {
@@ -21,7 +22,7 @@ void main() {
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     float rho_s = specular_intensity(v_uv);
     float m = roughness_at(v_uv);
-    vec3 E = skin_irradiance(v_world, Ng, N, rho_s, m);  // lights, soft shadows, ambient, energy
+    vec3 E = skin_irradiance(v_world, Ng, N, rho_s, m, v_visibility);  // lights, soft shadows, ambient, energy
     vec3 albedo = albedo_at(v_uv);
     f_irradiance = vec4(E * albedo_power(albedo, uMix), 1.0);
 }
