@@ -38,6 +38,7 @@ import numpy as np
 from dermis.errors import DermisError
 from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
+from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
                                       set_profile_uniforms, surface_detail_uniforms,
@@ -93,7 +94,7 @@ class TextureSpaceDiffusion(Technique):
         self.tap_stretch = None
         self.uv_overlap = None
         self._stretch_chain_key = None
-        self._thickness_key = None
+        self.thickness = ThicknessTexture(self.ctx)  # the texel thickness bake (light through thin parts)
 
     # ------------------------------------------------------------------ resources
     def _texture(self, key, size, components=4, dtype="f2"):
@@ -131,12 +132,11 @@ class TextureSpaceDiffusion(Technique):
         self.tex = {}
         self.scene_changed()
         self._stretch_chain_key = None
-        self._thickness_key = None
+        self.thickness.release()
 
     def scene_changed(self):
         self._cache_key = None
         self._stretch_key = None
-        self._thickness_key = None
 
     # ------------------------------------------------------------------ passes
     def _fullscreen(self, prog, target_tex):
@@ -352,7 +352,7 @@ class TextureSpaceDiffusion(Technique):
         # translucency (texture space, half resolution)
         trans = self._texture("translucency", (max(S // 2, 1), max(S // 2, 1)))
         if self.options.translucency:
-            thickness = self._thickness(frame, trans.size[0])
+            thickness = self.thickness.get(frame, trans.size[0])
             with timer("tsd_translucency"):
                 prog = self.p_trans
                 translucency_uniforms(prog, True, self.options.translucency_strength)
@@ -364,23 +364,6 @@ class TextureSpaceDiffusion(Technique):
             frame.passes_run.append("tsd_translucency")
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)
-
-    def _thickness(self, frame: Frame, size: int):
-        """The texel thickness bake (dermis.geometry.thickness) at the translucency's resolution:
-        ray cast on the CPU once per mesh, scale and resolution (product "thickness")."""
-        from dermis.geometry.thickness import texel_thickness
-
-        key = frame.keys["thickness"]
-        tex = self.tex.get("thickness")
-        if key != self._thickness_key or tex is None or tex.size != (size, size):
-            with frame.timer("tsd_thickness"):
-                bake = texel_thickness(frame.scene.mesh, size, frame.scene.mm_per_unit)
-                tex = self._texture("thickness", (size, size), 4, "f4")
-                tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-                tex.write(np.ascontiguousarray(bake[::-1]).tobytes())  # GL rows: v = 0 first
-            self._thickness_key = key
-            frame.passes_run.append("tsd_thickness")
-        return tex
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         key = (frame.lighting_key, self.options)

@@ -32,6 +32,7 @@ in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
+in vec2 v_uv_ts;  // texture-space UVs: the thickness bake
 in float v_curvature;
 out vec4 f_color;
 
@@ -117,7 +118,7 @@ void main() {
     }
     vec3 ambient = vec3(environment_irradiance(N_red).r, environment_irradiance(N_green).g, environment_irradiance(N_blue).b);
     E += ambient * energy_transmitted(rho_s, 0.5, m);
-    E += transmitted_irradiance(v_world, Ngeo);
+    E += transmitted_irradiance(v_world, Ngeo, v_uv_ts);
 
     vec3 diffuse = E * albedo_at(v_uv) * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uBeckmannTex);
