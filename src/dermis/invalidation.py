@@ -27,7 +27,7 @@ PRODUCTS = {
     "shadow_atlas": ("mesh", "scale", "light_geometry", "epoch"),
     "mesh_curvature": ("mesh", "scale"),
     "stretch": ("mesh", "scale", "irradiance_size"),
-    "thickness": ("mesh", "scale", "irradiance_size"),  # tsd's texel thickness bake (geometry/thickness.py)
+    "thickness": ("mesh", "scale", "irradiance_size"),  # the texel thickness bake of translucency (gl/thickness.py)
     "profile_tables": ("profile",),
     "texture_space": ("mesh", "scale", "lights", "environment", "material_maps", "material_scalars", "profile",
                       "irradiance_size", "epoch"),
