@@ -10,10 +10,15 @@ import numpy as np
 
 
 class ThicknessTexture:
-    """One technique's copy of the bake; ``get`` rebuilds it when the frame's key or the size changes."""
+    """One technique's copy of the bake; ``get`` rebuilds it when the frame's key or the size changes.
 
-    def __init__(self, ctx):
+    ``filtered=False``: rgba32f, nearest (tsd reads the far face's (u, v)). ``filtered=True``:
+    rg32f (thickness x valid, valid), bilinear, for techniques that read the thickness alone at a
+    screen pixel (thickness = r / g where g > 0): nearest texels showed as blocks on a close-up ear."""
+
+    def __init__(self, ctx, filtered: bool = False):
         self.ctx = ctx
+        self.filtered = filtered
         self.tex = None
         self.key = None
 
@@ -26,10 +31,16 @@ class ThicknessTexture:
             with frame.timer("thickness"):
                 bake = texel_thickness(frame.scene.mesh, size, frame.scene.mm_per_unit)
                 self.release()
-                self.tex = self.ctx.texture((size, size), 4, dtype="f4")
-                self.tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                if self.filtered:
+                    data = np.stack([bake[..., 2] * bake[..., 3], bake[..., 3]], -1)
+                    self.tex = self.ctx.texture((size, size), 2, dtype="f4")
+                    self.tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+                else:
+                    data = bake
+                    self.tex = self.ctx.texture((size, size), 4, dtype="f4")
+                    self.tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
                 self.tex.repeat_x = self.tex.repeat_y = False
-                self.tex.write(np.ascontiguousarray(bake[::-1]).tobytes())  # GL rows: v = 0 first
+                self.tex.write(np.ascontiguousarray(data[::-1], np.float32).tobytes())  # GL rows: v = 0 first
             self.key = key
             frame.passes_run.append("thickness")
         return self.tex

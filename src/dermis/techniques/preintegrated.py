@@ -289,7 +289,7 @@ class PreintegratedSkin(Technique):
         self.curvature = None  # per-vertex curvature (1/mm) of the active mesh, numpy
         self._curvature_buffer = None
         self._vao = None
-        self.thickness = ThicknessTexture(self.ctx)  # thickness behind each texel (common/transmittance.glsl)
+        self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
         self._mesh_key = None
 
     # ------------------------------------------------------------------ resources

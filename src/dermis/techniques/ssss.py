@@ -82,7 +82,7 @@ class ScreenSpaceSSS(Technique):
         self.vaos = {}
         self.tex = {}
         self._targets_key = None
-        self.thickness = ThicknessTexture(self.ctx)  # thickness behind each texel (common/transmittance.glsl)
+        self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
 
     # ------------------------------------------------------------------ resources
     def _profile_programs(self, k: int):

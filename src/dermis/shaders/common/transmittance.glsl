@@ -14,7 +14,7 @@
 
 uniform float uTranslucencyMinVariance;  // mm^2
 uniform float uTranslucencyStrength;     // 1 = physical, 0 = off
-uniform sampler2D uThicknessMap;         // texture space: far face (u, v), thickness mm, valid (gl/thickness.py)
+uniform sampler2D uThicknessMap;         // texture space, bilinear: thickness (mm) x valid, valid (gl/thickness.py)
 
 // sum_k w_k exp(-d^2 / 2 v_k) over the wide Gaussians, per channel.
 vec3 transmittance_profile(float d_mm) {
@@ -35,13 +35,14 @@ vec3 transmittance_profile(float d_mm) {
 // h met at angle theta is h / cos(theta): an ear nearly edge-on to the light transmitted nothing.
 // The light diffuses through the thickness, so d = min(t, h) with h the ray-cast thickness behind
 // P along -N (geometry/thickness.py) - exact for a slab at any angle (T(h) cos(theta), as tsd) -
-// where t agrees with a slab of thickness h: t <= 1.5 h / |N.L| + 1 mm. A longer t means the
-// light's path left the tissue (the head behind a back-lit ear): t is kept (nothing passes).
+// where t agrees with a slab of thickness h: t <= 1.5 h / |N.L| + 1 mm (fading out by 2.5 h / |N.L|).
+// A longer t means the light's path left the tissue (the head behind a back-lit ear): t is kept.
 // Near terminators of thick parts h >= t, so d = t as before: no lines.
 vec3 transmitted_irradiance(vec3 P, vec3 Ng, vec2 uv_ts) {
     vec3 T = vec3(0.0);
     if (uTranslucencyStrength <= 0.0) return T;
-    vec4 th = texelFetch(uThicknessMap, ivec2(uv_ts * vec2(textureSize(uThicknessMap, 0))), 0);
+    vec2 th = texture(uThicknessMap, uv_ts).xy;
+    float h = th.y > 0.25 ? th.x / th.y : -1.0;  // mm; -1: no far face within reach
     for (int i = 0; i < uLightCount; ++i) {
         if (uLightRadiance[i].w < 0.5) continue;  // no shadow map, no thickness
         vec3 L;
@@ -53,8 +54,9 @@ vec3 transmitted_irradiance(vec3 P, vec3 Ng, vec2 uv_ts) {
         vec2 uv_near;
         float t = tsm_thickness_mm(i, P, uv_near);
         if (t < 0.0) continue;
-        float d = t;
-        if (th.w > 0.5 && t <= 1.5 * th.z / max(cos_exit, 1e-3) + 1.0) d = min(t, th.z);
+        // 1 where t agrees with the slab, fading to 0 (keep t) between 1.5 and 2.5 h / |N.L| + 1 mm
+        float slab = h < 0.0 ? 0.0 : 1.0 - smoothstep(1.5, 2.5, (t - 1.0) * max(cos_exit, 1e-3) / max(h, 1e-3));
+        float d = mix(t, min(t, h), slab);
         T += Ei * (away * tsm_entry_cosine(i, P)) * transmittance_profile(d);
     }
     return T * uTranslucencyStrength;
