@@ -27,6 +27,7 @@ PRODUCTS = {
     "shadow_atlas": ("mesh", "scale", "light_geometry", "epoch"),
     "mesh_curvature": ("mesh", "scale"),
     "stretch": ("mesh", "scale", "irradiance_size"),
+    "thickness": ("mesh", "scale", "irradiance_size"),  # the texel thickness bake of translucency (gl/thickness.py)
     "profile_tables": ("profile",),
     # ambient occlusion and bent normals (geometry/visibility.py, cached per mesh content), or the
     # open sky's (1, normal) with [environment] occlusion = false, in the vertex buffer

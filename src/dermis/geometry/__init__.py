@@ -5,6 +5,8 @@
                       renderer; ambient occlusion, bent normals and thickness bakes).
 * ``rasterize``     - a triangle rasteriser in UV space (which triangle covers each texel, its
                       barycentrics, how many triangles cover it): texture painting, overlap tests.
+* ``thickness``     - the tissue's thickness behind every texel along -N and where it ends (tsd's
+                      light through thin parts), by ray casting.
 * ``atlas``         - texture-space UV atlases from xatlas (charts, parameterisation, packing with
                       gutters), cached on disk by the mesh's content hash.
 * ``texture_space`` - the UV set texture-space diffusion works in: the mesh's own when unique,

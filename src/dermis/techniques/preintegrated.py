@@ -50,6 +50,7 @@ import numpy as np
 
 from dermis.gl.resources import set_uniform
 from dermis.gl.shaders import program
+from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, casts_translucency,
                                       set_profile_uniforms, surface_detail_uniforms, translucency_uniforms)
@@ -64,7 +65,7 @@ PENUMBRA_WIDTH_RANGE_MM = (0.05, 100.0)
 PENUMBRA_SHARPEN_MIN = 0.5  # the sharpened edge keeps at least this fraction of the PCF penumbra
 RING_PROFILE = "line"  # the ring's kernel: "line" (profile integrated across the ring) or "radial" (Penner)
 
-UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE = Unit.FIRST_FREE, Unit.FIRST_FREE + 1
+UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE, UNIT_THICKNESS = Unit.FIRST_FREE, Unit.FIRST_FREE + 1, Unit.FIRST_FREE + 2
 
 _TABLE_CACHE: dict = {}
 
@@ -288,6 +289,7 @@ class PreintegratedSkin(Technique):
         self.curvature = None  # per-vertex curvature (1/mm) of the active mesh, numpy
         self._curvature_buffer = None
         self._vao = None
+        self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
         self._mesh_key = None
 
     # ------------------------------------------------------------------ resources
@@ -343,6 +345,8 @@ class PreintegratedSkin(Technique):
             prog = self.prog
             bind_sampler(prog, "uDiffuseTable", self.profile_tables["diffuse"], UNIT_DIFFUSE_TABLE)
             bind_sampler(prog, "uPenumbraTable", self.profile_tables["penumbra"], UNIT_PENUMBRA_TABLE)
+            bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
+                         UNIT_THICKNESS)
             set_profile_uniforms(prog, profile, MAX_GAUSSIANS)
             translucency_uniforms(prog, self.options.translucency and casts_translucency(frame.scene), self.options.translucency_strength)
             set_uniform(prog, "uCurvatureMaxPerMm", float(CURVATURE_MAX_PER_MM))
@@ -369,6 +373,7 @@ class PreintegratedSkin(Technique):
 
     def release(self):
         self._release_mesh()
+        self.thickness.release()
         for t in self.profile_tables.values():
             t.release()
         self.prog.release()

@@ -42,6 +42,7 @@ import numpy as np
 from dermis.errors import DermisError
 from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
+from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
                                       casts_translucency, set_profile_uniforms, surface_detail_uniforms,
@@ -81,6 +82,7 @@ class ScreenSpaceSSS(Technique):
         self.vaos = {}
         self.tex = {}
         self._targets_key = None
+        self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
 
     # ------------------------------------------------------------------ resources
     def _profile_programs(self, k: int):
@@ -158,6 +160,8 @@ class ScreenSpaceSSS(Technique):
             set_uniform(prog, "uViewZ", view_z_row(frame.view))
             set_profile_uniforms(prog, profile, profile.k)
             translucency_uniforms(prog, self.options.translucency and casts_translucency(scene), self.options.translucency_strength)
+            bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
+                         Unit.FIRST_FREE)
             draw_mesh(frame, prog)
             if irradiance is not None:
                 a = self.read_texture(t["irradiance"])
@@ -216,6 +220,7 @@ class ScreenSpaceSSS(Technique):
 
     def release(self):
         self._release_targets()
+        self.thickness.release()
         for v in self.vaos.values():
             v.release()
         for progs in self._programs.values():

@@ -12,7 +12,8 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
   for k = 1..K:  I_k = I_(k-1) * G(v_k - v_(k-1)) as a U then a V pass (chained: G(a)*G(b) = G(a+b)),
                  tap spacing from S_k, the stretch blurred by the same chain; wide Gaussians run at
                  half or quarter resolution (they hold no fine detail)
-  translucency T from the TSM: sum over wide k of w_k exp(-d^2 / 2 v_k) I_k(uv of the lit side)
+  translucency T through thin parts: sum over wide k of w_k exp(-d^2 / 2 v_k) I_k(far face), d the
+                 tissue's thickness behind the texel along -N (ray cast once per mesh, geometry/thickness.py)
   final (screen space): (sum_k w_k I_k + T) * albedo^(1-mix)/pi * (1 - rho_s a(N.V, m)/pi) + specular
 
 Everything before the final pass is view-independent and cached on the renderer's lighting key:
@@ -21,7 +22,8 @@ Inputs and units: the scene's mm_per_unit; a unique texture-space UV layout: the
 generated with xatlas (dermis.geometry.texture_space) while the material keeps the asset's UVs.
 Known failure modes: UV seams (mitigated by coverage-normalised blurs and gutter dilation; light
 does not cross a seam), stretch varying faster than the blur width, translucency sums all lights'
-irradiance at the lit side for each light that shadows the point.
+irradiance at the far face (every light and the ambient) through the thickness along -N only: light
+entering elsewhere (a nose wing lit from its side) is not transmitted.
 Shaders: shaders/tsd/*.glsl; specular in shaders/common/brdf.glsl.
 """
 
@@ -37,9 +39,10 @@ from dermis.errors import DermisError
 from dermis.geometry.texture_space import UV_RANGE_TOLERANCE
 from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
+from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
-                                      casts_translucency, set_profile_uniforms, surface_detail_uniforms,
+                                      set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
 
 OVERLAP_TOLERANCE = 0.01  # fraction of covered texels a UV layout may cover twice
@@ -92,6 +95,7 @@ class TextureSpaceDiffusion(Technique):
         self.tap_stretch = None
         self.uv_overlap = None
         self._stretch_chain_key = None
+        self.thickness = ThicknessTexture(self.ctx)  # the texel thickness bake (light through thin parts)
 
     # ------------------------------------------------------------------ resources
     def _texture(self, key, size, components=4, dtype="f2"):
@@ -129,6 +133,7 @@ class TextureSpaceDiffusion(Technique):
         self.tex = {}
         self.scene_changed()
         self._stretch_chain_key = None
+        self.thickness.release()
 
     def scene_changed(self):
         self._cache_key = None
@@ -355,15 +360,15 @@ class TextureSpaceDiffusion(Technique):
         frame.passes_run.append("tsd_blur")
         # translucency (texture space, half resolution)
         trans = self._texture("translucency", (max(S // 2, 1), max(S // 2, 1)))
-        if self.options.translucency and casts_translucency(scene):
+        if self.options.translucency:
+            thickness = self.thickness.get(frame, trans.size[0])
             with timer("tsd_translucency"):
                 prog = self.p_trans
-                bind_scene(frame, prog)
-                set_uniform(prog, "uMmPerUnit", float(scene.mm_per_unit))
                 translucency_uniforms(prog, True, self.options.translucency_strength)
                 self._profile_uniforms(prog, profile, Unit.FIRST_FREE)
-                # surface distance to the entry point (uv distance / stretch); past the blurs' units
+                # surface distance to the far face (uv distance / stretch); past the blurs' units
                 bind_sampler(prog, "uStretch", self.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
+                bind_sampler(prog, "uThickness", thickness, Unit.FIRST_FREE + MAX_GAUSSIANS + 1)
                 self._uv_pass(frame, prog, trans)
             frame.passes_run.append("tsd_translucency")
         else:

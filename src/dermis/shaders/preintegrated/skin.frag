@@ -33,6 +33,7 @@ in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
 in vec4 v_visibility;  // (ambient occlusion, bent normal)
+in vec2 v_uv_ts;  // texture-space UVs: the thickness bake
 in float v_curvature;
 out vec4 f_color;
 
@@ -120,7 +121,7 @@ void main() {
                         environment_irradiance_occluded(N_green, Ngeo, v_visibility).g,
                         environment_irradiance_occluded(N_blue, Ngeo, v_visibility).b);
     E += ambient * energy_transmitted(rho_s, 0.5, m);
-    E += transmitted_irradiance(v_world, Ngeo);
+    E += transmitted_irradiance(v_world, Ngeo, v_uv_ts);
 
     vec3 diffuse = E * albedo_at(v_uv) * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uBeckmannTex, v_visibility);

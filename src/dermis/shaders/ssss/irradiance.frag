@@ -17,6 +17,7 @@ in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
 in vec4 v_visibility;  // (ambient occlusion, bent normal)
+in vec2 v_uv_ts;  // texture-space UVs: the thickness bake
 out vec4 f_irradiance;
 
 void main() {
@@ -24,7 +25,7 @@ void main() {
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     float rho_s = specular_intensity(v_uv);
     float m = roughness_at(v_uv);
-    vec3 E = skin_irradiance(v_world, Ng, N, rho_s, m, v_visibility) + transmitted_irradiance(v_world, Ng);
+    vec3 E = skin_irradiance(v_world, Ng, N, rho_s, m, v_visibility) + transmitted_irradiance(v_world, Ng, v_uv_ts);
     vec3 albedo = albedo_at(v_uv);
     float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
     f_irradiance = vec4(E * albedo_power(albedo, uMix), depth_mm);

@@ -1,56 +1,46 @@
-// Translucency through thin parts with translucent shadow maps (d'Eon & Luebke 2007, 14.5.3).
-// For a texel on the side facing away from light i, the TSM gives the (u, v) where the light
-// entered and the thickness t (mm) of tissue it crossed along the light (common/shadow.glsl,
-// tsm_thickness_mm). Because G(v, sqrt(r^2 + t^2)) = exp(-t^2 / 2v) G(v, r),
-// the light that Gaussian k carries THROUGH the tissue is the lit side's already-blurred
-// irradiance I_k(uv_near) scaled by exp(-t^2 / 2 v_k).
+// Translucency through thin parts (d'Eon & Luebke 2007, 14.5.3) with a baked thickness: for the
+// texel B, uThickness (dermis/geometry/thickness.py) holds the point A where tissue ends behind B
+// along -N (as its texture-space (u, v)) and the thickness d (mm) between them. Because
+// G(v, sqrt(r^2 + d^2)) = exp(-d^2 / 2v) G(v, r), the light that Gaussian k carries THROUGH the
+// tissue from the far face is its already-blurred irradiance I_k(A) scaled by exp(-d^2 / 2 v_k):
+// exact for a slab, whatever the light's direction, and shadowed as the far face is.
 //
-// The blur chain has already carried the light of the entry point A = uv_near to this texel B
-// ALONG the surface, with Gaussian k's kernel exp(-g^2 / 2 v_k) G(v_k, r) for a surface distance
-// g between A and B. Light reaches B from A by the shorter path, and G falls with distance, so the
-// translucency adds only what the path through the tissue gives beyond it:
-//   T_k = w_k I_k(uv_near) max(0, exp(-t^2 / 2 v_k) - exp(-g^2 / 2 v_k)).
-// Without it, texels just past the terminator of thick parts (nose, eyelids, lips, jaw), where
-// the light's entry point is their own neighbour (t and g -> 0), counted that light twice: thin
-// bright lines along every shadow edge (example head: max 1.24 against a 99.9th percentile of
-// 0.23). Across an ear A and B are far apart on the surface (or in other UV islands) and the
-// whole transmitted light remains. g is measured in the texture: |uv_near - uv| in texels over
-// the stretch (texels per mm), exact for a flat layout, longer across a UV seam (no correction).
+// Why not the TSM's distance along the light: an ear nearly edge-on to the light has a path along
+// the light many times its thickness, so exp(-t^2 / 2v) left only a faint rim (back-ears); the
+// light spreads through the ear's thickness, not along the light. And a texel just past the
+// terminator of a thick part (nose, jaw) has its own neighbour as the TSM's entry point (t -> 0),
+// while behind it along -N there are centimetres of tissue: no terminator lines.
+//
+// The blur chain has already carried the light of A to B ALONG the surface, with Gaussian k's
+// kernel exp(-g^2 / 2 v_k) G(v_k, r) for a surface distance g; light reaches B by the shorter
+// path, so only the excess of the path through the tissue is added:
+//   T_k = w_k I_k(A) max(0, exp(-d^2 / 2 v_k) - exp(-g^2 / 2 v_k)),
+// g measured in the texture (|uv_A - uv_B| in texels over the stretch, texels per mm): exact for a
+// flat layout, longer across a UV seam (A and B in different islands: the whole T_k remains).
 // Only the wide Gaussians (variance >= uTranslucencyMinVariance) are used, the narrow ones carry
 // nothing through millimetres of tissue. Computed in texture space: view-independent, cached.
-#include "common/shadow.glsl"
 #include "tsd/gaussians.glsl"
 
 uniform float uTranslucencyMinVariance;
 uniform float uTranslucencyStrength;
-uniform sampler2D uStretch;  // texels per mm along u, v (tsd/stretch.frag)
-in vec3 v_world;
-in vec3 v_normal;
-in vec2 v_uv;
-in vec4 v_tangent;
+uniform sampler2D uStretch;    // texels per mm along u, v (tsd/stretch.frag)
+uniform sampler2D uThickness;  // (u, v) of the far face, thickness in mm, valid (geometry/thickness.py)
 out vec4 f_translucency;
 
 void main() {
-    vec3 Ng = normalize(v_normal);
+    vec4 th = texelFetch(uThickness, ivec2(gl_FragCoord.xy), 0);
     vec3 T = vec3(0.0);
-    for (int i = 0; i < uLightCount; ++i) {
-        if (uLightRadiance[i].w < 0.5) continue;  // no shadow map, no TSM
-        vec3 L;
-        light_incident(i, v_world, L);
-        // facing away from the light; the ramp avoids a seam at the terminator
-        float away = smoothstep(0.0, 0.25, -dot(Ng, L));
-        if (away <= 0.0) continue;
-        vec2 uv_near;
-        float t = tsm_thickness_mm(i, v_world, uv_near);
-        if (t < 0.0) continue;
-        vec2 stretch = max(texture(uStretch, v_uv).xy, vec2(1e-6));
-        vec2 texels = (uv_near - v_uv) * vec2(textureSize(uStretch, 0));
+    if (th.w > 0.5) {
+        vec2 uv = gl_FragCoord.xy / vec2(textureSize(uThickness, 0));  // this texel's texture-space uv
+        float d = th.z;
+        vec2 stretch = max(texture(uStretch, uv).xy, vec2(1e-6));
+        vec2 texels = (th.xy - uv) * vec2(textureSize(uStretch, 0));
         float g = length(texels / stretch);  // mm along the surface from A to B
         for (int k = 0; k < MAX_GAUSSIANS; ++k) {
             if (k >= uGaussianCount) break;
             if (uVariances[k] < uTranslucencyMinVariance) continue;
-            float excess = max(exp(-t * t / (2.0 * uVariances[k])) - exp(-g * g / (2.0 * uVariances[k])), 0.0);
-            T += away * excess * uWeights[k] * texture(uBlur[k], uv_near).rgb;
+            float excess = max(exp(-d * d / (2.0 * uVariances[k])) - exp(-g * g / (2.0 * uVariances[k])), 0.0);
+            T += excess * uWeights[k] * texture(uBlur[k], th.xy).rgb;
         }
     }
     f_translucency = vec4(T * uTranslucencyStrength, 1.0);

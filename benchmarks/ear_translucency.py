@@ -1,0 +1,96 @@
+"""Back-lit ear (examples/reference/back-ears.toml): red radiance over the ear and a crop of it.
+
+The ear mask comes from the mesh: the head's ears are the vertices farthest from the midline in x (above the scan's shoulders);
+the triangles whose three vertices are ear vertices, projected with the frame's camera, cover the
+mask (no depth test: in this view the ear is on the camera's side and nothing hides it).
+
+    PYTHONPATH=src python benchmarks/ear_translucency.py OUT_PREFIX [technique ...]
+prints per technique: mean linear red (and green, blue) radiance over the ear mask, and writes
+OUT_PREFIX_<technique>.png (sRGB, the scene's output transform) and OUT_PREFIX_<technique>_ear.png.
+
+    PYTHONPATH=src python benchmarks/ear_translucency.py --reference N [technique ...]
+renders the offline reference (dermis.reference, paths = "tissue": the profile integrated over
+the surface at 3-D distance, light through thin tissue included; about 30 s at N = 160 on 2 cores)
+and the techniques at N x N and prints the ear's mean radiance of each against it.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import dermis
+from dermis.output import output_transform
+from dermis.renderer import Renderer
+
+SCENE = Path(__file__).resolve().parent.parent / "examples" / "reference" / "back-ears.toml"
+EAR_FRACTION = 0.85  # x - midline beyond this fraction of the largest (above the shoulders): the ear
+
+
+def ear_mask(mesh, viewproj, size):
+    p = np.asarray(mesh.positions, np.float64)
+    upper = p[:, 1] > 0.5 * (p[:, 1].min() + p[:, 1].max())  # the head, not the shoulders of the scan
+    mid = 0.5 * (p[upper, 0].min() + p[upper, 0].max())
+    off = np.where(upper, p[:, 0] - mid, -np.inf)
+    ear = off > EAR_FRACTION * off.max()  # the +x ear (the camera's side)
+    tri = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
+    tri = tri[ear[tri].all(1)]
+    # the scan's coarse cranium triangles beside the ear (the ear is finely meshed)
+    edge = np.linalg.norm(p[tri] - p[np.roll(tri, 1, axis=1)], axis=2).max(1)
+    tri = tri[edge < 4.0 * np.median(edge)]
+    h = np.c_[p, np.ones(len(p))] @ np.asarray(viewproj, np.float64).T
+    ndc = h[:, :2] / h[:, 3:]
+    W, H = size
+    xy = np.stack([(ndc[:, 0] * 0.5 + 0.5) * W, (0.5 - ndc[:, 1] * 0.5) * H], 1)
+    from dermis.geometry.rasterize import rasterize_uv
+
+    uv = np.stack([xy[:, 0] / W, 1.0 - xy[:, 1] / H], 1)  # rasterize_uv: v = 0 at the bottom row
+    t, _ = rasterize_uv(uv, tri, W, H)
+    return t >= 0
+
+
+def main(prefix, techniques):
+    from PIL import Image
+
+    sc = dermis.load_scene(SCENE)
+    size = (512, 512)
+    with Renderer(sc, size, irradiance_size=1024) as r:
+        for tech in techniques:
+            img = r.render(tech)
+            mask = ear_mask(sc.mesh, r.last_frame.viewproj, size)
+            m = img[mask].mean(0)
+            print(f"{tech}: ear pixels {int(mask.sum())}, mean linear radiance r {m[0]:.4f} g {m[1]:.4f} b {m[2]:.4f}")
+            srgb = output_transform(img, sc.output.exposure, sc.output.tonemap)
+            u8 = (np.clip(srgb, 0, 1) * 255 + 0.5).astype(np.uint8)
+            Image.fromarray(u8).save(f"{prefix}_{tech}.png")
+            ys, xs = np.nonzero(mask)
+            y0, y1, x0, x1 = max(ys.min() - 20, 0), ys.max() + 20, max(xs.min() - 20, 0), xs.max() + 20
+            Image.fromarray(u8[y0:y1, x0:x1]).resize(((x1 - x0) * 2, (y1 - y0) * 2), Image.NEAREST).save(
+                f"{prefix}_{tech}_ear.png")
+
+
+def against_reference(n, techniques):
+    from dermis.reference.render import render_reference
+
+    sc = dermis.load_scene(SCENE)
+    ref = render_reference(sc, (n, n), spp=1, progress=False, paths="tissue").image
+    with Renderer(sc, (n, n), irradiance_size=1024) as r:
+        for tech in techniques:
+            for translucency in ((True,) if tech == "lambert" else (True, False)):
+                if tech != "lambert":
+                    r.technique(tech, translucency=translucency)
+                img = r.render(tech)
+                m = ear_mask(sc.mesh, r.last_frame.viewproj, (n, n))
+                a, b = img[m].mean(0), ref[m].mean(0)
+                print(f"{tech} (translucency {'on' if translucency else 'off'}): ear {int(m.sum())} px, "
+                      f"r {a[0]:.4f} g {a[1]:.4f} b {a[2]:.4f}; reference r {b[0]:.4f} g {b[1]:.4f} b {b[2]:.4f}; "
+                      f"ratio r {a[0] / b[0]:.3f} g {a[1] / b[1]:.3f}")
+
+
+if __name__ == "__main__":
+    if sys.argv[1] == "--reference":
+        against_reference(int(sys.argv[2]), sys.argv[3:] or ["tsd"])
+    else:
+        main(sys.argv[1], sys.argv[2:] or ["tsd"])

@@ -1,0 +1,52 @@
+"""The texel thickness bake (dermis.geometry.thickness) as a texture in the mesh's texture-space
+layout: rgba32f, (u, v) of the far face, thickness in mm, valid; nearest filtering (a far face's
+(u, v) must not be blended across islands). Built once per product key "thickness"
+(dermis.invalidation: mesh, scale, irradiance size)."""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+
+class ThicknessTexture:
+    """One technique's copy of the bake; ``get`` rebuilds it when the frame's key or the size changes.
+
+    ``filtered=False``: rgba32f, nearest (tsd reads the far face's (u, v)). ``filtered=True``:
+    rg32f (thickness x valid, valid), bilinear, for techniques that read the thickness alone at a
+    screen pixel (thickness = r / g where g > 0): nearest texels showed as blocks on a close-up ear."""
+
+    def __init__(self, ctx, filtered: bool = False):
+        self.ctx = ctx
+        self.filtered = filtered
+        self.tex = None
+        self.key = None
+
+    def get(self, frame, size: int):
+        """The texture for ``frame`` at size x size; appends "thickness" to frame.passes_run when baked."""
+        from dermis.geometry.thickness import texel_thickness
+
+        key = (frame.keys["thickness"], int(size))
+        if key != self.key or self.tex is None:
+            with frame.timer("thickness"):
+                bake = texel_thickness(frame.scene.mesh, size, frame.scene.mm_per_unit)
+                self.release()
+                if self.filtered:
+                    data = np.stack([bake[..., 2] * bake[..., 3], bake[..., 3]], -1)
+                    self.tex = self.ctx.texture((size, size), 2, dtype="f4")
+                    self.tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+                else:
+                    data = bake
+                    self.tex = self.ctx.texture((size, size), 4, dtype="f4")
+                    self.tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                self.tex.repeat_x = self.tex.repeat_y = False
+                self.tex.write(np.ascontiguousarray(data[::-1], np.float32).tobytes())  # GL rows: v = 0 first
+            self.key = key
+            frame.passes_run.append("thickness")
+        return self.tex
+
+    def release(self):
+        if self.tex is not None:
+            self.tex.release()
+        self.tex = None
+        self.key = None
