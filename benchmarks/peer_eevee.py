@@ -32,7 +32,9 @@ def _turn(v, angle):
 
 
 def eevee_frames(scene, size, frames, samples):
-    """EEVEE frame times (s) with the lights turning, after one untimed frame."""
+    """EEVEE frame times (s) with the lights turning: one animation render of frames + 1 frames
+    (so EEVEE compiles its shaders once, as an artist's render would), each frame timed between
+    Blender's render_pre and render_post handlers; the first frame (compilation) is not counted."""
     from dermis.blender import convert, quiet_fds, require_bpy
     from dermis.blender.export import ExportOptions, build_scene
 
@@ -41,21 +43,33 @@ def eevee_frames(scene, size, frames, samples):
     engines = [i.identifier for i in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items]
     bsc.render.engine = "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in engines else "BLENDER_EEVEE"
     bsc.eevee.taa_render_samples = int(samples)
-    bsc.render.filepath = str(Path(tempfile.mkdtemp()) / "eevee.png")
+    bsc.render.filepath = str(Path(tempfile.mkdtemp()) / "eevee_")
     lights = sorted((o for o in bsc.objects if o.type == "LIGHT"), key=lambda o: int(o.name.rsplit("_", 1)[1]))
     base = [tuple(L.direction) for L in scene.lights]
-    times = []
+    mpu = convert.metres_per_unit(scene)
     for f in range(frames + 1):
         for obj, L, d in zip(lights, scene.lights, base):
             pos = L.position if L.kind != "directional" else (0.0, 0.0, 0.0)
-            m = convert.object_matrix(pos, _turn(d, 0.02 * (f + 1)), (0.0, 1.0, 0.0), convert.metres_per_unit(scene))
+            m = convert.object_matrix(pos, _turn(d, 0.02 * (f + 1)), (0.0, 1.0, 0.0), mpu)
             obj.matrix_world = m.T.tolist()  # as export.build_lights places them
-        t0 = time.perf_counter()
+            for path in ("location", "rotation_euler", "scale"):
+                obj.keyframe_insert(data_path=path, frame=f + 1)
+    bsc.frame_start, bsc.frame_end = 1, frames + 1
+    stamps = []
+    pre = lambda *_: stamps.append(("pre", time.perf_counter()))  # noqa: E731
+    post = lambda *_: stamps.append(("post", time.perf_counter()))  # noqa: E731
+    bpy.app.handlers.render_pre.append(pre)
+    bpy.app.handlers.render_post.append(post)
+    try:
         with quiet_fds():
-            bpy.ops.render.render(write_still=False)
-        if f:
-            times.append(time.perf_counter() - t0)
-    return times, bsc.render.engine
+            bpy.ops.render.render(animation=True)
+    finally:
+        bpy.app.handlers.render_pre.remove(pre)
+        bpy.app.handlers.render_post.remove(post)
+    starts = [t for k, t in stamps if k == "pre"]
+    ends = [t for k, t in stamps if k == "post"]
+    times = [b - a for a, b in zip(starts, ends)]
+    return times[1:], bsc.render.engine
 
 
 def dermis_frames(scene, size, frames):
