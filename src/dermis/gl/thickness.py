@@ -5,8 +5,30 @@ layout: rgba32f, (u, v) of the far face, thickness in mm, valid; nearest filteri
 
 from __future__ import annotations
 
+from collections import OrderedDict
+
 import moderngl
 import numpy as np
+
+# CPU bakes by (product key "thickness", size): techniques that read the bake at the same size
+# (ssss and preintegrated, at half the irradiance size) share one ray cast instead of one each
+_BAKES: OrderedDict = OrderedDict()
+_MAX_BAKES = 4
+
+
+def _bake(frame, size: int) -> np.ndarray:
+    from dermis.geometry.thickness import texel_thickness
+
+    key = (frame.keys["thickness"], int(size))
+    bake = _BAKES.get(key)
+    if bake is None:
+        bake = texel_thickness(frame.scene.mesh, size, frame.scene.mm_per_unit)
+        _BAKES[key] = bake
+        while len(_BAKES) > _MAX_BAKES:
+            _BAKES.popitem(last=False)
+    else:
+        _BAKES.move_to_end(key)
+    return bake
 
 
 class ThicknessTexture:
@@ -24,12 +46,10 @@ class ThicknessTexture:
 
     def get(self, frame, size: int):
         """The texture for ``frame`` at size x size; appends "thickness" to frame.passes_run when baked."""
-        from dermis.geometry.thickness import texel_thickness
-
         key = (frame.keys["thickness"], int(size))
         if key != self.key or self.tex is None:
             with frame.timer("thickness"):
-                bake = texel_thickness(frame.scene.mesh, size, frame.scene.mm_per_unit)
+                bake = _bake(frame, size)
                 self.release()
                 if self.filtered:
                     data = np.stack([bake[..., 2] * bake[..., 3], bake[..., 3]], -1)

@@ -390,7 +390,8 @@ class Viewer:
         self._update_profile(wait=scripted)
         self.editor.apply(self.params)
         fb = self.framebuffer_size()
-        view_key = (self.orbit.state(), dataclasses.astuple(self.params), fb, self.renderer.lighting_key())
+        lighting_key = self.renderer.lighting_key()
+        view_key = (self.orbit.state(), dataclasses.astuple(self.params), fb, lighting_key)
         changed = view_key != self._view_key or self.last_image is None
         # progressive: a reduced frame while input is active, the full frame once it stops (a
         # script's input is its actions: the first frame without any refines)
@@ -402,7 +403,8 @@ class Viewer:
             shown = self.last_image
         else:
             interactive = changed and self.last_image is not None and self.params.buffer == "final"
-            img = self.progressive.render(self.params.technique, fb, self.orbit.camera(), interactive=interactive)
+            img = self.progressive.render(self.params.technique, fb, self.orbit.camera(), interactive=interactive,
+                                          lighting_key=lighting_key)
             stats = dict(self.progressive.stats)
             shown = img
             if self.params.buffer != "final":

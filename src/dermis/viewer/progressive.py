@@ -74,14 +74,16 @@ class ProgressiveRenderer:
         now = time.perf_counter() if now is None else now
         return not input_held and now - self.last_input_time >= REFINE_AFTER_S
 
-    def render(self, technique: str, size, camera, *, interactive: bool):
-        """Render one frame; ``interactive`` asks for a reduced frame (input is active)."""
+    def render(self, technique: str, size, camera, *, interactive: bool, lighting_key: str | None = None):
+        """Render one frame; ``interactive`` asks for a reduced frame (input is active).
+        ``lighting_key``: the full renderer's lighting key of this frame if the caller has it
+        (computing it hashes the material maps)."""
         full = self.full
         if interactive and self.enabled:
             self.last_input_time = time.perf_counter()
             w, h = size
             small = (max(1, int(round(w * self.scale))), max(1, int(round(h * self.scale))))
-            lighting = full.lighting_key()
+            lighting = lighting_key or full.lighting_key()
             r = full if lighting == self._full_lighting else self._fast_renderer()
             img = r.render(technique, size=small, camera=camera)
             self._adapt(r.stats["frame_ms"])
@@ -90,7 +92,7 @@ class ProgressiveRenderer:
             self.quality = "interactive"
             return img
         img = full.render(technique, size=size, camera=camera)
-        self._full_lighting = full.lighting_key()
+        self._full_lighting = full.last_frame.lighting_key  # the key this frame was built with
         self.stats = dict(full.stats, quality="full", scale=1.0, renderer="full")
         self.quality = "full"
         return img
