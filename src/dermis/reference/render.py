@@ -156,6 +156,10 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
         raise DermisError(f"paths must be 'straight' or 'tissue', got '{paths}'")
     from dermis.renderer import check_size
 
+    if getattr(scene, "surfaces", None):
+        raise DermisError(f"{scene.source}: the reference renderer does not support non-skin glTF primitives "
+                          f"(metallic-roughness materials: {', '.join(s.material.name for s in scene.surfaces)}); "
+                          f"render it with the real-time techniques")
     w, h = check_size(size)
     if spp < 1:
         raise DermisError(f"spp: must be >= 1, got {spp}")

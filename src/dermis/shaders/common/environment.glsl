@@ -12,6 +12,14 @@ vec3 environment_irradiance(vec3 n) {
     return max(e, vec3(0.0));
 }
 
+// Radiance arriving from the environment around direction R, for a glossy lobe of GGX roughness
+// alpha (unit-less, alpha = perceptual roughness^2). Today: the environment's cosine-weighted mean
+// radiance around R, E_sh(R) / pi, whatever alpha (the skin's specular uses the same term,
+// common/skin_specular.glsl); a prefiltered HDR lookup per alpha replaces this body (issue 12).
+vec3 environment_specular_radiance(vec3 R, float alpha) {
+    return environment_irradiance(R) * 0.3183098861837907;
+}
+
 // Occluded environment light (dermis/geometry/visibility.py, whose numpy twins these are).
 // vis: the interpolated per-vertex visibility attribute, (A, B): A the cosine-weighted ambient
 // occlusion, B the bent normal (Zhukov et al. 1998; Landis 2002). With environment occlusion off
