@@ -1,6 +1,7 @@
 // Ambient light from the environment as 9 spherical-harmonic coefficients of its IRRADIANCE
 // (Ramamoorthi & Hanrahan 2001, "An Efficient Representation for Irradiance Environment Maps",
 // eq. 13): E(n) = sum_lm A_l L_lm Y_lm(n), with the A_l folded into uEnvSH on the CPU.
+#include "common/constants.glsl"
 uniform vec3 uEnvSH[9];
 
 vec3 environment_irradiance(vec3 n) {
@@ -17,7 +18,7 @@ vec3 environment_irradiance(vec3 n) {
 // radiance around R, E_sh(R) / pi, whatever alpha (the skin's specular uses the same term,
 // common/skin_specular.glsl); a prefiltered HDR lookup per alpha replaces this body (issue 12).
 vec3 environment_specular_radiance(vec3 R, float alpha) {
-    return environment_irradiance(R) * 0.3183098861837907;
+    return environment_irradiance(R) * INV_PI;
 }
 
 // Occluded environment light (dermis/geometry/visibility.py, whose numpy twins these are).
