@@ -243,18 +243,25 @@ def test_texcoord_1_is_sampled(tmp_path, gl_ctx):
     uv0 = np.zeros((4, 2), np.float32) + 0.25
     doc, binary = build([quad(uv0, TEXCOORD_1=QUAD_UV)], materials=textured({"texCoord": 1}),
                         images=[ramp(DARK, BRIGHT)], samplers=[{"magFilter": NEAREST, "minFilter": NEAREST}])
-    mesh, _ = load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
-    np.testing.assert_allclose(mesh.uvs, np.c_[QUAD_UV[:, 0], 1.0 - QUAD_UV[:, 1]])  # TEXCOORD_1, v flipped
+    mesh, mat = load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
+    assert mat["albedo"].texcoord == 1
+    np.testing.assert_allclose(mesh.uvs1, np.c_[QUAD_UV[:, 0], 1.0 - QUAD_UV[:, 1]])  # TEXCOORD_1, v flipped
+    np.testing.assert_allclose(mat["albedo"].mapped_uvs(mesh), mesh.uvs1)
     img, mask = render(tmp_path, gl_ctx, doc, binary)
     r = row_runs(img, mask)
     assert len(r) == 2 and abs(r[0] - r[1]) <= 2, r  # left half dark, right half bright
 
 
-def test_maps_on_different_uv_sets_are_refused(tmp_path):
+def test_maps_on_different_uv_sets_each_read_their_own(tmp_path):
+    """Each map keeps its texCoord (rendered per map: tests/test_metallic_roughness.py); the normal
+    map's tangents follow its own set (here TEXCOORD_1 = TEXCOORD_0 mirrored in u: w flips)."""
     mats = [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}, "normalTexture": {"index": 0, "texCoord": 1}}]
-    doc, binary = build([quad(TEXCOORD_1=QUAD_UV)], materials=mats, images=[checker()])
-    with pytest.raises(DermisError, match="TEXCOORD_0, TEXCOORD_1.*per-map texCoord sets are not supported"):
-        load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
+    uv1 = np.c_[1.0 - QUAD_UV[:, 0], QUAD_UV[:, 1]].astype(np.float32)
+    doc, binary = build([quad(TEXCOORD_1=uv1)], materials=mats, images=[checker()])
+    mesh, mat = load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
+    assert (mat["albedo"].texcoord, mat["normal_map"].texcoord) == (0, 1)
+    np.testing.assert_allclose(mat["normal_map"].mapped_uvs(mesh), np.c_[uv1[:, 0], 1.0 - uv1[:, 1]])
+    np.testing.assert_allclose(mesh.tangents[:, :3], np.tile([-1.0, 0.0, 0.0], (4, 1)), atol=1e-6)
 
 
 def test_missing_texcoord_set_is_named(tmp_path):
@@ -283,9 +290,10 @@ def test_texture_transform_matches_the_extension_formula(tmp_path):
     uv = np.array([[0.1, 0.2], [0.9, 0.3], [0.7, 0.8], [0.2, 0.6]], np.float32)
     doc, binary = build([quad(uv)], materials=textured({"extensions": {"KHR_texture_transform": tt}}),
                         images=[checker()], samplers=[{}])
-    mesh, _ = load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
+    mesh, mat = load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
     expect = (_spec_matrix(tt["offset"], tt["rotation"], tt["scale"]) @ np.c_[uv, np.ones(4)].T).T[:, :2]
-    np.testing.assert_allclose(mesh.uvs, np.c_[expect[:, 0], 1.0 - expect[:, 1]], atol=1e-6)
+    np.testing.assert_allclose(mat["albedo"].mapped_uvs(mesh), np.c_[expect[:, 0], 1.0 - expect[:, 1]], atol=1e-6)
+    np.testing.assert_allclose(mesh.uvs, np.c_[uv[:, 0], 1.0 - uv[:, 1]], atol=1e-7)  # the mesh keeps its own
     np.testing.assert_allclose(apply_texture_transform(uv.astype(np.float64), None), uv)
 
 
@@ -310,16 +318,19 @@ def test_texture_transform_texcoord_override(tmp_path):
     uv0 = np.zeros((4, 2), np.float32)
     info = {"texCoord": 0, "extensions": {"KHR_texture_transform": {"texCoord": 1}}}
     doc, binary = build([quad(uv0, TEXCOORD_1=QUAD_UV)], materials=textured(info), images=[checker()])
-    mesh, _ = load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
-    np.testing.assert_allclose(mesh.uvs, np.c_[QUAD_UV[:, 0], 1.0 - QUAD_UV[:, 1]])
+    mesh, mat = load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
+    np.testing.assert_allclose(mat["albedo"].mapped_uvs(mesh), np.c_[QUAD_UV[:, 0], 1.0 - QUAD_UV[:, 1]])
 
 
-def test_different_transforms_per_map_are_refused(tmp_path):
+def test_different_transforms_per_map_are_kept_per_map(tmp_path):
     mats = [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
              "normalTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"scale": [2, 2]}}}}]
     doc, binary = build([quad()], materials=mats, images=[checker()])
-    with pytest.raises(DermisError, match="different KHR_texture_transform"):
-        load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
+    mesh, mat = load_mesh_file(write_gltf(tmp_path / "a.gltf", doc, binary))
+    np.testing.assert_allclose(mat["albedo"].mapped_uvs(mesh), mesh.uvs)
+    # file v' = 2 v: in dermis's v-up UVs, v' = 1 - 2 (1 - v)
+    np.testing.assert_allclose(mat["normal_map"].mapped_uvs(mesh), np.c_[2 * mesh.uvs[:, 0], 2 * mesh.uvs[:, 1] - 1],
+                               atol=1e-6)
 
 
 # ----------------------------------------------------------------------------- COLOR_0
@@ -459,13 +470,14 @@ def test_several_materials_need_the_scene_to_name_the_skin(tmp_path):
         dermis.load_scene(scene_file(tmp_path, doc, binary))
 
 
-def test_non_skin_primitives_are_dropped_with_a_warning(tmp_path, capsys):
+def test_non_skin_primitives_become_metallic_roughness_surfaces(tmp_path, capsys):
     doc, binary = _two_materials()
     sc = dermis.load_scene(scene_file(tmp_path, doc, binary, extra='[skin]\nmaterials = ["skin"]\n'))
-    err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"dermis: warning: {tmp_path / 'asset.gltf'}: primitives with material 'eye' (not skin) are not "
-                   f"rendered: glTF metallic-roughness shading is not supported yet"]
-    assert len(sc.mesh.indices) == 2 and sc.mesh.positions[:, 0].max() <= 0.0 + 1e-6  # only the left quad
+    assert capsys.readouterr().err.strip() == ""
+    assert len(sc.mesh.indices) == 2 and sc.mesh.positions[:, 0].max() <= 0.0 + 1e-6  # only the left quad is skin
+    assert len(sc.surfaces) == 1 and sc.surfaces[0].material.name == "eye"
+    assert sc.surfaces[0].mesh.positions[:, 0].min() >= 0.0 - 1e-6
+    assert sc.surfaces[0].material.base_color == pytest.approx((0.9, 0.9, 0.9, 1.0))
     assert sc.material.albedo_color == pytest.approx((0.8, 0.5, 0.4))
     # by index, and both as skin when they agree in what dermis reads
     sc = dermis.load_scene(scene_file(tmp_path, doc, binary, extra="[skin]\nmaterials = [1]\n"))

@@ -34,7 +34,7 @@ def load_scene(path, *, technique: str | None = None, uv_convention: str | None 
         material = SkinMaterial(albedo=mat.get("albedo"), normal_map=mat.get("normal_map"))
         if mat.get("albedo_color") is not None and material.albedo is None:
             material.albedo_color = mat["albedo_color"]
-        scene = Scene(mesh=mesh, material=material, source=str(p), name=p.stem)
+        scene = Scene(mesh=mesh, material=material, source=str(p), name=p.stem, surfaces=list(mat.get("surfaces", [])))
         frame_scene(scene)
     elif not os.path.lexists(p):
         raise DermisError(f"{p}: file not found")

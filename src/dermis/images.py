@@ -127,6 +127,15 @@ def as_rgb(arr: np.ndarray) -> np.ndarray:
     return arr[:, :, :3]
 
 
+def as_rgba(arr: np.ndarray) -> np.ndarray:
+    """(H, W, C) -> (H, W, 4): grey replicated, alpha kept (grey + alpha, RGBA) or 1."""
+    arr = np.asarray(arr, np.float32)
+    if arr.ndim == 2:
+        arr = arr[:, :, None]
+    alpha = arr[:, :, -1:] if arr.shape[2] in (2, 4) else np.ones(arr.shape[:2] + (1,), np.float32)
+    return np.concatenate([as_rgb(arr), alpha], axis=2)
+
+
 def _read_hdr(path: Path, max_pixels: int) -> np.ndarray:
     """Radiance RGBE (.hdr) through imagecodecs, with the size read from the header first."""
     data = read_bytes(path, "image file")

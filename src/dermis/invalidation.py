@@ -21,10 +21,11 @@ import xxhash
 
 PRODUCTS = {
     # product:            the inputs it is built from (keys of scene_inputs)
-    "gpu_mesh": ("mesh",),
+    "gpu_mesh": ("mesh", "surfaces"),
     "material_textures": ("material_maps",),
-    "light_uniforms": ("mesh", "lights", "environment"),
-    "shadow_atlas": ("mesh", "scale", "light_geometry", "epoch"),
+    "light_uniforms": ("mesh", "surfaces", "lights", "environment"),
+    # non-skin surfaces cast shadows (MASK maps cut them) and widen the maps' frusta
+    "shadow_atlas": ("mesh", "surfaces", "scale", "light_geometry", "epoch"),
     "mesh_curvature": ("mesh", "scale"),
     "stretch": ("mesh", "scale", "irradiance_size"),
     "thickness": ("mesh", "scale", "irradiance_size"),  # the texel thickness bake of translucency (gl/thickness.py)
@@ -32,7 +33,7 @@ PRODUCTS = {
     # ambient occlusion and bent normals (geometry/visibility.py, cached per mesh content), or the
     # open sky's (1, normal) with [environment] occlusion = false, in the vertex buffer
     "environment_visibility": ("mesh", "environment_occlusion"),
-    "texture_space": ("mesh", "scale", "lights", "environment", "environment_occlusion", "material_maps",
+    "texture_space": ("mesh", "surfaces", "scale", "lights", "environment", "environment_occlusion", "material_maps",
                       "material_scalars", "profile", "irradiance_size", "epoch"),
 }
 """Every cached product and what it depends on. "epoch" is bumped by Renderer.invalidate()."""
@@ -55,7 +56,19 @@ def fingerprint(a) -> tuple | None:
 
 
 def _texture(t):
-    return None if t is None else (fingerprint(t.data), tuple(t.wrap), t.filters)
+    return None if t is None else (fingerprint(t.data), tuple(t.wrap), t.filters, int(t.texcoord),
+                                   fingerprint(t.transform))
+
+
+def _mesh(m) -> tuple:
+    return tuple(fingerprint(getattr(m, k)) for k in ("positions", "normals", "uvs", "indices", "tangents", "uvs1"))
+
+
+def _surface(s) -> tuple:
+    """A non-skin surface: its geometry, maps and factors (dermis.scene.model.Surface)."""
+    mat = s.material
+    return (_mesh(s.mesh), tuple(_texture(t) for t in mat.maps().values()), mat.base_color, mat.metallic, mat.roughness,
+            mat.normal_scale, mat.occlusion_strength, mat.emissive, mat.alpha_mode, mat.alpha_cutoff, mat.double_sided)
 
 
 def light_geometry(L) -> tuple:
@@ -72,7 +85,8 @@ def scene_inputs(scene, *, irradiance_size: int, epoch: int) -> dict:
     """The inputs of PRODUCTS for one frame: each a plain value or a content key."""
     m, mat, env = scene.mesh, scene.material, scene.environment
     return {
-        "mesh": tuple(fingerprint(getattr(m, k)) for k in ("positions", "normals", "uvs", "indices", "tangents")),
+        "mesh": _mesh(m),
+        "surfaces": [_surface(s) for s in getattr(scene, "surfaces", [])],
         "scale": float(scene.mm_per_unit),
         "material_maps": (_texture(mat.albedo), _texture(mat.normal_map), _texture(mat.specular_map),
                           _texture(mat.roughness_map), tuple(mat.albedo_color),

@@ -51,6 +51,7 @@ class Renderer:
         self._target_sets = {}  # size -> targets: the previous size's, kept for reuse
         self.target_sizes_kept = 2  # frame sizes whose render targets are kept (the viewer alternates two)
         self._specular_tables = None
+        self._surface_program = None
         self.scene = None
         self.gpu = None
         self._built = {}  # product -> the key it was built with (dermis.invalidation.PRODUCTS)
@@ -97,6 +98,16 @@ class Renderer:
 
             self._specular_tables = upload_specular_tables(self.ctx)
         return self._specular_tables
+
+    @property
+    def surface_program(self):
+        """The program of non-skin surfaces (glTF metallic-roughness, techniques.base.draw_surfaces),
+        compiled once per Renderer, shared by every technique."""
+        if self._surface_program is None:
+            from dermis.gl.shaders import program
+
+            self._surface_program = program(self.ctx, "common/mesh.vert", "metallic_roughness/surface.frag")
+        return self._surface_program
 
     def inputs(self) -> dict:
         """This frame's inputs of every cached product (dermis.invalidation.scene_inputs)."""
@@ -319,6 +330,9 @@ class Renderer:
         for t in (self._specular_tables or {}).values():
             t.release()
         self._specular_tables = None
+        if self._surface_program is not None:
+            self._surface_program.release()
+            self._surface_program = None
         self.shadows.release()
         if self._owns_ctx:
             self.ctx.release()

@@ -132,6 +132,31 @@ def check_mesh(mesh):
         raise DermisError(f"{mesh.source}: mesh has zero extent (all vertices at one point)")
 
 
+def _check_surfaces(scene, full: bool):
+    """The non-skin surfaces (dermis.scene.model.Surface): meshes, and the factors glTF bounds."""
+    from dermis.scene.model import ALPHA_MODES, MetallicRoughnessMaterial, Surface
+
+    surfaces = getattr(scene, "surfaces", [])
+    if not isinstance(surfaces, list) or not all(isinstance(s, Surface) and isinstance(s.material, MetallicRoughnessMaterial)
+                                                 for s in surfaces):
+        raise DermisError(f"{scene.source}: scene surfaces must be a list of dermis Surface (mesh + "
+                          f"MetallicRoughnessMaterial)")
+    for s in surfaces:
+        m, w = s.material, f"{scene.source}: material {s.material.name}"
+        if full:
+            check_mesh(s.mesh)
+        _vec(m.base_color, f"{w} baseColorFactor", 4, 0.0, 1.0)
+        _vec(m.emissive, f"{w} emissiveFactor", 3, 0.0, MAX_INTENSITY)
+        for k in ("metallic", "roughness", "occlusion_strength"):
+            _num(getattr(m, k), f"{w} {k}", 0.0, 1.0)
+        _num(m.normal_scale, f"{w} normal_scale", -1e3, 1e3)
+        _num(m.alpha_cutoff, f"{w} alpha_cutoff", 0.0, 1e3)
+        if m.alpha_mode not in ALPHA_MODES[:2]:
+            raise DermisError(f"{w} alpha_mode must be OPAQUE or MASK, got {m.alpha_mode!r}")
+        if m.double_sided not in (True, False):
+            raise DermisError(f"{w} double_sided must be true or false, got {m.double_sided!r}")
+
+
 def check_scene(scene, full: bool = True):
     """Every value of a Scene that can break a render: names the scene's source and the key in the
     scene file's words ([camera] near, [[lights]] #2 intensity, ...). ``full``: also the mesh and
@@ -145,6 +170,7 @@ def check_scene(scene, full: bool = True):
     src = scene.source
     if full:
         check_mesh(scene.mesh)
+    _check_surfaces(scene, full)
     lo, hi = (np.asarray(b, np.float64) for b in scene.bounds())
     diag = float(np.linalg.norm(hi - lo))
     _num(scene.mm_per_unit, f"{src}: [scene] mm_per_unit", 0.0, MAX_MM_PER_UNIT, lo_open=True)

@@ -288,6 +288,9 @@ def build_world(bpy, scene, opts: ExportOptions):
 
 def build_scene(scene, opts: ExportOptions | None = None, size=(512, 512)):
     """Replace the current Blender session's data with ``scene``; returns the bpy scene."""
+    if getattr(scene, "surfaces", None):  # issue 17: not exported yet; an image without them would be wrong
+        raise DermisError(f"{scene.source}: export to Blender does not support non-skin glTF primitives "
+                          f"(metallic-roughness materials: {', '.join(s.material.name for s in scene.surfaces)})")
     bpy = require_bpy()
     opts = opts or ExportOptions()
     with quiet_fds():

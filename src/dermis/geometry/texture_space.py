@@ -87,6 +87,7 @@ def with_texture_space_uvs(mesh, mode: str | None = None, *, resolution: int = 1
     pad = gutter_texels(mesh, resolution, mm_per_unit, widest_variance_mm2)
     vm, indices, uv_ts = atlas_on_welded_surface(mesh.positions, mesh.indices, resolution, pad, cache)
     return replace(mesh, positions=mesh.positions[vm], normals=mesh.normals[vm], uvs=mesh.uvs[vm],
+                   uvs1=None if mesh.uvs1 is None else mesh.uvs1[vm],
                    tangents=None if mesh.tangents is None else mesh.tangents[vm], indices=indices,
                    texture_space_uvs=uv_ts, texture_space_uv=mode).validate()
 

@@ -14,10 +14,47 @@ from dermis.geometry.visibility import open_visibility
 from dermis.images import as_rgb
 from dermis.techniques.shared import LIGHT_TYPES, MAX_LIGHTS, SHARED_SAMPLERS
 
-VERTEX_FORMAT = "3f 3f 2f 4f 2f 4f"
+VERTEX_FORMAT = "3f 3f 2f 4f 2f 4f 2f"
 # in_uv: the asset's UVs (material maps); in_uv_ts: the texture-space set (geometry/texture_space.py);
-# in_visibility: (ambient occlusion, bent normal) of geometry/visibility.py, location 6
-VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent", "in_uv_ts", "in_visibility")
+# in_visibility: (ambient occlusion, bent normal) of geometry/visibility.py, location 6;
+# in_uv1: the asset's second UV set (TEXCOORD_1; zeros without one), location 7
+VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent", "in_uv_ts", "in_visibility", "in_uv1")
+
+
+def vertex_attributes(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """The vertex attributes of ``mesh`` before and after in_visibility (VERTEX_FORMAT order)."""
+    m = mesh
+    uv_ts = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
+    before = np.concatenate([m.positions, m.normals, m.uvs, m.tangents, uv_ts], axis=1).astype(np.float32)
+    after = np.zeros((len(m.positions), 2), np.float32) if m.uvs1 is None else np.asarray(m.uvs1, np.float32)
+    return before, after
+
+
+def interleave(attributes: tuple, visibility) -> bytes:
+    before, after = attributes
+    return np.ascontiguousarray(np.concatenate([before, np.asarray(visibility, np.float32), after], axis=1)).tobytes()
+
+
+def vertex_content(vbo, prog) -> tuple:
+    """(buffer, format, attributes...) of a VERTEX_FORMAT buffer for ``prog``: attributes the program
+    does not use are skipped as padding ("3x4" = 3 floats)."""
+    parts, used = [], []
+    for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS):
+        if a in prog:
+            parts.append(f)
+            used.append(a)
+        else:
+            parts.append(f"{f[0]}x4")
+    return (vbo, " ".join(parts), *used)
+
+
+def map_uniforms(prog, prefix: str, texture) -> None:
+    """A map's addressing (dermis.scene.model.Texture texcoord / transform): u<prefix>UV (mat3,
+    column-major) and u<prefix>Set; identity and set 0 without a map."""
+    T = np.eye(3, dtype=np.float32) if texture is None else texture.uv_matrix()
+    if f"u{prefix}UV" in prog:
+        prog[f"u{prefix}UV"].write(np.ascontiguousarray(T.T, np.float32).tobytes())
+    set_uniform(prog, f"u{prefix}Set", 0 if texture is None else int(texture.texcoord))
 
 
 def set_uniform(prog, name, value):
@@ -97,17 +134,20 @@ class GpuScene:
         self.ctx = ctx
         self.scene = scene
         m = scene.mesh
-        uv_ts = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
-        self._attributes = np.concatenate([m.positions, m.normals, m.uvs, m.tangents, uv_ts], axis=1).astype(np.float32)
+        self._attributes = vertex_attributes(m)
         self.vbo = ctx.buffer(self._interleave(open_visibility(len(m.positions), m.normals)))
         self.visibility_uploaded = False  # set_visibility() not called yet: open sky
         self.ibo = ctx.buffer(np.ascontiguousarray(m.indices, np.uint32).tobytes())
         self._vaos = {}
         self.textures = {}
         self.upload_material()
+        from dermis.gl.surfaces import GpuSurface
+
+        # the non-skin surfaces (glTF metallic-roughness): buffers and maps of their own
+        self.surfaces = [GpuSurface(ctx, s) for s in getattr(scene, "surfaces", [])]
 
     def _interleave(self, visibility) -> bytes:
-        return np.ascontiguousarray(np.concatenate([self._attributes, np.asarray(visibility, np.float32)], axis=1)).tobytes()
+        return interleave(self._attributes, visibility)
 
     def set_visibility(self, visibility):
         """Replace in_visibility ((n, 4): ambient occlusion, bent normal) in place: VAOs stay valid."""
@@ -115,16 +155,8 @@ class GpuScene:
         self.visibility_uploaded = True
 
     def vertex_content(self, prog) -> tuple:
-        """(buffer, format, attributes...) of the vertex buffer for ``prog``: attributes the program
-        does not use are skipped as padding ("3x4" = 3 floats)."""
-        parts, used = [], []
-        for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS):
-            if a in prog:
-                parts.append(f)
-                used.append(a)
-            else:
-                parts.append(f"{f[0]}x4")
-        return (self.vbo, " ".join(parts), *used)
+        """(buffer, format, attributes...) of the vertex buffer for ``prog`` (:func:`vertex_content`)."""
+        return vertex_content(self.vbo, prog)
 
     def vao(self, prog):
         # keyed on the program object, held in the entry: its id cannot be reused while cached
@@ -181,6 +213,9 @@ class GpuScene:
                 unit = int(SHARED_SAMPLERS[name])
                 self.textures[key].use(unit)
                 prog[name].value = unit
+        for prefix, tex in (("Albedo", mat.albedo), ("Normal", mat.normal_map), ("Specular", mat.specular_map),
+                            ("Roughness", mat.roughness_map)):
+            map_uniforms(prog, prefix, tex)
         set_uniform(prog, "uNormalStrength", float(mat.normal_strength))
         set_uniform(prog, "uRhoS", float(mat.rho_s))
         set_uniform(prog, "uRoughness", float(mat.roughness))
@@ -205,6 +240,9 @@ class GpuScene:
         self._vaos = {}
         for t in self.textures.values():
             t.release()
+        for surface in getattr(self, "surfaces", []):
+            surface.release()
+        self.surfaces = []
         self.vbo.release()
         self.ibo.release()
 
@@ -226,7 +264,7 @@ class LightUniforms:
         self.map_half_extent = np.zeros(n, np.float64)  # half a shadow map's width, scene units
         lo, hi = scene.bounds()
         for i, L in enumerate(lights):
-            vp, eye, half = light_matrices(L, lo, hi, scene.mesh.positions)
+            vp, eye, half = light_matrices(L, lo, hi, scene.all_positions())
             self.viewproj[i] = vp
             self.map_half_extent[i] = half
             pos = np.asarray(L.position, np.float32) if L.kind != "directional" else eye.astype(np.float32)

@@ -38,6 +38,7 @@ class ShadowAtlas:
         self.cols = 4 if max_lights > 4 else max(1, min(max_lights, 2))
         self.rows = math.ceil(max_lights / self.cols)
         self.prog = program(ctx, "shadow/shadow.vert", "shadow/shadow.frag")
+        self.occluder_prog = None  # non-skin surfaces (shadow/occluder.frag), compiled when a scene has any
         self._size = None
         self.depth = self.aux = self.fbo = None
         self.tiles = np.zeros((max_lights, 4), np.float32)
@@ -78,6 +79,9 @@ class ShadowAtlas:
         light_uniforms.apply(self.prog)
         set_uniform(self.prog, "uMmPerUnit", float(scene.mm_per_unit))
         vao = gpu_scene.vao(self.prog)
+        surfaces = getattr(gpu_scene, "surfaces", [])
+        if surfaces and self.occluder_prog is None:
+            self.occluder_prog = program(self.ctx, "common/mesh.vert", "shadow/occluder.frag")
         self.update_params(light_uniforms)
         for i, L in enumerate(light_uniforms.lights):
             c, r = i % cols, i // cols
@@ -87,6 +91,11 @@ class ShadowAtlas:
             self.prog["uViewProj"].write(mat_bytes(light_uniforms.viewproj[i]))
             self.prog["uLight"].value = i
             vao.render(moderngl.TRIANGLES)
+            if surfaces:  # non-skin surfaces occlude too (depth), and are no skin in the TSM (w = 0)
+                self.occluder_prog["uViewProj"].write(mat_bytes(light_uniforms.viewproj[i]))
+                for s in surfaces:
+                    s.uniforms(self.occluder_prog)
+                    s.vao(self.occluder_prog).render(moderngl.TRIANGLES)
         return sum(1 for L in light_uniforms.lights if L.cast_shadows)
 
     def update_params(self, light_uniforms):
@@ -115,6 +124,7 @@ class ShadowAtlas:
 
     def release(self):
         self._release_targets()
-        if self.prog is not None:
-            self.prog.release()
-            self.prog = None
+        for name in ("prog", "occluder_prog"):
+            if getattr(self, name) is not None:
+                getattr(self, name).release()
+                setattr(self, name, None)

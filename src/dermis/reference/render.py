@@ -18,6 +18,10 @@ per channel (as tsd's), and the specular is KS_Skin_Specular with the same hard 
 same environment term (shading.specular_and_exit). The procedural pore normals of the real-time
 final pass are not reproduced: compare with ``pore_strength = 0`` (``dermis validate`` does).
 
+Non-skin surfaces (glTF metallic-roughness primitives, Scene.surfaces) are hit by the same
+camera rays and shadow rays (they shadow the skin and are shadowed by it) and shaded with the
+glTF BRDF at the visible point (reference/metallic_roughness.py); alphaMode MASK is refused.
+
 Output: as Renderer.render, linear float32 (H, W, 3), row 0 = top, the scene's background where
 no sub-pixel ray hits the mesh (sub-pixel results averaged, like an MSAA resolve).
 Deterministic for a given seed. Cost grows with the visible area / min_spacing^2.
@@ -36,6 +40,7 @@ from dermis.camera import camera_matrices
 from dermis.errors import DermisError
 from dermis.geometry.raycast import RayCaster
 from dermis.reference.integrate import TISSUE_TAU, gather, plan_levels
+from dermis.reference.metallic_roughness import SurfaceProps
 from dermis.reference.sampling import SurfaceModel, coarsen, surface_cells
 from dermis.reference.shading import LightRig, scattered_irradiance, specular_and_exit
 
@@ -156,6 +161,10 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
         raise DermisError(f"paths must be 'straight' or 'tissue', got '{paths}'")
     from dermis.renderer import check_size
 
+    masked = [s.material.name for s in getattr(scene, "surfaces", []) if s.material.alpha_mode == "MASK"]
+    if masked:
+        raise DermisError(f"{scene.source}: the reference renderer does not support alphaMode MASK (material "
+                          f"{', '.join(masked)}): its rays do not test alpha")
     w, h = check_size(size)
     if spp < 1:
         raise DermisError(f"spp: must be >= 1, got {spp}")
@@ -166,8 +175,14 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
     mm = float(scene.mm_per_unit)
     t0 = time.perf_counter()
     surface = SurfaceModel(scene)
-    bvh = RayCaster(surface.positions_mm, surface.indices)
-    rig = LightRig(scene, surface, bvh)
+    skin_bvh = RayCaster(surface.positions_mm, surface.indices)
+    props, bvh = None, skin_bvh
+    if getattr(scene, "surfaces", None):  # non-skin surfaces: their triangles after the skin's
+        props = SurfaceProps(scene, len(surface.indices))
+        bvh = RayCaster(np.concatenate([surface.positions_mm, props.positions_mm]),
+                        np.concatenate([surface.indices, props.indices + len(surface.positions_mm)]))
+    # ambient occlusion of the skin by the skin alone, as the real-time bake (geometry/visibility.py)
+    rig = LightRig(scene, surface, bvh, ambient_bvh=skin_bvh)
     timings["setup_s"] = time.perf_counter() - t0
 
     # visible points
@@ -175,7 +190,9 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
     origins, dirs, tmax, eye = camera_rays(scene, (w, h), spp, camera)
     t_hit, tri, bary = bvh.closest_hit(origins * mm, dirs, 0.0, tmax * mm)
     hit = tri >= 0
-    hit_idx = np.nonzero(hit)[0]
+    skin_hit = hit & (tri < len(surface.indices))
+    hit_idx = np.nonzero(skin_hit)[0]
+    prop_idx = np.nonzero(hit & ~skin_hit)[0]
     timings["camera_rays_s"] = time.perf_counter() - t0
     n_hits = len(hit_idx)
     eye_mm = np.asarray(eye, np.float64) * mm
@@ -268,20 +285,32 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
         stats["sampled_area_mm2"] = float(ca.sum())
         stats["pairs"] = int(pairs_total)
 
+    prop_diffuse = prop_specular = np.zeros((0, 3))
+    if len(prop_idx):  # non-skin surfaces: the glTF BRDF at the point (reference/metallic_roughness.py)
+        t0 = time.perf_counter()
+        prop_diffuse, prop_specular = props.shade(tri[prop_idx], bary[prop_idx], eye_mm, rig, bvh, surface.env_sh)
+        timings["surfaces_s"] = time.perf_counter() - t0
+    stats["surface_points"] = int(len(prop_idx))
+
     # resolve sub-pixel samples into pixels
     bg = np.asarray(scene.output.background, np.float64)
     rad = np.broadcast_to(bg, (len(tri), 3)).copy()
     rad[hit_idx] = diffuse + specular
+    rad[prop_idx] = prop_diffuse + prop_specular
     image = rad.reshape(h, w, spp, 3).mean(axis=2)
     cov = hit.reshape(h, w, spp).mean(axis=2)
     dsum = np.zeros((len(tri), 3))
     ssum = np.zeros((len(tri), 3))
     dsum[hit_idx] = diffuse
     ssum[hit_idx] = specular
+    dsum[prop_idx] = prop_diffuse
+    ssum[prop_idx] = prop_specular
     nh = np.maximum(hit.reshape(h, w, spp).sum(axis=2), 1)[:, :, None]
     psum = np.zeros((len(tri), 3))
     if n_hits:
         psum[hit_idx] = xq
+    if len(prop_idx):
+        psum[prop_idx] = origins[prop_idx] * mm + dirs[prop_idx] * t_hit[prop_idx, None]
     positions = psum.reshape(h, w, spp, 3).sum(axis=2) / nh
     positions[cov == 0] = np.nan
     stats["timings_s"] = {k: round(v, 3) for k, v in timings.items()}

@@ -238,6 +238,7 @@ class SurfaceModel:
         self.positions_mm = np.asarray(mesh.positions, np.float64) * mm
         self.normals = np.asarray(mesh.normals, np.float64)
         self.uvs = np.asarray(mesh.uvs, np.float64)
+        self.uvs1 = None if mesh.uvs1 is None else np.asarray(mesh.uvs1, np.float64)
         self.tangents = np.asarray(mesh.tangents, np.float64)
         p = self.positions_mm
         self.v0 = np.ascontiguousarray(p[idx[:, 0]])
@@ -285,6 +286,7 @@ class SurfaceModel:
             "position": self.v0[tri] * b0 + self.v1[tri] * b1 + self.v2[tri] * b2,
             "normal_geo": _normalize(lerp(self.normals)),
             "uv": lerp(self.uvs),
+            "uv1": None if self.uvs1 is None else lerp(self.uvs1),
             "tangent": lerp(self.tangents),
             "bary": np.concatenate([b0, b1, b2], axis=1),
             "tri": tri,
@@ -306,8 +308,17 @@ class SurfaceModel:
         return out
 
     # ------------------------------------------------------------------ material
+    @staticmethod
+    def map_uv(attrs, texture):
+        """map_uv() of common/surface.glsl: the map's UV set through its 3x3 transform."""
+        if texture is None:
+            return attrs["uv"]
+        uv = attrs["uv1"] if texture.texcoord == 1 else attrs["uv"]
+        T = texture.uv_matrix().astype(np.float64)
+        return uv @ T[:2, :2].T + T[:2, 2]
+
     def albedo(self, attrs):
-        uv = attrs["uv"]
+        uv = self.map_uv(attrs, self.material.albedo)
         return np.maximum(bilinear(self.albedo_map, *wrapped_uv(uv, self.material.albedo)), 0.0)
 
     def shading_normal(self, attrs):
@@ -316,7 +327,7 @@ class SurfaceModel:
         T = attrs["tangent"]
         t = _normalize(T[:, :3] - n * np.sum(n * T[:, :3], axis=1, keepdims=True))
         b = T[:, 3:4] * np.cross(n, t)
-        uv = attrs["uv"]
+        uv = self.map_uv(attrs, self.material.normal_map)
         m = bilinear(self.normal_map, *wrapped_uv(uv, self.material.normal_map)) * 2.0 - 1.0
         m[:, :2] *= float(self.material.normal_strength)
         return _normalize(t * m[:, 0:1] + b * m[:, 1:2] + n * m[:, 2:3])
@@ -326,7 +337,7 @@ class SurfaceModel:
         rho = float(self.material.rho_s)
         if self.specular_map is None:
             return np.full(len(attrs["uv"]), rho)
-        uv = attrs["uv"]
+        uv = self.map_uv(attrs, self.material.specular_map)
         s = bilinear(self.specular_map, *wrapped_uv(uv, self.material.specular_map))[:, 0]
         bias, scale = self.spec_bias_scale
         return rho * (bias + scale * s)

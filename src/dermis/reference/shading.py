@@ -41,9 +41,10 @@ class LightRig:
 
     MAX_LIGHTS = MAX_LIGHTS
 
-    def __init__(self, scene, surface, bvh):
+    def __init__(self, scene, surface, bvh, ambient_bvh=None):
         self.surface = surface
-        self.bvh = bvh
+        self.bvh = bvh  # shadow rays: everything that occludes (skin and non-skin surfaces)
+        self.ambient_bvh = bvh if ambient_bvh is None else ambient_bvh  # ambient occlusion rays
         mm = float(scene.mm_per_unit)
         self.lights = []
         for L in scene.lights[: self.MAX_LIGHTS]:
@@ -74,7 +75,7 @@ class LightRig:
                 for c0 in range(0, len(ng), AMBIENT_CHUNK):
                     c1 = min(len(ng), c0 + AMBIENT_CHUNK)
                     self._ambient_batches += 1
-                    ao[c0:c1], bent[c0:c1] = self.bvh.ambient_occlusion(o[c0:c1], ng[c0:c1], AMBIENT_RAYS,
+                    ao[c0:c1], bent[c0:c1] = self.ambient_bvh.ambient_occlusion(o[c0:c1], ng[c0:c1], AMBIENT_RAYS,
                                                                         offset=self.ambient_offset_mm,
                                                                         seed=self._ambient_batches)
             attrs["ambient_occlusion"], attrs["bent_normal"] = ao, bent

@@ -183,8 +183,23 @@ def validate_document(doc: dict, source, binary_length: int | None) -> None:
                 c.numbers(pbr["baseColorFactor"], f"{w} baseColorFactor", 4, 0.0, 1.0)
             _texture_ref(c, pbr.get("baseColorTexture"), f"{w} baseColorTexture")
             _texture_ref(c, pbr.get("metallicRoughnessTexture"), f"{w} metallicRoughnessTexture")
+            for key in ("metallicFactor", "roughnessFactor"):
+                if key in pbr:
+                    c.numbers([pbr[key]], f"{w} {key}", 1, 0.0, 1.0)
         for key in ("normalTexture", "occlusionTexture", "emissiveTexture"):
             _texture_ref(c, m.get(key), f"{w} {key}")
+        if "scale" in (m.get("normalTexture") or {}):
+            c.numbers([m["normalTexture"]["scale"]], f"{w} normalTexture scale", 1)
+        if "strength" in (m.get("occlusionTexture") or {}):
+            c.numbers([m["occlusionTexture"]["strength"]], f"{w} occlusionTexture strength", 1, 0.0, 1.0)
+        if "emissiveFactor" in m:
+            c.numbers(m["emissiveFactor"], f"{w} emissiveFactor", 3, 0.0, 1.0)
+        if m.get("alphaMode", "OPAQUE") not in ("OPAQUE", "MASK", "BLEND"):
+            c.fail(f"{w} alphaMode", f"must be OPAQUE, MASK or BLEND, got {m['alphaMode']!r}")
+        if "alphaCutoff" in m:
+            c.numbers([m["alphaCutoff"]], f"{w} alphaCutoff", 1, 0.0)
+        if not isinstance(m.get("doubleSided", False), bool):
+            c.fail(f"{w} doubleSided", f"must be true or false, got {m['doubleSided']!r}")
         if "name" in m and not isinstance(m["name"], str):
             c.fail(f"{w} name", "must be a string")
     nodes = d.get("nodes", [])

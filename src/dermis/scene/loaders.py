@@ -21,10 +21,10 @@ import numpy as np
 
 from dermis.errors import DermisError
 from dermis.fileio import os_error_text, read_bytes, regular_file
-from dermis.images import MAX_IMAGE_PIXELS, as_rgb, read_image
+from dermis.images import MAX_IMAGE_PIXELS, as_rgb, as_rgba, read_image
 from dermis.scene import gltf_document
 from dermis.scene.gltf_document import MAX_TRIANGLES, MAX_VERTICES, PROGRESS_VERTICES
-from dermis.scene.model import Mesh, Texture
+from dermis.scene.model import MetallicRoughnessMaterial, Mesh, Surface, Texture
 from dermis.scene.tangents import generate_tangents
 
 UV_CONVENTIONS = ("v-up", "v-down")
@@ -63,7 +63,8 @@ def _data_uri(uri: str, source="glTF") -> bytes | None:
         raise DermisError(f"{source}: malformed data: URI") from None
 
 
-def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: str, tangents=None) -> Mesh:
+def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: str, tangents=None, uvs1=None) -> Mesh:
+    """A checked Mesh from arrays in the file's convention; ``uvs1``: a second UV set (TEXCOORD_1)."""
     positions = np.ascontiguousarray(positions, np.float32)
     indices = np.ascontiguousarray(indices, np.int64).reshape(-1, 3)
     if uvs is None and len(indices) and indices.min() >= 0 and indices.max() < len(positions) \
@@ -76,12 +77,19 @@ def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: st
             normals = vertex_normals(positions, indices)
         atlas = generate_atlas(positions, indices)
         positions, normals = positions[atlas.vmapping], np.asarray(normals)[atlas.vmapping]
+        if uvs1 is not None:  # in the file's convention still: flipped below like the file's
+            uvs1 = np.asarray(uvs1)[atlas.vmapping]
+            uvs1 = np.c_[uvs1[:, 0], 1.0 - uvs1[:, 1]] if uv_convention == "v-down" else uvs1
         indices, uvs, tangents, uv_convention = atlas.indices.astype(np.int64), atlas.uvs, None, "v-up"
     if uvs is None:
         raise DermisError(f"{source}: mesh has no texture coordinates (UVs) and no valid triangles to generate them from")
     uvs = np.ascontiguousarray(uvs, np.float32).copy()
-    for name, a in (("positions", positions), ("uvs", uvs)):
-        if not np.all(np.isfinite(a)):
+    if uvs1 is not None:
+        uvs1 = np.ascontiguousarray(uvs1, np.float32).copy()
+        if len(uvs1) != len(positions):
+            raise DermisError(f"{source}: mesh has {len(uvs1)} TEXCOORD_1 UVs for {len(positions)} vertices")
+    for name, a in (("positions", positions), ("uvs", uvs), ("TEXCOORD_1 uvs", uvs1)):
+        if a is not None and not np.all(np.isfinite(a)):
             raise DermisError(f"{source}: mesh {name} contain NaN or infinite values")
     if len(indices) == 0:
         raise DermisError(f"{source}: mesh has no triangles")
@@ -92,12 +100,14 @@ def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: st
         raise DermisError(f"{source}: triangle indices out of range")
     if len(uvs) != len(positions):
         raise DermisError(f"{source}: mesh has {len(uvs)} UVs for {len(positions)} vertices")
-    span = float(np.abs(uvs).max()) if len(uvs) else 0.0
+    span = max(float(np.abs(a).max()) if a is not None and len(a) else 0.0 for a in (uvs, uvs1))
     if span > UV_LIMIT:
         raise DermisError(f"{source}: texture coordinates reach {span:g}; dermis needs a UV layout within "
                           f"[-{UV_LIMIT:g}, {UV_LIMIT:g}] (the unit square, or UDIM tiles)")
     if uv_convention == "v-down":
         uvs[:, 1] = 1.0 - uvs[:, 1]
+        if uvs1 is not None:
+            uvs1[:, 1] = 1.0 - uvs1[:, 1]
     elif uv_convention != "v-up":
         raise DermisError(f"{source}: uv_convention must be one of {UV_CONVENTIONS}, got '{uv_convention}'")
     if normals is None:
@@ -122,7 +132,7 @@ def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: st
         raise DermisError(f"{source}: mesh tangents must be {len(positions)} finite values")
     progress.step("tangents")
     progress.close()
-    return Mesh(positions, normals, uvs, indices, np.asarray(tangents, np.float32), source=source).validate()
+    return Mesh(positions, normals, uvs, indices, np.asarray(tangents, np.float32), source=source, uvs1=uvs1).validate()
 
 
 class _Progress:
@@ -248,7 +258,7 @@ class GltfAsset:
             raise DermisError(f"{self.path}: {what} run past their bufferView (file truncated?)")
         return np.frombuffer(data, dtype, count * n, off).reshape(count, n).copy()
 
-    def image(self, texture_index: int, srgb: bool, max_pixels: int) -> Texture:
+    def image(self, texture_index: int, srgb: bool, max_pixels: int, rgba: bool = False) -> Texture:
         tex = self.gltf.textures[texture_index]
         img = self.gltf.images[tex.source]
         label = f"{self.path} image {tex.source}"
@@ -265,7 +275,7 @@ class GltfAsset:
                 label = str(p)
         else:
             raise DermisError(f"{label}: image has neither a URI nor a bufferView")
-        return Texture(as_rgb(arr), label)
+        return Texture(as_rgba(arr) if rgba else as_rgb(arr), label)
 
     def _node_matrices(self):
         g = self.gltf
@@ -375,28 +385,19 @@ class GltfAsset:
             warn(f"{self.path}: glTF cameras are not used (the scene's [camera] is)")
 
     def _maps(self, mat: dict, label: str):
-        """The skin material's maps ('albedo', 'normal_map' -> textureInfo), the UV set they share
-        and their shared KHR_texture_transform (offset, rotation, scale) or None."""
+        """The skin material's maps ('albedo', 'normal_map' -> textureInfo); each is sampled through
+        its own UV set and KHR_texture_transform (Texture.texcoord / transform)."""
         pbr = mat.get("pbrMetallicRoughness") or {}
         refs = {k: r for k, r in (("albedo", pbr.get("baseColorTexture")), ("normal_map", mat.get("normalTexture")))
                 if r is not None}
-        sets = {gltf_document.texcoord_set(r) for r in refs.values()}
-        if len(sets) > 1:
-            raise DermisError(f"{self.path}: material {label} samples its maps through different UV sets "
-                              f"({', '.join(f'TEXCOORD_{k}' for k in sorted(sets))}): per-map texCoord sets are not supported")
+        self._check_sets(refs, label)
+        return refs
 
-        def transform(r):
-            tt = gltf_document.texture_transform(r)
-            if tt is None:
-                return None
-            t = (tuple(tt.get("offset", (0.0, 0.0))), float(tt.get("rotation", 0.0)), tuple(tt.get("scale", (1.0, 1.0))))
-            return None if t == ((0, 0), 0.0, (1, 1)) else t
-
-        transforms = {transform(r) for r in refs.values()}
-        if len(transforms) > 1:
-            raise DermisError(f"{self.path}: material {label} gives its maps different KHR_texture_transform "
-                              f"transforms: per-map texture transforms are not supported")
-        return refs, (sets.pop() if sets else 0), (transforms.pop() if transforms else None)
+    def _check_sets(self, refs: dict, label: str):
+        for r in refs.values():
+            if gltf_document.texcoord_set(r) > 1:
+                raise DermisError(f"{self.path}: material {label} samples a map through TEXCOORD_"
+                                  f"{gltf_document.texcoord_set(r)}: dermis reads TEXCOORD_0 and TEXCOORD_1 only")
 
     def _sampler(self, texture_index: int) -> tuple[tuple, tuple]:
         """((wrapS, wrapT) as 'clamp' | 'mirror' | 'repeat', (minFilter, magFilter) GL enums or None);
@@ -407,39 +408,24 @@ class GltfAsset:
         filters = (sm.get("minFilter"), sm.get("magFilter"))
         return wrap, (None if filters == (None, None) else filters)
 
-    def load(self, uv_convention: str, max_pixels: int = MAX_IMAGE_PIXELS, skin_materials=None):
-        """Returns (Mesh, material dict with 'albedo', 'normal_map', 'specular_map' Textures or None).
+    def _map(self, ref: dict, srgb: bool, uv_convention: str, max_pixels: int, rgba: bool = False) -> Texture:
+        """A material map as a Texture addressed as the file says: its sampler's wrap modes and
+        filters, its texCoord set and its KHR_texture_transform (as a 3x3 in dermis's v-up UVs).
+        A MIRRORED_REPEAT axis is baked into a doubled image read at half the coordinate
+        (_mirror_doubled), the halving folded into the map's own transform."""
+        tex = self.image(ref["index"], srgb=srgb, max_pixels=max_pixels, rgba=rgba)
+        wrap, filters = self._sampler(ref["index"])
+        halve = tuple(w == "mirror" for w in wrap)
+        v_down = uv_convention == "v-down"
+        data, wrap = _mirror_doubled(tex.data, wrap, halve, v_down=v_down)
+        return Texture(data, tex.source, wrap=wrap, filters=filters, texcoord=gltf_document.texcoord_set(ref),
+                       transform=uv_matrix(_khr_transform(ref), halve, v_down))
 
-        Only the primitives whose material is skin (``skin_materials``: names or indices; None =
-        the mesh's single material) are loaded; the others are dropped with a warning (dermis has
-        no metallic-roughness shading yet). The skin material's maps are sampled through the UV
-        set they name (texCoord), with their KHR_texture_transform applied to the UVs and their
-        samplers' wrap modes and filters kept on the Textures; COLOR_0 is multiplied into the base
-        colour by baking it into an albedo texture: on a generated layout (materials without maps),
-        or into the albedo in the maps' own layout (which must be unique and inside [0, 1])."""
-        g, doc = self.gltf, self.doc
-        if not g.meshes:
-            raise DermisError(f"{self.path}: glTF has no meshes")
-        mats = self._node_matrices()
-        node_meshes = [(mats[i], n.mesh) for i, n in enumerate(g.nodes) if n.mesh is not None and i in mats]
-        if not node_meshes:
-            node_meshes = [(np.eye(4), i) for i in range(len(g.meshes))]
-        prims = [(m4, mi, p) for m4, mi in node_meshes for p in doc["meshes"][mi]["primitives"]
-                 if p.get("mode", 4) == 4 and "POSITION" in p["attributes"]]  # points/lines: not skin
-        if not prims:
-            raise DermisError(f"{self.path}: glTF has no triangle meshes")
-        used = list(dict.fromkeys(p.get("material") for _, _, p in prims))
-        skin = self._skin_set(used, skin_materials)
-        for m in used:
-            if m not in skin:
-                warn(f"{self.path}: primitives with material {self._material_label(m)} (not skin) are not rendered: "
-                     f"glTF metallic-roughness shading is not supported yet")
-        prims = [x for x in prims if x[2].get("material") in skin]
-        self._warn_unsupported(prims)
-        mat, label = self._skin_material(skin)
-        refs, uv_set, uv_transform = self._maps(mat, label)
-        texcoord = f"TEXCOORD_{uv_set}"
-        P, N, UV, I, TAN, COL = [], [], [], [], [], []
+    def _read_prims(self, prims, sets) -> dict:
+        """Positions, normals, UV sets ``sets`` (set -> array or None when no primitive has it),
+        tangents, COLOR_0 and indices of ``prims``, concatenated with their node transforms applied."""
+        P, N, I, TAN, COL = [], [], [], [], []
+        UV = {k: [] for k in sets}
         base = 0
         have_tangents = True
         try:
@@ -453,13 +439,15 @@ class GltfAsset:
                                       f"(scale 0, or numbers too large)")
                 nm = np.linalg.inv(m4[:3, :3]).T
                 n = self.accessor(at["NORMAL"]).astype(np.float64) @ nm.T if "NORMAL" in at else None
-                uv = self.accessor(at[texcoord]).astype(np.float64) if texcoord in at else None
+                for k in sets:
+                    name = f"TEXCOORD_{k}"
+                    UV[k].append(self.accessor(at[name]).astype(np.float64) if name in at else None)
                 # glTF 2.0 3.7.2.1: COLOR_0 multiplies the base colour (linear; alpha unused here)
                 col = self.accessor(at["COLOR_0"]).astype(np.float64)[:, :3] if "COLOR_0" in at else np.ones((len(p), 3))
-                if "TANGENT" in at and uv_set == 0:  # tangents follow TEXCOORD_0
+                if "TANGENT" in at:  # tangents follow TEXCOORD_0
                     tg = self.accessor(at["TANGENT"]).astype(np.float64)
                     tg[:, :3] = tg[:, :3] @ m4[:3, :3].T
-                    if np.linalg.det(m4[:3, :3]) < 0:  # a mirroring transform flips handedness
+                    if det < 0:  # a mirroring transform flips handedness
                         tg[:, 3] = -tg[:, 3]
                     TAN.append(tg)
                 else:
@@ -471,7 +459,6 @@ class GltfAsset:
                     raise DermisError(f"{self.path}: triangle indices out of range")
                 P.append(p)
                 N.append(n)
-                UV.append(uv)
                 COL.append(col)
                 I.append(idx.reshape(-1, 3).astype(np.int64) + base)
                 base += len(p)
@@ -479,20 +466,53 @@ class GltfAsset:
             raise
         except Exception as exc:
             raise DermisError(f"{self.path}: malformed glTF mesh data ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
-        normals = None if any(n is None for n in N) else np.concatenate(N)
-        tangents = np.concatenate(TAN) if have_tangents and TAN else None
-        if any(u is None for u in UV) and not all(u is None for u in UV):
-            raise DermisError(f"{self.path}: some mesh primitives have {texcoord} (UVs) and others do not")
-        positions, indices, colours = np.concatenate(P), np.concatenate(I), np.concatenate(COL)
-        uvs = None if UV[0] is None else np.concatenate(UV)  # None: generated (finish_mesh)
-        halve = (False, False)
-        if uvs is not None and refs:
-            uvs = apply_texture_transform(uvs, uv_transform)
-            if uv_transform is not None:
-                tangents = None  # regenerated for the transformed UVs
-            wraps = [self._sampler(r["index"])[0] for r in refs.values()]
-            halve = tuple(any(w[a] == "mirror" for w in wraps) for a in (0, 1))
-            uvs = uvs * np.where(halve, 0.5, 1.0)  # mirrored repeat baked into a doubled image (_mirror_doubled)
+        uvs = {}
+        for k, parts in UV.items():
+            if any(u is None for u in parts) and not all(u is None for u in parts):
+                raise DermisError(f"{self.path}: some mesh primitives have TEXCOORD_{k} (UVs) and others do not")
+            uvs[k] = None if parts[0] is None else np.concatenate(parts)
+        return {"positions": np.concatenate(P), "normals": None if any(n is None for n in N) else np.concatenate(N),
+                "uvs": uvs, "tangents": np.concatenate(TAN) if have_tangents and TAN else None,
+                "colours": np.concatenate(COL), "indices": np.concatenate(I)}
+
+    def load(self, uv_convention: str, max_pixels: int = MAX_IMAGE_PIXELS, skin_materials=None):
+        """Returns (Mesh, material dict with 'albedo', 'normal_map', 'specular_map' Textures or None,
+        'albedo_color', and 'surfaces': the non-skin primitives as dermis.scene.model.Surface).
+
+        The primitives whose material is skin (``skin_materials``: names or indices; None = the
+        mesh's single material) form the skin Mesh; every other material's primitives form one
+        Surface rendered with glTF's metallic-roughness model. Each map is sampled through the UV
+        set it names (texCoord) with its own KHR_texture_transform, and its sampler's wrap modes
+        and filters (Texture). COLOR_0 of the skin is multiplied into the base colour by baking it
+        into an albedo texture: on a generated layout (materials without maps), or into the albedo
+        in the albedo's own layout (which must be unique and inside [0, 1])."""
+        g, doc = self.gltf, self.doc
+        if not g.meshes:
+            raise DermisError(f"{self.path}: glTF has no meshes")
+        mats = self._node_matrices()
+        node_meshes = [(mats[i], n.mesh) for i, n in enumerate(g.nodes) if n.mesh is not None and i in mats]
+        if not node_meshes:
+            node_meshes = [(np.eye(4), i) for i in range(len(g.meshes))]
+        prims = [(m4, mi, p) for m4, mi in node_meshes for p in doc["meshes"][mi]["primitives"]
+                 if p.get("mode", 4) == 4 and "POSITION" in p["attributes"]]  # points/lines: not drawn
+        if not prims:
+            raise DermisError(f"{self.path}: glTF has no triangle meshes")
+        used = list(dict.fromkeys(p.get("material") for _, _, p in prims))
+        skin = self._skin_set(used, skin_materials)
+        self._warn_unsupported(prims)
+        mat, label = self._skin_material(skin)
+        mesh, material = self._load_skin([x for x in prims if x[2].get("material") in skin], mat, label,
+                                         uv_convention, max_pixels)
+        material["surfaces"] = [self._load_surface([x for x in prims if x[2].get("material") == m], m, uv_convention,
+                                                   max_pixels) for m in used if m not in skin]
+        return mesh, material
+
+    def _load_skin(self, prims, mat, label, uv_convention, max_pixels):
+        refs = self._maps(mat, label)
+        sets = {gltf_document.texcoord_set(r) for r in refs.values()}
+        data = self._read_prims(prims, {0} | sets)
+        positions, normals, indices, colours = data["positions"], data["normals"], data["indices"], data["colours"]
+        uvs, uvs1, tangents = data["uvs"][0], data["uvs"].get(1), data["tangents"]
         pbr = mat.get("pbrMetallicRoughness") or {}
         factor = np.asarray(pbr["baseColorFactor"][:3], np.float32) if "baseColorFactor" in pbr else None
         material = {"albedo": None, "normal_map": None, "specular_map": None, "albedo_color": None}
@@ -500,42 +520,123 @@ class GltfAsset:
         if vertex_coloured and not refs:  # no maps: the UVs are free for a generated layout
             positions, normals, indices, uvs, albedo = bake_vertex_colours(positions, normals, indices, colours, factor,
                                                                            f"{self.path} COLOR_0")
-            material["albedo"], tangents, uv_convention = albedo, None, "v-up"
+            material["albedo"], tangents, uv_convention, uvs1 = albedo, None, "v-up", None
             vertex_coloured = False
-        mesh = finish_mesh(positions, normals, uvs, indices, str(self.path), uv_convention, tangents)
-        if vertex_coloured:  # maps: COLOR_0 goes into the albedo in the maps' own layout, which must be unique
-            from dermis.geometry.texture_space import layout_problem
-
-            problem = layout_problem(mesh.uvs, mesh.indices)
-            if problem is not None:
-                raise DermisError(f"{self.path}: material {label} has maps and the mesh has vertex colours (COLOR_0), "
-                                  f"which dermis bakes into the albedo in the maps' UV layout, but {problem}: COLOR_0 "
-                                  f"with this textured material is not supported")
         try:
             for key, ref in refs.items():
-                tex = self.image(ref["index"], srgb=key == "albedo", max_pixels=max_pixels)
-                wrap, filters = self._sampler(ref["index"])
-                data, wrap = _mirror_doubled(tex.data, wrap, halve, v_down=uv_convention == "v-down")
+                tex = self._map(ref, key == "albedo", uv_convention, max_pixels)
                 if key == "albedo" and factor is not None:  # glTF 2.0: base colour = factor x texture
-                    data = data * factor
-                material[key] = Texture(data, tex.source, wrap=wrap, filters=filters)
-            if vertex_coloured:
-                albedo = material["albedo"]
-                if albedo is None:  # a white map x factor at the bake's resolution
-                    R = VERTEX_COLOUR_RESOLUTION
-                    albedo = Texture(np.ones((R, R, 3), np.float32) * (1.0 if factor is None else factor), f"{self.path}")
-                H, W = albedo.data.shape[:2]
-                data = albedo.data[:, :, :3] * colour_image(mesh.uvs, mesh.indices, colours, W, H)
-                material["albedo"] = Texture(data.astype(np.float32), f"{albedo.source} x COLOR_0", wrap=albedo.wrap,
-                                             filters=albedo.filters)
-            if material["albedo"] is None and factor is not None:
-                material["albedo_color"] = tuple(float(x) for x in factor)
+                    tex.data = tex.data * factor
+                material[key] = tex
         except DermisError:
             raise
         except Exception as exc:
             raise DermisError(f"{self.path}: malformed glTF material ({type(exc).__name__}: "
                               f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
+        mesh = finish_mesh(positions, normals, uvs, indices, str(self.path), uv_convention,
+                           tangents if _tangents_apply(material["normal_map"]) else None, uvs1=uvs1)
+        _map_tangents(mesh, material["normal_map"])
+        if vertex_coloured:  # maps: COLOR_0 goes into the albedo in its own layout, which must be unique
+            from dermis.geometry.texture_space import layout_problem
+
+            albedo = material["albedo"]
+            if albedo is None:  # a white map x factor at the bake's resolution
+                R = VERTEX_COLOUR_RESOLUTION
+                albedo = Texture(np.ones((R, R, 3), np.float32) * (1.0 if factor is None else factor), f"{self.path}")
+            where = albedo.mapped_uvs(mesh)
+            problem = layout_problem(where, mesh.indices)
+            if problem is not None:
+                raise DermisError(f"{self.path}: material {label} has maps and the mesh has vertex colours (COLOR_0), "
+                                  f"which dermis bakes into the albedo in the albedo's UV layout, but {problem}: COLOR_0 "
+                                  f"with this textured material is not supported")
+            H, W = albedo.data.shape[:2]
+            data = albedo.data[:, :, :3] * colour_image(where, mesh.indices, colours, W, H)
+            material["albedo"] = Texture(data.astype(np.float32), f"{albedo.source} x COLOR_0", wrap=albedo.wrap,
+                                         filters=albedo.filters, texcoord=albedo.texcoord, transform=albedo.transform)
+        if material["albedo"] is None and factor is not None:
+            material["albedo_color"] = tuple(float(x) for x in factor)
         return mesh, material
+
+    def _load_surface(self, prims, m, uv_convention, max_pixels) -> Surface:
+        """The primitives of one non-skin material as a Surface (glTF 2.0 3.9, metallic-roughness)."""
+        mat = {} if m is None else self.doc["materials"][m]
+        label = self._material_label(m)
+        pbr = mat.get("pbrMetallicRoughness") or {}
+        refs = {k: r for k, r in (("base_color", pbr.get("baseColorTexture")),
+                                  ("metallic_roughness", pbr.get("metallicRoughnessTexture")),
+                                  ("normal", mat.get("normalTexture")), ("occlusion", mat.get("occlusionTexture")),
+                                  ("emissive", mat.get("emissiveTexture"))) if r is not None}
+        self._check_sets(refs, label)
+        sets = {gltf_document.texcoord_set(r) for r in refs.values()}
+        data = self._read_prims(prims, {0} | sets)
+        if np.any(np.abs(data["colours"] - 1.0) > 1e-6):
+            warn(f"{self.path}: material {label} (not skin): COLOR_0 is not supported and ignored")
+        alpha_mode, cutoff = mat.get("alphaMode", "OPAQUE"), float(mat.get("alphaCutoff", 0.5))
+        if alpha_mode == "BLEND":
+            warn(f"{self.path}: material {label}: alphaMode BLEND is rendered as MASK at alpha 0.5 (dermis does not "
+                 f"sort transparent surfaces)")
+            alpha_mode, cutoff = "MASK", 0.5
+        out = MetallicRoughnessMaterial(
+            name=(mat.get("name") or f"#{m}") if m is not None else "(no material)", base_color=tuple(float(x) for x in pbr.get("baseColorFactor", (1.0, 1.0, 1.0, 1.0))),
+            metallic=float(pbr.get("metallicFactor", 1.0)), roughness=float(pbr.get("roughnessFactor", 1.0)),
+            normal_scale=float((mat.get("normalTexture") or {}).get("scale", 1.0)),
+            occlusion_strength=float((mat.get("occlusionTexture") or {}).get("strength", 1.0)),
+            emissive=tuple(float(x) for x in mat.get("emissiveFactor", (0.0, 0.0, 0.0))),
+            alpha_mode=alpha_mode, alpha_cutoff=cutoff, double_sided=bool(mat.get("doubleSided", False)))
+        try:
+            for key, ref in refs.items():
+                setattr(out, f"{key}_map", self._map(ref, key in ("base_color", "emissive"), uv_convention, max_pixels,
+                                                     rgba=key == "base_color"))
+        except DermisError:
+            raise
+        except Exception as exc:
+            raise DermisError(f"{self.path}: malformed glTF material ({type(exc).__name__}: "
+                              f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
+        uvs = data["uvs"][0]
+        if uvs is None:  # no map reads TEXCOORD_0 (validated): any coordinates, no layout generated
+            uvs = np.zeros((len(data["positions"]), 2))
+        mesh = finish_mesh(data["positions"], data["normals"], uvs, data["indices"], f"{self.path} material {label}",
+                           uv_convention, data["tangents"] if _tangents_apply(out.normal_map) else None,
+                           uvs1=data["uvs"].get(1))
+        _map_tangents(mesh, out.normal_map)
+        return Surface(mesh, out)
+
+
+def _khr_transform(ref: dict):
+    """A textureInfo's KHR_texture_transform as (offset, rotation, scale), or None."""
+    tt = gltf_document.texture_transform(ref)
+    if tt is None:
+        return None
+    return (tuple(tt.get("offset", (0.0, 0.0))), float(tt.get("rotation", 0.0)), tuple(tt.get("scale", (1.0, 1.0))))
+
+
+def uv_matrix(transform, halve=(False, False), v_down: bool = True) -> np.ndarray | None:
+    """The 3x3 that maps dermis's (v-up) UVs to a map's coordinates: KHR_texture_transform
+    (:func:`apply_texture_transform`, in the FILE's UV space), then the halving of mirrored axes
+    (_mirror_doubled), conjugated by the file's v flip F (v' = 1 - v) when the file's v points down:
+    M = F H T F. None when it is the identity."""
+    M = np.eye(3)
+    if transform is not None:
+        basis = apply_texture_transform(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), transform)
+        M[:2, 2] = basis[0]
+        M[:2, 0], M[:2, 1] = basis[1] - basis[0], basis[2] - basis[0]
+    M = np.diag([0.5 if halve[0] else 1.0, 0.5 if halve[1] else 1.0, 1.0]) @ M
+    if v_down:
+        F = np.array([[1.0, 0, 0], [0, -1.0, 1.0], [0, 0, 1.0]])
+        M = F @ M @ F
+    return None if np.allclose(M, np.eye(3), rtol=0, atol=1e-12) else M.astype(np.float32)
+
+
+def _tangents_apply(normal_map) -> bool:
+    """The file's TANGENTs belong to TEXCOORD_0 as stored: usable for a normal map read there untransformed."""
+    return normal_map is None or (normal_map.texcoord == 0 and normal_map.transform is None)
+
+
+def _map_tangents(mesh: Mesh, normal_map):
+    """Tangents along the normal map's own coordinates (its UV set, transformed) when they are not
+    TEXCOORD_0 as stored: the tangent frame is that of the map the normals are read from."""
+    if not _tangents_apply(normal_map):
+        mesh.tangents = generate_tangents(mesh.positions, mesh.normals, normal_map.mapped_uvs(mesh), mesh.indices)
 
 
 def warn(message: str):

@@ -31,14 +31,16 @@ class Mesh:
     # (dermis.geometry.texture_space). "auto" | "mesh" | "generate": how it is chosen.
     texture_space_uvs: np.ndarray | None = None
     texture_space_uv: str = "auto"
+    # a second UV set (glTF TEXCOORD_1, v up), for maps whose Texture.texcoord is 1; None: absent
+    uvs1: np.ndarray | None = None
 
     def validate(self) -> "Mesh":
         n = len(self.positions)
         if n == 0 or len(self.indices) == 0:
             raise DermisError(f"{self.source}: mesh has no triangles")
-        for name in ("positions", "normals", "uvs", "texture_space_uvs"):
+        for name in ("positions", "normals", "uvs", "texture_space_uvs", "uvs1"):
             a = getattr(self, name)
-            if a is None and name == "texture_space_uvs":
+            if a is None and name in ("texture_space_uvs", "uvs1"):
                 continue
             if a is None:
                 raise DermisError(f"{self.source}: mesh has no {name}" + (" (texture coordinates are required)" if name == "uvs" else ""))
@@ -66,6 +68,24 @@ class Texture:
     # (glTF sampler minFilter/magFilter), None = trilinear with mipmaps
     wrap: tuple = ("clamp", "clamp")
     filters: tuple | None = None
+    # how the map is addressed: the UV set it reads (0 = Mesh.uvs, 1 = Mesh.uvs1) and a 3x3 affine
+    # transform of that set's (u, v, 1), v up (KHR_texture_transform, converted by the loader);
+    # None = identity. Applied per map in the shaders (common/surface.glsl, map_uv).
+    texcoord: int = 0
+    transform: np.ndarray | None = None
+
+    def uv_matrix(self) -> np.ndarray:
+        """The 3x3 UV transform (float32), identity when there is none."""
+        return np.eye(3, dtype=np.float32) if self.transform is None else np.asarray(self.transform, np.float32)
+
+    def mapped_uvs(self, mesh: "Mesh") -> np.ndarray:
+        """The (N, 2) coordinates this map is sampled at on ``mesh``'s vertices (affine, so exact
+        per vertex: the transform commutes with interpolation)."""
+        uv = mesh.uvs1 if self.texcoord == 1 else mesh.uvs
+        if uv is None:
+            raise DermisError(f"{self.source}: the map reads TEXCOORD_{self.texcoord}, which {mesh.source} does not have")
+        T = self.uv_matrix().astype(np.float64)
+        return (np.asarray(uv, np.float64) @ T[:2, :2].T + T[:2, 2]).astype(np.float32)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -89,6 +109,45 @@ class SkinMaterial:
     mix: float = 0.5  # albedo^mix before scattering, albedo^(1-mix) after (d'Eon 2007 sec 14.5.2)
     pore_scale_mm: float = 0.5  # spacing of procedural pore-detail normals in the final pass
     pore_strength: float = 0.15  # 0 disables procedural pore detail
+
+
+ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
+
+
+@dataclass
+class MetallicRoughnessMaterial:
+    """A glTF 2.0 metallic-roughness material (glTF 2.0 spec 3.9.2, BRDF: Appendix B): what dermis
+    renders for every primitive that is not skin (eyes, teeth, hair cards, props). Factors are
+    linear; a map multiplies its factor. Shaded by shaders/common/metallic_roughness.glsl."""
+
+    name: str = "<material>"
+    base_color: tuple = (1.0, 1.0, 1.0, 1.0)  # baseColorFactor, linear RGBA
+    base_color_map: Texture | None = None  # RGBA, linear (sRGB decoded on load), alpha = coverage
+    metallic: float = 1.0
+    roughness: float = 1.0  # perceptual roughness; GGX alpha = roughness^2
+    metallic_roughness_map: Texture | None = None  # G = roughness, B = metallic (linear data)
+    normal_map: Texture | None = None  # tangent space, encoded n*0.5+0.5
+    normal_scale: float = 1.0
+    occlusion_map: Texture | None = None  # R = ambient occlusion (applied to ambient light only)
+    occlusion_strength: float = 1.0
+    emissive: tuple = (0.0, 0.0, 0.0)  # emissiveFactor, linear RGB radiance
+    emissive_map: Texture | None = None
+    alpha_mode: str = "OPAQUE"  # OPAQUE | MASK (BLEND is loaded as MASK at alpha_cutoff, with a warning)
+    alpha_cutoff: float = 0.5
+    double_sided: bool = False
+
+    def maps(self) -> dict:
+        return {"base_color": self.base_color_map, "metallic_roughness": self.metallic_roughness_map,
+                "normal": self.normal_map, "occlusion": self.occlusion_map, "emissive": self.emissive_map}
+
+
+@dataclass
+class Surface:
+    """Geometry that is not skin, with its metallic-roughness material: drawn beside the skin by
+    every technique, lit and shadowed by the same lights, never part of the scattering passes."""
+
+    mesh: Mesh
+    material: MetallicRoughnessMaterial = field(default_factory=MetallicRoughnessMaterial)
 
 
 @dataclass
@@ -158,6 +217,18 @@ class Scene:
     skin_color: str = "albedo"
     source: str = "<scene>"
     name: str = "scene"
+    surfaces: list = field(default_factory=list)  # Surface: the non-skin primitives (glTF metallic-roughness)
 
     def bounds(self):
-        return self.mesh.bounds
+        """Bounds of everything drawn: the skin mesh and the non-skin surfaces."""
+        lo, hi = self.mesh.bounds
+        for s in self.surfaces:
+            slo, shi = s.mesh.bounds
+            lo, hi = np.minimum(lo, slo), np.maximum(hi, shi)
+        return lo, hi
+
+    def all_positions(self) -> np.ndarray:
+        """Every vertex drawn (skin first), e.g. to fit shadow maps around."""
+        if not self.surfaces:
+            return self.mesh.positions
+        return np.concatenate([self.mesh.positions] + [s.mesh.positions for s in self.surfaces])

@@ -196,7 +196,7 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
     technique = sc.get("technique", "tsd")
     scene = Scene(mesh=mesh, material=mat, lights=lights, camera=cam, environment=env, output=out,
                   mm_per_unit=mm_per_unit, profile=profile, skin_color=skin_color, technique=technique, source=str(path),
-                  name=sc.get("name", path.stem))
+                  name=sc.get("name", path.stem), surfaces=list(material_from_file.get("surfaces", [])))
     if not lights_t and not doc.get("camera"):
         from dermis.scene.builtin import frame_scene
 

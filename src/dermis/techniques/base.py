@@ -197,3 +197,36 @@ def draw_mesh(frame: Frame, prog, vao=None):
     set_uniform(prog, "uCameraPos", tuple(float(x) for x in frame.eye))
     bind_scene(frame, prog)
     (vao or frame.gpu.vao(prog)).render(moderngl.TRIANGLES)
+
+
+def draw_surfaces(frame: Frame, output_mode: int = OutputMode.FULL):
+    """Draw the scene's non-skin surfaces (glTF metallic-roughness: dermis.gl.surfaces,
+    shaders/metallic_roughness/) into ``frame.target`` with depth testing, after a technique's
+    skin passes: lit by the same lights, shadowed through the same atlas, never part of any
+    scattering pass (texture-space or screen-space), so nothing is blurred across the boundary.
+    Single-sided materials' back faces are culled (glTF 2.0 3.9.6)."""
+    surfaces = frame.gpu.surfaces
+    if not surfaces:
+        return
+    from dermis.gl.resources import mat_bytes, set_uniform
+
+    prog = frame.renderer.surface_program
+    ctx = frame.ctx
+    with frame.timer("surfaces"):
+        frame.target.use()
+        ctx.enable(moderngl.DEPTH_TEST)
+        prog["uViewProj"].write(mat_bytes(frame.viewproj))
+        set_uniform(prog, "uCameraPos", tuple(float(x) for x in frame.eye))
+        set_uniform(prog, "uMmPerUnit", float(frame.scene.mm_per_unit))
+        set_uniform(prog, "uOutputMode", int(output_mode))
+        frame.lights.apply(prog)
+        frame.shadows.bind(prog)
+        for s in surfaces:
+            if s.double_sided:
+                ctx.disable(moderngl.CULL_FACE)
+            else:
+                ctx.enable(moderngl.CULL_FACE)
+            s.uniforms(prog)
+            s.vao(prog).render(moderngl.TRIANGLES)
+        ctx.disable(moderngl.CULL_FACE)
+    frame.passes_run.append("surfaces")

@@ -14,7 +14,7 @@ import moderngl
 
 from dermis.errors import DermisError
 from dermis.gl.shaders import program
-from dermis.techniques.base import Frame, Technique, draw_mesh
+from dermis.techniques.base import Frame, Technique, draw_mesh, draw_surfaces
 from dermis.techniques.shared import OutputMode
 
 
@@ -35,6 +35,7 @@ class Lambert(Technique):
             self.ctx.disable(moderngl.CULL_FACE)
             draw_mesh(frame, self.prog)
         frame.passes_run.append("lambert")
+        draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing
 
     def release(self):
         self.prog.release()

@@ -51,7 +51,7 @@ import numpy as np
 from dermis.gl.resources import set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
-from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh
+from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, casts_translucency,
                                       set_profile_uniforms, surface_detail_uniforms, translucency_uniforms)
 
@@ -358,6 +358,7 @@ class PreintegratedSkin(Technique):
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
             draw_mesh(frame, prog, vao=self._vao)
         frame.passes_run.append("preintegrated")
+        draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing
 
     def debug_buffers(self) -> dict:
         if self.renderer.last_frame is None or self._vao is None:

@@ -73,6 +73,13 @@ SHARED_SAMPLERS = {"uShadowAtlas": Unit.SHADOW_ATLAS, "uShadowAux": Unit.SHADOW_
                    "uRhoDtTex": Unit.RHO_DT, "uBeckmannTex": Unit.BECKMANN}
 """Sampler uniform -> unit, for every sampler the shared GLSL (shaders/common) declares."""
 
+METALLIC_ROUGHNESS_SAMPLERS = {"uBaseColorMap": Unit.ALBEDO, "uNormalMap": Unit.NORMAL,
+                               "uMetallicRoughnessMap": Unit.SPECULAR, "uOcclusionMap": Unit.ROUGHNESS,
+                               "uEmissiveMap": Unit.RHO_DT}
+"""Sampler -> unit in the program of non-skin surfaces (shaders/metallic_roughness/, dermis.gl.surfaces):
+a separate program, so it reuses the skin material's units (it reads no specular tables) and leaves
+FIRST_FREE onwards alone; the shadow atlas keeps its units."""
+
 GUARANTEED_TEXTURE_UNITS = 16
 """GL_MAX_TEXTURE_IMAGE_UNITS every GL 4.5 implementation offers per stage."""
 

@@ -43,7 +43,7 @@ from dermis.errors import DermisError
 from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
-from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh
+from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
                                       casts_translucency, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
@@ -198,6 +198,7 @@ class ScreenSpaceSSS(Technique):
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
             draw_mesh(frame, prog)
         frame.passes_run.append("ssss_final")
+        draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing
 
     # ------------------------------------------------------------------ inspection
     read_texture = staticmethod(read_texture)

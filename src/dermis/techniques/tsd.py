@@ -40,7 +40,7 @@ from dermis.geometry.texture_space import UV_RANGE_TOLERANCE
 from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
-from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh
+from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
                                       set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
@@ -389,6 +389,7 @@ class TextureSpaceDiffusion(Technique):
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
             draw_mesh(frame, prog)
         frame.passes_run.append("tsd_final")
+        draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing
 
     def combined(self, frame: Frame) -> np.ndarray:
         """sum_k w_k I_k in texture space at the irradiance resolution, (S, S, 3), row 0 = top."""

@@ -1,6 +1,7 @@
 // Ambient light from the environment as 9 spherical-harmonic coefficients of its IRRADIANCE
 // (Ramamoorthi & Hanrahan 2001, "An Efficient Representation for Irradiance Environment Maps",
 // eq. 13): E(n) = sum_lm A_l L_lm Y_lm(n), with the A_l folded into uEnvSH on the CPU.
+#include "common/constants.glsl"
 uniform vec3 uEnvSH[9];
 
 vec3 environment_irradiance(vec3 n) {
@@ -10,6 +11,14 @@ vec3 environment_irradiance(vec3 n) {
            + uEnvSH[6] * 0.315392 * (3.0 * n.z * n.z - 1.0)
            + uEnvSH[7] * 1.092548 * n.x * n.z + uEnvSH[8] * 0.546274 * (n.x * n.x - n.y * n.y);
     return max(e, vec3(0.0));
+}
+
+// Radiance arriving from the environment around direction R, for a glossy lobe of GGX roughness
+// alpha (unit-less, alpha = perceptual roughness^2). Today: the environment's cosine-weighted mean
+// radiance around R, E_sh(R) / pi, whatever alpha (the skin's specular uses the same term,
+// common/skin_specular.glsl); a prefiltered HDR lookup per alpha replaces this body (issue 12).
+vec3 environment_specular_radiance(vec3 R, float alpha) {
+    return environment_irradiance(R) * INV_PI;
 }
 
 // Occluded environment light (dermis/geometry/visibility.py, whose numpy twins these are).

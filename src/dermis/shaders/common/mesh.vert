@@ -5,6 +5,7 @@ layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec4 in_tangent;
 layout(location = 5) in vec2 in_uv_ts;  // texture-space UV set (tsd's textures); in_uv: material maps
 layout(location = 6) in vec4 in_visibility;  // (ambient occlusion, bent normal): geometry/visibility.py
+layout(location = 7) in vec2 in_uv1;  // TEXCOORD_1 (maps whose texCoord is 1; zeros when absent)
 #ifdef DERMIS_VERTEX_CURVATURE
 layout(location = 4) in float in_curvature;  // a technique's own per-vertex scalar (preintegrated: 1/mm)
 out float v_curvature;
@@ -13,6 +14,7 @@ uniform mat4 uViewProj;
 out vec3 v_world;
 out vec3 v_normal;
 out vec2 v_uv;
+out vec2 v_uv1;
 out vec4 v_tangent;
 out vec2 v_uv_ts;
 out vec4 v_visibility;
@@ -22,6 +24,7 @@ void main() {
     v_world = in_position;
     v_normal = in_normal;
     v_uv = in_uv;
+    v_uv1 = in_uv1;
     v_tangent = in_tangent;
 #ifdef DERMIS_VERTEX_CURVATURE
     v_curvature = in_curvature;

@@ -81,7 +81,8 @@ void main() {
     float curvature = uCurvatureFromMesh > 0.5 ? abs(v_curvature) : curvature_derivatives;
     // the normal map's texels per mm (square root of the area ratio of a pixel's footprint)
     vec2 tex = vec2(textureSize(uNormalMap, 0));
-    vec2 duvx = dFdx(v_uv) * tex, duvy = dFdy(v_uv) * tex;
+    vec2 nuv = normal_map_uv(v_uv);  // the normal map's own coordinates (its UV set and transform)
+    vec2 duvx = dFdx(nuv) * tex, duvy = dFdy(nuv) * tex;
     float area_uv = abs(duvx.x * duvy.y - duvx.y * duvy.x);
     float area_mm = length(cross(dFdx(P_mm), dFdy(P_mm)));  // a pixel's footprint, mm^2
     float pixel_mm = sqrt(area_mm);
@@ -90,7 +91,7 @@ void main() {
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     // blurred normals: mip level L averages 2^L texels, a box of standard deviation 2^L / sqrt(12);
     // never finer than the pixel's own footprint (the level texture() would pick)
-    float footprint_lod = textureQueryLod(uNormalMap, v_uv).x;
+    float footprint_lod = textureQueryLod(uNormalMap, nuv).x;
     vec3 lod = max(log2(max(uScatterRadiusMm * texels_per_mm * 3.4641016, vec3(1.0))) * uBlurredNormals,
                    vec3(footprint_lod));
     vec3 N_red = perturb_normal_lod(v_normal, v_tangent, v_uv, lod.r);

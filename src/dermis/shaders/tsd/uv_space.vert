@@ -7,15 +7,18 @@ layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec4 in_tangent;
 layout(location = 5) in vec2 in_uv_ts;  // the texture-space UV set (the mesh's own when unique)
 layout(location = 6) in vec4 in_visibility;  // (ambient occlusion, bent normal): geometry/visibility.py
+layout(location = 7) in vec2 in_uv1;  // TEXCOORD_1 (maps whose texCoord is 1)
 out vec3 v_world;
 out vec3 v_normal;
 out vec2 v_uv;
+out vec2 v_uv1;
 out vec4 v_tangent;
 out vec4 v_visibility;
 void main() {
     v_world = in_position;
     v_normal = in_normal;
     v_uv = in_uv;
+    v_uv1 = in_uv1;
     v_tangent = in_tangent;
     v_visibility = in_visibility;
     gl_Position = vec4(in_uv_ts * 2.0 - 1.0, 0.0, 1.0);
