@@ -24,6 +24,8 @@ PRODUCTS = {
     "gpu_mesh": ("mesh",),
     "material_textures": ("material_maps",),
     "light_uniforms": ("mesh", "lights", "environment"),
+    # the environment prefiltered for the specular lobe (prefiltered_environment.py, gl/environment.py)
+    "environment_specular": ("environment",),
     "shadow_atlas": ("mesh", "scale", "light_geometry", "epoch"),
     "mesh_curvature": ("mesh", "scale"),
     "stretch": ("mesh", "scale", "irradiance_size"),

@@ -51,6 +51,7 @@ class Renderer:
         self._target_sets = {}  # size -> targets: the previous size's, kept for reuse
         self.target_sizes_kept = 2  # frame sizes whose render targets are kept (the viewer alternates two)
         self._specular_tables = None
+        self._environment_specular = None  # the prefiltered environment texture (gl/environment.py)
         self.scene = None
         self.gpu = None
         self._built = {}  # product -> the key it was built with (dermis.invalidation.PRODUCTS)
@@ -97,6 +98,12 @@ class Renderer:
 
             self._specular_tables = upload_specular_tables(self.ctx)
         return self._specular_tables
+
+    @property
+    def environment_specular(self):
+        """The scene environment's prefiltered specular texture (dermis.gl.environment), rebuilt
+        when the environment changes (PRODUCTS "environment_specular")."""
+        return self._environment_specular
 
     def inputs(self) -> dict:
         """This frame's inputs of every cached product (dermis.invalidation.scene_inputs)."""
@@ -206,6 +213,17 @@ class Renderer:
         if self._stale("material_textures", keys):
             self.gpu.upload_material()
             self._built["material_textures"] = keys["material_textures"]
+        if self._stale("environment_specular", keys) or self._environment_specular is None:
+            from dermis.gl.environment import upload_environment_specular
+            from dermis.prefiltered_environment import environment_specular_levels
+
+            with self.timer("environment_prefilter"):
+                levels = environment_specular_levels(scene.environment)
+                if self._environment_specular is not None:
+                    self._environment_specular.release()
+                self._environment_specular = upload_environment_specular(self.ctx, levels)
+            self._built["environment_specular"] = keys["environment_specular"]
+            passes.append("environment_prefilter")
         # the shadow frusta transform every vertex; an HDR environment is projected to SH
         if self._stale("light_uniforms", keys):
             self._lights = LightUniforms(scene)
@@ -319,6 +337,9 @@ class Renderer:
         for t in (self._specular_tables or {}).values():
             t.release()
         self._specular_tables = None
+        if self._environment_specular is not None:
+            self._environment_specular.release()
+            self._environment_specular = None
         self.shadows.release()
         if self._owns_ctx:
             self.ctx.release()

@@ -63,6 +63,16 @@ BECKMANN_TABLE_SIZE = (512, 256)
 RHO_DT_TABLE_SIZE = (64, 64)
 """Default rho_dt table size (cos columns, m rows)."""
 
+TABLE_ATLAS = {"beckmann": (0, 0, BECKMANN_TABLE_SIZE[0], BECKMANN_TABLE_SIZE[1]),
+               "rho_dt": (0, BECKMANN_TABLE_SIZE[1], RHO_DT_TABLE_SIZE[0], RHO_DT_TABLE_SIZE[1])}
+"""Where the GPU keeps the two default tables: texel rectangles (x0, y0, cols, rows) of ONE R32F
+texture (dermis.gl.tables), the Beckmann table in rows 0..255 and the rho_dt table below it, so
+the two take one sampler unit. Each table's texel centres keep their values and positions
+relative to its rectangle: a lookup clamped to the rectangle's centres reads what the table's
+own texture read (brdf.glsl specular_table_coord)."""
+TABLE_ATLAS_SIZE = (max(r[0] + r[2] for r in TABLE_ATLAS.values()), max(r[1] + r[3] for r in TABLE_ATLAS.values()))
+"""(cols, rows) of the atlas."""
+
 
 def _dot(a, b):
     return np.sum(np.asarray(a, dtype=np.float64) * np.asarray(b, dtype=np.float64), axis=-1)
