@@ -17,20 +17,23 @@ table's accuracy). Away from normal incidence the real lobe stretches and shifts
 the approximation's error, which ``dermis validate`` measures against the reference's Monte Carlo
 integral of the true BRDF (dermis.reference.shading).
 
-Levels (one texture's mip chain, shaders/common/environment.glsl ``environment_specular``):
-level k is BASE_HEIGHT / 2^k x BASE_WIDTH / 2^k texels and holds Lpref for the Beckmann roughness
-m_k = M_MIN (M_MAX / M_MIN)^(k / (LEVELS - 1)), the same log axis as the specular tables, so the
-shader's lod is (LEVELS - 1) * y(m) and trilinear filtering interpolates in log m. The lobe's
-standard deviation about R is about sqrt(2) m radians; it spans >= 3.6 texels at every level.
+Layers (one 3-D texture, shaders/common/environment.glsl ``environment_specular``): LAYERS maps of
+HEIGHT x WIDTH texels, layer k holding Lpref for the Beckmann roughness
+m_k = M_MIN (M_MAX / M_MIN)^(k / (LAYERS - 1)), the same log axis as the specular tables, so the
+shader's third coordinate is the tables' roughness coordinate y(m) at texel centres and the
+hardware's trilinear filter interpolates linearly in log m between neighbouring layers (a
+ratio of 1.22 in m; a mip chain, whose levels must halve the resolution, allowed only six levels
+over [0.05, 1] and blending two lobes 1.8x apart in m was up to 8 % off the lobe between them).
+The lobe's standard deviation about R is about sqrt(2) m radians: 2.9 texels at m = 0.05.
 
 Equirect convention: dermis.environment's (row 0 = +y, u = 0.5 + atan2(x, -z) / 2 pi), so the
 specular and the diffuse SH see the environment in the same orientation.
 
-Cost (numpy, one core): about 1-3 s per environment (the convolution of each level is a product of
+Cost (numpy, one core): about 2-3 s per environment (the convolution of each layer is a product of
 FFTs along each row, restricted to the rows the lobe reaches); cached per image content in this
 process and, in the Renderer, as the PRODUCTS entry "environment_specular".
 
-GGX users (glTF metallic-roughness): the levels hold BECKMANN lobes. Passing GGX alpha as m gives
+GGX users (glTF metallic-roughness): the layers hold BECKMANN lobes. Passing GGX alpha as m gives
 a lobe of the same width at the peak (Walter et al. 2007, sec. 5.2: alpha_GGX ~ m_Beckmann), but
 GGX's long tail is missing, so a rough GGX reflection of a bright source is slightly too tight
 and its far tail too dark.
@@ -38,27 +41,22 @@ and its far tail too dark.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from dermis.specular import M_MAX, M_MIN, SKIN_F0, beckmann_ndf, fresnel_schlick, roughness_to_y
 
-LEVELS = 6
-"""Prefiltered levels (mip levels 0 .. LEVELS - 1)."""
-BASE_WIDTH = 512
-"""Width of level 0 (its height is half of it): the m = M_MIN lobe spans 5.8 texels per sigma."""
+LAYERS = 16
+"""Prefiltered roughness layers (the 3-D texture's depth)."""
+HEIGHT, WIDTH = 128, 256
+"""Texels of every layer (equirect, 1.4 degrees a texel)."""
 KERNEL_CUTOFF = 40.0
 """The kernel is dropped where tan^2(g / 2) / m^2 > 40, i.e. where it is below e^-40 of its peak."""
 
 
-def level_roughness(k) -> np.ndarray:
-    """Beckmann m of level k: M_MIN (M_MAX / M_MIN)^(k / (LEVELS - 1))."""
-    return M_MIN * (M_MAX / M_MIN) ** (np.asarray(k, np.float64) / (LEVELS - 1))
-
-
-def level_shape(k: int) -> tuple[int, int]:
-    """(height, width) of level k."""
-    w = BASE_WIDTH >> k
-    return w // 2, w
+def layer_roughness(k) -> np.ndarray:
+    """Beckmann m of layer k: M_MIN (M_MAX / M_MIN)^(k / (LAYERS - 1))."""
+    return M_MIN * (M_MAX / M_MIN) ** (np.asarray(k, np.float64) / (LAYERS - 1))
 
 
 def lobe_kernel(cos_g, m, f0: float = SKIN_F0) -> np.ndarray:
@@ -98,62 +96,104 @@ def resample_equirect(img, h: int, w: int) -> np.ndarray:
     return out / (rows.sum(1)[:, None, None] * cols.sum(1)[None, :, None])
 
 
-def prefilter_level(src, m: float) -> np.ndarray:
-    """Lpref of an equirect radiance image (h, w, 3) for roughness m, on the same grid: the
-    convolution with K_m as a quadrature over the texel centres (solid angle weights), per
-    output row a circular convolution along phi done with FFTs."""
+KERNEL_TABLE_SIZE = 8193
+"""Samples of each layer's kernel over x = sqrt(1 - cos g) in [0, 1] (the Beckmann table's axis,
+where the lobe is about a Gaussian of width m / 2): linear interpolation is within 1e-6 of the
+closed form relative to the peak (tests/test_environment_specular.py)."""
+
+
+def kernel_table(m: float) -> tuple[np.ndarray, np.ndarray]:
+    """(x, K_m(1 - x^2)) on KERNEL_TABLE_SIZE points of x in [0, 1]."""
+    x = np.linspace(0.0, 1.0, KERNEL_TABLE_SIZE)
+    return x, lobe_kernel(1.0 - x * x, m)
+
+
+@numba.njit(cache=True, parallel=True)
+def _kernel_rows(tables, ct_o, st_o, ct_r, st_r, cos_dphi):
+    """K of every layer between one output row and the source rows (layers, rows, w): linear
+    interpolation of each layer's kernel table (uniform in x = sqrt(1 - cos g)) at
+    cos g = cos t_o cos t_s + sin t_o sin t_s cos(dphi)."""
+    n_layers, n1 = tables.shape
+    n = n1 - 1
+    out = np.empty((n_layers, len(ct_r), len(cos_dphi)))
+    for j in numba.prange(len(ct_r)):
+        for q in range(len(cos_dphi)):
+            cg = ct_o * ct_r[j] + st_o * st_r[j] * cos_dphi[q]
+            t = min(np.sqrt(max(1.0 - cg, 0.0)), 1.0 + 1.0 / (n - 1)) * (n - 1)
+            i0 = min(int(t), n - 1)
+            f = t - i0
+            for layer in range(n_layers):
+                out[layer, j, q] = tables[layer, i0] * (1.0 - f) + tables[layer, i0 + 1] * f
+    return out
+
+
+def prefilter_layers(src, ms) -> np.ndarray:
+    """Lpref of an equirect radiance image (h, w, 3) for each roughness of ``ms``, on the same
+    grid: (len(ms), h, w, 3). The convolution with K_m as a quadrature over the texel centres
+    (solid-angle weights); per output row a circular convolution along phi done with FFTs, over
+    the rows the lobe reaches (K below e^-40 of its peak is dropped); K from :func:`kernel_table`."""
     src = np.asarray(src, np.float64)
     h, w = src.shape[:2]
+    ms = [float(m) for m in ms]
     theta = (np.arange(h) + 0.5) / h * np.pi
     st, ct = np.sin(theta), np.cos(theta)
     d_omega = (np.pi / h) * (2 * np.pi / w) * st
     f_src = np.fft.rfft(src * d_omega[:, None, None], axis=1)  # (h, w/2+1, 3)
     cos_dphi = np.cos(2 * np.pi * np.arange(w) / w)
-    g_max = min(np.pi / 2, 2.0 * np.arctan(m * np.sqrt(KERNEL_CUTOFF)))
-    out = np.empty((h, w, 3))
+    n = KERNEL_TABLE_SIZE
+    # each layer's kernel table, padded with a 0 past x = 1 (cos g < 0: below the lobe's horizon)
+    tables = np.zeros((len(ms), n + 1))
+    for i, m in enumerate(ms):
+        tables[i, :n] = kernel_table(m)[1]
+    g_max = max(min(np.pi / 2, 2.0 * np.arctan(m * np.sqrt(KERNEL_CUTOFF))) for m in ms)
+    out = np.empty((len(ms), h, w, 3))
     for o in range(h):
         rows = np.nonzero(np.abs(theta - theta[o]) <= g_max + 1e-12)[0]
-        cg = ct[o] * ct[rows, None] + st[o] * st[rows, None] * cos_dphi[None, :]
-        k = lobe_kernel(cg, m)
-        num = np.fft.irfft(np.einsum("rf,rfc->fc", np.fft.rfft(k, axis=1), f_src[rows]), n=w, axis=0)
-        out[o] = num / np.sum(k * d_omega[rows, None])
+        k = _kernel_rows(tables, ct[o], st[o], ct[rows], st[rows], cos_dphi)  # (layers, rows, w)
+        fk = np.fft.rfft(k, axis=2)  # (layers, rows, w/2+1)
+        # per frequency: sum over rows of FK * F_src, as one batched matrix product
+        prod = np.matmul(fk.transpose(2, 0, 1), f_src[rows].transpose(1, 0, 2))  # (w/2+1, layers, 3)
+        num = np.fft.irfft(prod, n=w, axis=0)  # (w, layers, 3)
+        den = np.einsum("lrw,r->l", k, d_omega[rows])
+        out[:, o] = num.transpose(1, 0, 2) / den[:, None, None]
     return out
 
 
+def prefilter_layer(src, m: float) -> np.ndarray:
+    """:func:`prefilter_layers` for one roughness: (h, w, 3)."""
+    return prefilter_layers(src, [m])[0]
+
+
 _CACHE: dict = {}
-"""fingerprint of an image -> its levels (the last 4 environments)."""
+"""fingerprint of an image -> its layers (the last 4 environments)."""
 
 
-def prefilter_equirect(img) -> tuple:
-    """The LEVELS prefiltered levels of a linear equirect radiance image (H, W, >= 3), float32
-    (h_k, w_k, 3), read-only; cached per image content (the last 4)."""
+def prefilter_equirect(img) -> np.ndarray:
+    """The LAYERS prefiltered maps of a linear equirect radiance image (H, W, >= 3): float32
+    (LAYERS, HEIGHT, WIDTH, 3), read-only; cached per image content (the last 4)."""
     from dermis.images import as_rgb
     from dermis.invalidation import fingerprint
 
     img = as_rgb(img)
     key = fingerprint(img)
     if key not in _CACHE:
-        levels = []
-        for k in range(LEVELS):
-            h, w = level_shape(k)
-            lv = prefilter_level(resample_equirect(img, h, w), float(level_roughness(k))).astype(np.float32)
-            lv.setflags(write=False)
-            levels.append(lv)
+        src = resample_equirect(img, HEIGHT, WIDTH)
+        layers = prefilter_layers(src, layer_roughness(np.arange(LAYERS))).astype(np.float32)
+        layers.setflags(write=False)
         while len(_CACHE) >= 4:
             _CACHE.pop(next(iter(_CACHE)))
-        _CACHE[key] = tuple(levels)
+        _CACHE[key] = layers
     return _CACHE[key]
 
 
-def environment_specular_levels(env) -> tuple:
-    """What the GPU's environment-specular texture holds for a scene Environment: the prefiltered
-    levels of its image times its intensity, or a single 1 x 1 level of its constant colour (a
-    constant environment needs no prefilter: Lpref is the constant for every lobe)."""
+def environment_specular_layers(env) -> np.ndarray:
+    """What the GPU's environment-specular texture holds for a scene Environment, (layers, h, w, 3)
+    float32: the prefiltered layers of its image times its intensity, or one 1 x 1 layer of its
+    constant colour (a constant environment needs no prefilter: Lpref is the constant for every
+    lobe)."""
     if env.image is None:
-        c = np.asarray(env.color, np.float32) * np.float32(env.intensity)
-        return (c.reshape(1, 1, 3),)
-    s = np.float32(env.intensity)
-    return tuple(lv * s for lv in prefilter_equirect(env.image.data))
+        return (np.asarray(env.color, np.float32) * np.float32(env.intensity)).reshape(1, 1, 1, 3)
+    return prefilter_equirect(env.image.data) * np.float32(env.intensity)
 
 
 # ---------------------------------------------------------------------- lookup (numpy twin)
@@ -177,22 +217,34 @@ def bilinear_equirect(level, u, v):
 def direction_to_equirect(d):
     """(u, v) of unit directions (..., 3): u = 0.5 + atan2(x, -z) / 2 pi, v = acos(y) / pi (v = 0 up)."""
     d = np.asarray(d, np.float64)
-    u = 0.5 + np.arctan2(d[..., 0], -d[..., 2]) / (2 * np.pi)
+    # at the poles (x = z = 0) u = 0.5, as the shader (GLSL leaves atan(0, 0) undefined)
+    pole = (d[..., 0] == 0.0) & (d[..., 2] == 0.0)
+    u = 0.5 + np.where(pole, 0.0, np.arctan2(d[..., 0], -d[..., 2])) / (2 * np.pi)
     v = np.arccos(np.clip(d[..., 1], -1.0, 1.0)) / np.pi
     return u, v
 
 
-def sample_environment_specular(levels, R, m) -> np.ndarray:
-    """Numpy twin of environment_specular(R, m) (shaders/common/environment.glsl): trilinear
-    lookup, lod = (levels - 1) * y(m) on the specular tables' log-roughness axis. (n, 3)."""
+def specular_dominant_direction(N, R, m) -> np.ndarray:
+    """Numpy twin of specular_dominant_direction() (common/environment.glsl): R bent towards N
+    (Lagarde & de Rousiers 2014, sec. 4.9.3, listing 22, with alpha = Beckmann m)."""
+    s = np.clip(1.0 - np.asarray(m, np.float64), 0.0, 1.0)
+    f = np.asarray(s * (np.sqrt(s) + m))[..., None] if np.ndim(m) else s * (np.sqrt(s) + m)
+    d = np.asarray(N, np.float64) + (np.asarray(R, np.float64) - N) * f
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def sample_environment_specular(layers, R, m) -> np.ndarray:
+    """Numpy twin of environment_specular(R, m) (shaders/common/environment.glsl): bilinear in each
+    layer, linear between the two layers around y(m) (texel centres, clamped). (n, 3)."""
+    layers = np.asarray(layers, np.float64)
     R = np.asarray(R, np.float64).reshape(-1, 3)
     u, v = direction_to_equirect(R)
-    lod = (len(levels) - 1) * np.broadcast_to(roughness_to_y(m), (len(R),))
-    k0 = np.clip(np.floor(lod).astype(np.int64), 0, len(levels) - 1)
-    k1 = np.minimum(k0 + 1, len(levels) - 1)
-    t = (lod - k0)[:, None]
+    z = np.clip((len(layers) - 1) * np.broadcast_to(roughness_to_y(m), (len(R),)), 0.0, len(layers) - 1.0)
+    k0 = np.minimum(np.floor(z).astype(np.int64), max(len(layers) - 2, 0))
+    k1 = np.minimum(k0 + 1, len(layers) - 1)
+    t = (z - k0)[:, None]
     res = np.zeros((len(R), 3))
     for k in np.unique(np.concatenate([k0, k1])):
-        val = bilinear_equirect(np.asarray(levels[k], np.float64), u, v)
+        val = bilinear_equirect(layers[k], u, v)
         res += np.where((k0 == k)[:, None], val * (1 - t), 0.0) + np.where((k1 == k)[:, None], val * t, 0.0)
     return res

@@ -215,13 +215,13 @@ class Renderer:
             self._built["material_textures"] = keys["material_textures"]
         if self._stale("environment_specular", keys) or self._environment_specular is None:
             from dermis.gl.environment import upload_environment_specular
-            from dermis.prefiltered_environment import environment_specular_levels
+            from dermis.prefiltered_environment import environment_specular_layers
 
             with self.timer("environment_prefilter"):
-                levels = environment_specular_levels(scene.environment)
+                layers = environment_specular_layers(scene.environment)
                 if self._environment_specular is not None:
                     self._environment_specular.release()
-                self._environment_specular = upload_environment_specular(self.ctx, levels)
+                self._environment_specular = upload_environment_specular(self.ctx, layers)
             self._built["environment_specular"] = keys["environment_specular"]
             passes.append("environment_prefilter")
         # the shadow frusta transform every vertex; an HDR environment is projected to SH

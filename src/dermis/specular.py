@@ -70,8 +70,11 @@ texture (dermis.gl.tables), the Beckmann table in rows 0..255 and the rho_dt tab
 the two take one sampler unit. Each table's texel centres keep their values and positions
 relative to its rectangle: a lookup clamped to the rectangle's centres reads what the table's
 own texture read (brdf.glsl specular_table_coord)."""
-TABLE_ATLAS_SIZE = (max(r[0] + r[2] for r in TABLE_ATLAS.values()), max(r[1] + r[3] for r in TABLE_ATLAS.values()))
-"""(cols, rows) of the atlas."""
+TABLE_ATLAS_SIZE = tuple(1 << (max(r[i] + r[i + 2] for r in TABLE_ATLAS.values()) - 1).bit_length() for i in (0, 1))
+"""(cols, rows) of the atlas, (512, 512): powers of two, so a table's normalised coordinate differs
+from its own texture's by a power-of-two factor, which float arithmetic keeps exact (the Beckmann
+table's lookups are bit-identical; the rho_dt table's row offset of 256 rounds its t coordinate to
+2^-15 texel)."""
 
 
 def _dot(a, b):

@@ -1,10 +1,11 @@
 """The GPU copy of the prefiltered environment (dermis.prefiltered_environment).
 
-One RGB32F texture (float32: HDR radiance has no upper bound) whose mip levels are the prefiltered
-levels, LINEAR_MIPMAP_LINEAR, repeating in u (the equirect's seam), clamped in v (the poles), read by
-``environment_specular()`` of shaders/common/environment.glsl with an explicit lod (uniform
-``uEnvSpecular``). A constant environment is one 1 x 1 level without mipmaps: every lod reads the
-constant. numpy row 0 (up, +y) is uploaded first and lands at t = 0, so v = theta / pi with no flip.
+One RGB32F 3-D texture (float32: HDR radiance has no upper bound): x, y the equirect, z the
+roughness layers; LINEAR filtering in all three (bilinear in a map, linear in log m between
+layers), repeating in u (the equirect's seam), clamped in v (the poles) and in z; read by
+``environment_specular()`` of shaders/common/environment.glsl (uniform ``uEnvSpecular``). A
+constant environment is one 1 x 1 x 1 texel: every lookup reads the constant. numpy row 0 (up,
++y) is uploaded first and lands at t = 0, so v = theta / pi with no flip.
 """
 
 from __future__ import annotations
@@ -12,22 +13,15 @@ from __future__ import annotations
 import numpy as np
 
 
-def upload_environment_specular(ctx, levels):
-    """An RGB32F texture of ``levels`` ((h_k, w_k, 3) float32, each half the previous): level k
-    at mip level k."""
+def upload_environment_specular(ctx, layers):
+    """An RGB32F 3-D texture of ``layers`` ((n, h, w, 3) float32)."""
     import moderngl
 
-    base = np.ascontiguousarray(levels[0], np.float32)
-    h, w = base.shape[:2]
-    tex = ctx.texture((w, h), 3, base.tobytes(), dtype="f4", alignment=4)
-    if len(levels) > 1:
-        tex.build_mipmaps(0, len(levels) - 1)  # allocates levels 1.. and sets GL_TEXTURE_MAX_LEVEL
-        for k, lv in enumerate(levels[1:], start=1):
-            lv = np.ascontiguousarray(lv, np.float32)
-            tex.write(lv.tobytes(), level=k, alignment=4)
-        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-    else:
-        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    data = np.ascontiguousarray(layers, np.float32)
+    n, h, w = data.shape[:3]
+    tex = ctx.texture3d((w, h, n), 3, data.tobytes(), dtype="f4", alignment=4)
+    tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
     tex.repeat_x = True
     tex.repeat_y = False
+    tex.repeat_z = False
     return tex

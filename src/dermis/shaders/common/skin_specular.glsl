@@ -22,7 +22,7 @@ vec3 skin_specular_radiance(vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho
         spec += Ei * shadow_sharp(i, P, Ng) * ks_skin_specular(Ns, L, V, m, rho_s, beckmannTex) * INV_PI;
     }
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
-    spec += environment_specular(reflect(-V, Ns), m) * rho_s * rho_dt_lookup(uSpecularTables, ndv, m) * INV_PI
+    spec += environment_specular(specular_dominant_direction(Ns, reflect(-V, Ns), m), m) * rho_s * rho_dt_lookup(uSpecularTables, ndv, m) * INV_PI
             * specular_occlusion(ndv, vis.x, m);
     return spec;
 }

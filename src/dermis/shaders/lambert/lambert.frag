@@ -34,7 +34,8 @@ void main() {
     // normalised Blinn-Phong lobe for V = N, its cut at N.L = 0 neglected; baseline approximation)
     float ndv = clamp(dot(N, V), 0.0, 1.0);
     float albedo_bp = ks * shininess * (shininess + 8.0) / ((shininess + 2.0) * (shininess + 4.0));
-    color += albedo_bp * environment_specular(reflect(-V, N), m) * specular_occlusion(ndv, v_visibility.x, m);
+    color += albedo_bp * environment_specular(specular_dominant_direction(N, reflect(-V, N), m), m)
+             * specular_occlusion(ndv, v_visibility.x, m);
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
         vec3 E = light_incident(i, v_world, L);
