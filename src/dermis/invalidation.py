@@ -24,6 +24,8 @@ PRODUCTS = {
     "gpu_mesh": ("mesh", "surfaces"),
     "material_textures": ("material_maps",),
     "light_uniforms": ("mesh", "surfaces", "lights", "environment"),
+    # the environment prefiltered for the specular lobe (prefiltered_environment.py, gl/environment.py)
+    "environment_specular": ("environment",),
     # non-skin surfaces cast shadows (MASK maps cut them) and widen the maps' frusta
     "shadow_atlas": ("mesh", "surfaces", "scale", "light_geometry", "epoch"),
     "mesh_curvature": ("mesh", "scale"),

@@ -52,6 +52,7 @@ class Renderer:
         self.target_sizes_kept = 2  # frame sizes whose render targets are kept (the viewer alternates two)
         self._specular_tables = None
         self._surface_program = None
+        self._environment_specular = None  # the prefiltered environment texture (gl/environment.py)
         self.scene = None
         self.gpu = None
         self._built = {}  # product -> the key it was built with (dermis.invalidation.PRODUCTS)
@@ -108,6 +109,12 @@ class Renderer:
 
             self._surface_program = program(self.ctx, "common/mesh.vert", "metallic_roughness/surface.frag")
         return self._surface_program
+
+    @property
+    def environment_specular(self):
+        """The scene environment's prefiltered specular texture (dermis.gl.environment), rebuilt
+        when the environment changes (PRODUCTS "environment_specular")."""
+        return self._environment_specular
 
     def inputs(self) -> dict:
         """This frame's inputs of every cached product (dermis.invalidation.scene_inputs)."""
@@ -217,6 +224,17 @@ class Renderer:
         if self._stale("material_textures", keys):
             self.gpu.upload_material()
             self._built["material_textures"] = keys["material_textures"]
+        if self._stale("environment_specular", keys) or self._environment_specular is None:
+            from dermis.gl.environment import upload_environment_specular
+            from dermis.prefiltered_environment import environment_specular_layers
+
+            with self.timer("environment_prefilter"):
+                layers = environment_specular_layers(scene.environment)
+                if self._environment_specular is not None:
+                    self._environment_specular.release()
+                self._environment_specular = upload_environment_specular(self.ctx, layers)
+            self._built["environment_specular"] = keys["environment_specular"]
+            passes.append("environment_prefilter")
         # the shadow frusta transform every vertex; an HDR environment is projected to SH
         if self._stale("light_uniforms", keys):
             self._lights = LightUniforms(scene)
@@ -333,6 +351,9 @@ class Renderer:
         if self._surface_program is not None:
             self._surface_program.release()
             self._surface_program = None
+        if self._environment_specular is not None:
+            self._environment_specular.release()
+            self._environment_specular = None
         self.shadows.release()
         if self._owns_ctx:
             self.ctx.release()

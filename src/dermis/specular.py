@@ -63,6 +63,19 @@ BECKMANN_TABLE_SIZE = (512, 256)
 RHO_DT_TABLE_SIZE = (64, 64)
 """Default rho_dt table size (cos columns, m rows)."""
 
+TABLE_ATLAS = {"beckmann": (0, 0, BECKMANN_TABLE_SIZE[0], BECKMANN_TABLE_SIZE[1]),
+               "rho_dt": (0, BECKMANN_TABLE_SIZE[1], RHO_DT_TABLE_SIZE[0], RHO_DT_TABLE_SIZE[1])}
+"""Where the GPU keeps the two default tables: texel rectangles (x0, y0, cols, rows) of ONE R32F
+texture (dermis.gl.tables), the Beckmann table in rows 0..255 and the rho_dt table below it, so
+the two take one sampler unit. Each table's texel centres keep their values and positions
+relative to its rectangle: a lookup clamped to the rectangle's centres reads what the table's
+own texture read (brdf.glsl specular_table_coord)."""
+TABLE_ATLAS_SIZE = tuple(1 << (max(r[i] + r[i + 2] for r in TABLE_ATLAS.values()) - 1).bit_length() for i in (0, 1))
+"""(cols, rows) of the atlas, (512, 512): powers of two, so a table's normalised coordinate differs
+from its own texture's by a power-of-two factor, which float arithmetic keeps exact (the Beckmann
+table's lookups are bit-identical; the rho_dt table's row offset of 256 rounds its t coordinate to
+2^-15 texel)."""
+
 
 def _dot(a, b):
     return np.sum(np.asarray(a, dtype=np.float64) * np.asarray(b, dtype=np.float64), axis=-1)

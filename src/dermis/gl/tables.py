@@ -1,16 +1,22 @@
 """GPU copies of the specular lookup tables of :mod:`dermis.specular`.
 
-What a technique feeds ``shaders/common/brdf.glsl``: two single-channel float textures,
-R32F (float32: the Beckmann peak 1/m^2 reaches 400 at m = 0.05 and the tables are small, so there is
-no reason to give up precision for R16F), LINEAR min/mag filtering, no mipmaps, CLAMP_TO_EDGE:
+What a technique feeds ``shaders/common/brdf.glsl``: ONE single-channel float texture holding both
+tables side by side (dermis.specular.TABLE_ATLAS), R32F (float32: the Beckmann peak 1/m^2 reaches
+400 at m = 0.05 and the tables are small, so there is no reason to give up precision for R16F),
+LINEAR min/mag filtering, no mipmaps, CLAMP_TO_EDGE; uniform ``uSpecularTables``:
 
-* ``"beckmann"``: Beckmann P(N.h, m), 512 x 256 texels; the ``beckmannTex`` argument of
-  ``beckmann()``, ``beckmann_lookup()``, ``ks_skin_specular()`` (uniform ``uBeckmannTex``).
-* ``"rho_dt"``: specular albedo a(cos, m) for rho_s = 1, 64 x 64 texels; the ``rhoDtTex`` argument
-  of ``rho_dt_lookup()`` (uniform ``uRhoDtTex``); diffuse keeps 1 - rho_s * a / pi.
+* rectangle ``"beckmann"``: Beckmann P(N.h, m), 512 x 256 texels, read by ``beckmann()``,
+  ``beckmann_lookup()``, ``ks_skin_specular()``.
+* rectangle ``"rho_dt"``: specular albedo a(cos, m) for rho_s = 1, 64 x 64 texels, read by
+  ``rho_dt_lookup()``; diffuse keeps 1 - rho_s * a / pi.
 
-A Renderer uploads them once (``Renderer.specular_tables``) and every technique binds them at
-the units of the shading contract (dermis.techniques.shared.bind_specular_tables).
+One texture instead of two frees a sampler unit (GL guarantees 16 per stage, and tsd's final pass
+needs one for the prefiltered environment): a lookup's footprint stays on its rectangle's texel
+centres (specular_table_coord clamps to them), so it reads the same texels with the same weights
+as a texture of the table alone (tests/test_specular.py compares them).
+
+A Renderer uploads it once (``Renderer.specular_tables``) and every technique binds it at the
+unit of the shading contract (dermis.techniques.shared.bind_specular_tables).
 
 The s axis is the table's x (sqrt(1 - N.h), resp. sqrt(cos)), the t axis the log-spaced roughness;
 numpy row 0 is uploaded first, which GL places at t = 0 (the bottom row), so numpy row j is texture
@@ -21,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dermis.specular import beckmann_table, rho_dt_table
+from dermis.specular import TABLE_ATLAS, TABLE_ATLAS_SIZE, beckmann_table, rho_dt_table
 
 
 
@@ -38,15 +44,22 @@ def _float_table_texture(ctx, table: np.ndarray):
     return texture
 
 
-def upload_specular_tables(ctx) -> dict:
-    """Create the two specular tables on ``ctx``: {"beckmann": Texture, "rho_dt": Texture}.
+def specular_table_atlas() -> np.ndarray:
+    """The float32 (rows, cols) atlas of dermis.specular.TABLE_ATLAS: each default table in its
+    rectangle, zeros elsewhere."""
+    cols, rows = TABLE_ATLAS_SIZE
+    atlas = np.zeros((rows, cols), np.float32)
+    for name, table in (("beckmann", beckmann_table()[0]), ("rho_dt", rho_dt_table())):
+        x0, y0, w, h = TABLE_ATLAS[name]
+        atlas[y0:y0 + h, x0:x0 + w] = table
+    return atlas
 
-    The tables are built once per process (cached in dermis.specular); the caller owns the textures
-    and releases them with the context. Use: ``tables["beckmann"].use(unit)`` and set the sampler
+
+def upload_specular_tables(ctx) -> dict:
+    """Create the specular table atlas on ``ctx``: {"atlas": Texture}.
+
+    The tables are built once per process (cached in dermis.specular); the caller owns the texture
+    and releases it with the context. Use: ``tables["atlas"].use(unit)`` and set the sampler
     uniform to ``unit``.
     """
-    beckmann, _ = beckmann_table()
-    return {
-        "beckmann": _float_table_texture(ctx, beckmann),
-        "rho_dt": _float_table_texture(ctx, rho_dt_table()),
-    }
+    return {"atlas": _float_table_texture(ctx, specular_table_atlas())}

@@ -14,8 +14,9 @@ shadows, energy left by the specular, SH ambient occluded by ray-cast ambient oc
 normals, times albedo^mix), |x - y| is the
 true 3-D distance in mm (integrate.py: KD-tree, per-Gaussian cutoff at 1e-4 of its peak, so light
 through ears and nostrils is part of the same integral), w_k the profile's weights normalised
-per channel (as tsd's), and the specular is KS_Skin_Specular with the same hard shadow and the
-same environment term (shading.specular_and_exit). The procedural pore normals of the real-time
+per channel (as tsd's), and the specular is KS_Skin_Specular with the same hard shadow, plus the environment's specular as the Monte Carlo integral of the same
+BRDF against the HDR (shading.environment_specular_mc; the real-time techniques prefilter it)
+with the same specular occlusion (shading.specular_and_exit). The procedural pore normals of the real-time
 final pass are not reproduced: compare with ``pore_strength = 0`` (``dermis validate`` does).
 
 Non-skin surfaces (glTF metallic-roughness primitives, Scene.surfaces) are hit by the same

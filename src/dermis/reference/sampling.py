@@ -23,6 +23,7 @@ import numba
 import numpy as np
 
 from dermis.environment import environment_sh, irradiance_sh_eval
+from dermis.images import as_rgb
 from dermis.specular import rho_dt_table, roughness_to_y
 
 
@@ -269,6 +270,11 @@ class SurfaceModel:
             self.specular_map = None
             self.spec_bias_scale = (1.0, 0.0)
         self.env_sh = environment_sh(scene.environment).astype(np.float64)
+        env = scene.environment
+        # the HDR itself (linear radiance x intensity) for the environment's specular integral
+        # (shading.environment_specular_mc); None for a constant environment
+        self.env_image = None if env.image is None else \
+            np.ascontiguousarray(as_rgb(env.image.data), np.float64) * float(env.intensity)
         self.rho_dt = np.asarray(rho_dt_table(), np.float64)
 
     # ------------------------------------------------------------------ interpolation

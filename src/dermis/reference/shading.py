@@ -7,12 +7,17 @@ real-time techniques look up PCF-filtered shadow maps; the specular uses the sam
 (the real-time "sharp" lookup approximates it). A point whose interpolated normal faces away
 from a light (Ng . L <= 0) is in its own shadow, as the real-time shadow maps make it.
 
-Environment light is the same spherical-harmonic irradiance the real-time techniques use
-(common/environment.glsl), occluded the same way (dermis.geometry.visibility: A * E_sh(bent normal)
-for the diffuse, Lagarde & de Rousiers' specular occlusion for the specular), but with A and the
-bent normal ray cast at every sample point (AMBIENT_RAYS cosine-weighted rays from the point, no
-distance limit) instead of baked per vertex and interpolated: validate measures what the per-vertex
-bake loses. [environment] occlusion = false turns it off in both.
+Environment light: the diffuse is the same spherical-harmonic irradiance the real-time techniques
+use (common/environment.glsl), occluded the same way (dermis.geometry.visibility: A * E_sh(bent
+normal)), but with A and the bent normal ray cast at every sample point (AMBIENT_RAYS
+cosine-weighted rays from the point, no distance limit) instead of baked per vertex and
+interpolated: validate measures what the per-vertex bake loses. [environment] occlusion = false
+turns it off in both. The environment's SPECULAR is not the real-time split-sum approximation
+(a prefiltered map times the lobe's albedo, dermis.prefiltered_environment) but the integral of
+the KSK BRDF against the HDR itself, by importance-sampled Monte Carlo with a fixed seed
+(:func:`environment_specular_mc`), times the same specular occlusion (Lagarde & de Rousiers 2014)
+of the ray-cast A: validate measures the prefilter's error. For a constant environment the
+integral is the constant times the specular albedo (the rho_dt table), as in real time.
 """
 
 from __future__ import annotations
@@ -27,6 +32,13 @@ SHADOW_EPSILON_REL = 1e-6
 AMBIENT_RAYS = 32
 """Cosine-weighted ambient-occlusion rays per sample point (standard error <= 0.5/sqrt(32) = 0.09 per
 point; the scattering integral and the 4 sub-pixel samples average it further)."""
+ENV_SPECULAR_SAMPLES = 64
+"""Beckmann-importance-sampled directions per point for the environment's specular (8 x 8 jittered
+strata); each pixel averages 4 sub-pixel points."""
+ENV_SPECULAR_SEED = 1207
+"""Seed of the environment specular's Monte Carlo (with the batch index: deterministic)."""
+ENV_SPECULAR_CHUNK = 8_000
+"""Points per environment-specular batch (bounds its arrays to about 40 MB)."""
 AMBIENT_CHUNK = 20_000
 """Points per ambient-occlusion batch (bounds the ray arrays' memory to about 50 MB)."""
 
@@ -170,12 +182,66 @@ def specular_and_exit(surface, rig, attrs, eye_mm):
         vis = rig.visibility(i, attrs, L, dist, origins)
         ks = ksk_specular(n_map, L, V, m, rho_s)
         spec += Ei * (np.where(front, vis * ks, 0.0) * INV_PI)[:, None]
-    # the environment's specular: mean radiance E(R)/pi times the specular albedo rho_s a / pi,
-    # times the specular occlusion (Lagarde & de Rousiers 2014)
-    R = 2.0 * np.sum(n_map * V, axis=1, keepdims=True) * n_map - V
-    a = surface.specular_albedo(ndv, m)
+    # the environment's specular times the specular occlusion (Lagarde & de Rousiers 2014) of the
+    # ray-cast ambient occlusion: an HDR's by Monte Carlo; a constant c's is c rho_s a / pi
+    # (surface.ambient(R) / pi = c exactly)
     ao, _ = rig.ambient_visibility(attrs)
-    spec += surface.ambient(R) * (INV_PI * rho_s * a * INV_PI * specular_occlusion(ndv, ao, m))[:, None]
+    so = specular_occlusion(ndv, ao, m)
+    if surface.env_image is not None:
+        spec += environment_specular_mc(surface.env_image, n_map, V, m, rho_s) * so[:, None]
+    else:
+        R = 2.0 * np.sum(n_map * V, axis=1, keepdims=True) * n_map - V
+        a = surface.specular_albedo(ndv, m)
+        spec += surface.ambient(R) * (INV_PI * rho_s * a * INV_PI * so)[:, None]
     mix = float(surface.material.mix)
     exit_factor = surface.albedo(attrs) ** (1.0 - mix) * INV_PI * surface.energy_transmitted(rho_s, ndv)[:, None]
     return spec, exit_factor
+
+
+def _tangent_frames(n):
+    """Orthonormal (t, b) about unit normals n (n, 3) (Duff et al. 2017, "Building an Orthonormal
+    Basis, Revisited", listing 3)."""
+    sign = np.where(n[:, 2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + n[:, 2])
+    b = n[:, 0] * n[:, 1] * a
+    t = np.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * b, -sign * n[:, 0]], 1)
+    bb = np.stack([b, sign + n[:, 1] ** 2 * a, -n[:, 1]], 1)
+    return t, bb
+
+
+def environment_specular_mc(env_image, n, V, m: float, rho_s, samples: int = ENV_SPECULAR_SAMPLES,
+                            seed: int = ENV_SPECULAR_SEED):
+    """(1/pi) integral L(l) f_KSK(l, V) (n.l) dl over the hemisphere, L the equirect ``env_image``
+    (bilinear, dermis.environment's orientation), f_KSK d'Eon's skin specular (dermis.specular,
+    no 1/pi; the 1/pi makes it physical radiance). Monte Carlo with h drawn from the normalised
+    Beckmann lobe (Walter et al. 2007, eq. 28: tan^2 theta_h = -m^2 ln(1 - xi1), phi = 2 pi xi2),
+    l = reflect(-V, h), pdf(l) = P(h) (n.h) / (4 pi (V.h)); the weight f (n.l) / (pi pdf) is
+    rho_s F(V.h) (n.l) / ((V.h) (n.h)) (the integrand of dermis.specular.rho_dt). ``samples``
+    jittered strata per point (a square number), deterministic for a seed. Returns (n, 3)."""
+    from dermis.prefiltered_environment import bilinear_equirect, direction_to_equirect
+    from dermis.specular import fresnel_schlick
+
+    s = int(round(np.sqrt(samples)))
+    grid = np.stack(np.meshgrid(np.arange(s), np.arange(s), indexing="ij"), -1).reshape(1, -1, 2).astype(np.float64)
+    rho_s = np.broadcast_to(np.asarray(rho_s, np.float64), (len(n),))
+    out = np.zeros((len(n), 3))
+    for batch, c0 in enumerate(range(0, len(n), ENV_SPECULAR_CHUNK)):
+        c1 = min(len(n), c0 + ENV_SPECULAR_CHUNK)
+        nn, vv = n[c0:c1], V[c0:c1]
+        rng = np.random.default_rng([seed, batch])
+        xi = (grid + rng.random((c1 - c0, s * s, 2))) / s
+        cos_h = 1.0 / np.sqrt(1.0 - m * m * np.log1p(-xi[..., 0]))
+        sin_h = np.sqrt(np.maximum(1.0 - cos_h * cos_h, 0.0))
+        phi = 2.0 * np.pi * xi[..., 1]
+        t, b = _tangent_frames(nn)
+        h = (sin_h * np.cos(phi))[..., None] * t[:, None] + (sin_h * np.sin(phi))[..., None] * b[:, None] \
+            + cos_h[..., None] * nn[:, None]
+        vh = np.sum(vv[:, None] * h, -1)
+        l = 2.0 * vh[..., None] * h - vv[:, None]
+        nl = np.sum(nn[:, None] * l, -1)
+        ok = (vh > 0.0) & (nl > 0.0)
+        w = np.where(ok, fresnel_schlick(vh) * nl / np.where(ok, vh * cos_h, 1.0), 0.0)
+        u, v = direction_to_equirect(l.reshape(-1, 3))
+        L = bilinear_equirect(env_image, u, v).reshape(c1 - c0, s * s, 3)
+        out[c0:c1] = rho_s[c0:c1, None] * np.mean(w[..., None] * L, axis=1)
+    return out

@@ -18,7 +18,7 @@ import moderngl
 import numpy as np
 
 from dermis.errors import DermisError
-from dermis.techniques.shared import OutputMode, bind_specular_tables
+from dermis.techniques.shared import OutputMode, bind_environment_specular, bind_specular_tables
 
 
 class PassTimer:
@@ -179,12 +179,13 @@ class Technique:
 
 
 def bind_scene(frame: Frame, prog):
-    """Bind the shared scene state every lighting pass reads: lights, shadow atlas, material and
-    the specular tables, each at its unit of the shading contract (dermis.techniques.shared)."""
+    """Bind the shared scene state every lighting pass reads: lights, shadow atlas, material, the
+    specular tables and the prefiltered environment, each at its unit of the shading contract (dermis.techniques.shared)."""
     frame.lights.apply(prog)
     frame.shadows.bind(prog)
     frame.gpu.material_uniforms(prog)
     bind_specular_tables(prog, frame.renderer.specular_tables)
+    bind_environment_specular(prog, frame.renderer.environment_specular)
 
 
 def draw_mesh(frame: Frame, prog, vao=None):

@@ -26,7 +26,8 @@ from enum import IntEnum
 import numpy as np
 
 from dermis.errors import DermisError
-from dermis.specular import M_MAX, M_MIN, SKIN_F0
+from dermis.prefiltered_environment import LAYERS as ENV_SPECULAR_LAYERS
+from dermis.specular import M_MAX, M_MIN, SKIN_F0, TABLE_ATLAS
 
 MAX_LIGHTS = 8
 """Lights a scene may hold: the size of the light arrays in common/lights.glsl."""
@@ -63,14 +64,14 @@ class Unit(IntEnum):
     NORMAL = 3
     SPECULAR = 4
     ROUGHNESS = 5
-    RHO_DT = 6
-    BECKMANN = 7
+    SPECULAR_TABLES = 6  # the Beckmann and rho_dt tables in one texture (dermis.gl.tables)
+    ENVIRONMENT_SPECULAR = 7  # the prefiltered environment (dermis.gl.environment)
     FIRST_FREE = 8
 
 
 SHARED_SAMPLERS = {"uShadowAtlas": Unit.SHADOW_ATLAS, "uShadowAux": Unit.SHADOW_AUX, "uAlbedoMap": Unit.ALBEDO,
                    "uNormalMap": Unit.NORMAL, "uSpecularMap": Unit.SPECULAR, "uRoughnessMap": Unit.ROUGHNESS,
-                   "uRhoDtTex": Unit.RHO_DT, "uBeckmannTex": Unit.BECKMANN}
+                   "uSpecularTables": Unit.SPECULAR_TABLES, "uEnvSpecular": Unit.ENVIRONMENT_SPECULAR}
 """Sampler uniform -> unit, for every sampler the shared GLSL (shaders/common) declares."""
 
 METALLIC_ROUGHNESS_SAMPLERS = {"uBaseColorMap": Unit.ALBEDO, "uNormalMap": Unit.NORMAL,
@@ -97,7 +98,10 @@ def glsl_constants() -> str:
              f"const float INV_PI = {_glsl_float(INV_PI)};",
              f"#define DERMIS_SPECULAR_M_MIN {_glsl_float(M_MIN)}",
              f"#define DERMIS_SPECULAR_M_MAX {_glsl_float(M_MAX)}",
-             "#ifndef DERMIS_SKIN_F0", f"#define DERMIS_SKIN_F0 {_glsl_float(SKIN_F0)}", "#endif"]
+             "#ifndef DERMIS_SKIN_F0", f"#define DERMIS_SKIN_F0 {_glsl_float(SKIN_F0)}", "#endif",
+             f"#define DERMIS_ENV_SPECULAR_LAYERS {ENV_SPECULAR_LAYERS}"]
+    lines += [f"#define DERMIS_{name.upper()}_RECT vec4({', '.join(_glsl_float(v) for v in rect)})"
+              for name, rect in TABLE_ATLAS.items()]
     lines += [f"#define LIGHT_{kind.upper()} {v}" for kind, v in LIGHT_TYPES.items()]
     lines += [f"#define OUTPUT_{m.name} {int(m)}" for m in OutputMode]
     return "\n".join(lines)
@@ -125,9 +129,13 @@ def bind_sampler_array(prog, name: str, textures, first_unit: int) -> None:
 
 
 def bind_specular_tables(prog, tables: dict) -> None:
-    """The Renderer's specular tables (dermis.gl.tables) at their contract units."""
-    bind_sampler(prog, "uRhoDtTex", tables["rho_dt"], Unit.RHO_DT)
-    bind_sampler(prog, "uBeckmannTex", tables["beckmann"], Unit.BECKMANN)
+    """The Renderer's specular tables (dermis.gl.tables) at their contract unit."""
+    bind_sampler(prog, "uSpecularTables", tables["atlas"], Unit.SPECULAR_TABLES)
+
+
+def bind_environment_specular(prog, texture) -> None:
+    """The prefiltered environment (dermis.gl.environment) at its contract unit."""
+    bind_sampler(prog, "uEnvSpecular", texture, Unit.ENVIRONMENT_SPECULAR)
 
 
 # ---------------------------------------------------------------------- uniforms

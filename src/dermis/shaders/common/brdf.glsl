@@ -2,8 +2,10 @@
 //
 // Skin: Kelemen & Szirmay-Kalos 2001 with a Beckmann distribution, as in d'Eon & Luebke 2007
 // (GPU Gems 3 ch. 14, section 14.3). Baseline: normalised Blinn-Phong. The numpy reference, the
-// table layouts and the energy convention are documented in dermis/specular.py; the tables are
-// uploaded by dermis.gl.tables.upload_specular_tables (R32F, linear, clamp-to-edge).
+// table layouts and the energy convention are documented in dermis/specular.py; the two tables are
+// uploaded side by side in ONE texture by dermis.gl.tables.upload_specular_tables (R32F, linear,
+// clamp-to-edge; uniform uSpecularTables), at the texel rectangles DERMIS_BECKMANN_RECT and
+// DERMIS_RHO_DT_RECT (x0, y0, cols, rows) of common/constants.glsl (dermis.specular.TABLE_ATLAS).
 //
 // Units: all vectors are unit length and in one space; results are per unit light radiance. The
 // skin terms are d'Eon's as written, with no 1/pi: callers divide by pi to get physical radiance
@@ -16,6 +18,8 @@
 // generated into common/constants.glsl.
 #include "common/constants.glsl"
 
+uniform sampler2D uSpecularTables;  // the Beckmann and rho_dt tables (dermis.gl.tables)
+
 // Beckmann 1963 as in d'Eon & Luebke 2007 (GPU Gems 3, 14.3, PHBeckmann), no 1/pi:
 // P = exp(-tan^2(alpha) / m^2) / (m^2 cos^4(alpha)); integral P (N.H) dw_H = pi. Reference only.
 float beckmann_analytic(float ndoth, float m) {
@@ -27,14 +31,16 @@ float beckmann_analytic(float ndoth, float m) {
     return exp(-tan2 / m2) / (m2 * c2 * c2);
 }
 
-// Texel-centre coordinate into a dermis specular table (dermis/specular.py): x in [0, 1] along s,
-// roughness along t as y = log(m / M_MIN) / log(M_MAX / M_MIN); value i/(W-1) sits on texel i's centre.
-vec2 specular_table_coord(sampler2D table, float x, float m) {
+// Texel-centre coordinate into a dermis specular table (dermis/specular.py) kept in the texel
+// rectangle rect = (x0, y0, cols, rows) of the texture: x in [0, 1] along s, roughness along t as
+// y = log(m / M_MIN) / log(M_MAX / M_MIN); value i/(cols-1) sits on the centre of the rectangle's
+// column i, and the clamp keeps the bilinear footprint inside the rectangle.
+vec2 specular_table_coord(sampler2D table, vec4 rect, float x, float m) {
     vec2 size = vec2(textureSize(table, 0));
     float mc = clamp(m, DERMIS_SPECULAR_M_MIN, DERMIS_SPECULAR_M_MAX);
     float y = log(mc / DERMIS_SPECULAR_M_MIN) / log(DERMIS_SPECULAR_M_MAX / DERMIS_SPECULAR_M_MIN);
     vec2 f = clamp(vec2(x, y), 0.0, 1.0);
-    return (f * (size - 1.0) + 0.5) / size;
+    return (rect.xy + f * (rect.zw - 1.0) + 0.5) / size;
 }
 
 // d'Eon & Luebke 2007, section 14.3: Beckmann P(N.H, m) precomputed into a texture (float here, so P is
@@ -43,7 +49,7 @@ vec2 specular_table_coord(sampler2D table, float x, float m) {
 // peak, for m in [0.1, 1] (tests/test_specular.py).
 float beckmann_lookup(sampler2D beckmannTex, float ndoth, float m) {
     float x = sqrt(clamp(1.0 - ndoth, 0.0, 1.0));
-    return textureLod(beckmannTex, specular_table_coord(beckmannTex, x, m), 0.0).r;
+    return textureLod(beckmannTex, specular_table_coord(beckmannTex, DERMIS_BECKMANN_RECT, x, m), 0.0).r;
 }
 
 // Beckmann distribution (d'Eon & Luebke 2007, 14.3): table by default, closed form with
@@ -86,7 +92,7 @@ float ks_skin_specular(vec3 N, vec3 L, vec3 V, float m, float rho_s, sampler2D b
 // with cosTheta = N.L for light entering the skin and N.V for light leaving it.
 float rho_dt_lookup(sampler2D rhoDtTex, float cosTheta, float m) {
     float x = sqrt(clamp(cosTheta, 0.0, 1.0));
-    return textureLod(rhoDtTex, specular_table_coord(rhoDtTex, x, m), 0.0).r;
+    return textureLod(rhoDtTex, specular_table_coord(rhoDtTex, DERMIS_RHO_DT_RECT, x, m), 0.0).r;
 }
 
 // Blinn 1977, "Models of Light Reflection for Computer Synthesized Pictures", with the energy

@@ -6,7 +6,6 @@
 // 1 - rho_s * a / pi is what enters (cosTheta = N.L) or leaves (cosTheta = N.V) the skin.
 #include "common/brdf.glsl"
 
-uniform sampler2D uRhoDtTex;
 float energy_transmitted(float rho_s, float cosTheta, float m) {
-    return 1.0 - rho_s * rho_dt_lookup(uRhoDtTex, cosTheta, m) * INV_PI;
+    return 1.0 - rho_s * rho_dt_lookup(uSpecularTables, cosTheta, m) * INV_PI;
 }

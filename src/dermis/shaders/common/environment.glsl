@@ -3,6 +3,7 @@
 // eq. 13): E(n) = sum_lm A_l L_lm Y_lm(n), with the A_l folded into uEnvSH on the CPU.
 #include "common/constants.glsl"
 uniform vec3 uEnvSH[9];
+uniform sampler3D uEnvSpecular;  // the prefiltered environment (dermis.gl.environment)
 
 vec3 environment_irradiance(vec3 n) {
     vec3 e = uEnvSH[0] * 0.282095
@@ -42,4 +43,32 @@ vec3 environment_irradiance_occluded(vec3 N, vec3 Ng, vec4 vis) {
 // PBR", sec. 4.10.2, listing 26), m the lobe's roughness (Beckmann m ~ GGX alpha, Walter 2007).
 float specular_occlusion(float ndv, float ao, float m) {
     return clamp(pow(ndv + ao, exp2(-16.0 * m - 1.0)) - 1.0 + ao, 0.0, 1.0);
+}
+
+// The environment's specular radiance along R for a lobe of Beckmann roughness m: the equirect
+// prefiltered with the skin's KSK / Beckmann lobe (dermis/prefiltered_environment.py) in LAYERS
+// maps, layer k for m_k = M_MIN (M_MAX / M_MIN)^(k / (LAYERS - 1)), so the third coordinate is the
+// specular tables' roughness coordinate y(m) at layer centres (linear filtering: linear in log m).
+// The split sum (Karis 2013): multiply by the lobe's directional albedo (skin: rho_s a(N.V, m) / pi
+// of the rho_dt table). Same equirect convention as the SH (dermis.environment): u = 0.5 +
+// atan2(x, -z) / 2 pi, v = acos(y) / pi, row 0 up. A constant environment is one texel.
+// GGX callers (alpha as m): the layers are Beckmann lobes, of the same width at the peak but
+// without GGX's long tail (Walter et al. 2007, sec. 5.2); see dermis/prefiltered_environment.py.
+vec3 environment_specular(vec3 R, float m) {
+    float u = 0.5 + (abs(R.x) + abs(R.z) > 0.0 ? atan(R.x, -R.z) : 0.0) * (0.5 * INV_PI);
+    float v = acos(clamp(R.y, -1.0, 1.0)) * INV_PI;
+    float mc = clamp(m, DERMIS_SPECULAR_M_MIN, DERMIS_SPECULAR_M_MAX);
+    float y = log(mc / DERMIS_SPECULAR_M_MIN) / log(DERMIS_SPECULAR_M_MAX / DERMIS_SPECULAR_M_MIN);
+    float layers = float(DERMIS_ENV_SPECULAR_LAYERS);
+    return textureLod(uEnvSpecular, vec3(u, v, (y * (layers - 1.0) + 0.5) / layers), 0.0).rgb;
+}
+
+// The direction to look the prefiltered environment up in: R bent towards N as the lobe's mass
+// moves off the mirror direction at rougher and more grazing reflection (Lagarde & de Rousiers
+// 2014, "Moving Frostbite to PBR", sec. 4.9.3, listing 22, fitted for GGX alpha; used here with
+// alpha = Beckmann m). Against the Monte Carlo integral of the KSK lobe on a sphere (m = 0.3,
+// tests/test_environment_specular.py) it halves the split sum's bias at N.V in [0.4, 0.8].
+vec3 specular_dominant_direction(vec3 N, vec3 R, float m) {
+    float s = clamp(1.0 - m, 0.0, 1.0);
+    return normalize(mix(N, R, s * (sqrt(s) + m)));
 }

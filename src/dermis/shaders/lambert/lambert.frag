@@ -29,6 +29,13 @@ void main() {
     // ks (n + 8) / (8 pi) = rho_s F0 / (4 m^2 pi). No Fresnel: the baseline's highlight is flat.
     float ks = rho_s * 0.028 * 2.0 / (m * m * (shininess + 8.0));
     vec3 color = albedo * INV_PI * environment_irradiance_occluded(N, Ng, v_visibility);
+    // the environment's specular (common/environment.glsl) times the lobe's albedo, taken at
+    // normal incidence for every view: ks n (n + 8) / ((n + 2)(n + 4)) (the integral of the
+    // normalised Blinn-Phong lobe for V = N, its cut at N.L = 0 neglected; baseline approximation)
+    float ndv = clamp(dot(N, V), 0.0, 1.0);
+    float albedo_bp = ks * shininess * (shininess + 8.0) / ((shininess + 2.0) * (shininess + 4.0));
+    color += albedo_bp * environment_specular(specular_dominant_direction(N, reflect(-V, N), m), m)
+             * specular_occlusion(ndv, v_visibility.x, m);
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
         vec3 E = light_incident(i, v_world, L);

@@ -15,7 +15,6 @@
 #include "common/skin_specular.glsl"
 #include "common/transmittance.glsl"
 
-uniform sampler2D uBeckmannTex;
 uniform sampler2D uDiffuseTable;   // D(N.L, curvature): s = N.L in [-1, 1], t = sqrt(curvature / max)
 uniform sampler2D uPenumbraTable;  // P(shadow, width): s = shadow in [0, 1], t = log-spaced width
 uniform float uCurvatureMaxPerMm;
@@ -125,7 +124,7 @@ void main() {
     E += transmitted_irradiance(v_world, Ngeo, v_uv_ts);
 
     vec3 diffuse = E * albedo_at(v_uv) * INV_PI * energy_transmitted(rho_s, ndv, m);
-    vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uBeckmannTex, v_visibility);
+    vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uSpecularTables, v_visibility);
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec
                 : uOutputMode == OUTPUT_CURVATURE ? vec3(curvature) : diffuse + spec;
     f_color = vec4(color, 1.0);

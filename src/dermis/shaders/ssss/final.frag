@@ -12,7 +12,6 @@
 #include "common/energy.glsl"
 #include "common/skin_specular.glsl"
 
-uniform sampler2D uBeckmannTex;
 uniform sampler2D uScattered;   // rgb scattered light, a = view depth mm (0: none)
 uniform vec4 uViewZ;
 uniform float uMix;
@@ -60,7 +59,7 @@ void main() {
     float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
     vec3 albedo = albedo_at(v_uv);
     vec3 diffuse = scattered_here(depth_mm) * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
-    vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uBeckmannTex, v_visibility);
+    vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility);
 
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec : diffuse + spec;
     f_color = vec4(color, 1.0);

@@ -12,7 +12,6 @@
 #include "common/skin_specular.glsl"
 #include "tsd/gaussians.glsl"
 
-uniform sampler2D uBeckmannTex;
 uniform sampler2D uTranslucency;
 uniform float uMix;
 uniform float uPoreScaleMm;
@@ -41,7 +40,7 @@ void main() {
     vec3 albedo = albedo_at(v_uv);
     vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
-    vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uBeckmannTex, v_visibility);
+    vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility);
 
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec : diffuse + spec;
     f_color = vec4(color, 1.0);
