@@ -222,6 +222,7 @@ def draw_surfaces(frame: Frame, output_mode: int = OutputMode.FULL):
         set_uniform(prog, "uOutputMode", int(output_mode))
         frame.lights.apply(prog)
         frame.shadows.bind(prog)
+        bind_environment_specular(prog, frame.renderer.environment_specular)
         for s in surfaces:
             if s.double_sided:
                 ctx.disable(moderngl.CULL_FACE)

@@ -76,10 +76,10 @@ SHARED_SAMPLERS = {"uShadowAtlas": Unit.SHADOW_ATLAS, "uShadowAux": Unit.SHADOW_
 
 METALLIC_ROUGHNESS_SAMPLERS = {"uBaseColorMap": Unit.ALBEDO, "uNormalMap": Unit.NORMAL,
                                "uMetallicRoughnessMap": Unit.SPECULAR, "uOcclusionMap": Unit.ROUGHNESS,
-                               "uEmissiveMap": Unit.RHO_DT}
+                               "uEmissiveMap": Unit.SPECULAR_TABLES}
 """Sampler -> unit in the program of non-skin surfaces (shaders/metallic_roughness/, dermis.gl.surfaces):
 a separate program, so it reuses the skin material's units (it reads no specular tables) and leaves
-FIRST_FREE onwards alone; the shadow atlas keeps its units."""
+FIRST_FREE onwards alone; the shadow atlas and the prefiltered environment keep their units."""
 
 GUARANTEED_TEXTURE_UNITS = 16
 """GL_MAX_TEXTURE_IMAGE_UNITS every GL 4.5 implementation offers per stage."""

@@ -14,14 +14,6 @@ vec3 environment_irradiance(vec3 n) {
     return max(e, vec3(0.0));
 }
 
-// Radiance arriving from the environment around direction R, for a glossy lobe of GGX roughness
-// alpha (unit-less, alpha = perceptual roughness^2). Today: the environment's cosine-weighted mean
-// radiance around R, E_sh(R) / pi, whatever alpha (the skin's specular uses the same term,
-// common/skin_specular.glsl); a prefiltered HDR lookup per alpha replaces this body (issue 12).
-vec3 environment_specular_radiance(vec3 R, float alpha) {
-    return environment_irradiance(R) * INV_PI;
-}
-
 // Occluded environment light (dermis/geometry/visibility.py, whose numpy twins these are).
 // vis: the interpolated per-vertex visibility attribute, (A, B): A the cosine-weighted ambient
 // occlusion, B the bent normal (Zhukov et al. 1998; Landis 2002). With environment occlusion off
@@ -68,6 +60,13 @@ vec3 environment_specular(vec3 R, float m) {
 // 2014, "Moving Frostbite to PBR", sec. 4.9.3, listing 22, fitted for GGX alpha; used here with
 // alpha = Beckmann m). Against the Monte Carlo integral of the KSK lobe on a sphere (m = 0.3,
 // tests/test_environment_specular.py) it halves the split sum's bias at N.V in [0.4, 0.8].
+// Radiance arriving from the environment around R for a glossy lobe of GGX roughness alpha
+// (alpha = perceptual roughness^2; glTF metallic-roughness surfaces): the prefiltered environment
+// at m = alpha (see environment_specular: Beckmann layers, GGX's long tail not included).
+vec3 environment_specular_radiance(vec3 R, float alpha) {
+    return environment_specular(R, alpha);
+}
+
 vec3 specular_dominant_direction(vec3 N, vec3 R, float m) {
     float s = clamp(1.0 - m, 0.0, 1.0);
     return normalize(mix(N, R, s * (sqrt(s) + m)));
