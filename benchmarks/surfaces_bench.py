@@ -20,23 +20,11 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def uv_sphere(center, r, nu=48, nv=24):
+    from dermis.scene.builtin import uv_sphere as unit_sphere
     from dermis.scene.loaders import finish_mesh
 
-    th, ph = np.meshgrid(np.linspace(0, np.pi, nv + 1), np.linspace(0, 2 * np.pi, nu + 1), indexing="ij")
-    n = np.stack([np.sin(th) * np.sin(ph), np.cos(th), np.sin(th) * np.cos(ph)], -1).reshape(-1, 3)
-    uv = np.stack([ph / (2 * np.pi), 1 - th / np.pi], -1).reshape(-1, 2)
-    idx = []
-    for i in range(nv):
-        for j in range(nu):
-            a, b, c, d = i * (nu + 1) + j, (i + 1) * (nu + 1) + j, (i + 1) * (nu + 1) + j + 1, i * (nu + 1) + j + 1
-            idx += [(a, b, c), (a, c, d)]
-    idx = np.array(idx)
-    p = n * r + np.asarray(center)
-    cr = np.cross(p[idx[:, 1]] - p[idx[:, 0]], p[idx[:, 2]] - p[idx[:, 0]])
-    flip = np.sum(cr * (p[idx[:, 0]] - center), 1) < 0
-    idx[flip] = idx[flip][:, ::-1]
-    idx = idx[np.linalg.norm(cr, axis=1) > 1e-12]
-    return finish_mesh(p, n, uv, idx, "sphere", "v-up")
+    p, n, uv, idx = unit_sphere(r, nu, nv)
+    return finish_mesh(p + np.asarray(center), n, uv, idx, "sphere", "v-up")
 
 
 def with_props(scene):
