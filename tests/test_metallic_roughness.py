@@ -481,3 +481,18 @@ def test_reference_shades_surfaces_with_the_same_brdf(tmp_path):
     path, _ = grid_asset(tmp_path, mask=True)
     with pytest.raises(DermisError, match="does not support alphaMode MASK \\(material mask\\)"):
         render_reference(make_scene(path), (16, 16), spp=1, progress=False)
+
+
+def test_a_mirroring_node_keeps_front_faces_in_front(tmp_path):
+    """glTF 2.0 3.7.2.1: under a node transform of negative determinant clockwise triangles face
+    front; the loader reverses them, so single-sided surfaces are not culled from the front."""
+    mats = [{"name": "skin", "pbrMetallicRoughness": {}}, {"name": "prop", "pbrMetallicRoughness": {}}]
+    doc, binary = build([{**sphere(np.array([1.0, 0.0, 0.0])), "material": 0},
+                         {**sphere(np.array([-1.0, 0.0, 0.0])), "material": 1}], materials=mats)
+    doc["nodes"][0]["scale"] = [-1.0, 1.0, 1.0]
+    mesh, mat = load_mesh_file(write_gltf(tmp_path / "mirror.gltf", doc, binary), skin_materials=["skin"])
+    for m in (mesh, mat["surfaces"][0].mesh):
+        p, i = m.positions.astype(np.float64), m.indices.astype(np.int64)
+        face = np.cross(p[i[:, 1]] - p[i[:, 0]], p[i[:, 2]] - p[i[:, 0]])
+        big = np.linalg.norm(face, axis=1) > 1e-6
+        assert np.all(np.sum(face[big] * m.normals[i[big, 0]], 1) > 0)  # counter-clockwise from outside
