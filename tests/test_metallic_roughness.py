@@ -79,23 +79,11 @@ def expected_radiance(N, P, eye, m, occlusion=1.0, to_light=TO_LIGHT):
 
 # ----------------------------------------------------------------------------- geometry
 def sphere(center, r=0.4, nu=28, nv=14):
-    th, ph = np.meshgrid(np.linspace(0, np.pi, nv + 1), np.linspace(0, 2 * np.pi, nu + 1), indexing="ij")
-    n = np.stack([np.sin(th) * np.sin(ph), np.cos(th), np.sin(th) * np.cos(ph)], -1).reshape(-1, 3)
-    uv = np.stack([ph / (2 * np.pi), th / np.pi], -1).reshape(-1, 2)
-    idx = []
-    for i in range(nv):
-        for j in range(nu):
-            a, b, c, d = i * (nu + 1) + j, (i + 1) * (nu + 1) + j, (i + 1) * (nu + 1) + j + 1, i * (nu + 1) + j + 1
-            idx += [(a, b, c), (a, c, d)]
-    idx = np.array(idx)
-    p = n * r + center
-    # counter-clockwise from outside; the poles' zero-area triangles dropped
-    cr = np.cross(p[idx[:, 1]] - p[idx[:, 0]], p[idx[:, 2]] - p[idx[:, 0]])
-    keep = np.linalg.norm(cr, axis=1) > 1e-9
-    flip = np.sum(cr * (p[idx[:, 0]] - center), 1) < 0
-    idx[flip] = idx[flip][:, ::-1]
-    return {"POSITION": p.astype(np.float32), "NORMAL": n.astype(np.float32), "TEXCOORD_0": uv.astype(np.float32),
-            "indices": idx[keep].reshape(-1)}
+    from dermis.scene.builtin import uv_sphere
+
+    p, n, uv, idx = uv_sphere(r, nu, nv)
+    return {"POSITION": (p + center).astype(np.float32), "NORMAL": n.astype(np.float32),
+            "TEXCOORD_0": uv.astype(np.float32), "indices": np.asarray(idx).reshape(-1)}
 
 
 def card(center, half=0.4):
@@ -493,3 +481,18 @@ def test_reference_shades_surfaces_with_the_same_brdf(tmp_path):
     path, _ = grid_asset(tmp_path, mask=True)
     with pytest.raises(DermisError, match="does not support alphaMode MASK \\(material mask\\)"):
         render_reference(make_scene(path), (16, 16), spp=1, progress=False)
+
+
+def test_a_mirroring_node_keeps_front_faces_in_front(tmp_path):
+    """glTF 2.0 3.7.2.1: under a node transform of negative determinant clockwise triangles face
+    front; the loader reverses them, so single-sided surfaces are not culled from the front."""
+    mats = [{"name": "skin", "pbrMetallicRoughness": {}}, {"name": "prop", "pbrMetallicRoughness": {}}]
+    doc, binary = build([{**sphere(np.array([1.0, 0.0, 0.0])), "material": 0},
+                         {**sphere(np.array([-1.0, 0.0, 0.0])), "material": 1}], materials=mats)
+    doc["nodes"][0]["scale"] = [-1.0, 1.0, 1.0]
+    mesh, mat = load_mesh_file(write_gltf(tmp_path / "mirror.gltf", doc, binary), skin_materials=["skin"])
+    for m in (mesh, mat["surfaces"][0].mesh):
+        p, i = m.positions.astype(np.float64), m.indices.astype(np.int64)
+        face = np.cross(p[i[:, 1]] - p[i[:, 0]], p[i[:, 2]] - p[i[:, 0]])
+        big = np.linalg.norm(face, axis=1) > 1e-6
+        assert np.all(np.sum(face[big] * m.normals[i[big, 0]], 1) > 0)  # counter-clockwise from outside

@@ -48,6 +48,18 @@ def vertex_content(vbo, prog) -> tuple:
     return (vbo, " ".join(parts), *used)
 
 
+def release_mesh_objects(owner) -> None:
+    """Release a GPU mesh's VAOs (``_vaos``: key -> (vao, program)), ``textures``, ``vbo``, ``ibo``."""
+    for v, _ in owner._vaos.values():
+        v.release()
+    owner._vaos = {}
+    for t in owner.textures.values():
+        t.release()
+    owner.textures = {}
+    owner.vbo.release()
+    owner.ibo.release()
+
+
 def map_uniforms(prog, prefix: str, texture) -> None:
     """A map's addressing (dermis.scene.model.Texture texcoord / transform): u<prefix>UV (mat3,
     column-major) and u<prefix>Set; identity and set 0 without a map."""
@@ -235,16 +247,10 @@ class GpuScene:
         return sc.profile.total_reflectance / np.maximum(self.albedo_mean, 1e-4)
 
     def release(self):
-        for v, _ in self._vaos.values():
-            v.release()
-        self._vaos = {}
-        for t in self.textures.values():
-            t.release()
+        release_mesh_objects(self)
         for surface in getattr(self, "surfaces", []):
             surface.release()
         self.surfaces = []
-        self.vbo.release()
-        self.ibo.release()
 
 
 class LightUniforms:

@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from dermis.geometry.visibility import open_visibility
-from dermis.gl.resources import interleave, map_uniforms, set_uniform, upload_texture, vertex_attributes, vertex_content
+from dermis.gl.resources import (interleave, map_uniforms, release_mesh_objects, set_uniform, upload_texture,
+                                 vertex_attributes, vertex_content)
 from dermis.techniques.shared import METALLIC_ROUGHNESS_SAMPLERS
 
 # map key of MetallicRoughnessMaterial.maps() -> (sampler uniform, uniform prefix, channels, 1x1 default)
@@ -75,11 +76,4 @@ class GpuSurface:
         set_uniform(prog, "uAlphaCutoff", float(mat.alpha_cutoff) if mat.alpha_mode == "MASK" else -1.0)
 
     def release(self):
-        for v, _ in self._vaos.values():
-            v.release()
-        self._vaos = {}
-        for t in self.textures.values():
-            t.release()
-        self.textures = {}
-        self.vbo.release()
-        self.ibo.release()
+        release_mesh_objects(self)

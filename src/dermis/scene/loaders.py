@@ -460,7 +460,10 @@ class GltfAsset:
                 P.append(p)
                 N.append(n)
                 COL.append(col)
-                I.append(idx.reshape(-1, 3).astype(np.int64) + base)
+                tris = idx.reshape(-1, 3).astype(np.int64)
+                if det < 0:  # glTF 2.0 3.7.2.1: a mirroring transform makes clockwise the front face
+                    tris = tris[:, ::-1]
+                I.append(tris + base)
                 base += len(p)
         except DermisError:
             raise
