@@ -57,12 +57,12 @@ def main():
         scene = load_scene(SCENE)
         if name == "softbox":
             scene.environment.image = Texture(softbox_studio(), "softbox", wrap=("repeat", "clamp"))
-        scene.camera.fit = True
         with Renderer(scene, (a.size, a.size), irradiance_size=1024) as r:
             t0 = time.perf_counter()
             full = r.render(a.technique)
             t_first = time.perf_counter() - t0
-            spec = r.render(a.technique, output_mode=OutputMode.SPECULAR)
+            spec4 = r.render(a.technique, output_mode=OutputMode.SPECULAR, with_alpha=True)
+            spec, cover = spec4[:, :, :3], spec4[:, :, 3]
             stats[name] = {"first_frame_s": round(t_first, 2), "passes_ms": r.stats.get("passes_ms")}
         for tag, img, exp in (("full", full, 0.0), ("spec", spec, 3.0)):
             rgb = output_transform(img, exposure=exp)
@@ -70,11 +70,13 @@ def main():
             h = a.size
             crop = rgb[int(0.25 * h):int(0.75 * h), int(0.25 * h):int(0.75 * h)]  # the face
             write_png(a.out / f"{name}_{tag}_face.png", crop)
-        lum = spec.sum(-1)
-        on = lum > 0
-        stats[name].update({"spec_mean": float(lum[on].mean()), "spec_p99": float(np.percentile(lum[on], 99)),
-                            "spec_max": float(lum.max()),
-                            "spec_cv": float(lum[on].std() / lum[on].mean())})
+        # the face crop's skin pixels: the specular's spread (a flat tint has p95 / p5 near 1)
+        h = a.size
+        lum = spec.sum(-1)[int(0.25 * h):int(0.75 * h), int(0.25 * h):int(0.75 * h)]
+        on = cover[int(0.25 * h):int(0.75 * h), int(0.25 * h):int(0.75 * h)] > 0.99
+        p5, p50, p95 = (float(np.percentile(lum[on], q)) for q in (5, 50, 95))
+        stats[name].update({"face_spec_p5": p5, "face_spec_median": p50, "face_spec_p95": p95,
+                            "face_spec_p95_over_p5": p95 / p5, "face_spec_max": float(lum[on].max())})
         np.save(a.out / f"{name}_spec.npy", spec)
     (a.out / "stats.json").write_text(json.dumps(stats, indent=1))
     print(json.dumps(stats, indent=1))
