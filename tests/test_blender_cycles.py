@@ -464,3 +464,27 @@ def test_cycles_accumulation_resumes_with_new_seeds(tmp_path):
     assert not np.allclose(fresh.image(0)[..., :3], fresh.image(1)[..., :3])  # the two streams differ
     other = CyclesAccumulation(sc, size, sss=True, specular=False, path=store)
     assert other.spp == 0
+
+
+def test_largest_difference_and_table_columns():
+    """The summary names, per technique, the scene and part (skin or region) of its largest FLIP,
+    with the control's and the floor's there; the table shows only the asked regions."""
+    from dermis.blender.validate import largest_differences, markdown_table
+
+    def m(flip, regions):
+        return {"flip": flip, "ssim": 0.9, "rel_rmse": 0.1, "mean_ratio": [1.0, 1.0, 1.0],
+                "regions": {k: {"flip": v, "pixels": 20, "mean_ratio": [0.9, 1.0, 1.1]} for k, v in regions.items()}}
+
+    rep = {"regions": {"shadow_edge": "", "lips": "", "eyelids": ""}, "scenes": {
+        "a/spec": {"cycles": {"spp": 64, "converged": False}, "floor": m(0.02, {"lips": 0.03}),
+                   "techniques": {"cycles-no-sss (control)": m(0.05, {"lips": 0.06}), "tsd": m(0.07, {"lips": 0.2})}},
+        "b/spec": {"cycles": {"spp": 64, "converged": True}, "floor": m(0.01, {"eyelids": 0.015}),
+                   "techniques": {"cycles-no-sss (control)": m(0.04, {"eyelids": 0.3}), "tsd": m(0.09, {"eyelids": 0.1})}}}}
+    big = largest_differences(rep, regions=("lips", "eyelids"))
+    assert big["tsd"] == {"scene": "a/spec", "part": "lips", "flip": 0.2, "control_flip": 0.06, "floor_flip": 0.03,
+                          "mean_ratio": [0.9, 1.0, 1.1]}
+    assert (big["cycles-no-sss (control)"]["scene"], big["cycles-no-sss (control)"]["part"]) == ("b/spec", "eyelids")
+    table = markdown_table(rep, regions=("lips",))
+    assert "shadow_edge" not in table and "FLIP lips (floor)" in table
+    assert "| a/spec | tsd | 0.0700 (0.0200) |" in table and "0.2000 (0.0300)" in table
+    assert "64 (not converged)" in table

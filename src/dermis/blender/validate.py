@@ -352,11 +352,17 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
 
                 write_exr(d / f"cycles_{'spec' if spec else 'nospec'}.exr", ref)
             report["scenes"][key] = entry
+    report["largest"] = largest_differences(report)
     return report
 
 
-def markdown_table(report) -> str:
-    regions = list(report["regions"])
+FACE_REGIONS = ("back_lit_ear", "nose_shadow_penumbra", "lips", "eyelids")
+
+
+def markdown_table(report, regions=None) -> str:
+    """One row per scene x technique: each number with the seed-to-seed floor in brackets;
+    ``regions``: the region columns (default: all the report has)."""
+    regions = list(regions or report["regions"])
     head = ("| scene | technique | mean FLIP (floor) | SSIM (floor) | rel. RMSE (floor) | mean ratio R/G/B | "
             + " | ".join(f"FLIP {r} (floor)" for r in regions) + " | Cycles spp |")
     lines = [head, "|" + "---|" * (7 + len(regions) - 1)]
@@ -374,3 +380,23 @@ def markdown_table(report) -> str:
                          f"{m['rel_rmse']:.4f} ({fl['rel_rmse']:.4f}) | {'/'.join(f'{x:.3f}' for x in m['mean_ratio'])} | "
                          + " | ".join(regs) + f" | {conv['spp']}{'' if conv['converged'] else ' (not converged)'} |")
     return "\n".join(lines)
+
+
+def largest_differences(report, regions=FACE_REGIONS) -> dict:
+    """{technique: (scene, part, its FLIP, the control's FLIP there, the floor there, mean ratio)}: where
+    (whole skin or a region, any scene) the technique is farthest from Cycles."""
+    out = {}
+    for s, e in report["scenes"].items():
+        ctrl = next((m for t, m in e["techniques"].items() if t.startswith("cycles-no-sss")), None)
+        for t, m in e["techniques"].items():
+            parts = [("skin", m["flip"], m["mean_ratio"], ctrl["flip"] if ctrl else None, e["floor"]["flip"])]
+            for r in regions:
+                if r in m["regions"]:
+                    c = ctrl["regions"].get(r, {}).get("flip") if ctrl else None
+                    parts.append((r, m["regions"][r]["flip"], m["regions"][r]["mean_ratio"], c,
+                                  e["floor"]["regions"].get(r, {}).get("flip")))
+            for part, f, ratio, c, fl in parts:
+                if t not in out or f > out[t]["flip"]:
+                    out[t] = {"scene": s, "part": part, "flip": f, "control_flip": c, "floor_flip": fl,
+                              "mean_ratio": ratio}
+    return out
