@@ -13,6 +13,7 @@ import sys
 import time
 
 import numpy as np
+from scipy.integrate import trapezoid
 
 from dermis.profiles.models import MONTE_CARLO_BIN_EDGES_MM, layered_diffusion_reflectance
 from dermis.profiles.monte_carlo import monte_carlo_reflectance
@@ -31,7 +32,7 @@ def bin_average(radius, values, edges):
     for i in range(edges.size - 1):
         r = np.geomspace(max(edges[i], 1e-5), edges[i + 1], 64)
         v = np.stack([np.interp(np.log(r), np.log(radius), values[:, j]) for j in range(values.shape[1])], -1)
-        out[i] = np.trapezoid(2 * np.pi * r[:, None] * v, r, axis=0) / (np.pi * (edges[i + 1] ** 2 - edges[i] ** 2))
+        out[i] = trapezoid(2 * np.pi * r[:, None] * v, r, axis=0) / (np.pi * (edges[i + 1] ** 2 - edges[i] ** 2))
     return out
 
 

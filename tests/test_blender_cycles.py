@@ -414,3 +414,77 @@ def test_export_cli(tmp_path, capsys):
     assert e.value.code == 2
     assert capsys.readouterr().err.strip() == f"dermis: error: {tmp_path / 'flat.obj'}: the output must be a .blend file"
     assert not (tmp_path / "flat.obj").exists()
+
+
+@needs_bpy
+def test_fitted_camera_is_exported_as_rendered(tmp_path):
+    """[camera] fit moves dermis's camera onto the mesh for the image's aspect (dermis.framing):
+    the .blend (and so Cycles) must hold that camera, not the unfitted one, or the two images
+    show different framings."""
+    from dermis.blender.export import export_blend
+    from dermis.blender.reimport import read_blend
+    from dermis.framing import framed_camera
+
+    sc = _slab_scene(tmp_path, Light(kind="directional", direction=(0.0, 0.0, -1.0), intensity=3.0))
+    sc.camera = Camera(position=(0.0, 0.0, 200.0), target=(0.0, 0.0, 0.0), fov_deg=30.0, fit=True)
+    want = framed_camera(sc.camera, sc.mesh, 64 / 48)
+    assert np.linalg.norm(np.subtract(want.position, sc.camera.position)) > 10.0  # fitting moves it
+    back = read_blend(export_blend(sc, tmp_path / "fit.blend", size=(64, 48)))
+    assert np.allclose(back["camera"].position, want.position, atol=1e-5)
+    assert np.allclose(back["camera"].target, want.target, atol=1e-5)
+    assert back["camera"].fov_deg == pytest.approx(want.fov_deg, abs=1e-5)
+
+
+@needs_bpy
+def test_cycles_accumulation_resumes_with_new_seeds(tmp_path):
+    """A stored accumulation resumed and grown holds exactly the samples of one grown without a
+    break (Cycles is deterministic per seed); each batch uses new seeds (else averaging would not
+    reduce the noise); a different set-up (specular off) does not resume it; every pixel gets the
+    stated spp (adaptive sampling off)."""
+    from dermis.blender import require_bpy
+    from dermis.blender.validate import CyclesAccumulation
+
+    sc = _slab_scene(tmp_path, Light(kind="directional", direction=(0.3, -0.2, -0.93), intensity=3.0))
+    size = (16, 16)
+    store = tmp_path / "acc.npz"
+    a = CyclesAccumulation(sc, size, sss=True, specular=True, path=store)
+    a.add(2)
+    assert require_bpy().context.scene.cycles.use_adaptive_sampling is False
+    b = CyclesAccumulation(sc, size, sss=True, specular=True, path=store)
+    assert (b.spp, b.batches, b.resumed_spp) == (2, 1, 2)
+    b.add(2)
+    fresh = CyclesAccumulation(sc, size, sss=True, specular=True)
+    fresh.add(2)
+    first = fresh.image(0).copy()
+    fresh.add(2)
+    assert fresh.spp == b.spp == 4
+    assert np.allclose(b.sums, fresh.sums, rtol=1e-5, atol=1e-6)
+    second = 2 * fresh.image(0) - first  # the second batch alone
+    assert not np.allclose(second[..., :3], first[..., :3])  # new seeds, new samples
+    assert not np.allclose(fresh.image(0)[..., :3], fresh.image(1)[..., :3])  # the two streams differ
+    other = CyclesAccumulation(sc, size, sss=True, specular=False, path=store)
+    assert other.spp == 0
+
+
+def test_largest_difference_and_table_columns():
+    """The summary names, per technique, the scene and part (skin or region) of its largest FLIP,
+    with the control's and the floor's there; the table shows only the asked regions."""
+    from dermis.blender.validate import largest_differences, markdown_table
+
+    def m(flip, regions):
+        return {"flip": flip, "ssim": 0.9, "rel_rmse": 0.1, "mean_ratio": [1.0, 1.0, 1.0],
+                "regions": {k: {"flip": v, "pixels": 20, "mean_ratio": [0.9, 1.0, 1.1]} for k, v in regions.items()}}
+
+    rep = {"regions": {"shadow_edge": "", "lips": "", "eyelids": ""}, "scenes": {
+        "a/spec": {"cycles": {"spp": 64, "converged": False}, "floor": m(0.02, {"lips": 0.03}),
+                   "techniques": {"cycles-no-sss (control)": m(0.05, {"lips": 0.06}), "tsd": m(0.07, {"lips": 0.2})}},
+        "b/spec": {"cycles": {"spp": 64, "converged": True}, "floor": m(0.01, {"eyelids": 0.015}),
+                   "techniques": {"cycles-no-sss (control)": m(0.04, {"eyelids": 0.3}), "tsd": m(0.09, {"eyelids": 0.1})}}}}
+    big = largest_differences(rep, regions=("lips", "eyelids"))
+    assert big["tsd"] == {"scene": "a/spec", "part": "lips", "flip": 0.2, "control_flip": 0.06, "floor_flip": 0.03,
+                          "mean_ratio": [0.9, 1.0, 1.1]}
+    assert (big["cycles-no-sss (control)"]["scene"], big["cycles-no-sss (control)"]["part"]) == ("b/spec", "eyelids")
+    table = markdown_table(rep, regions=("lips",))
+    assert "shadow_edge" not in table and "FLIP lips (floor)" in table
+    assert "| a/spec | tsd | 0.0700 (0.0200) |" in table and "0.2000 (0.0300)" in table
+    assert "64 (not converged)" in table

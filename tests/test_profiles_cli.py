@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+from scipy.integrate import trapezoid
 import pytest
 from click.testing import CliRunner
 
@@ -35,7 +36,7 @@ def test_fair_preset_fit_plot_and_json(tmp_path):
     np.testing.assert_allclose(weights.sum(axis=0), totals, rtol=3e-3)
     assert totals[0] > totals[1] > totals[2]
     # the stored curve integrates to the stored total (2 pi r R dr on the log grid, tails omitted)
-    integral = np.trapezoid(2 * np.pi * radii[:, None] * profile, radii, axis=0)
+    integral = trapezoid(2 * np.pi * radii[:, None] * profile, radii, axis=0)
     np.testing.assert_allclose(integral, totals, rtol=0.03)
     assert document["parameters"]["melanin_fraction"] == SKIN_PRESETS["fair"].melanin_fraction
     # the optical coefficients behind it: epidermis slab over semi-infinite dermis, 1/mm
@@ -107,11 +108,11 @@ def test_artist_facing_burley_profile_from_albedo_and_mean_free_path(tmp_path):
     r = np.asarray(doc["radii_mm"])
     R = np.asarray(doc["profile_rgb"])
     ring = 2 * np.pi * r[:, None] * R
-    total = np.trapezoid(ring, r, axis=0)
+    total = trapezoid(ring, r, axis=0)
     np.testing.assert_allclose(total, [0.8, 0.5, 0.4], rtol=0.01)
     A, l = np.array([0.8, 0.5, 0.4]), np.array([1.0, 0.5, 0.25])
     s = 1.9 - A + 3.5 * (A - 0.8) ** 2
-    mean_r = np.trapezoid(ring * r[:, None], r, axis=0) / total
+    mean_r = trapezoid(ring * r[:, None], r, axis=0) / total
     np.testing.assert_allclose(mean_r, 2.5 * l / s, rtol=0.02)
     w = np.asarray(doc["fit"]["weights_rgb"])
     np.testing.assert_allclose(w.sum(axis=0), A, rtol=0.03)

@@ -13,8 +13,8 @@ import tempfile
 
 from dermis.errors import DermisError
 
-INSTALL_HINT = ("Blender's Python module (bpy) is not installed: run `make cycles`, i.e. "
-                "pip install --no-deps \"bpy>=4.2,<5\" (the cycles extra; CPython 3.11, about 370 MB)")
+INSTALL_HINT = ("Blender's Python module (bpy) is not installed: run pip install -e \".[cycles]\" "
+                "(or `make cycles`; CPython 3.11 only, about 370 MB)")
 
 _bpy = None
 
@@ -47,9 +47,9 @@ class quiet_fds:
 def require_bpy():
     """The ``bpy`` module, imported once; DermisError with the install line when it is absent.
 
-    bpy's audio module is built against numpy 1.x and prints a long warning under numpy 2 (it
-    then runs without audio, which rendering does not use): the import's stderr is captured and
-    shown only when the import fails.
+    bpy's audio module is built against numpy 1.x (the extra resolves numpy 1.26); where bpy was
+    put beside numpy 2 by hand (pip --no-deps) it prints a long warning and runs without audio,
+    which rendering does not use: the import's stderr is captured and shown only when it fails.
     """
     global _bpy
     if _bpy is not None:

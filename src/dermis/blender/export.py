@@ -187,8 +187,11 @@ def build_material(bpy, scene, opts: ExportOptions):
     return mat
 
 
-def build_camera(bpy, scene):
-    cam_d = scene.camera
+def build_camera(bpy, scene, aspect: float = 1.0):
+    # the camera dermis renders with: with [camera] fit, fitted to the mesh for this aspect (dermis.framing)
+    from dermis.framing import framed_camera
+
+    cam_d = framed_camera(scene.camera, scene.mesh, aspect)
     mpu = convert.metres_per_unit(scene)
     cam = bpy.data.cameras.new("camera")
     cam.sensor_fit = "VERTICAL"
@@ -208,6 +211,7 @@ def build_camera(bpy, scene):
     obj["dermis_target"] = [float(x) for x in cam_d.target]
     obj["dermis_up"] = [float(x) for x in cam_d.up]
     obj["dermis_fov_deg"] = float(cam_d.fov_deg)
+    obj["dermis_fit"] = bool(getattr(scene.camera, "fit", False))  # the pose above is the fitted one
     bpy.context.scene.collection.objects.link(obj)
     bpy.context.scene.camera = obj
     return obj
@@ -301,7 +305,7 @@ def build_scene(scene, opts: ExportOptions | None = None, size=(512, 512)):
     bsc.unit_settings.scale_length = 1.0
     obj = build_mesh(bpy, scene)
     obj.data.materials.append(build_material(bpy, scene, opts))
-    build_camera(bpy, scene)
+    build_camera(bpy, scene, size[0] / size[1])
     build_lights(bpy, scene)
     build_world(bpy, scene, opts)
     r = bsc.render

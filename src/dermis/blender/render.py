@@ -54,6 +54,9 @@ def render_cycles(scene, size, *, spp=64, seed=0, sss=True, specular=True, threa
     bsc = build_scene(scene, ExportOptions(sss=sss, specular=specular, texture_dir=Path(tex_dir)), size)
     bsc.cycles.samples = int(spp)
     bsc.cycles.seed = int(seed)
+    # every pixel gets exactly spp samples: adaptive sampling (Blender's default, noise threshold
+    # 0.01) stops pixels at a fixed noise level, which caps what more samples or seeds can converge
+    bsc.cycles.use_adaptive_sampling = False
     if max_bounces is not None:
         bsc.cycles.max_bounces = int(max_bounces)
     if time_limit_s:

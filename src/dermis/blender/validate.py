@@ -35,6 +35,7 @@ floor (seed 0 vs seed 1, same metrics) stands beside every number.
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
@@ -60,6 +61,7 @@ def _dilate(m, r):
 
 def region_masks(scene, size, skin) -> dict:
     """{name: (H, W) bool} from ray casts of the camera's pixel centres against the mesh."""
+    from dermis.framing import framed_camera
     from dermis.geometry.raycast import RayCaster
     from dermis.reference.render import camera_rays
 
@@ -68,7 +70,7 @@ def region_masks(scene, size, skin) -> dict:
     pos = np.asarray(m.positions, np.float64)
     idx = np.asarray(m.indices, np.int64).reshape(-1, 3)
     bvh = RayCaster(pos, idx)
-    o, d, tmax, _ = camera_rays(scene, size, 1)
+    o, d, tmax, _ = camera_rays(scene, size, 1, camera=framed_camera(scene.camera, m, w / h))
     t, tri, bc = bvh.closest_hit(o, d, 0.0, tmax)
     hit = tri >= 0
     P = o + d * np.where(hit, t, 0)[:, None]
@@ -164,30 +166,117 @@ def _score(scene, ref, img, mask, regions):
     return m, fmap
 
 
-def converge(scene, size, *, spp=16, max_spp=1024, floor_target=0.01, sss=True, specular=True, echo=print):
-    """Two seeds at doubling spp until their mean FLIP on the skin <= floor_target."""
-    from dermis.blender.render import render_cycles
+ACCUMULATOR_VERSION = 1
+"""Bumped when what a stored Cycles accumulation means changes (besides dermis.blender's sources)."""
+
+
+def _accumulator_key(scene, size, sss, specular) -> str:
+    """What a stored accumulation depends on: the scene's content (mesh, maps, lights, profile,
+    camera, output), the size, the Cycles set-up (dermis.blender's sources, bpy's version)."""
+    import hashlib
+    import inspect
+
+    from dermis.blender import convert, export, render, require_bpy, sss as sss_mod
+    from dermis.invalidation import scene_inputs
+
+    h = hashlib.sha1()
+    for part in (ACCUMULATOR_VERSION, scene_inputs(scene, irradiance_size=0, epoch=0), vars(scene.camera),
+                 tuple(scene.output.background), float(scene.mm_per_unit), tuple(size), bool(sss), bool(specular),
+                 require_bpy().app.version_string):
+        h.update(repr(part).encode())
+    for mod in (convert, export, render, sss_mod):
+        h.update(inspect.getsource(mod).encode())
+    return h.hexdigest()
+
+
+class CyclesAccumulation:
+    """Independent Cycles renders of one scene, averaged per stream: stream i takes seeds
+    ``seed_base + i + streams * k`` for its k-th batch, so every sample is kept when the count
+    grows (a 2N-spp stream is an N-spp stream plus a new N-spp batch, same variance as one 2N-spp
+    render with independent samples). Stored in ``path`` (.npz, written atomically) under a key of
+    the scene and set-up, so an interrupted or too-short run is resumed, never redone."""
+
+    def __init__(self, scene, size, *, streams=2, sss=True, specular=True, seed_base=0, path=None):
+        self.scene, self.size, self.streams, self.sss, self.specular = scene, tuple(size), streams, sss, specular
+        self.seed_base, self.path = seed_base, Path(path) if path else None
+        self.key = _accumulator_key(scene, size, sss, specular)
+        w, h = self.size
+        self.sums = np.zeros((streams, h, w, 4), np.float64)  # sum over batches of spp_k * image_k
+        self.spp, self.batches, self.render_s, self.resumed_spp = 0, 0, 0.0, 0
+        if self.path and self.path.is_file():
+            try:
+                with np.load(self.path) as z:
+                    ok = str(z["key"]) == self.key and z["sums"].shape == self.sums.shape
+                    if ok:
+                        self.sums = z["sums"].astype(np.float64)
+                        self.spp, self.batches = int(z["spp"]), int(z["batches"])
+                        self.render_s, self.resumed_spp = float(z["render_s"]), int(z["spp"])
+            except (OSError, ValueError, KeyError):
+                pass  # unreadable: start over (it is rewritten after the first batch)
+
+    def add(self, spp: int):
+        """One more batch of ``spp`` samples in every stream."""
+        from dermis.blender.render import render_cycles
+
+        for i in range(self.streams):
+            seed = self.seed_base + i + self.streams * self.batches
+            img, st = render_cycles(self.scene, self.size, spp=spp, seed=seed, sss=self.sss,
+                                    specular=self.specular, alpha=True)
+            self.sums[i] += spp * img.astype(np.float64)
+            self.render_s += st["build_s"] + st["render_s"]
+        self.spp += int(spp)
+        self.batches += 1
+        if self.path:
+            self._save()
+
+    def _save(self):
+        from dermis.fileio import atomic_write
+
+        def write(tmp):
+            with open(tmp, "wb") as f:
+                np.savez(f, key=self.key, sums=self.sums, spp=self.spp, batches=self.batches,
+                         render_s=self.render_s)
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(self.path, write)
+
+    def image(self, i) -> np.ndarray:
+        """Stream i's mean (H, W, 4) float32: linear radiance and coverage."""
+        return (self.sums[i] / max(self.spp, 1)).astype(np.float32)
+
+
+def converge(scene, size, *, spp=16, max_spp=1024, floor_target=0.01, sss=True, specular=True, echo=print,
+             store=None):
+    """Two seed streams, each doubled (a new batch as large as what it holds) until their mean FLIP
+    on the skin <= floor_target or max_spp is reached; resumed from ``store`` (.npz) when given."""
     from dermis.reference.validate import metrics
 
     t0 = time.perf_counter()
+    load0 = os.getloadavg()[0]
+    acc = CyclesAccumulation(scene, size, sss=sss, specular=specular, path=store)
+    if acc.spp:
+        echo(f"  resumed {acc.spp} spp x 2 seeds from {store}")
     while True:
-        a, _ = render_cycles(scene, size, spp=spp, seed=0, sss=sss, specular=specular, alpha=True)
-        b, _ = render_cycles(scene, size, spp=spp, seed=1, sss=sss, specular=specular, alpha=True)
+        if acc.spp == 0:
+            acc.add(min(spp, max_spp))
+        a, b = acc.image(0), acc.image(1)
         skin = (a[..., 3] >= 0.999) & (b[..., 3] >= 0.999)
-        floor = metrics(scene, a[..., :3], b[..., :3], skin)[0]["flip"]
-        echo(f"  cycles {spp} spp x 2 seeds: seed-to-seed FLIP {floor:.4f} ({time.perf_counter() - t0:.0f} s)")
-        if floor <= floor_target or spp >= max_spp:
+        floor = metrics(scene, a[..., :3], b[..., :3], skin)[0]["flip"] if skin.any() else float("inf")
+        echo(f"  cycles {acc.spp} spp x 2 seeds: seed-to-seed FLIP {floor:.4f} "
+             f"({acc.render_s:.0f} s of Cycles, load {os.getloadavg()[0]:.1f})")
+        if floor <= floor_target or acc.spp >= max_spp:
             break
-        spp *= 2
-    return a[..., :3], b[..., :3], skin, {"spp": spp, "seeds": 2, "floor_flip": floor, "converged": floor <= floor_target,
-                                          "total_s": round(time.perf_counter() - t0, 1)}
+        acc.add(min(acc.spp, max_spp - acc.spp))
+    return a[..., :3], b[..., :3], skin, {
+        "spp": acc.spp, "seeds": 2 * acc.batches, "floor_flip": floor, "converged": floor <= floor_target,
+        "cycles_s": round(acc.render_s, 1), "total_s": round(time.perf_counter() - t0, 1),
+        "resumed_spp": acc.resumed_spp, "load": [round(load0, 1), round(os.getloadavg()[0], 1)]}
 
 
 def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_spp=1024, floor_target=0.01,
                     specular_modes=(True, False), echo=print) -> dict:
     import dermis
     from dermis.blender import require_bpy
-    from dermis.blender.render import render_cycles
     from dermis.blender.sss import cycles_subsurface
     from dermis.reference.validate import _magma, _render, _save_png, display
     from dermis.techniques import technique_names
@@ -219,8 +308,10 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
                 sc.material.rho_s = 0.0
             key = f"{name}/{'spec' if spec else 'nospec'}"
             echo(f"[{key}] Cycles {size[0]}x{size[1]} ...")
+            mode = "spec" if spec else "nospec"
+            store = (out / name / f"cycles_{mode}_{size[0]}x{size[1]}.npz") if out else None
             a, b, skin, conv = converge(sc, size, spp=spp, max_spp=max_spp, floor_target=floor_target, specular=spec,
-                                        echo=echo)
+                                        echo=echo, store=store)
             if not skin.any():
                 raise DermisError(f"{f}: the mesh covers no pixel fully; nothing to compare")
             ref = 0.5 * (a + b)
@@ -231,7 +322,13 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
                      "sss": {k: [float(x) for x in v] for k, v in vars(cycles_subsurface(sc)).items()
                              if isinstance(v, np.ndarray)},
                      "floor": floor, "techniques": {}}
-            ctrl, st = render_cycles(sc, size, spp=conv["spp"], seed=2, sss=False, specular=spec)
+            # the control: as many samples as one seed stream (its noise is in its score; the floor says how much)
+            ctl = CyclesAccumulation(sc, size, streams=1, sss=False, specular=spec, seed_base=1 << 20,
+                                     path=store.with_name(f"cycles_{mode}_nosss_{size[0]}x{size[1]}.npz") if store else None)
+            if ctl.spp < conv["spp"]:
+                ctl.add(conv["spp"] - ctl.spp)
+            ctrl = ctl.image(0)[..., :3]
+            conv["control_spp"] = ctl.spp
             rows = {"cycles-no-sss (control)": ctrl}
             for t in run:
                 rows[t], _ = _render(sc, t, size)
@@ -255,11 +352,17 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
 
                 write_exr(d / f"cycles_{'spec' if spec else 'nospec'}.exr", ref)
             report["scenes"][key] = entry
+    report["largest"] = largest_differences(report)
     return report
 
 
-def markdown_table(report) -> str:
-    regions = list(report["regions"])
+FACE_REGIONS = ("back_lit_ear", "nose_shadow_penumbra", "lips", "eyelids")
+
+
+def markdown_table(report, regions=None) -> str:
+    """One row per scene x technique: each number with the seed-to-seed floor in brackets;
+    ``regions``: the region columns (default: all the report has)."""
+    regions = list(regions or report["regions"])
     head = ("| scene | technique | mean FLIP (floor) | SSIM (floor) | rel. RMSE (floor) | mean ratio R/G/B | "
             + " | ".join(f"FLIP {r} (floor)" for r in regions) + " | Cycles spp |")
     lines = [head, "|" + "---|" * (7 + len(regions) - 1)]
@@ -277,3 +380,23 @@ def markdown_table(report) -> str:
                          f"{m['rel_rmse']:.4f} ({fl['rel_rmse']:.4f}) | {'/'.join(f'{x:.3f}' for x in m['mean_ratio'])} | "
                          + " | ".join(regs) + f" | {conv['spp']}{'' if conv['converged'] else ' (not converged)'} |")
     return "\n".join(lines)
+
+
+def largest_differences(report, regions=FACE_REGIONS) -> dict:
+    """{technique: (scene, part, its FLIP, the control's FLIP there, the floor there, mean ratio)}: where
+    (whole skin or a region, any scene) the technique is farthest from Cycles."""
+    out = {}
+    for s, e in report["scenes"].items():
+        ctrl = next((m for t, m in e["techniques"].items() if t.startswith("cycles-no-sss")), None)
+        for t, m in e["techniques"].items():
+            parts = [("skin", m["flip"], m["mean_ratio"], ctrl["flip"] if ctrl else None, e["floor"]["flip"])]
+            for r in regions:
+                if r in m["regions"]:
+                    c = ctrl["regions"].get(r, {}).get("flip") if ctrl else None
+                    parts.append((r, m["regions"][r]["flip"], m["regions"][r]["mean_ratio"], c,
+                                  e["floor"]["regions"].get(r, {}).get("flip")))
+            for part, f, ratio, c, fl in parts:
+                if t not in out or f > out[t]["flip"]:
+                    out[t] = {"scene": s, "part": part, "flip": f, "control_flip": c, "floor_flip": fl,
+                              "mean_ratio": ratio}
+    return out

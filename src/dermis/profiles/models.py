@@ -31,6 +31,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from dermis.errors import DermisError
+from dermis.numpy_compat import trapezoid
 from dermis.profiles.burley import burley_mean_free_path_for_mean_radius, burley_reflectance
 from dermis.profiles.gaussians import SumOfGaussians, deon_skin
 from dermis.profiles.hankel import LogRadialGrid
@@ -80,8 +81,8 @@ class RadialProfile:
     def mean_radius_mm(self) -> np.ndarray:
         """integral 2 pi r^2 R dr / integral 2 pi r R dr per channel (on the profile's samples)."""
         r = self.radius_mm[:, None]
-        first = np.trapezoid(2 * np.pi * r * r * self.rgb_per_mm2, self.radius_mm, axis=0)
-        zeroth = np.trapezoid(2 * np.pi * r * self.rgb_per_mm2, self.radius_mm, axis=0)
+        first = trapezoid(2 * np.pi * r * r * self.rgb_per_mm2, self.radius_mm, axis=0)
+        zeroth = trapezoid(2 * np.pi * r * self.rgb_per_mm2, self.radius_mm, axis=0)
         return first / np.where(zeroth > 0, zeroth, 1.0)
 
 
