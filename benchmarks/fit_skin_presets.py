@@ -13,7 +13,7 @@ MC / multipole of the totals (per wavelength, MC_PHOTONS photons at each of 400-
 (scipy.optimize.least_squares) on the log ratios of the three linear-sRGB channels plus, with
 weight 0.1, the mean squared log ratio of the 400-700 nm spectrum, first without the ratio, then
 with it; then Nelder-Mead on the largest channel |log ratio| (plus the same spectral term) from
-there. The ratio varies slowly with the parameters (0.8-1.0; the multipole is 2-25 % high, most
+there, twice, the ratio renewed at the polished solution in between. The ratio varies slowly with the parameters (0.8-1.0; the multipole is 2-25 % high, most
 for dark skin). Prints the fitted parameters and the Monte Carlo and pbd colours beside the
 measured ones.
 """
@@ -90,8 +90,13 @@ def fit(measured, fixed_blend):
         x = np.clip(x, [0.0, 0.0, 0.0], [0.5, 1.0, 0.2])
         return float(np.max(np.abs(residuals(x)[:3])) + np.sum(residuals(x)[3:] ** 2))
 
-    polished = minimize(worst, best.x, method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-5, "maxfev": 120})
-    x = np.clip(polished.x, [0.0, 0.0, 0.0], [0.5, 1.0, 0.2])
+    x = best.x
+    for _ in range(2):  # polish, then renew the ratio MC / multipole at the polished solution and polish again
+        polished = minimize(worst, x, method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-5, "maxfev": 120})
+        x = np.clip(polished.x, [0.0, 0.0, 0.0], [0.5, 1.0, 0.2])
+        parameters = unpack(x)
+        mc = model_measurand(monte_carlo_totals(parameters), parameters.refractive_index, measured.specular_included)
+        correction[:] = mc / measurand(parameters, measured, "multipole")
     return unpack(x), polished.fun
 
 

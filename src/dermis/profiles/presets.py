@@ -51,9 +51,9 @@ from dermis.profiles.spectral import SkinParameters
 
 # (C_m, beta_m, C_h), fitted by benchmarks/fit_skin_presets.py
 _FITTED = {
-    "very-light": (0.0085, 0.000, 0.0023),
-    "light": (0.0133, 0.000, 0.0033),
-    "asian": (0.0251, 0.000, 0.0007),
+    "very-light": (0.0079, 0.000, 0.0027),
+    "light": (0.0124, 0.000, 0.0034),
+    "asian": (0.0224, 0.000, 0.0009),
     "tan": (0.0468, 0.000, 0.0000),
     "brown": (0.0862, 0.000, 0.0000),
     "dark": (0.1349, 0.000, 0.0000),
