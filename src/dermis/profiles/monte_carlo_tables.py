@@ -44,7 +44,7 @@ TABLE_WAVELENGTHS_NM = np.arange(400.0, 701.0, 20.0)
 #: Photons per wavelength: enough that the red/green/blue profile's own standard error, as an
 #: r-weighted norm over 0.1-10 mm, stays within about 2 % (recorded per table; tests/test_profiles_mc_tables.py)
 DEFAULT_PHOTONS = 100_000
-PHOTONS = {"dark": 200_000, "brown": 150_000}
+PHOTONS = {"dark": 500_000, "brown": 150_000}
 SEED = 20_261_127
 
 

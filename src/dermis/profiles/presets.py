@@ -21,10 +21,11 @@ R/G 1.81 in linear sRGB, against 8.4-11.5 and 1.45-1.89 for the NIST forearms of
 the tan and brown ones included; its body reflectance reaches 0.71 at 700 nm, above even the
 lightest forearms' 0.65 WITH the specular part). No C_m, beta_m, C_h of the two-layer model
 reaches it: with Jacques' baseline absorption (0.0244 /mm at 700 nm) and the dermis's sigma_s'
-(2.2 /mm) pigment-free skin tops out at 0.59 at 700 nm, and a fit leaves red 14-19 % low or
-green and blue 22 % high; full oxygenation changes red by 1 %. Only a baseline about 5 x lower
-than Jacques' would let it through. The patch stays in the comparison (benchmarks/RESULTS.md)
-as the paint it is.
+(2.2 /mm) pigment-free skin tops out at 0.59 at 700 nm (body reflectance), and the fits left red
+14-19 % low or green and blue 22 % high; 98 % instead of 75 % oxygenation raises red by 0.6 %.
+Dividing Jacques' baseline by 5 would lift red to the patch's (0.98 of it with the former fair
+parameters) but leave green and blue 22-25 % high, and no source supports that baseline. The
+patch stays in the comparison (benchmarks/RESULTS.md) as the paint it is.
 
 Why the earlier presets were far too dark: the triples (0.005, 0.7, 0.005), (0.15, 0, 0.01) and
 (0.5, 0.7, 0.05) used melanosome volume fractions (Jacques 1998: 1.3-6.3 % light, 11-16 %
@@ -54,9 +55,9 @@ _FITTED = {
     "very-light": (0.0079, 0.000, 0.0027),
     "light": (0.0124, 0.000, 0.0034),
     "asian": (0.0224, 0.000, 0.0009),
-    "tan": (0.0468, 0.000, 0.0000),
-    "brown": (0.0862, 0.000, 0.0000),
-    "dark": (0.1349, 0.000, 0.0000),
+    "tan": (0.0445, 0.000, 0.0000),
+    "brown": (0.0787, 0.000, 0.0000),  # the ratio-space minimax (fit_skin_presets.py), see RESULTS
+    "dark": (0.1200, 0.000, 0.0008),
 }
 _FITTED["fair"] = _FITTED["very-light"]  # the lightest measured category (module docstring)
 _FITTED["intermediate"] = _FITTED["asian"]  # the same counterpart (the fit chose beta_m = 0 for both)
