@@ -17,6 +17,7 @@ import numpy as np
 from dermis.profiles.fit import fit_sum_of_gaussians
 from dermis.profiles.models import skin_profile
 from dermis.profiles.monte_carlo_tables import shape_difference, shipped_tables
+from dermis.profiles.scene_skin import MC_FIT_MIN_RADIUS_MM
 
 MODELS = ("pbd", "multipole", "dipole", "burley")
 
@@ -33,7 +34,7 @@ def main(plot_path):
     for name, table in tables:
         reference = table.profile()
         profiles = {m: skin_profile(table.parameters, m, wavelength_nm=table.wavelength_nm) for m in MODELS}
-        fit = fit_sum_of_gaussians(reference, 6)
+        fit = fit_sum_of_gaussians(reference, 6, r_min_mm=MC_FIT_MIN_RADIUS_MM)
         cells = []
         difference, noise = shape_difference(fit.profile.evaluate, table)
         cells.append(" / ".join(f"{100 * v:.1f}" for v in difference) + " %")
