@@ -8,7 +8,7 @@ GL_PACKAGES := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri
 # the viewer's window tests run under a virtual X server
 TEST_PACKAGES := xvfb xauth libxrandr2 libxcursor1 libxi6 libxinerama1
 
-.PHONY: demo test sysdeps test-sysdeps install cycles bench bench-batch fuzz clean
+.PHONY: demo test sysdeps test-sysdeps install cycles bench bench-batch fuzz mc-tables clean
 
 sysdeps:
 	@scripts/ensure-system-packages.sh $(GL_PACKAGES)
@@ -54,6 +54,11 @@ bench: sysdeps install
 # batch throughput (1, 2 local workers, Ray with 2 actors): pip install -e ".[ray]" first
 bench-batch: sysdeps install
 	$(PY) benchmarks/batch_bench.py --renders 200
+
+# the skin presets' Monte Carlo tables shipped in src/dermis/data (photons and seeds recorded in the
+# file; about 2-4 minutes a preset on 2 cores): after changing a preset or the skin coefficients
+mc-tables: install
+	nice -n 10 $(PY) -m dermis.profiles.monte_carlo_tables $(PRESETS)
 
 # >= 10,000 generated bad (and good) inputs; counts go to benchmarks/RESULTS.md "Reliability"
 # (FUZZ_CASES, FUZZ_SEED to change the count or replay a seed)

@@ -20,7 +20,8 @@ def run(args, folder, monkeypatch):
 
 def test_fair_preset_fit_plot_and_json(tmp_path):
     png, js = tmp_path / "p.png", tmp_path / "p.json"
-    result = CliRunner().invoke(profile_cmd, ["--preset", "fair", "--fit", "6", "--plot", str(png), "--json", str(js)])
+    result = CliRunner().invoke(profile_cmd, ["--preset", "fair", "--model", "pbd", "--fit", "6", "--plot", str(png),
+                                              "--json", str(js)])
     assert result.exit_code == 0, result.output
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
     document = json.loads(js.read_text())
@@ -44,6 +45,29 @@ def test_fair_preset_fit_plot_and_json(tmp_path):
     assert len(layers) == 2 and layers[1]["thickness_mm"] == "inf" and layers[0]["thickness_mm"] == 0.25
     assert len(layers[0]["sigma_a"]) == len(document["medium"]["wavelength_nm"]) == 31
     assert not list(tmp_path.glob(".*.tmp"))  # atomic writes leave no temporaries
+
+
+def test_a_preset_defaults_to_its_shipped_monte_carlo_table(tmp_path, monkeypatch):
+    """No --model: a preset's profile is its shipped Monte Carlo table (no run); --photons runs it."""
+    from dermis.profiles import monte_carlo
+    from dermis.profiles.monte_carlo_tables import shipped_tables
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("the shipped table should have been used")
+
+    monkeypatch.setattr(monte_carlo, "monte_carlo_reflectance", no_run)
+    js = tmp_path / "dark.json"
+    result = CliRunner().invoke(profile_cmd, ["--preset", "dark", "--fit", "6", "--json", str(js)])
+    assert result.exit_code == 0, result.output
+    assert "model mc" in result.output and "table shipped with dermis" in result.output
+    document = json.loads(js.read_text())
+    table = shipped_tables()["dark"]
+    assert document["model"] == "mc" and len(document["medium"]["wavelength_nm"]) == table.wavelength_nm.size
+    np.testing.assert_allclose(document["total_reflectance_rgb"], table.profile().total_reflectance_rgb, rtol=1e-9)
+    assert np.all(np.array(document["standard_error_rgb"]) >= 0)
+    # asking for photons runs the Monte Carlo (here: refused by the stub, so the run was attempted)
+    ran = CliRunner().invoke(profile_cmd, ["--preset", "dark", "--photons", "1000", "--wavelength-step", "100"])
+    assert isinstance(ran.exception, AssertionError)
 
 
 @pytest.mark.parametrize("model", ["multipole", "dipole", "burley", "deon"])

@@ -1,15 +1,18 @@
 """``dermis profile``: compute a skin diffusion profile, fit Gaussians, plot it, write it as JSON.
 
-    dermis profile --preset fair --fit 6 --plot p.png --json p.json
+    dermis profile --preset fair --fit 6 --plot p.png --json p.json    (the preset's shipped Monte Carlo table)
     dermis profile --model multipole --melanin 0.1 --melanin-blend 0.5 --hemoglobin 0.02 --fit 4
     dermis profile --model mc --preset dark --photons 200000 --json dark-mc.json
     dermis profile --model deon --fit 4
     dermis profile --medium layers.toml --model mc --photons 20000    (coefficients per layer: medium_file.py)
 
-The plot shows r R(r) (the energy per unit radius, 1/mm) per linear-sRGB channel against log
-radius, with the fitted Gaussians dashed on top. The JSON (profile_json.py) holds the radii, the
-RGB profile, the fitted variances and weights, the fit error and the total reflectance; a
-scene's [skin] section can load it (profile = "file.json").
+A preset's default model is its Monte Carlo table, shipped with dermis (monte_carlo_tables.py: no
+run); with other skin parameters the default is pbd, and --model mc runs the Monte Carlo (about
+1 s per 10,000 photons and wavelength on 2 cores). The plot shows r R(r) (the energy per unit
+radius, 1/mm) per linear-sRGB channel against log radius, with the fitted Gaussians dashed on
+top. The JSON (profile_json.py) holds the radii, the RGB profile, the fitted variances and
+weights, the fit error and the total reflectance; a scene's [skin] section can load it
+(profile = "file.json").
 """
 
 from __future__ import annotations
@@ -22,8 +25,9 @@ import numpy as np
 
 from dermis.errors import DermisError
 
-MODEL_HELP = ("dipole | multipole | pbd (photon beam diffusion, default) | burley (Christensen-Burley) | "
-              "mc (Monte Carlo, slow) | deon (d'Eon 2007's six Gaussians)")
+MODEL_HELP = ("dipole | multipole | pbd (photon beam diffusion) | burley (Christensen-Burley) | "
+              "mc (Monte Carlo; a shipped preset's table, else a run: slow) | deon (d'Eon 2007's six Gaussians). "
+              "Default: mc for a preset's parameters (its shipped table), pbd otherwise")
 
 
 def _parameters(preset, overrides: dict):
@@ -144,8 +148,10 @@ def _check_output(path, suffix: str, option: str):
 @click.option("--fit", "fit_k", type=int, default=None, help="fit K Gaussians with shared variances")
 @click.option("--plot", "plot_path", default=None, help="write a PNG of r R(r) with the fit")
 @click.option("--json", "json_path", default=None, help="write the profile (and fit) as JSON")
-@click.option("--photons", type=int, default=100_000, show_default=True, help="Monte Carlo photons per wavelength")
-@click.option("--seed", type=int, default=0, show_default=True, help="Monte Carlo seed")
+@click.option("--photons", type=int, default=None,
+              help="Monte Carlo photons per wavelength [100000]; with --photons or --seed a preset is run, "
+                   "not read from its shipped table")
+@click.option("--seed", type=int, default=None, help="Monte Carlo seed [0]")
 @click.option("--illuminant", default="D65", show_default=True, help="CIE illuminant for the RGB integration")
 @click.option("--wavelength-step", type=int, default=10, show_default=True,
               help="nm between the wavelengths sampled in 400-700 nm")
@@ -163,7 +169,8 @@ def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, 
     json_target = _check_output(json_path, ".json", "--json")
     if fit_k is not None and not 1 <= fit_k <= 16:
         raise click.UsageError(f"--fit {fit_k}: the number of Gaussians must lie in 1..16")
-    if photons < 100:
+    run_options = {"photons": 100_000 if photons is None else photons, "seed": 0 if seed is None else seed}
+    if run_options["photons"] < 100:
         raise click.UsageError(f"--photons {photons}: use at least 100")
     if not 1 <= wavelength_step <= 100:
         raise click.UsageError(f"--wavelength-step {wavelength_step}: use 1..100 nm")
@@ -187,6 +194,7 @@ def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, 
         raise click.UsageError("--medium gives the optical coefficients: no --preset, skin parameters, --albedo "
                                "or --model deon with it")
     medium = None
+    table_note = ""
     try:
         if medium_path is not None:
             from dermis.profiles.medium_file import read_medium_file
@@ -199,7 +207,7 @@ def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, 
             model = model or "pbd"
             medium = (layers, medium_wavelength)
             profile = medium_profile(layers, model, wavelength_nm=medium_wavelength, illuminant=illuminant,
-                                     photons=photons, seed=seed, progress=model == "mc", name=Path(medium_path).stem)
+                                     progress=model == "mc", name=Path(medium_path).stem, **run_options)
         elif albedo is not None:
             from dermis.profiles.models import burley_artist_profile
 
@@ -209,17 +217,27 @@ def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, 
                 raise click.UsageError("--model deon is a fixed table: it takes no preset or skin parameters")
             model, profile = "deon", deon_profile()
         else:
-            model = model or "pbd"
+            from dermis.profiles.monte_carlo_tables import shipped_table
+
             parameters = _parameters(preset, overrides)
-            profile = skin_profile(parameters, model, wavelength_nm=wavelength, illuminant=illuminant,
-                                   photons=photons, seed=seed,
-                                   progress=model == "mc", name=preset or "physical")
+            table = shipped_table(parameters) if model in (None, "mc") and photons is None and seed is None else None
+            if table is not None:
+                model, wavelength = "mc", table.wavelength_nm
+                profile = table.profile(illuminant, name=preset or "physical")
+                table_note = (f"  Monte Carlo table shipped with dermis: {table.photons} photons per wavelength, "
+                              f"seed {table.seed}, {wavelength.size} wavelengths {wavelength[0]:g}-{wavelength[-1]:g} nm")
+            else:
+                model = model or "pbd"
+                profile = skin_profile(parameters, model, wavelength_nm=wavelength, illuminant=illuminant,
+                                       progress=model == "mc", name=preset or "physical", **run_options)
         fit = fit_sum_of_gaussians(profile, fit_k) if fit_k is not None else None
     except DermisError as exc:
         raise click.ClickException(str(exc)) from None
 
     label = profile.name if model != "deon" else "deon"
     click.echo(f"profile: {label}, model {model}")
+    if table_note:
+        click.echo(table_note)
     if medium is not None:
         for i, layer in enumerate(medium[0]):
             thickness = "semi-infinite" if layer.semi_infinite else f"{layer.thickness_mm:g} mm"

@@ -84,17 +84,22 @@ def _check_k(k) -> int:
 
 def fit_sum_of_gaussians(profile, k: int = 6, *, variances_mm2=None, total_reflectance_rgb=None,
                          conserve_energy: bool = True, points: int = 600, r_max_mm: float | None = None,
-                         name: str | None = None) -> GaussianFit:
+                         r_min_mm: float = 0.0, name: str | None = None) -> GaussianFit:
     """Fit K Gaussians with shared variances and non-negative RGB weights to ``profile``.
 
     ``profile``: a RadialProfile (anything with ``radius_mm``, ``rgb_per_mm2``, ``evaluate`` and
     ``total_reflectance_rgb``). ``variances_mm2``: keep these K variances and solve the weights
     only. ``total_reflectance_rgb``: the energy the weights should sum to (default: the profile's).
+    ``r_min_mm``: fit the shape from this radius out only (the energy within it still counts
+    through the weights' sum); the error is then measured from there too.
     """
     k = _check_k(k if variances_mm2 is None else len(np.atleast_1d(variances_mm2)))
     r_max = fit_radius_max_mm(profile) if r_max_mm is None else float(r_max_mm)
-    step = r_max / points
-    radius = (np.arange(points) + 0.5) * step
+    r_min = float(r_min_mm)
+    if not 0.0 <= r_min < r_max:
+        raise DermisError(f"the fit's radius range must satisfy 0 <= r_min < r_max, got {r_min} and {r_max} mm")
+    step = (r_max - r_min) / points
+    radius = r_min + (np.arange(points) + 0.5) * step
     target = np.asarray(profile.evaluate(radius), dtype=np.float64)  # (P, 3)
     totals = np.asarray(profile.total_reflectance_rgb if total_reflectance_rgb is None else total_reflectance_rgb,
                         dtype=np.float64)

@@ -61,6 +61,19 @@ class MeasuredSkin:
         """Its colour in linear sRGB (the same integration as the model's, spectral.py)."""
         return spectral_to_linear_srgb(self.at(wavelength_nm), wavelength_nm, illuminant)
 
+    def individual_typology_angle(self) -> float:
+        """ITA = atan((L* - 50) / b*) in degrees (Chardon et al. 1991), CIELAB under D65 and the
+        CIE 1931 2 deg observer: the skin-colour classification of the NIST table (> 55 very
+        light, 41-55 light, 28-41 intermediate, 10-28 tan, -30-10 brown, < -30 dark; Del Bino et
+        al. 2006), computed as benchmarks/derive_nist_skin_table.py classes the NIST subjects."""
+        import colour
+
+        cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+        white = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
+        sd = colour.SpectralDistribution(dict(zip(self.wavelength_nm, self.reflectance)))
+        lab = colour.XYZ_to_Lab(colour.sd_to_XYZ(sd, cmfs, colour.SDS_ILLUMINANTS["D65"]) / 100.0, white)
+        return float(np.degrees(np.arctan2(lab[0] - 50.0, lab[2])))
+
 
 @lru_cache(maxsize=1)
 def _nist_table():

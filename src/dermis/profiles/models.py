@@ -263,28 +263,48 @@ def burley_artist_profile(albedo_rgb, mean_free_path_mm_rgb, name: str = "burley
 MONTE_CARLO_BIN_EDGES_MM = np.concatenate([[0.0], np.geomspace(0.01, 40.0, 73)])
 
 
-def _monte_carlo_profile(layers, wavelength, illuminant, photons, seed, progress, name) -> RadialProfile:
+def monte_carlo_spectral(layers, photons: int, seed: int = 0, progress=False):
+    """MCML per coefficient entry (wavelength or RGB channel) of ``layers`` on MONTE_CARLO_BIN_EDGES_MM.
+
+    Returns (R (B, L) 1/mm^2, its standard error (B, L), R_d (L,), R_d's standard error (L,)); the
+    entry i runs with seed ``seed + 7919 i``. ``progress``: False, True (a tqdm bar) or a bar.
+    """
     from dermis.profiles.monte_carlo import monte_carlo_reflectance
 
+    count = layers[0].medium.wavelength_count
     bar = progress
     if progress is True:
         from tqdm import tqdm
 
-        bar = tqdm(total=int(photons) * layers[0].medium.wavelength_count, unit="photon", unit_scale=True,
-                   desc="Monte Carlo")
-    values, errors, totals = [], [], []
+        bar = tqdm(total=int(photons) * count, unit="photon", unit_scale=True, desc="Monte Carlo")
+    values, errors, totals, total_errors = [], [], [], []
     try:
-        for i in range(layers[0].medium.wavelength_count):
+        for i in range(count):
             stack = [Layer(layer.medium.select([i]), layer.thickness_mm) for layer in layers]
             result = monte_carlo_reflectance(stack, photons, MONTE_CARLO_BIN_EDGES_MM, seed=seed + 7919 * i,
                                              progress=bar)
             values.append(result.reflectance_per_mm2)
             errors.append(result.standard_error_per_mm2)
             totals.append(result.total_reflectance)
+            total_errors.append(result.total_reflectance_standard_error)
     finally:
         if progress is True:
             bar.close()
+    return np.array(values).T, np.array(errors).T, np.array(totals), np.array(total_errors)
+
+
+def monte_carlo_bin_radii_mm() -> np.ndarray:
+    """The radius a Monte Carlo bin's mean is placed at: half the first edge, then the geometric mean."""
     edges = MONTE_CARLO_BIN_EDGES_MM
-    centers = np.concatenate([[0.5 * edges[1]], np.sqrt(edges[1:-1] * edges[2:])])
-    return _spectral_to_profile(centers, np.array(values).T, np.array(totals), wavelength, illuminant, "mc", name,
-                                np.array(errors).T)
+    return np.concatenate([[0.5 * edges[1]], np.sqrt(edges[1:-1] * edges[2:])])
+
+
+def monte_carlo_table_profile(values, errors, totals, wavelength, illuminant="D65", name="mc") -> RadialProfile:
+    """A RadialProfile of spectral Monte Carlo bins (monte_carlo_spectral's first three results)."""
+    return _spectral_to_profile(monte_carlo_bin_radii_mm(), np.asarray(values), np.asarray(totals), wavelength,
+                                illuminant, "mc", name, np.asarray(errors))
+
+
+def _monte_carlo_profile(layers, wavelength, illuminant, photons, seed, progress, name) -> RadialProfile:
+    values, errors, totals, _ = monte_carlo_spectral(layers, photons, seed, progress)
+    return monte_carlo_table_profile(values, errors, totals, wavelength, illuminant, name)

@@ -10,8 +10,10 @@
     melanin_blend = 0.7         #   beta_m, eumelanin share           (default 0.7)
     oxygenation = 0.75          #   gamma, oxy-haemoglobin share      (default 0.75)
     epidermis_mm = 0.25         #   epidermis thickness               (default 0.25)
-    model = "pbd"               #   dipole, multipole, pbd, burley or mc (default pbd; mc: the
-                                #   Monte Carlo's shape, ~1-2 min once, then cached on disk)
+    model = "mc"                #   dipole, multipole, pbd, burley or mc. Default: mc for a shipped
+                                #   preset's parameters (its Monte Carlo table, shipped: instant),
+                                #   pbd for any other skin; mc for other skin runs the Monte
+                                #   Carlo, ~1-2 min once (2 cores), then cached on disk
     gaussians = 6               #   K, the number of Gaussians        (default 6)
     profile = "skin.json"       # a file written by `dermis profile --json` (relative to the scene)
     profile = "medium"          # optical coefficients per layer (profiles/medium_file.py), top first:
@@ -23,7 +25,8 @@
     mfp_mm = [1.2, 0.6, 0.3]
     albedo = [0.995, 0.98, 0.95]
 
-A preset accepts the physical keys too, as overrides of its values. The weights of the result
+A preset accepts the physical keys too, as overrides of its values (then it is other skin: its
+default model is pbd, whose shape is 7-28 % off the Monte Carlo, benchmarks/RESULTS.md). The weights of the result
 carry colour: per channel they split the total diffuse reflectance among the Gaussians (the
 renderer may normalise them). Results are cached in memory and on disk (under
 $DERMIS_CACHE_DIR, else $XDG_CACHE_HOME/dermis, else ~/.cache/dermis; DERMIS_CACHE_DIR=off
@@ -51,13 +54,19 @@ MEDIUM_KEYS = ("layer", "wavelength_nm")
 SKIN_KEYS = ("profile", *PHYSICAL_KEYS, "model", "gaussians", *MEDIUM_KEYS)
 SCENE_MODELS = ("dipole", "multipole", "pbd", "burley", "mc")
 #: model = "mc": the Monte Carlo's R(r) as the shape the Gaussians are fitted to (the layered
-#: diffusion models lose lateral transport across a thin epidermis: pbd's red tail is 30-45 % low
-#: at 2 mm, benchmarks/RESULTS.md). Photons per wavelength and the wavelengths it samples; about
-#: 1 s per 10,000 photons and wavelength on 2 cores, so a preset costs about 1-2 minutes once and
-#: is then read from the disk cache.
+#: diffusion models lose lateral transport across a thin epidermis: pbd's red tail is 15-40 % low
+#: at 2 mm, benchmarks/RESULTS.md). The shipped presets' tables ship (monte_carlo_tables.py);
+#: for other skin: photons per wavelength and the wavelengths it samples, about 1 s per 10,000
+#: photons and wavelength on 2 cores, so about 1-2 minutes once, then read from the disk cache.
 MC_SCENE_PHOTONS = 50_000
+#: Gaussians fitted to a Monte Carlo profile match its shape from this radius out (mm); the
+#: energy within it still counts through the weights' sum. Within ~0.05 mm the isotropic
+#: single-scattering peak (~1/r) dominates, far below a texel of any irradiance texture or screen
+#: pixel; fitted from r = 0 the narrow peak takes the widest Gaussians' weights from the tail (dark
+#: skin's blue: 13 % r-weighted error over 0.1-10 mm, 2.4 % from 0.05 mm, tests/test_profiles_mc_tables.py).
+MC_FIT_MIN_RADIUS_MM = 0.05
 MC_SCENE_WAVELENGTHS_NM = np.arange(400.0, 701.0, 20.0)
-CACHE_VERSION = 2  # bump when a model's numbers change (2: multipole thin-slab pole depth)
+CACHE_VERSION = 3  # bump when a model's numbers change (2: multipole thin-slab pole depth; 3: MC tables)
 
 
 def _cache_folder() -> Path | None:
@@ -83,18 +92,35 @@ def _fitted_physical(model: str, parameters: tuple, k: int):
     from dermis.profiles.spectral import DEFAULT_WAVELENGTHS_NM, SkinParameters
 
     if model == "mc":
+        from dermis.profiles.monte_carlo_tables import shipped_table
+
+        table = shipped_table(SkinParameters(*parameters))
+        if table is not None:  # a shipped preset: its tabulated Monte Carlo, no run
+            key = json.dumps([CACHE_VERSION, "mc-table", table.name, table.digest(), k, MC_FIT_MIN_RADIUS_MM])
+            return _cached_fit(key, lambda: fit_sum_of_gaussians(table.profile(), k, r_min_mm=MC_FIT_MIN_RADIUS_MM))
         wavelength, options = MC_SCENE_WAVELENGTHS_NM, {"photons": MC_SCENE_PHOTONS}
+        r_min = MC_FIT_MIN_RADIUS_MM
     else:
-        wavelength, options = DEFAULT_WAVELENGTHS_NM, {}
-    key = json.dumps([CACHE_VERSION, model, parameters, k, wavelength.tolist(), options])
+        wavelength, options, r_min = DEFAULT_WAVELENGTHS_NM, {}, 0.0
+    key = json.dumps([CACHE_VERSION, model, parameters, k, wavelength.tolist(), options, r_min])
     return _cached_fit(key, lambda: fit_sum_of_gaussians(
-        models.skin_profile(SkinParameters(*parameters), model, wavelength_nm=wavelength, **options), k))
+        models.skin_profile(SkinParameters(*parameters), model, wavelength_nm=wavelength, **options), k,
+        r_min_mm=r_min))
 
 
-def physical_gaussians(parameters, model: str = "pbd", k: int = 6, name: str = "physical") -> SumOfGaussians:
-    """The K-Gaussian fit of the skin profile of ``parameters`` (SkinParameters), cached."""
+def default_model(parameters) -> str:
+    """"mc" for the parameters of a shipped preset (its Monte Carlo table ships), else "pbd"."""
+    from dermis.profiles.monte_carlo_tables import shipped_table
+
+    return "mc" if shipped_table(parameters) is not None else "pbd"
+
+
+def physical_gaussians(parameters, model: str | None = None, k: int = 6, name: str = "physical") -> SumOfGaussians:
+    """The K-Gaussian fit of the skin profile of ``parameters`` (SkinParameters), cached.
+    ``model`` None: default_model(parameters)."""
     from dermis.profiles.fit import _check_k
 
+    model = default_model(parameters) if model is None else model
     if model not in SCENE_MODELS:
         raise DermisError(f"model '{model}' is not available here (use {', '.join(SCENE_MODELS)})")
     k = _check_k(k)
@@ -140,9 +166,10 @@ def _fitted_medium(model: str, description: str, k: int):
     def compute():
         layers, wavelength = layers_from_description(json.loads(description), "[skin]")
         options = {"photons": MC_SCENE_PHOTONS} if model == "mc" else {}
-        return fit_sum_of_gaussians(medium_profile(layers, model, wavelength_nm=wavelength, **options), k)
+        return fit_sum_of_gaussians(medium_profile(layers, model, wavelength_nm=wavelength, **options), k,
+                                    r_min_mm=MC_FIT_MIN_RADIUS_MM if model == "mc" else 0.0)
 
-    return _cached_fit(json.dumps([CACHE_VERSION, "medium", model, description, k]), compute)
+    return _cached_fit(json.dumps([CACHE_VERSION, "medium", model, description, k, MC_FIT_MIN_RADIUS_MM]), compute)
 
 
 def medium_gaussians(description: dict, model: str = "pbd", k: int = 6, name: str = "medium") -> SumOfGaussians:
@@ -218,7 +245,7 @@ def resolve_skin_profile(section: dict, base_dir: Path, source: str) -> SumOfGau
             parameters = replace(base, **{PHYSICAL_KEYS[key]: value for key, value in physical.items()})
         except DermisError as exc:
             raise DermisError(f"{source}: [skin] {exc}") from None
-        return physical_gaussians(parameters, model or "pbd", k or 6, name)
+        return physical_gaussians(parameters, model, k or 6, name)
 
     extras = [key for key in (*PHYSICAL_KEYS, "model") if key in section]
     if name == "deon":
