@@ -124,6 +124,36 @@ def test_no_light_bleeds_across_a_depth_discontinuity(gl_ctx):
     assert naive[:, edge - 1, 0].max() < 0.9  # and a darkened rim
 
 
+def test_no_light_crosses_the_air_of_a_crease(gl_ctx):
+    """A near quad 2 mm over a far one (a step narrower than depth_cutoff_mm: a crease, closed
+    eyelids, lips): light only on the near quad. The far quad beside the edge receives light only
+    through paths inside the tissue (dermis.reference paths = "tissue", TISSUE_TAU): from there
+    the near quad lies above the tangent plane within 2 / 0.25 = 8 mm, so what remains is the
+    widest red Gaussian's tail beyond 8 mm (< 1e-3). Before (tissue_paths = False, how ssss drew
+    the orange eyelid-crease lines) the step passed the light: red > 0.1 beside the edge."""
+    S = 128
+    sc = _two_planes(2.0)
+    with Renderer(sc, (S, S), ctx=gl_ctx, samples=0) as r:
+        r.render("ssss")
+        ssss = r.technique("ssss")
+        depth = ssss.debug_buffers()["ssss_depth_mm"][:, :, 0]
+        near = depth < depth.max() - 1.0
+        assert 0.3 < near.mean() < 0.7
+        irr = np.repeat(near[:, :, None].astype(np.float32), 3, axis=2)
+        ssss.screen_space(r.last_frame, irradiance=irr)
+        out = ssss.scattered()
+        r.technique("ssss", tissue_paths=False)
+        ssss.screen_space(r.last_frame, irradiance=irr)
+        crossing = ssss.scattered()
+        r.technique("ssss", tissue_paths=True)
+    edge = int(np.argmax(~near[S // 2]))
+    rows = slice(S // 4, 3 * S // 4)  # away from the frame's top and bottom
+    print(f"beside the edge, red: tissue paths {out[rows, edge, 0].max():.2e}, crossing air {crossing[rows, edge, 0].min():.3f}")
+    assert out[rows, edge:edge + 4].max() < 1e-3, out[rows, edge:edge + 4].max()
+    assert crossing[rows, edge, 0].min() > 0.1
+    assert np.abs(out[rows, max(edge - 4, 0):edge] - 1.0).max() < 1e-3  # the near side keeps its light
+
+
 def test_uniform_light_energy(gl_ctx):
     """Uniform light on a quad facing the camera: the blur keeps it, and the diffuse radiance is
     E albedo / pi (1 - rho_s a(N.L) / pi)(1 - rho_s a(N.V) / pi), within 0.5%, at two light angles."""

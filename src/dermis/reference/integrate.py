@@ -36,7 +36,8 @@ RESOLVED_RATIO = 1.5
 cells clipped at triangle edges are irregular: under uniform light a plane's radiance deviates by
 up to 2.7% at 0.7 h, 1.1% at 1 h, 0.3% at 1.5 h, 0.15% at 2 h (measured, 5 mm triangles)."""
 PAIRS_PER_CHUNK = 6_000_000
-TISSUE_TAU = 0.25
+from dermis.techniques.shared import TISSUE_TAU  # noqa: E402  (ssss's blurs use the same test)
+
 """paths="tissue": a pair is skipped where the segment between the points leaves either of them
 into the air more than 14.5 degrees above its tangent plane (sin = 0.25). A heuristic: across a
 1 mm crease it removes 96% of the straight-path light (shallower segments still count), and on a

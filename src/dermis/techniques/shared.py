@@ -40,6 +40,11 @@ TRANSLUCENCY_MIN_VARIANCE_MM2 = 0.15
 """Gaussians at least this wide (mm^2) carry light through thin parts; d'Eon uses Gaussians 3..6 of
 the skin table (v >= 0.187), the narrow ones carry nothing through millimetres of tissue."""
 
+TISSUE_TAU = 0.25
+"""Light travels between two surface points inside the tissue only: a pair whose straight segment
+leaves either point into the air more than asin(TISSUE_TAU) = 14.5 degrees above its tangent plane
+exchanges none (dermis.reference paths = "tissue"; ssss's blurs skip such taps: creases)."""
+
 INV_PI = 1.0 / math.pi
 
 LIGHT_TYPES = {"directional": 0, "point": 1, "spot": 2}

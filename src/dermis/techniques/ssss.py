@@ -16,7 +16,9 @@ with each pixel's kernel scaled to millimetres by its depth:
                    sum_k w_k g_k(y) * (g_k(x) * E). Exact for a sum of Gaussians, where a single
                    separable kernel (Jimenez 2015's rank-1 kernel) is 15% off for skin's red.
                    Pixels per mm = size / (2 tan(fov/2) depth_mm); taps follow the surface (weight
-                   of the 3-D distance, taps across a depth jump > depth_cutoff_mm rejected).
+                   of the 3-D distance, taps across a depth jump > depth_cutoff_mm rejected, taps
+                   whose straight path to the pixel crosses air rejected: creases, as the
+                   reference's paths = "tissue").
   ssss_final       the mesh into the frame's target: scattered * albedo^(1-mix) / pi
                    * (1 - rho_s a(N.V, m) / pi) + specular (added after the blur)
 
@@ -24,8 +26,8 @@ Inputs and units: the scene's mm_per_unit, the camera's projection (widths in pi
 depth and field of view), the profile's Gaussians (any K <= 8, weights normalised per channel).
 Nothing is cached between frames: screen-space results depend on the view.
 Known failure modes: light only comes from what the camera sees (none from behind an ear's
-rim, none from off-screen; kernels are cut at the frame's edge); two surfaces touching at about
-the same depth (lips, eyelids) still exchange light; when 3 sigma of the widest Gaussian exceeds
+rim, none from off-screen; kernels are cut at the frame's edge); across a crease narrower than a
+pixel (closed eyelids at a distance) the tissue-path test cannot separate the two sides; when 3 sigma of the widest Gaussian exceeds
 ``max_taps`` pixels, taps are spread over integer steps and thin features alias slightly; the
 horizontal-then-vertical split follows the surface only along the axes (as in Jimenez 2015).
 Shaders: shaders/ssss/*; shared: common/skin_irradiance.glsl, common/transmittance.glsl,
@@ -45,7 +47,7 @@ from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
-                                      casts_translucency, set_profile_uniforms, surface_detail_uniforms,
+                                      TISSUE_TAU, casts_translucency, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
 
 DEPTH_CUTOFF_MM = 5.0  # a tap this much nearer or further than the pixel is another surface
@@ -62,12 +64,14 @@ class SsssOptions(TranslucentOptions):
     max_taps: int = MAX_TAPS  # taps per side of each blur
     depth_cutoff_mm: float = DEPTH_CUTOFF_MM  # taps across a larger depth jump are rejected
     follow_surface: bool = True  # weight taps by the 3-D distance and reject depth jumps
+    tissue_paths: bool = True  # skip taps whose straight path to the pixel crosses air (creases)
 
     def validate(self, technique: str) -> None:
         super().validate(technique)
         check_int(f"{technique}: max_taps", self.max_taps, 1, 512)
         check_float(f"{technique}: depth_cutoff_mm", self.depth_cutoff_mm)
         check_bool(f"{technique}: follow_surface", self.follow_surface)
+        check_bool(f"{technique}: tissue_paths", self.tissue_paths)
 
 
 class ScreenSpaceSSS(Technique):
@@ -113,17 +117,19 @@ class ScreenSpaceSSS(Technique):
             return t
 
         irradiance = tex("f4")  # a = depth in mm: needs float32 (half: 0.25 mm steps at 500 mm)
+        view_normal = tex("f2")  # the geometric normal in view space: the blurs' tissue-path test
         depth = ctx.depth_renderbuffer(size)
         gaussians = [tex("f2") for _ in range(k)]
         scattered = tex("f4")
-        self.tex = {"irradiance": irradiance, "depth": depth, "gaussians": gaussians, "scattered": scattered,
-                    "fbo_irradiance": ctx.framebuffer(color_attachments=[irradiance], depth_attachment=depth),
+        self.tex = {"irradiance": irradiance, "view_normal": view_normal, "depth": depth, "gaussians": gaussians,
+                    "scattered": scattered,
+                    "fbo_irradiance": ctx.framebuffer(color_attachments=[irradiance, view_normal], depth_attachment=depth),
                     "fbo_horizontal": ctx.framebuffer(color_attachments=gaussians),
                     "fbo_vertical": ctx.framebuffer(color_attachments=[scattered])}
         self._targets_key = (size, k)
 
     def _release_targets(self):
-        for key in ("fbo_irradiance", "fbo_horizontal", "fbo_vertical", "irradiance", "depth", "scattered"):
+        for key in ("fbo_irradiance", "fbo_horizontal", "fbo_vertical", "irradiance", "view_normal", "depth", "scattered"):
             if key in self.tex:
                 self.tex[key].release()
         for t in self.tex.get("gaussians", []):
@@ -141,6 +147,9 @@ class ScreenSpaceSSS(Technique):
         set_uniform(prog, "uMaxTaps", int(max(self.options.max_taps, 1)))
         set_uniform(prog, "uDepthCutoffMm", float(self.options.depth_cutoff_mm) if self.options.follow_surface else 1e30)
         set_uniform(prog, "uFollowSurface", 1.0 if self.options.follow_surface else 0.0)
+        set_uniform(prog, "uPixelsPerMmXY", (float(0.5 * size[0] * frame.proj[0, 0]), float(0.5 * size[1] * frame.proj[1, 1])))
+        tissue = self.options.tissue_paths and self.options.follow_surface  # ignoring depth ignores creases too
+        set_uniform(prog, "uTissueTau", float(TISSUE_TAU) if tissue else 2.0)
 
     def screen_space(self, frame: Frame, irradiance: np.ndarray | None = None):
         """Passes 1-3: the pre-scatter irradiance and depth, then the two blurs. ``irradiance``
@@ -158,6 +167,8 @@ class ScreenSpaceSSS(Technique):
             self.ctx.disable(moderngl.CULL_FACE)
             prog = p_irradiance
             set_uniform(prog, "uViewZ", view_z_row(frame.view))
+            if "uViewRotation" in prog:  # mat3, column-major
+                prog["uViewRotation"].write(np.ascontiguousarray(np.asarray(frame.view, np.float32)[:3, :3].T).tobytes())
             set_profile_uniforms(prog, profile, profile.k)
             translucency_uniforms(prog, self.options.translucency and casts_translucency(scene), self.options.translucency_strength)
             bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
@@ -176,12 +187,14 @@ class ScreenSpaceSSS(Technique):
             prog = p_horizontal
             self._kernel_uniforms(prog, frame, 0)
             bind_sampler(prog, "uIrradiance", t["irradiance"], Unit.FIRST_FREE)
+            bind_sampler(prog, "uViewNormal", t["view_normal"], Unit.FIRST_FREE + 1)
             t["fbo_horizontal"].use()
             self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
             prog = p_vertical
             self._kernel_uniforms(prog, frame, 1)
             bind_sampler(prog, "uIrradiance", t["irradiance"], Unit.FIRST_FREE)
-            bind_sampler_array(prog, "uGaussian", t["gaussians"][: profile.k], Unit.FIRST_FREE + 1)
+            bind_sampler(prog, "uViewNormal", t["view_normal"], Unit.FIRST_FREE + 1)
+            bind_sampler_array(prog, "uGaussian", t["gaussians"][: profile.k], Unit.FIRST_FREE + 2)
             t["fbo_vertical"].use()
             self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
         frame.passes_run.append("ssss_blur")

@@ -33,8 +33,9 @@ void main() {
         for (int side = -1; side <= 1; side += 2) {
             ivec2 q = p + uDirection * (side * j * K.step_px);
             if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
-            float dz_px = ssss_tap_dz_px(K, depth, texelFetch(uIrradiance, q, 0).a);
-            if (dz_px < 0.0) continue;
+            float zq = texelFetch(uIrradiance, q, 0).a;
+            float dz_px = ssss_tap_dz_px(K, depth, zq);
+            if (dz_px < 0.0 || !ssss_tissue_path(p, depth, q, zq, size)) continue;
             for (int k = 0; k < MAX_GAUSSIANS; ++k) {
                 if (wx[k] <= 0.0) continue;
                 float w = wx[k] * ssss_depth_factor(K, k, dz_px);
@@ -54,8 +55,9 @@ void main() {
             if (w <= 0.0) continue;
             ivec2 q = p + uDirection * d;
             if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
-            float dz_px = ssss_tap_dz_px(K, depth, texelFetch(uIrradiance, q, 0).a);
-            if (dz_px < 0.0) continue;
+            float zq = texelFetch(uIrradiance, q, 0).a;
+            float dz_px = ssss_tap_dz_px(K, depth, zq);
+            if (dz_px < 0.0 || !ssss_tissue_path(p, depth, q, zq, size)) continue;
             w *= ssss_depth_factor(K, k, dz_px);
             sum[k] += w * texelFetch(uGaussian[k], q, 0).rgb;
             wsum[k] += w;

@@ -12,13 +12,15 @@
 
 uniform float uMix;
 uniform vec4 uViewZ;  // third row of the view matrix: view-space z = dot(uViewZ, (P, 1)), < 0 in front
+uniform mat3 uViewRotation;  // the view matrix's rotation: normals to view space
 in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
 in vec4 v_visibility;  // (ambient occlusion, bent normal)
 in vec2 v_uv_ts;  // texture-space UVs: the thickness bake
-out vec4 f_irradiance;
+layout(location = 0) out vec4 f_irradiance;
+layout(location = 1) out vec4 f_view_normal;  // the blurs' tissue-path test (ssss/kernel.glsl)
 
 void main() {
     vec3 Ng = normalize(v_normal);
@@ -29,4 +31,5 @@ void main() {
     vec3 albedo = albedo_at(v_uv);
     float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
     f_irradiance = vec4(E * albedo_power(albedo, uMix), depth_mm);
+    f_view_normal = vec4(normalize(uViewRotation * Ng), 1.0);
 }

@@ -28,6 +28,16 @@
 // taps with |dz| > uDepthCutoffMm (a silhouette) and taps off the mesh are rejected outright.
 // Renormalisation keeps the energy: light neither bleeds across silhouettes nor leaks into the
 // background, and slanted surfaces get narrower screen-space kernels, as they should.
+//
+// Tissue paths (as dermis.reference's paths = "tissue", integrate.TISSUE_TAU): a tap q is skipped
+// where the straight segment between the two surface points leaves either of them into the AIR,
+// more than asin(uTissueTau) above its tangent plane: u.N_p > tau or -u.N_q > tau (u the unit
+// offset from p to q, N the geometric normals of the pixels, view space). Across a crease (closed
+// eyelids, lips, a nostril's rim) the two sides lie a pixel apart on screen and at about the same
+// depth, so depth alone let the lit lids' light into the dark crease between them: a thin
+// saturated orange line along both eyelid creases, where tsd (whose texture-space neighbours are
+// the crease's own walls) and the reference show a dark line. Smooth convex skin keeps every tap
+// (its neighbours lie below the tangent plane); concave skin of radius R keeps those within ~R/2.
 #include "common/profile.glsl"
 
 uniform sampler2D uIrradiance;          // pass 1: rgb pre-scatter irradiance, a = view depth mm (0: none)
@@ -36,6 +46,9 @@ uniform ivec2 uDirection;               // (1, 0) horizontal, (0, 1) vertical
 uniform int uMaxTaps;                   // taps per side at most
 uniform float uDepthCutoffMm;           // taps whose depth differs more are another surface
 uniform float uFollowSurface;           // 1: weigh taps by the depth difference; 0: ignore depth (tests)
+uniform sampler2D uViewNormal;          // pass 1: the geometric normal in view space (0: none)
+uniform vec2 uPixelsPerMmXY;            // uPixelsPerMmAtUnitDepth along x and y: view-space offsets
+uniform float uTissueTau;               // sin of the largest angle above the tangent plane; > 1: off
 
 const float SSSS_REACH_SIGMAS = 3.7169;  // sqrt(2 ln 1000): a Gaussian at 1e-3 of its peak
 
@@ -146,4 +159,23 @@ float ssss_tap_dz_px(SsssKernel K, float depth_mm, float tap_depth_mm) {
     float dz = abs(tap_depth_mm - depth_mm) * uFollowSurface;
     if (dz > uDepthCutoffMm) return -1.0;
     return dz * K.ppm;
+}
+
+// View-space position (mm) of pixel p at view depth z_mm (a symmetric perspective frustum):
+// x_view = (p + 0.5 - size / 2) z / pixels-per-mm-at-unit-depth, likewise y; z_view = -z.
+vec3 ssss_view_position_mm(ivec2 p, ivec2 size, float z_mm) {
+    vec2 c = (vec2(p) + 0.5 - 0.5 * vec2(size)) * z_mm / uPixelsPerMmXY;
+    return vec3(c, -z_mm);
+}
+
+// False where the straight path between the surface points of pixels p and q crosses air (above).
+bool ssss_tissue_path(ivec2 p, float zp, ivec2 q, float zq, ivec2 size) {
+    if (uTissueTau > 1.0) return true;
+    vec3 np = texelFetch(uViewNormal, p, 0).xyz;
+    vec3 nq = texelFetch(uViewNormal, q, 0).xyz;
+    vec3 d = ssss_view_position_mm(q, size, zq) - ssss_view_position_mm(p, size, zp);
+    float len = length(d);
+    if (len <= 0.0) return true;
+    vec3 u = d / len;
+    return dot(u, np) <= uTissueTau && -dot(u, nq) <= uTissueTau;
 }
