@@ -61,7 +61,8 @@ void main() {
     float edge = erf_as(0.5 * step_ * inv);
     vec4 sum = center * edge;
     for (int j = 1; j <= TAPS; ++j) {
-        float e = erf_as((float(j) + 0.5) * step_ * inv);
+        // the last tap's upper edge is never used (n <= TAPS: the tail folds into tap n)
+        float e = j < TAPS ? erf_as((float(j) + 0.5) * step_ * inv) : 1.0;
         float w = j < n ? 0.5 * (e - edge) : (j == n ? 0.5 * (1.0 - edge) : 0.0);  // the tail folded in
         edge = e;
         sum += w * (texelFetch(uSource, clamp(ip + dir * j, ivec2(0), imax), 0) +
