@@ -63,6 +63,58 @@ def test_fingerprint_of_a_read_only_array_sees_an_edit_made_while_it_was_writabl
     assert fingerprint(a) != k
 
 
+def test_fingerprint_of_an_immutable_array_is_remembered_and_an_edit_needs_a_new_array(monkeypatch):
+    """A map stored in an immutable bytes object (as the loaders store decoded maps) is hashed once:
+    numpy refuses to make it writable, so an edit must make a new array, which gets a new key."""
+    import dermis.invalidation as inv
+
+    a = inv.immutable(np.arange(64, dtype=np.float32).reshape(8, 8))
+    k = fingerprint(a)
+    with pytest.raises(ValueError):
+        a.flags.writeable = True
+    with pytest.raises(ValueError):
+        a[0, 0] = 5.0
+    calls = []
+    real = inv.xxhash.xxh3_128_hexdigest
+    monkeypatch.setattr(inv.xxhash, "xxh3_128_hexdigest", lambda b: calls.append(1) or real(b))
+    assert fingerprint(a) == k and fingerprint(a[:, :4]) != k and not calls  # remembered: no pass over the bytes
+    b = a.copy()
+    b[0, 0] = 5.0
+    assert fingerprint(b) != k and fingerprint(inv.immutable(b)) == fingerprint(b)
+    # a writable array is hashed every time (an in-place edit must be seen)
+    calls.clear()
+    w = np.arange(64, dtype=np.float32)
+    fingerprint(w), fingerprint(w)
+    assert len(calls) == 2
+    # two arrays over different parts of one bytes object are not confused
+    buf = np.arange(32, dtype=np.float32).tobytes()
+    lo, hi = np.frombuffer(buf, np.float32, 16), np.frombuffer(buf, np.float32, 16, offset=64)
+    assert fingerprint(lo) != fingerprint(hi)
+    assert fingerprint(lo) == fingerprint(np.arange(16, dtype=np.float32))
+
+
+def test_loaded_scene_maps_are_immutable_and_keyed_once(monkeypatch):
+    from pathlib import Path
+
+    import dermis
+    import dermis.invalidation as inv
+
+    toml = Path(__file__).resolve().parents[1] / "examples" / "lee-perry-smith.toml"
+    sc = dermis.load_scene(toml)
+    assert not sc.material.albedo.data.flags.writeable
+    k1 = product_keys(scene_inputs(sc, irradiance_size=64, epoch=0))
+    hashed = []
+    real = inv.xxhash.xxh3_128_hexdigest
+    monkeypatch.setattr(inv.xxhash, "xxh3_128_hexdigest", lambda b: hashed.append(len(b)) or real(b))
+    k2 = product_keys(scene_inputs(sc, irradiance_size=64, epoch=0))
+    assert k1 == k2
+    maps = [t.data.base.nbytes if t.data.base is not None else t.data.nbytes
+            for t in (sc.material.albedo, sc.material.normal_map, sc.material.specular_map)]
+    assert not set(hashed) & set(maps), "the maps were hashed again"
+    sc.material.albedo = type(sc.material.albedo)(sc.material.albedo.data * 0.5, "edited")  # the way to edit it
+    assert product_keys(scene_inputs(sc, irradiance_size=64, epoch=0))["material_textures"] != k1["material_textures"]
+
+
 def test_every_product_declares_inputs_that_exist_and_changes_only_with_them():
     sc = _scene()
     inputs = scene_inputs(sc, irradiance_size=64, epoch=0)

@@ -111,7 +111,9 @@ def floor_ratios(passes_ms: dict, floors: dict, gaussians: int) -> dict:
 @click.argument("scene", required=False)
 @click.option("--techniques", default=None, help="Comma-separated (default: all available).")
 @click.option("--size", default="1024x1024", show_default=True)
-@click.option("--irradiance-size", type=int, default=1024, show_default=True)
+@click.option("--irradiance-size", type=int, default=None,
+              help="Texture-space resolution (default 1024; with --viewer the viewer's own choice from the head's size "
+                   "on screen, dermis.adaptive_resolution).")
 @click.option("--frames", type=int, default=5, show_default=True, help="Timed frames per workload (median).")
 @click.option("--json", "json_out", default=None, help="Write the results as JSON.")
 @click.option("--markdown", default=None, help="Write the table as Markdown.")
@@ -131,7 +133,7 @@ def bench_cmd(scene, techniques, size, irradiance_size, frames, json_out, markdo
         raise DermisError(f"{path}: the benchmark scene is missing")
     if viewer:
         w, h = parse_size(size) if size != "1024x1024" else (960, 640)
-        table, data = viewer_table(path, (w, h), irradiance_size if irradiance_size != 1024 else 512)
+        table, data = viewer_table(path, (w, h), irradiance_size)
         click.echo(table)
         if json_out:
             write_json_atomic(json_out, data)
@@ -141,6 +143,7 @@ def bench_cmd(scene, techniques, size, irradiance_size, frames, json_out, markdo
             atomic_write(markdown, lambda tmp: Path(tmp).write_text(table + "\n"))
         return
     w, h = parse_size(size)
+    irradiance_size = irradiance_size or 1024
     sc = dermis.load_scene(path)
     names = techniques.split(",") if techniques else technique_names()
     if "lambert" not in names:
@@ -178,7 +181,8 @@ def viewer_table(path, size, irradiance_size):
         runs["progressive" if progressive else "full every frame"] = viewer_bench(
             dermis.load_scene(path), size, irradiance_size=irradiance_size, progressive=progressive)
     first = next(iter(runs.values()))
-    lines = [f"Viewer: {first['renderer']}; window {size[0]}x{size[1]}, irradiance {irradiance_size}^2, tsd, panel on", "",
+    irr = irradiance_size or f"{first.get('irradiance_size', '?')} (adaptive)"
+    lines = [f"Viewer: {first['renderer']}; window {size[0]}x{size[1]}, irradiance {irr}^2, tsd, panel on", "",
              "| mode | orbit fps | light drag fps | full quality after orbit (ms) | after light drag (ms) |",
              "|---|---|---|---|---|"]
     for name, r in runs.items():

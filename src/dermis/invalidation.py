@@ -9,7 +9,13 @@ uses ``id()``, which an unrelated object can reuse once the first is garbage-col
 Checking content costs a pass over the bytes each frame: XXH3 (128 bit) reads about 20 GB/s on
 one core, about 1.5 ms for the head's three 1024^2 float maps (zlib's CRC-32 took 10-25 ms).
 Remembering the checksum of a read-only array would not be sound: its flag can be turned back on,
-the array edited and the flag turned off again between two frames.
+the array edited and the flag turned off again between two frames. An array whose memory is an
+immutable ``bytes`` object is different: numpy refuses to make it writable, so its bytes can never
+change while the ``bytes`` object lives. Its checksum is remembered (``_IMMUTABLE_DIGESTS``, keyed
+by that object, which the table keeps alive so that its ``id`` cannot be reused), and the loaders
+store the maps they decode that way (``immutable``): the viewer's per-frame keys then cost no pass
+over the head's material maps (~25 ms per frame on the loaded 2-core machine). An edit of such a
+map must make a new array (numpy raises on an in-place write), which gets a new key.
 """
 
 from __future__ import annotations
@@ -40,6 +46,34 @@ PRODUCTS = {
 }
 """Every cached product and what it depends on. "epoch" is bumped by Renderer.invalidate()."""
 
+_IMMUTABLE_DIGESTS: dict = {}  # (id(bytes), address, nbytes) -> (the bytes object, its XXH3-128 digest)
+_IMMUTABLE_KEEP = 64  # buffers remembered at most (oldest forgotten first)
+
+
+def immutable(a: np.ndarray) -> np.ndarray:
+    """A copy of ``a`` whose memory is an immutable ``bytes`` object (numpy cannot make it writable),
+    so that its fingerprint is computed once (see the module's docstring)."""
+    a = np.ascontiguousarray(a)
+    return np.frombuffer(a.tobytes(), dtype=a.dtype).reshape(a.shape)
+
+
+def _digest(owner: np.ndarray) -> str:
+    buf = owner
+    while isinstance(buf, np.ndarray):
+        buf = buf.base
+    if isinstance(buf, bytes) and not owner.flags.writeable:
+        key = (id(buf), owner.__array_interface__["data"][0], owner.nbytes)
+        hit = _IMMUTABLE_DIGESTS.get(key)
+        if hit is not None and hit[0] is buf:
+            return hit[1]
+        d = xxhash.xxh3_128_hexdigest(memoryview(owner.reshape(-1).view(np.uint8)))
+        if len(_IMMUTABLE_DIGESTS) >= _IMMUTABLE_KEEP:
+            _IMMUTABLE_DIGESTS.pop(next(iter(_IMMUTABLE_DIGESTS)))
+        _IMMUTABLE_DIGESTS[key] = (buf, d)
+        return d
+    return xxhash.xxh3_128_hexdigest(memoryview(owner.reshape(-1).view(np.uint8)))
+
+
 def fingerprint(a) -> tuple | None:
     """Content key of an array (or None): its layout and the XXH3-128 hash of its bytes. A view
     (e.g. an image's first three channels) is keyed on its layout within the contiguous array it
@@ -53,8 +87,7 @@ def fingerprint(a) -> tuple | None:
     if not owner.flags.c_contiguous:
         owner = a if a.flags.c_contiguous else np.ascontiguousarray(a)
     offset = a.__array_interface__["data"][0] - owner.__array_interface__["data"][0]
-    return (a.shape, a.dtype.str, a.strides, offset, owner.nbytes,
-            xxhash.xxh3_128_hexdigest(memoryview(owner.reshape(-1).view(np.uint8))))
+    return (a.shape, a.dtype.str, a.strides, offset, owner.nbytes, _digest(owner))
 
 
 def _texture(t):

@@ -34,7 +34,11 @@ class Renderer:
     """
 
     def __init__(self, scene=None, size=(512, 512), *, device: int | None = None, samples: int = 4,
-                 shadow_size: int = 2048, irradiance_size: int = 1024, ctx=None, timing: bool = True):
+                 shadow_size: int | None = 2048, irradiance_size: int | None = 1024, ctx=None, timing: bool = True):
+        # None: chosen from the mesh's size on screen at set_scene (dermis.adaptive_resolution)
+        self.adaptive_sizes = (irradiance_size is None, shadow_size is None)
+        irradiance_size = 1024 if irradiance_size is None else irradiance_size
+        shadow_size = 2048 if shadow_size is None else shadow_size
         check_renderer_options(size, samples, shadow_size, irradiance_size, device)
         self._owns_ctx = ctx is None
         self.ctx = ctx or create_context(device)
@@ -71,8 +75,23 @@ class Renderer:
         check_scene(scene)
         self.scene = scene
         self._built = {}
+        self._choose_adaptive_sizes()
         self._texture_space_mesh()
         self._rebuild_gpu_scene()
+
+    def _choose_adaptive_sizes(self):
+        """Irradiance and shadow sizes from the mesh's size on screen in this Renderer's frame size,
+        for the ones the caller left to the renderer (dermis.adaptive_resolution)."""
+        auto_irr, auto_shadow = self.adaptive_sizes
+        if not (auto_irr or auto_shadow):
+            return
+        from dermis.adaptive_resolution import adaptive_sizes
+
+        irr, shadow = adaptive_sizes(self.scene, self.size)
+        if auto_irr and irr != self.irradiance_size:
+            self.set_irradiance_size(irr)
+        if auto_shadow:
+            self.shadows.tile_size = int(shadow)  # re-allocated at the next shadow pass (set_scene re-runs it)
 
     def _texture_space_mesh(self):
         """Give the scene's mesh the UV set texture space works in: its own when unique, else one
@@ -152,9 +171,12 @@ class Renderer:
         self._epoch += 1
 
     # ------------------------------------------------------------------ targets
-    def _ensure_targets(self, size):
-        """The frame's render targets at ``size``. The ``target_sizes_kept`` most recent sizes are
-        kept (the viewer alternates between a reduced size while dragging and the full one)."""
+    def _ensure_targets(self, size, samples=None):
+        """The frame's render targets at ``size`` with ``samples`` (default: the Renderer's). The
+        ``target_sizes_kept`` most recent (size, samples) are kept (the viewer alternates between a
+        reduced size at 1x while dragging and the full one)."""
+        samples = self.samples if samples is None else samples
+        size = (tuple(size), int(samples))
         if self._targets_size == size:
             return
         kept = self._target_sets.pop(size, None)
@@ -166,11 +188,11 @@ class Renderer:
         if kept is not None:
             self._targets, self._targets_size = kept, size
             return
-        w, h = size
+        (w, h), samples = size
         ctx = self.ctx
-        if self.samples > 1:
-            color = ctx.renderbuffer((w, h), 4, samples=self.samples, dtype="f2")
-            depth = ctx.depth_renderbuffer((w, h), samples=self.samples)
+        if samples > 1:
+            color = ctx.renderbuffer((w, h), 4, samples=samples, dtype="f2")
+            depth = ctx.depth_renderbuffer((w, h), samples=samples)
         else:
             color = ctx.renderbuffer((w, h), 4, dtype="f2")
             depth = ctx.depth_renderbuffer((w, h))
@@ -275,9 +297,11 @@ class Renderer:
             self.stats, self.last_frame, self._last_camera, self.timer.times_ms = saved
 
     def render(self, technique: str | None = None, size=None, camera=None, *, with_alpha: bool = False,
-               output_mode: int = OutputMode.FULL):
+               output_mode: int = OutputMode.FULL, samples: int | None = None):
         """Render one frame; returns linear float32 (H, W, 3) (or (H, W, 4) with coverage alpha).
-        ``output_mode`` (dermis.techniques.shared.OutputMode): the full image, or one of its terms."""
+        ``output_mode`` (dermis.techniques.shared.OutputMode): the full image, or one of its terms.
+        ``samples``: MSAA samples of this frame only (default: the Renderer's; at most those), for
+        the viewer's reduced frames while dragging."""
         if self.scene is None:
             raise DermisError("Renderer has no scene: call set_scene(scene) first")
         try:
@@ -289,7 +313,9 @@ class Renderer:
         name = technique or self.scene.technique
         tech = self.technique(name)
         size = check_size(size or self.size)
-        self._ensure_targets(size)
+        if samples is not None:
+            samples = int(max(0, min(int(samples), self.samples)))
+        self._ensure_targets(size, samples)
         scene = self.scene
         self.timer.reset()
         t0 = time.perf_counter()
@@ -317,6 +343,7 @@ class Renderer:
         check_rendered(img, scene, name)
         total = (time.perf_counter() - t0) * 1e3
         self.stats = {"technique": name, "size": list(size), "renderer": self.info["renderer"],
+                      "irradiance_size": self.irradiance_size, "shadow_size": self.shadows.tile_size,
                       "passes_ms": dict(self.timer.times_ms), "passes_run": list(frame.passes_run),
                       "frame_ms": total}
         self.last_frame = frame

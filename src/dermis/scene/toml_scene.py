@@ -16,6 +16,7 @@ import numpy as np
 from dermis.errors import DermisError
 from dermis.fileio import read_text, regular_file
 from dermis.images import MAX_IMAGE_PIXELS, as_rgb, read_image
+from dermis.invalidation import immutable
 from dermis.output import TONEMAPS
 from dermis.scene.model import SKIN_COLORS, Camera, Environment, Light, Output, Scene, SkinMaterial, Texture
 from dermis.techniques.shared import MAX_LIGHTS
@@ -73,7 +74,8 @@ def _texture(folder: Path, rel: str, srgb: bool, source, max_pixels: int, rgb: b
     except DermisError as exc:
         raise DermisError(f"{source}: texture '{rel[:200]}': {str(exc).split(': ', 1)[-1]} (looked for {str(p)[:300]})") from None
     arr = read_image(p, srgb=srgb, max_pixels=max_pixels)
-    return Texture(as_rgb(arr) if rgb else arr, str(p))
+    # immutable: its content key is computed once, not every frame (dermis.invalidation)
+    return Texture(immutable(as_rgb(arr) if rgb else arr), str(p))
 
 
 def _positive(value, name, source, lo=0.0, hi=None, inclusive=False):

@@ -45,13 +45,21 @@ from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_samp
                                       set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
 
+def unpremultiply(a: np.ndarray) -> np.ndarray:
+    """(rgb / a, a) where a > 0, else 0: a premultiplied texture of the blur chain as colours."""
+    a = np.asarray(a, np.float32)
+    cov = a[..., 3:4]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rgb = np.where(cov > 0, a[..., :3] / np.where(cov > 0, cov, 1.0), 0.0)
+    return np.concatenate([rgb, cov], axis=-1).astype(np.float32)
+
+
 OVERLAP_TOLERANCE = 0.01  # fraction of covered texels a UV layout may cover twice
-# A blur step runs at the coarsest level where its sigma is still >= this many texels of that
-# level (and no finer than the step before it).
+# I_k is blurred and stored at the coarsest level where its sigma is still >= this many texels of
+# that level and I_(k-1)'s >= LEVEL_MIN_INPUT_SIGMA_TEXELS (and no finer than I_(k-1)): _plan_levels
 LEVEL_MIN_SIGMA_TEXELS = 1.2
-# the unrolled blur programs compiled up front (taps per side); a pass uses the smallest that
-# reaches 3 sigma
-BLUR_TAP_COUNTS = (2, 3, 4, 6, 8, 12)
+TAP_STRETCH_PERCENTILE = 75.0
+LEVEL_MIN_INPUT_SIGMA_TEXELS = 0.5
 
 
 @dataclass(frozen=True)
@@ -82,10 +90,7 @@ class TextureSpaceDiffusion(Technique):
         self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag", defines)
         self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)
         self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine)}
-        self._blur_programs = {}  # taps per side -> program (blur.frag with TAPS unrolled)
-        for taps in BLUR_TAP_COUNTS:
-            if taps <= self.options.max_taps:
-                self._compile_blur(taps)
+        self._blur_programs = {}  # (taps per side, footprint) -> program (blur.frag with TAPS unrolled)
         self._cache_key = None
         self._stretch_key = None
         self._size = None
@@ -191,58 +196,89 @@ class TextureSpaceDiffusion(Technique):
         # one-texel islands' edges: derivatives are unreliable at triangle borders; take the median
         vals = data[cov][:, :2]
         self.median_stretch = float(np.median(vals))
-        # the tap count of each blur pass is set for 90% of the layout; where the stretch is larger the
-        # taps space out (integer steps, Sheppard-corrected bins) instead of every texel paying for more
-        self.tap_stretch = float(np.percentile(vals, 90.0))
+        # the tap count of each blur pass is set for TAP_STRETCH_PERCENTILE % of the layout; where the
+        # stretch is larger the taps space out (integer steps, the kernel's variance still exact:
+        # tsd/blur.frag) instead of every texel paying for more
+        self.tap_stretch = float(np.percentile(vals, TAP_STRETCH_PERCENTILE))
         # per axis too: a layout squashed along one axis adds more variance (mm^2) along it when
         # reduced 2x2 (_step_variances)
         self.median_stretch_uv = np.median(vals, axis=0).astype(np.float64)
         idx = ndimage.distance_transform_edt(~cov, return_distances=False, return_indices=True)
         filled = data[idx[0], idx[1]]
-        filled[:, :, 3] = cov.astype(np.float32)
+        # coverage 1 everywhere: the gutters hold the nearest island's stretch, and the blur chain
+        # (premultiplied, tsd/blur.frag) carries the stretch map as it is
+        filled[:, :, 3] = 1.0
         s0 = self._texture("stretch_0", (S, S), 4, "f4")
         s0.write(np.ascontiguousarray(filled).tobytes())
 
+    def _stretch_uv(self):
+        stretch_uv = getattr(self, "median_stretch_uv", None)
+        if stretch_uv is None:
+            stretch_uv = np.full(2, self.median_stretch or 1.0)
+        return np.maximum(np.asarray(stretch_uv, np.float64), 1e-9)
+
+    @staticmethod
+    def _box_variance(level_from, level_to, texel0_mm):
+        """Variance (mm^2 per axis) the 2x2 box reductions from level_from to level_to add: a box of
+        two texels of level l - 1 adds (2^(l-1) texel)^2 / 4."""
+        return sum(0.25 * ((2.0 ** (l - 1)) * texel0_mm) ** 2 for l in range(level_from + 1, level_to + 1))
+
+    @staticmethod
+    def _read_variance(level, texel0_mm):
+        """Variance (mm^2 per axis) that reading a level-L texture with bilinear filtering adds, on
+        average over the sample's position in a texel: integral of f (1 - f) df = 1/6 texel^2. At
+        level 0 the reference is the texel itself (none added)."""
+        return 0.0 if level == 0 else ((2.0 ** level) * texel0_mm) ** 2 / 6.0
+
     def _plan_levels(self, profile, S):
-        """Resolution level of each blur step: the coarsest level where its sigma (at the median
-        stretch) is still >= LEVEL_MIN_SIGMA_TEXELS texels of that level, and no finer than the
-        step before: wide Gaussians hold no fine detail (d'Eon & Luebke 2007, 14.4.3), and each
-        level divides a pass's texels by 4. On the head at 1024^2 (2 texels/mm) the skin profile's
-        last two steps run at half resolution; the impulse test's error stays under 1%."""
-        sig = profile.chain_sigmas_mm()
-        levels, prev = [], 0
+        """Resolution level of each blurred irradiance I_k: the coarsest level where (at the median
+        stretch) I_k's own sigma is >= LEVEL_MIN_SIGMA_TEXELS texels (it holds no finer detail, and
+        bilinear reads of it are smooth: d'Eon & Luebke 2007, 14.4.3), I_(k-1)'s sigma is
+        >= LEVEL_MIN_INPUT_SIGMA_TEXELS texels of it (what reducing it there aliases, the step's blur
+        and I_k's own sigma of >= 1.2 texels take down to < 0.1%), no
+        finer than I_(k-1)'s level, and the step's variance stays >= 0 once the reductions and
+        the bilinear read take theirs (_step_variances). Each level divides a pass's texels by 4."""
+        if not (self.options.multires and self.median_stretch):
+            return [0] * profile.k
+        v = np.concatenate([[0.0], profile.variances_mm2])
+        texel0 = 1.0 / self._stretch_uv()  # mm per level-0 texel along u, v
+        t0 = float(np.max(texel0))
         max_level = max(0, int(math.log2(max(S, 16) / 16)))
-        for s in sig:
-            lvl = 0
-            if self.options.multires and self.median_stretch:
-                st = s * self.median_stretch
-                lvl = max(0, math.floor(math.log2(max(st, 1e-9) / LEVEL_MIN_SIGMA_TEXELS)))
-            lvl = int(min(max(lvl, prev), max_level))
+        levels, prev = [], 0
+        for k in range(1, len(v)):
+            lvl = prev
+            for cand in range(max_level, prev, -1):
+                tex = (2.0 ** cand) * t0
+                ok = (math.sqrt(v[k]) >= LEVEL_MIN_SIGMA_TEXELS * tex
+                      and math.sqrt(v[k - 1]) >= LEVEL_MIN_INPUT_SIGMA_TEXELS * tex
+                      and np.all(self._steps_for(v, levels + [cand], texel0)[-1] >= 0.0))
+                if ok:
+                    lvl = cand
+                    break
             levels.append(lvl)
             prev = lvl
         return levels
 
-    def _step_variances(self, profile, levels):
-        """Per-step variances (K, 2) along u and v, less what the 2x2 reductions between levels
-        already added along each axis: a 2-texel box adds texel_mm^2 / 4, and a layout squashed
-        along one axis has longer texels (mm) along it (with one isotropic correction a UV layout
-        squashed 2:1 gave an impulse response elongated 3% along the squashed axis)."""
-        v = np.concatenate([[0.0], profile.variances_mm2])
-        steps = np.diff(v)
-        stretch_uv = getattr(self, "median_stretch_uv", None)
-        if stretch_uv is None:
-            stretch_uv = np.full(2, self.median_stretch or 1.0)
-        stretch_uv = np.maximum(np.asarray(stretch_uv, np.float64), 1e-9)
-        prev = 0
-        out = []
-        for k, lvl in enumerate(levels):
-            added = np.zeros(2)
-            for l in range(prev + 1, lvl + 1):
-                texel_mm = (2 ** (l - 1)) / stretch_uv
-                added += 0.25 * texel_mm ** 2
-            out.append(np.maximum(steps[k] - added, 0.0))
+    def _steps_for(self, v, levels, texel0):
+        """(K, 2) per-axis step variances for ``levels``, before clipping at 0."""
+        out, prev = [], 0
+        for k, lvl in enumerate(levels, start=1):
+            step = (v[k] - v[k - 1]) - (np.array([self._read_variance(lvl, t) for t in texel0])
+                                        - np.array([self._read_variance(prev, t) for t in texel0])) \
+                - np.array([self._box_variance(prev, lvl, t) for t in texel0])
+            out.append(step)
             prev = lvl
         return np.array(out)
+
+    def _step_variances(self, profile, levels):
+        """Per-step variances (K, 2) along u and v such that I_k, read with bilinear filtering,
+        has variance v_k: the step's v_k - v_(k-1), less what the 2x2 reductions between levels
+        add along each axis (a 2-texel box adds texel_mm^2 / 4; a layout squashed along one axis has
+        longer texels (mm) along it: with one isotropic correction a UV layout squashed 2:1 gave
+        an impulse response elongated 3% along the squashed axis), less the change in the variance
+        the bilinear read of a reduced level adds (_read_variance)."""
+        v = np.concatenate([[0.0], profile.variances_mm2])
+        return np.maximum(self._steps_for(v, levels, 1.0 / self._stretch_uv()), 0.0)
 
     def _down(self, src, key, level):
         size = (max(1, src.size[0] // 2), max(1, src.size[1] // 2))
@@ -251,34 +287,35 @@ class TextureSpaceDiffusion(Technique):
         self._fullscreen(self.p_down, dst)
         return dst
 
-    def _blur_program(self, sigma_mm, level):
+    def _blur_program(self, sigma_mm, level, footprint, max_taps=None):
         """blur.frag compiled with the fewest taps per side that reach 3 sigma at the widest
-        stretch that 90% of the layout has (at most max_taps; wider kernels space their taps further)."""
+        stretch that TAP_STRETCH_PERCENTILE % of the layout has (at most max_taps; wider kernels space their taps
+        further), for the first step (footprint: erf bins) or a later one (sampled, exact variance).
+        Compiled on first use."""
         widest = sigma_mm * (self.tap_stretch or self.median_stretch or 1.0) * 2.0 ** -level
-        need = min(math.ceil(3.0 * widest), self.options.max_taps)
-        taps = next((t for t in BLUR_TAP_COUNTS if t >= need), BLUR_TAP_COUNTS[-1])
-        taps = min(taps, self.options.max_taps)
-        prog = self._blur_programs.get(taps)
-        if prog is None:  # max_taps outside the precompiled set
-            prog = self._compile_blur(taps)
+        cap = max_taps or self.options.max_taps
+        need = min(math.ceil(3.0 * widest), cap)
+        taps = max(1, min(need, cap))
+        key = (taps, bool(footprint))
+        prog = self._blur_programs.get(key)
+        if prog is None:
+            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TAPS": taps}
+            if footprint:
+                defines["FOOTPRINT"] = 1
+            prog = program(self.ctx, "common/fullscreen.vert", "tsd/blur.frag", defines)
+            self._blur_programs[key] = prog
+            self.vaos[prog] = self.ctx.vertex_array(prog, [])
         return prog
 
-    def _compile_blur(self, taps):
-        prog = program(self.ctx, "common/fullscreen.vert", "tsd/blur.frag", {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TAPS": taps})
-        self._blur_programs[taps] = prog
-        self.vaos[prog] = self.ctx.vertex_array(prog, [])
-        return prog
-
-    def _blur(self, src, stretch, sigma_mm, level, out_key, footprint=False):
-        """U then V pass; ``sigma_mm`` a number or a (u, v) pair."""
+    def _blur(self, src, stretch, sigma_mm, level, out_key, footprint=False, max_taps=None):
+        """U then V pass; ``sigma_mm`` a number or a (u, v) pair. Premultiplied in and out."""
         sigma_u, sigma_v = np.broadcast_to(np.asarray(sigma_mm, np.float64), (2,))
         size = src.size
         tmp = self._texture(("tmp", out_key), size)
         out = self._texture(out_key, size)
-        prog = self._blur_program(max(sigma_u, sigma_v), level)
+        prog = self._blur_program(max(sigma_u, sigma_v), level, footprint, max_taps)
         set_uniform(prog, "uSigmaMm", float(sigma_u))
         set_uniform(prog, "uLevelScale", float(2.0 ** -level))
-        set_uniform(prog, "uFootprint", 1.0 if footprint else 0.0)
         bind_sampler(prog, "uStretch", stretch, 1)
         set_uniform(prog, "uDirection", (1.0, 0.0))
         bind_sampler(prog, "uSource", src, 0)
@@ -403,8 +440,13 @@ class TextureSpaceDiffusion(Technique):
         """The dilated raw irradiance blurred once with the full variance (level 0, unchained):
         the reference the chained I_k must equal."""
         out = self._blur(self.tex["irradiance_dilated"], self.tex["stretch_0"], math.sqrt(variance_mm2), 0, "direct",
-                         footprint=True)
+                         footprint=True, max_taps=48)
         return self.read_texture(out)
+
+    def blurred(self, k: int) -> np.ndarray:
+        """I_(k+1) as stored (its level's resolution), (h, w, 4) with the colour normalised by the
+        coverage (the chain is premultiplied: tsd/blur.frag), alpha = coverage; row 0 = top."""
+        return unpremultiply(self.read_texture(self.tex[("blur", k)]))
 
     # ------------------------------------------------------------------ inspection
     read_texture = staticmethod(read_texture)
@@ -417,7 +459,7 @@ class TextureSpaceDiffusion(Technique):
         out["stretch"] = self.read_texture(self.tex["stretch_0"])
         k = 0
         while ("blur", k) in self.tex:
-            out[f"blur_{k + 1}"] = self.read_texture(self.tex[("blur", k)])
+            out[f"blur_{k + 1}"] = self.blurred(k)
             k += 1
         out["translucency"] = self.read_texture(self.tex["translucency"])
         frame = self.renderer.last_frame

@@ -57,7 +57,7 @@ class Viewer:
     """The interactive viewer. ``run()`` loops until the window closes (or a script ends) and
     returns a report: frames drawn, frame times, screenshots written, GPU object counts."""
 
-    def __init__(self, scene, size=(960, 640), *, irradiance_size: int = 512, samples: int = 4, script=None,
+    def __init__(self, scene, size=(960, 640), *, irradiance_size: int | None = None, samples: int = 4, script=None,
                  show_gui: bool = True, screenshot_dir=".", title: str | None = None, vsync: bool | None = None,
                  progressive: bool = True, interactive_ms: float = 80.0):
         from dermis.renderer import Renderer, check_size
@@ -92,10 +92,15 @@ class Viewer:
             from dermis.viewer.present import Presenter
 
             self.gpu_objects = GpuObjectTracker(self.ctx).install()
+            shadow_size = 2048
+            if irradiance_size is None:  # from the head's size on screen (dermis.adaptive_resolution)
+                from dermis.adaptive_resolution import adaptive_sizes
+
+                irradiance_size, shadow_size = adaptive_sizes(scene, self.framebuffer_size())
             self.params = ViewerParams.from_scene(scene, irradiance_size)
             self.params.validate("viewer")
             self.renderer = Renderer(scene, self.framebuffer_size(), ctx=self.ctx, samples=samples,
-                                     irradiance_size=self.params.irradiance_size)
+                                     irradiance_size=self.params.irradiance_size, shadow_size=shadow_size)
             self.presenter = Presenter(self.ctx)
             from dermis.viewer.progressive import ProgressiveRenderer
 

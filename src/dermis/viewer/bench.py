@@ -21,7 +21,8 @@ def _segment(report, frames):
 
 
 def viewer_bench(scene, size=(960, 640), *, orbit_frames: int = 30, light_frames: int = 12,
-                 irradiance_size: int = 512, samples: int = 4, progressive: bool = True, show_gui: bool = True) -> dict:
+                 irradiance_size: int | None = None, samples: int = 4, progressive: bool = True,
+                 show_gui: bool = True) -> dict:
     from dermis.viewer.app import Viewer
     from dermis.viewer.progressive import REFINE_AFTER_S
     from dermis.viewer.script import Script
@@ -43,8 +44,10 @@ def viewer_bench(scene, size=(960, 640), *, orbit_frames: int = 30, light_frames
                 progressive=progressive) as v:
         report = v.run()
         renderer = v.renderer.info.get("renderer")
+        sizes = (v.renderer.irradiance_size, v.renderer.shadows.tile_size)
     # the first two frames of each drag warm up (the interactive renderer is created, the scale adapts)
     out = {"renderer": renderer, "size": list(size), "progressive": progressive,
+           "irradiance_size": sizes[0], "shadow_size": sizes[1],
            "orbit": _segment(report, orbit[2:]), "light_drag": _segment(report, light[2:]),
            # without progressive rendering every frame is the full one: its time is the wait
            "full_after_orbit_ms": (report["frame_ms"][refine_orbit] + REFINE_AFTER_S * 1e3) if progressive

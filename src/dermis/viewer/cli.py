@@ -19,8 +19,9 @@ def _irradiance(n: int) -> int:
 @click.argument("scene", required=False)
 @click.option("--technique", "-t", default=None, help="Technique to start with (default: the scene's).")
 @click.option("--size", default="960x640", show_default=True, help="Window size WxH (screen pixels).")
-@click.option("--irradiance-size", type=int, default=512, show_default=True,
-              help="Texture-space resolution to start with (the panel changes it).")
+@click.option("--irradiance-size", type=int, default=None,
+              help="Texture-space resolution to start with (the panel changes it; default: chosen from the "
+                   "head's size on screen, with the shadow size, dermis.adaptive_resolution).")
 @click.option("--samples", type=int, default=4, show_default=True, help="MSAA samples (capped at 4 on llvmpipe).")
 @click.option("--script", "script_path", default=None, type=click.Path(dir_okay=False),
               help="JSON file of scripted per-frame actions (see dermis.viewer.script).")
@@ -41,7 +42,8 @@ def view_cmd(scene, technique, size, irradiance_size, samples, script_path, no_g
     from dermis.viewer.script import Script
 
     w, h = parse_size(size)
-    _irradiance(irradiance_size)
+    if irradiance_size is not None:
+        _irradiance(irradiance_size)
     script = Script.from_file(script_path) if script_path else None
     check_display()  # before loading a scene: the error a headless user sees first
     sc = scene_from_arg(scene, technique)

@@ -5,7 +5,8 @@ a few hundred ms when only the camera does, far from interactive. While input is
 viewer therefore draws *interactive* frames, and when input stops it draws one *full* frame:
 
 - interactive, camera or output changed: the full-quality renderer (its texture-space passes are
-  cached on the lighting key, so only the final pass runs) at a reduced output size;
+  cached on the lighting key, so only the final pass runs) at a reduced output size and without
+  MSAA (the final pass's cost on a CPU rasteriser is per sample);
 - interactive, lighting changed (light drag, skin or material sliders): a second, small renderer
   (irradiance and shadow textures at a fraction of the full size, no MSAA) at a reduced output
   size: every view-independent pass re-runs, on 1/16 of the texels;
@@ -26,6 +27,7 @@ SCALE_STEPS = (0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0)
 FAST_IRRADIANCE = 256  # texels per side of the interactive renderer's texture space (at most)
 FAST_SHADOW = 512      # shadow tile size of the interactive renderer
 REFINE_AFTER_S = 0.2   # an interactive session refines this long after the last input
+INTERACTIVE_SAMPLES = 0  # MSAA samples of a reduced frame (the full frame has the Renderer's)
 
 
 class ProgressiveRenderer:
@@ -85,7 +87,7 @@ class ProgressiveRenderer:
             small = (max(1, int(round(w * self.scale))), max(1, int(round(h * self.scale))))
             lighting = lighting_key or full.lighting_key()
             r = full if lighting == self._full_lighting else self._fast_renderer()
-            img = r.render(technique, size=small, camera=camera)
+            img = r.render(technique, size=small, camera=camera, samples=INTERACTIVE_SAMPLES)
             self._adapt(r.stats["frame_ms"])
             self.stats = dict(r.stats, quality="interactive", scale=self.scale,
                               renderer="full" if r is full else "fast")

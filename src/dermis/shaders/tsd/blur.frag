@@ -1,22 +1,30 @@
 // One direction (U or V) of one chained Gaussian blur in texture space (d'Eon & Luebke 2007,
 // 14.4.2-14.4.3): I_k = I_(k-1) * G(v_k - v_(k-1)), separable, tap spacing from the stretch map.
-// Taps sit at integer multiples of a step of >= 1 texel, each weighted by a Gaussian integrated
-// over its bin (d'Eon's 7 weights are this with step = sigma). Binning adds step^2 / 12 to the
-// kernel's variance (Sheppard's correction), so the bins integrate a Gaussian of variance
-// sigma^2 - step^2 / 12: the discrete kernel then has the intended variance, and a chain of K
-// blurs adds up to v_K exactly instead of v_K + K / 12 texel^2. The chain's first step keeps one
-// bin (uFootprint = 1): each output texel then holds the light landing on its footprint, i.e. the
-// profile integrated over the texel, exactly once.
-// Seams: colour is a NORMALISED convolution over covered texels (alpha = coverage), so empty
-// gutters never darken an island's edge; alpha returns the blurred coverage; where nothing is
-// covered the (dilated) input colour passes through.
-uniform sampler2D uSource;    // rgb colour, a = coverage
+// The chain's first step keeps one bin per texel (FOOTPRINT): each output texel then holds the
+// light landing on its footprint, i.e. the profile integrated over the texel, exactly once.
+//
+// Weights: the first step (FOOTPRINT) integrates the Gaussian over each tap's bin with erf, as
+// the profile integrated over the receiving texel must be exact there even for sub-texel sigmas.
+// Every later step only has to ADD its variance sigma^2 exactly (the chain's variances sum), so
+// its taps are the sampled Gaussian exp(-x^2 / 2 sigma^2), by recurrence (w_j = w_(j-1) q_j,
+// q_j = q_(j-1) g^2: two multiplies per tap instead of an erf, which costs as much as a fetch on
+// a CPU rasteriser), followed by a correction that makes the discrete kernel's variance exactly
+// sigma^2: weight delta = W (sigma^2 - V) / (x_m^2 - sigma^2) added to the taps +-x_m (x_m about
+// 2 sigma), where W and V are the kernel's weight and variance so far. For sigma < ~0.7 texel
+// the sampled Gaussian alone falls short of sigma^2 (at 0.3 texel it is [0.004, 0.99, 0.004]);
+// the correction gives the 3-tap kernel of exactly that variance. Taps sit on texel centres at a
+// step of >= 1 texel (wider kernels space their taps; point samples need no Sheppard term).
+//
+// Premultiplied data (rgb = colour x coverage, a = coverage): the normalised convolution over
+// covered texels that hides seams (colour = sum w a c / sum w a) is then a plain linear filter of
+// (rgb, a), normalised only where it is read (tsd/gaussians.glsl). Gutters hold the nearest
+// island's colour at a small coverage (tsd/dilate.frag): they never darken an island's edge and
+// keep a colour where no island reaches.
+uniform sampler2D uSource;    // premultiplied rgb, a = coverage
 uniform sampler2D uStretch;   // xy = texels per mm along u, v at level 0
 uniform vec2 uDirection;      // (1, 0) = U pass, (0, 1) = V pass
 uniform float uSigmaMm;       // this step's standard deviation, mm
 uniform float uLevelScale;    // texels of this level per level-0 texel (2^-level)
-uniform float uFootprint;     // 1: integrate over the receiving texel (first step), 0: exact variance
-in vec2 v_uv;
 out vec4 f_color;
 
 // Abramowitz & Stegun 1964, 7.1.26: |error| < 1.5e-7.
@@ -28,44 +36,63 @@ float erf_as(float x) {
     return s * y;
 }
 
-// TAPS (taps per side, a compile-time constant: the loop unrolls, which matters on CPU
-// rasterisers where a per-pixel loop bound costs more than the taps) is chosen per pass by tsd.py
-// from the widest sigma in the texture. Taps sit on texel centres (integer spacing) and are
-// fetched without filtering. Adjacent bins share an edge, so each tap costs one erf.
+// TAPS (taps per side, a compile-time constant: the loops unroll, which matters on CPU rasterisers
+// where a per-pixel loop bound costs more than the taps) is chosen per pass by tsd.py from the
+// widest sigma that 75% of the layout has (TAP_STRETCH_PERCENTILE).
 #ifndef TAPS
-#define TAPS 12
+#define TAPS 4
 #endif
 
 void main() {
-    ivec2 isize = textureSize(uSource, 0);
     ivec2 ip = ivec2(gl_FragCoord.xy);
+    ivec2 imax = textureSize(uSource, 0) - 1;
     vec4 center = texelFetch(uSource, ip, 0);
     vec2 st = texelFetch(uStretch, min(ip, textureSize(uStretch, 0) - 1), 0).xy;
     float sigma = uSigmaMm * dot(st, uDirection) * uLevelScale;  // texels of this level
-    if (sigma < 0.05) { f_color = center; return; }
+    if (sigma < 0.02) { f_color = center; return; }
     float step_ = max(1.0, ceil(3.0 * sigma / float(TAPS)));
-    int n = int(min(ceil(3.0 * sigma / step_ - 0.001), float(TAPS)));
     ivec2 dir = ivec2(uDirection) * int(step_);
-    ivec2 imax = isize - 1;
-    float sb = sqrt(max(sigma * sigma - (1.0 - uFootprint) * step_ * step_ / 12.0, 0.0025));  // Sheppard
+#ifdef FOOTPRINT
+    // bins of `step_` texels, the Gaussian integrated over each (Sheppard: bins of more than one
+    // texel integrate sigma^2 - step^2 / 12 ... except the receiving texel's own, which is the point)
+    int n = int(min(ceil(3.0 * sigma / step_ - 0.001), float(TAPS)));
+    float sb = step_ > 1.0 ? sqrt(max(sigma * sigma - (step_ * step_ - 1.0) / 12.0, 0.0025)) : sigma;
     float inv = 1.0 / (sb * 1.41421356);
-    float edge = erf_as(0.5 * step_ * inv);  // erf at the upper edge of the previous bin
-    float w0 = edge;                          // bin 0: [-step/2, step/2]
-    vec3 sum = center.rgb * center.a * w0;
-    float sum_a = center.a * w0;
-    float sum_w = w0;
+    float edge = erf_as(0.5 * step_ * inv);
+    vec4 sum = center * edge;
     for (int j = 1; j <= TAPS; ++j) {
-        float e = erf_as((float(j) + 0.5) * step_ * inv);
-        float w = 0.5 * (e - edge);
+        // the last tap's upper edge is never used (n <= TAPS: the tail folds into tap n)
+        float e = j < TAPS ? erf_as((float(j) + 0.5) * step_ * inv) : 1.0;
+        float w = j < n ? 0.5 * (e - edge) : (j == n ? 0.5 * (1.0 - edge) : 0.0);  // the tail folded in
         edge = e;
-        if (j == n) w += 0.5 * (1.0 - e);  // fold the tail in
-        w = j <= n ? w : 0.0;
-        vec4 a = texelFetch(uSource, clamp(ip + dir * j, ivec2(0), imax), 0);
-        vec4 b = texelFetch(uSource, clamp(ip - dir * j, ivec2(0), imax), 0);
-        sum += w * (a.rgb * a.a + b.rgb * b.a);
-        sum_a += w * (a.a + b.a);
-        sum_w += 2.0 * w;
+        sum += w * (texelFetch(uSource, clamp(ip + dir * j, ivec2(0), imax), 0) +
+                    texelFetch(uSource, clamp(ip - dir * j, ivec2(0), imax), 0));
     }
-    vec3 rgb = sum_a > 1e-6 ? sum / sum_a : center.rgb;
-    f_color = vec4(rgb, sum_a / sum_w);
+    f_color = sum;
+#else
+    float var = sigma * sigma;  // texel^2 of this level
+    float g = exp(-0.5 * step_ * step_ / var);
+    float g2 = g * g;
+    float w = 1.0, q = g;
+    vec4 sum = center;
+    float W = 1.0, M = 0.0;
+    // the correction's taps: about 2 sigma out, at least the first, at most the last
+    int m = int(clamp(floor(2.0 * sigma / step_ + 0.5), 1.0, float(TAPS)));
+    vec4 outer = vec4(0.0);
+    for (int j = 1; j <= TAPS; ++j) {
+        w *= q;
+        q *= g2;
+        vec4 ab = texelFetch(uSource, clamp(ip + dir * j, ivec2(0), imax), 0) +
+                  texelFetch(uSource, clamp(ip - dir * j, ivec2(0), imax), 0);
+        float x = float(j) * step_;
+        sum += w * ab;
+        W += 2.0 * w;
+        M += 2.0 * w * x * x;
+        if (j == m) outer = ab;
+    }
+    float xm = float(m) * step_;
+    float delta = W * (var - M / W) / max(xm * xm - var, 1e-6);
+    delta = max(delta, -0.5 * W);  // never a negative total
+    f_color = (sum + delta * outer) / (W + 2.0 * delta);
+#endif
 }

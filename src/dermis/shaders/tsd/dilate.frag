@@ -1,7 +1,11 @@
 // Gutter dilation: texels outside every UV island (coverage 0) take the coverage-weighted mean
 // colour of their 3x3 neighbours, so bilinear lookups at island borders (and MSAA samples that
-// fall just outside a triangle's UVs) never read black. Coverage (alpha) is left as it was.
+// fall just outside a triangle's UVs) never read black. The output is premultiplied for the blur
+// chain (tsd/blur.frag): a gutter texel gets the coverage GUTTER_COVERAGE, enough to carry its
+// colour where no island's light reaches, too little to shift an island's edge (at most
+// GUTTER_COVERAGE of the gutter's weight, and the gutter holds the edge's own colour).
 uniform sampler2D uSource;
+const float GUTTER_COVERAGE = 1.0 / 256.0;
 in vec2 v_uv;
 out vec4 f_color;
 void main() {
@@ -19,5 +23,7 @@ void main() {
             sum += n.rgb * w;
             wsum += w;
         }
-    f_color = vec4(wsum > 0.0 ? sum / wsum : c.rgb, c.a);
+    vec3 rgb = wsum > 0.0 ? sum / wsum : c.rgb;
+    float a = max(c.a, dot(rgb, rgb) > 0.0 ? GUTTER_COVERAGE : 0.0);
+    f_color = vec4(rgb * a, a);
 }

@@ -40,7 +40,7 @@ void main() {
             if (k >= uGaussianCount) break;
             if (uVariances[k] < uTranslucencyMinVariance) continue;
             float excess = max(exp(-d * d / (2.0 * uVariances[k])) - exp(-g * g / (2.0 * uVariances[k])), 0.0);
-            T += excess * uWeights[k] * texture(uBlur[k], th.xy).rgb;
+            T += excess * uWeights[k] * blurred_irradiance(k, th.xy);
         }
     }
     f_translucency = vec4(T * uTranslucencyStrength, 1.0);

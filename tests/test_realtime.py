@@ -1,0 +1,25 @@
+"""Real-time on a CPU (issue 14): the viewer's reduced frames without MSAA. Timings are benchmarks
+(`dermis bench`, `dermis bench --viewer`), never asserted here."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dermis.renderer import Renderer
+from dermis.verification import quad_scene
+
+
+def test_a_frame_can_drop_msaa_without_touching_the_renderers_own_samples(gl_ctx):
+    sc = quad_scene(25.6, 25.6)
+    sc.camera.position = (8.0, 5.0, 70.0)  # the quad's edges cross pixels: MSAA changes them
+    with Renderer(sc, (48, 48), ctx=gl_ctx, samples=4, irradiance_size=128, shadow_size=512) as r:
+        full = r.render("lambert")
+        one = r.render("lambert", samples=0)
+        again = r.render("lambert")
+        assert r.samples == 4
+    with Renderer(sc, (48, 48), ctx=gl_ctx, samples=0, irradiance_size=128, shadow_size=512) as r1:
+        ref_one = r1.render("lambert")
+    np.testing.assert_array_equal(again, full)  # the 4x targets were kept and are used again
+    np.testing.assert_allclose(one, ref_one, atol=1e-6)  # the same frame as a 1x Renderer's
+    edge = np.abs(full - one).max(axis=2) > 1e-4
+    assert 0 < edge.mean() < 0.2  # only the antialiased edges differ
