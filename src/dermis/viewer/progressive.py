@@ -24,7 +24,11 @@ import math
 import time
 
 SCALE_STEPS = (0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0)
-FAST_IRRADIANCE = 256  # texels per side of the interactive renderer's texture space (at most)
+# texels per side of the interactive renderer's texture space (at most): a preview while a light or a
+# slider moves; at the reduced sizes the viewer settles on (1/4-1/2 of the window) the head gets about
+# one texel per 2-4 pixels. 128 instead of 256 made a light-drag frame of the head 1.7x cheaper
+# (764 vs 1296 ms at 240x160, load 9.9; benchmarks/RESULTS.md, issue 14)
+FAST_IRRADIANCE = 128
 FAST_SHADOW = 512      # shadow tile size of the interactive renderer
 REFINE_AFTER_S = 0.2   # an interactive session refines this long after the last input
 INTERACTIVE_SAMPLES = 0  # MSAA samples of a reduced frame (the full frame has the Renderer's)
