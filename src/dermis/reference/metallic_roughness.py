@@ -1,8 +1,10 @@
 """Non-skin surfaces in the offline reference: glTF 2.0's metallic-roughness BRDF evaluated at
 the visible point (no scattering), the numpy twin of shaders/metallic_roughness/surface.frag and
 shaders/common/metallic_roughness.glsl (glTF 2.0 spec, Appendix B). Shadows are ray cast against
-everything (skin and surfaces; both faces occlude); the environment is the same SH irradiance,
-scaled by the material's occlusion only (surfaces get no baked ambient occlusion in the real-time
+everything (skin and surfaces; both faces occlude); the environment's diffuse is the same SH
+irradiance, its specular the Monte Carlo integral of the GGX lobe against the HDR
+(:func:`environment_specular_ggx_mc`; the real-time path prefilters it), both scaled by the
+material's occlusion only (surfaces get no baked ambient occlusion in the real-time
 techniques either). alphaMode MASK surfaces are refused by the reference (its rays do not test
 alpha).
 """
@@ -49,6 +51,48 @@ def environment_brdf(f0, ndv, roughness):
     return f0 * (-1.04 * a004 + r[:, 2])[:, None] + (1.04 * a004 + r[:, 3])[:, None]
 
 
+def environment_specular_ggx_mc(env_image, N, V, f0, roughness, samples: int = 64, seed: int = 1207):
+    """integral L(l) f_spec(l, V) (N.l) dl over the hemisphere: the glTF specular BRDF (brdf_terms:
+    GGX D, height-correlated Smith V, Schlick F) against the equirect ``env_image`` (bilinear,
+    dermis.environment's orientation), per row. Monte Carlo with h drawn from GGX's normal
+    distribution (Walter et al. 2007, eqs. 35-36: tan^2 theta_h = alpha^2 xi1 / (1 - xi1),
+    phi = 2 pi xi2), l = reflect(-V, h), pdf(l) = D(h) (N.h) / (4 (V.h)), so the weight
+    f (N.l) / pdf = 4 F Vis (N.l) (V.h) / (N.h). ``samples`` jittered strata per point (a square
+    number), deterministic for a seed. Returns (n, 3)."""
+    from dermis.prefiltered_environment import bilinear_equirect, direction_to_equirect
+    from dermis.reference.shading import ENV_SPECULAR_CHUNK, _tangent_frames
+
+    s = int(round(np.sqrt(samples)))
+    grid = np.stack(np.meshgrid(np.arange(s), np.arange(s), indexing="ij"), -1).reshape(1, -1, 2).astype(np.float64)
+    out = np.zeros((len(N), 3))
+    for batch, c0 in enumerate(range(0, len(N), ENV_SPECULAR_CHUNK)):
+        c1 = min(len(N), c0 + ENV_SPECULAR_CHUNK)
+        nn, vv = N[c0:c1], V[c0:c1]
+        a2 = (np.asarray(roughness[c0:c1], np.float64) ** 4)[:, None]
+        rng = np.random.default_rng([seed, batch])
+        xi = (grid + rng.random((c1 - c0, s * s, 2))) / s
+        cos2 = (1.0 - xi[..., 0]) / (1.0 + (a2 - 1.0) * xi[..., 0])
+        cos_h = np.sqrt(cos2)
+        sin_h = np.sqrt(np.maximum(1.0 - cos2, 0.0))
+        phi = 2.0 * np.pi * xi[..., 1]
+        t, b = _tangent_frames(nn)
+        h = (sin_h * np.cos(phi))[..., None] * t[:, None] + (sin_h * np.sin(phi))[..., None] * b[:, None] \
+            + cos_h[..., None] * nn[:, None]
+        vh = np.sum(vv[:, None] * h, -1)
+        l = 2.0 * vh[..., None] * h - vv[:, None]
+        nl = np.sum(nn[:, None] * l, -1)
+        nv = np.maximum(np.sum(nn * vv, -1), 1e-12)[:, None]
+        ok = (vh > 0.0) & (nl > 0.0)
+        nlc = np.maximum(nl, 1e-12)
+        vis = 0.5 / (nlc * np.sqrt(nv * nv * (1 - a2) + a2) + nv * np.sqrt(nlc * nlc * (1 - a2) + a2))
+        w = np.where(ok, 4.0 * vis * nlc * vh / np.maximum(cos_h, 1e-12), 0.0)
+        F = f0[c0:c1, None, :] + (1.0 - f0[c0:c1, None, :]) * ((1.0 - np.clip(vh, 0, 1)) ** 5)[..., None]
+        u, v = direction_to_equirect(l.reshape(-1, 3))
+        L = bilinear_equirect(env_image, u, v).reshape(c1 - c0, s * s, 3)
+        out[c0:c1] = np.mean(w[..., None] * F * L, axis=1)
+    return out
+
+
 class SurfaceProps:
     """The scene's non-skin surfaces in millimetres, their triangles numbered after the skin's
     (``first``) in the shared ray caster."""
@@ -87,7 +131,7 @@ class SurfaceProps:
         img = np.ascontiguousarray(tex.data, np.float32)
         return bilinear(img, *wrapped_uv(uv, tex))
 
-    def shade(self, tri, bary, eye_mm, rig, bvh, env_sh):
+    def shade(self, tri, bary, eye_mm, rig, bvh, env_sh, env_image=None):
         """(diffuse, specular) radiance (n, 3) at camera hits on triangles ``tri`` (ids in the
         shared ray caster) with barycentrics (n, 2) of corners 1, 2; emission counts as diffuse."""
         local = np.asarray(tri, np.int64) - self.first
@@ -147,7 +191,9 @@ class SurfaceProps:
             c_diff = (1 - metallic)[:, None] * base
             f0 = 0.04 * (1 - metallic)[:, None] + base * metallic[:, None]
             diffuse[sel] += ao[:, None] * c_diff / np.pi * irradiance_sh_eval(env_sh, N)
-            # environment_specular_radiance of common/environment.glsl: E_sh(R) / pi
-            specular[sel] += ao[:, None] * irradiance_sh_eval(env_sh, R) / np.pi * environment_brdf(f0, ndv, rough)
+            if env_image is None:  # a constant environment: E_sh(R) / pi is its radiance, exactly
+                specular[sel] += ao[:, None] * irradiance_sh_eval(env_sh, R) / np.pi * environment_brdf(f0, ndv, rough)
+            else:
+                specular[sel] += ao[:, None] * environment_specular_ggx_mc(env_image, N, v, f0, rough)
             diffuse[sel] += np.asarray(mat.emissive, np.float64) * self._sample(mat.emissive_map, a, a1, (1, 1, 1))[:, :3]
         return diffuse, specular

@@ -289,7 +289,7 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
     prop_diffuse = prop_specular = np.zeros((0, 3))
     if len(prop_idx):  # non-skin surfaces: the glTF BRDF at the point (reference/metallic_roughness.py)
         t0 = time.perf_counter()
-        prop_diffuse, prop_specular = props.shade(tri[prop_idx], bary[prop_idx], eye_mm, rig, bvh, surface.env_sh)
+        prop_diffuse, prop_specular = props.shade(tri[prop_idx], bary[prop_idx], eye_mm, rig, bvh, surface.env_sh, surface.env_image)
         timings["surfaces_s"] = time.perf_counter() - t0
     stats["surface_points"] = int(len(prop_idx))
 
