@@ -34,11 +34,14 @@ void main() {
                 if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
                 vec4 t = texelFetch(uIrradiance, q, 0);
                 float dz_px = ssss_tap_dz_px(K, c.a, t.a);
-                if (dz_px < 0.0 || !ssss_tissue_path(p, c.a, q, t.a, size)) continue;
+                if (dz_px < 0.0) continue;
+                int path = ssss_tissue_path(p, c.a, q, t.a, size);
+                if (path == TISSUE_SKIP) continue;
+                vec3 light = path == TISSUE_KEEP ? t.rgb : vec3(0.0);
                 for (int k = 0; k < MAX_GAUSSIANS; ++k) {
                     if (wx[k] <= 0.0) continue;
                     float w = wx[k] * ssss_depth_factor(K, k, dz_px);
-                    sum[k] += w * t.rgb;
+                    sum[k] += w * light;
                     wsum[k] += w;
                 }
             }
@@ -56,9 +59,11 @@ void main() {
                 if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
                 vec4 t = texelFetch(uIrradiance, q, 0);
                 float dz_px = ssss_tap_dz_px(K, c.a, t.a);
-                if (dz_px < 0.0 || !ssss_tissue_path(p, c.a, q, t.a, size)) continue;
+                if (dz_px < 0.0) continue;
+                int path = ssss_tissue_path(p, c.a, q, t.a, size);
+                if (path == TISSUE_SKIP) continue;
                 w *= ssss_depth_factor(K, k, dz_px);
-                sum[k] += w * t.rgb;
+                if (path == TISSUE_KEEP) sum[k] += w * t.rgb;
                 wsum[k] += w;
             }
         }
