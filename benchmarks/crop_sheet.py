@@ -39,8 +39,8 @@ TECHNIQUES = ("tsd", "ssss", "preintegrated", "lambert")
 # landmark -> (x, y) in mm about the nose tip and a search half-width (mm): the frontmost vertex
 # (largest z) of the mesh in that square is the landmark. Ears: the mesh's farthest vertex from
 # the midline at ear height and depth (dermis.blender.validate: EAR_BOX_MM).
-FRONT_LANDMARKS = {"nose": ((0.0, -8.0), 6.0), "eye +x": ((31.0, 33.0), 7.0), "eye -x": ((-31.0, 33.0), 7.0),
-                   "lips": ((0.0, -30.0), 6.0)}
+FRONT_LANDMARKS = {"nose": ((0.0, -6.0), 6.0), "eye +x": ((31.0, 33.0), 7.0), "eye -x": ((-31.0, 33.0), 7.0),
+                   "lips": ((0.0, -40.0), 6.0)}
 CROP_SCALE = {"nose": 1.0, "eye +x": 1.0, "eye -x": 1.0, "lips": 1.1, "ear +x": 1.4, "ear -x": 1.4}
 
 
