@@ -29,15 +29,14 @@
 // Renormalisation keeps the energy: light neither bleeds across silhouettes nor leaks into the
 // background, and slanted surfaces get narrower screen-space kernels, as they should.
 //
-// Tissue paths (as dermis.reference's paths = "tissue", integrate.TISSUE_TAU): a tap q is skipped
-// where the straight segment between the two surface points leaves either of them into the AIR,
-// more than asin(uTissueTau) above its tangent plane: u.N_p > tau or -u.N_q > tau (u the unit
-// offset from p to q, N the geometric normals of the pixels, view space). Across a crease (closed
-// eyelids, lips, a nostril's rim) the two sides lie a pixel apart on screen and at about the same
-// depth, so depth alone let the lit lids' light into the dark crease between them: a thin
-// saturated orange line along both eyelid creases, where tsd (whose texture-space neighbours are
-// the crease's own walls) and the reference show a dark line. Smooth convex skin keeps every tap
-// (its neighbours lie below the tangent plane); concave skin of radius R keeps those within ~R/2.
+// Tissue paths (as dermis.reference's paths = "tissue", TISSUE_TAU in techniques/shared.py): a tap
+// q brings no light where the straight segment between the two surface points leaves either of
+// them into the AIR, more than asin(uTissueTau) above its tangent plane: u.N_p > tau or
+// -u.N_q > tau (u the unit offset from p to q, N the geometric normals, view space); see
+// ssss_tissue_path for which of the two keeps its weight. Across a crease (closed eyelids, lips,
+// a nostril's rim) the two sides lie a pixel apart on screen at about the same depth, so depth
+// alone let the lit side's light into the dark crease. Smooth convex skin keeps every tap (its
+// neighbours lie below the tangent plane); concave skin of radius R keeps those within ~R/2.
 #include "common/profile.glsl"
 
 uniform sampler2D uIrradiance;          // pass 1: rgb pre-scatter irradiance, a = view depth mm (0: none)
