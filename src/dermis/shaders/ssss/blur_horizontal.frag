@@ -34,14 +34,11 @@ void main() {
                 if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
                 vec4 t = texelFetch(uIrradiance, q, 0);
                 float dz_px = ssss_tap_dz_px(K, c.a, t.a);
-                if (dz_px < 0.0) continue;
-                int path = ssss_tissue_path(p, c.a, q, t.a, size);
-                if (path == TISSUE_SKIP) continue;
-                vec3 light = path == TISSUE_KEEP ? t.rgb : vec3(0.0);
+                if (dz_px < 0.0 || !ssss_tissue_path(p, c.a, q, t.a, size)) continue;
                 for (int k = 0; k < MAX_GAUSSIANS; ++k) {
                     if (wx[k] <= 0.0) continue;
                     float w = wx[k] * ssss_depth_factor(K, k, dz_px);
-                    sum[k] += w * light;
+                    sum[k] += w * t.rgb;
                     wsum[k] += w;
                 }
             }
@@ -59,11 +56,9 @@ void main() {
                 if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
                 vec4 t = texelFetch(uIrradiance, q, 0);
                 float dz_px = ssss_tap_dz_px(K, c.a, t.a);
-                if (dz_px < 0.0) continue;
-                int path = ssss_tissue_path(p, c.a, q, t.a, size);
-                if (path == TISSUE_SKIP) continue;
+                if (dz_px < 0.0 || !ssss_tissue_path(p, c.a, q, t.a, size)) continue;
                 w *= ssss_depth_factor(K, k, dz_px);
-                if (path == TISSUE_KEEP) sum[k] += w * t.rgb;
+                sum[k] += w * t.rgb;
                 wsum[k] += w;
             }
         }

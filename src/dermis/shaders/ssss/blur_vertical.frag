@@ -35,13 +35,11 @@ void main() {
             if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
             float zq = texelFetch(uIrradiance, q, 0).a;
             float dz_px = ssss_tap_dz_px(K, depth, zq);
-            if (dz_px < 0.0) continue;
-            int path = ssss_tissue_path(p, depth, q, zq, size);
-            if (path == TISSUE_SKIP) continue;
+            if (dz_px < 0.0 || !ssss_tissue_path(p, depth, q, zq, size)) continue;
             for (int k = 0; k < MAX_GAUSSIANS; ++k) {
                 if (wx[k] <= 0.0) continue;
                 float w = wx[k] * ssss_depth_factor(K, k, dz_px);
-                if (path == TISSUE_KEEP) sum[k] += w * texelFetch(uGaussian[k], q, 0).rgb;
+                sum[k] += w * texelFetch(uGaussian[k], q, 0).rgb;
                 wsum[k] += w;
             }
         }
@@ -59,11 +57,9 @@ void main() {
             if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
             float zq = texelFetch(uIrradiance, q, 0).a;
             float dz_px = ssss_tap_dz_px(K, depth, zq);
-            if (dz_px < 0.0) continue;
-            int path = ssss_tissue_path(p, depth, q, zq, size);
-            if (path == TISSUE_SKIP) continue;
+            if (dz_px < 0.0 || !ssss_tissue_path(p, depth, q, zq, size)) continue;
             w *= ssss_depth_factor(K, k, dz_px);
-            if (path == TISSUE_KEEP) sum[k] += w * texelFetch(uGaussian[k], q, 0).rgb;
+            sum[k] += w * texelFetch(uGaussian[k], q, 0).rgb;
             wsum[k] += w;
         }
     }

@@ -29,14 +29,18 @@
 // Renormalisation keeps the energy: light neither bleeds across silhouettes nor leaks into the
 // background, and slanted surfaces get narrower screen-space kernels, as they should.
 //
-// Tissue paths (as dermis.reference's paths = "tissue", TISSUE_TAU in techniques/shared.py): a tap
-// q brings no light where the straight segment between the two surface points leaves either of
-// them into the AIR, more than asin(uTissueTau) above its tangent plane: u.N_p > tau or
-// -u.N_q > tau (u the unit offset from p to q, N the geometric normals, view space); see
-// ssss_tissue_path for which of the two keeps its weight. Across a crease (closed eyelids, lips,
-// a nostril's rim) the two sides lie a pixel apart on screen at about the same depth, so depth
-// alone let the lit side's light into the dark crease. Smooth convex skin keeps every tap (its
-// neighbours lie below the tangent plane); concave skin of radius R keeps those within ~R/2.
+// Tissue paths (as dermis.reference's paths = "tissue", TISSUE_TAU in techniques/shared.py): a tap q is skipped
+// where the straight segment between the two surface points leaves either of them into the AIR,
+// more than asin(uTissueTau) above its tangent plane: u.N_p > tau or -u.N_q > tau (u the unit
+// offset from p to q, N the geometric normals of the pixels, view space). Across a crease (closed
+// eyelids, lips, a nostril's rim) the two sides lie a pixel apart on screen and at about the same
+// depth, so depth alone let the lit lids' light into the dark crease between them: a thin
+// saturated orange line along both eyelid creases, where tsd (whose texture-space neighbours are
+// the crease's own walls) and the reference show a dark line. Smooth convex skin keeps every tap
+// (its neighbours lie below the tangent plane); concave skin of radius R keeps those within ~R/2.
+// The kernel is renormalised over the taps kept. Keeping a rejected tap's weight with no light
+// (the crease's hidden walls taken as dark) was tried: the wide red Gaussians lost the most
+// weight, and cyan lines appeared along every crease (nose wings, eye sockets).
 #include "common/profile.glsl"
 
 uniform sampler2D uIrradiance;          // pass 1: rgb pre-scatter irradiance, a = view depth mm (0: none)
@@ -167,27 +171,14 @@ vec3 ssss_view_position_mm(ivec2 p, ivec2 size, float z_mm) {
     return vec3(c, -z_mm);
 }
 
-// The tissue-path test of tap q for pixel p: TISSUE_KEEP where the straight path between their
-// surface points stays in the tissue; TISSUE_DARK where q lies in the air above p's tangent plane
-// (p at the bottom of a crease or under an overhang: the tissue around p that the blur would
-// reach is the crease's hidden walls, which the light does not reach either: the tap keeps its
-// weight and brings no light, as a skipped pair in the reference brings none); TISSUE_SKIP where
-// only p lies above q's tangent plane (p on the overhanging side, whose tissue continues round
-// the edge out of view: the tap is dropped and the kernel renormalised, as for a silhouette).
-// Renormalising the dark case instead (every rejected tap dropped) gave the visible margins of
-// closed eyelids the lids' light alone: red 1.9x the reference's there.
-const int TISSUE_KEEP = 0;
-const int TISSUE_DARK = 1;
-const int TISSUE_SKIP = 2;
-int ssss_tissue_path(ivec2 p, float zp, ivec2 q, float zq, ivec2 size) {
-    if (uTissueTau > 1.0) return TISSUE_KEEP;
+// False where the straight path between the surface points of pixels p and q crosses air (above).
+bool ssss_tissue_path(ivec2 p, float zp, ivec2 q, float zq, ivec2 size) {
+    if (uTissueTau > 1.0) return true;
     vec3 np = texelFetch(uViewNormal, p, 0).xyz;
     vec3 nq = texelFetch(uViewNormal, q, 0).xyz;
     vec3 d = ssss_view_position_mm(q, size, zq) - ssss_view_position_mm(p, size, zp);
     float len = length(d);
-    if (len <= 0.0) return TISSUE_KEEP;
+    if (len <= 0.0) return true;
     vec3 u = d / len;
-    if (dot(u, np) > uTissueTau) return TISSUE_DARK;
-    if (-dot(u, nq) > uTissueTau) return TISSUE_SKIP;
-    return TISSUE_KEEP;
+    return dot(u, np) <= uTissueTau && -dot(u, nq) <= uTissueTau;
 }
