@@ -3,7 +3,7 @@ and after, with an optional Cycles column.
 
     PYTHONPATH=src python benchmarks/crop_sheet.py OUT_DIR [--size 768] [--before REV]
         [--techniques tsd ssss preintegrated lambert] [--scenes A.toml ...] [--cycles DIR]
-        [--crop-mm 56] [--tile 192]
+        [--crop-mm 56] [--tile 192] [--reuse-work]
 
 writes OUT_DIR/<scene>.png: one row per landmark the camera sees, one column per technique and
 tree ("tsd @aa056b3", "tsd"), then Cycles. Default scenes: examples/lee-perry-smith.toml and the
@@ -39,8 +39,8 @@ TECHNIQUES = ("tsd", "ssss", "preintegrated", "lambert")
 # landmark -> (x, y) in mm about the nose tip and a search half-width (mm): the frontmost vertex
 # (largest z) of the mesh in that square is the landmark. Ears: the mesh's farthest vertex from
 # the midline at ear height and depth (dermis.blender.validate: EAR_BOX_MM).
-FRONT_LANDMARKS = {"nose": ((0.0, -8.0), 6.0), "eye +x": ((31.0, 33.0), 7.0), "eye -x": ((-31.0, 33.0), 7.0),
-                   "lips": ((0.0, -30.0), 6.0)}
+FRONT_LANDMARKS = {"nose": ((0.0, -6.0), 6.0), "eye +x": ((31.0, 33.0), 7.0), "eye -x": ((-31.0, 33.0), 7.0),
+                   "lips": ((0.0, -40.0), 6.0)}
 CROP_SCALE = {"nose": 1.0, "eye +x": 1.0, "eye -x": 1.0, "lips": 1.1, "ear +x": 1.4, "ear -x": 1.4}
 
 
@@ -125,11 +125,12 @@ def render_to(path: Path, scene_file: str, techniques, size: int) -> None:
     np.savez_compressed(path, **arrays)
 
 
-def renders(tree: str, src: Path, scene_file: Path, techniques, size: int, cache: Path) -> dict:
+def renders(tree: str, src: Path, scene_file: Path, techniques, size: int, cache: Path, reuse_work: bool = False) -> dict:
     """{technique: (linear image, view, proj, eye)} of ``tree`` (its src directory ``src``), cached."""
     key = hashlib.sha1(f"{tree}|{scene_file}|{size}|{','.join(techniques)}".encode()).hexdigest()[:12]
     path = cache / f"{tree}-{scene_file.stem}-{size}-{key}.npz"
-    if tree == "work" or not path.is_file():  # this tree's renders are redone: the shaders may have changed
+    # this tree's renders are redone (the shaders may have changed) unless reuse_work
+    if (tree == "work" and not reuse_work) or not path.is_file():
         env = dict(os.environ, PYTHONPATH=str(src))
         subprocess.run([sys.executable, __file__, "--render-to", str(path), "--size", str(size), "--techniques",
                         *techniques, "--scenes", str(scene_file)], check=True, env=env)
@@ -194,6 +195,7 @@ def main(argv=None):
     ap.add_argument("--cycles", default=None, help="a `dermis validate --against cycles --out` directory")
     ap.add_argument("--crop-mm", type=float, default=56.0)
     ap.add_argument("--tile", type=int, default=192)
+    ap.add_argument("--reuse-work", action="store_true", help="reuse this tree's cached renders (e.g. another --tile)")
     ap.add_argument("--render-to", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.render_to:
@@ -212,7 +214,7 @@ def main(argv=None):
         trees.insert(0, (a.before, old_tree(a.before, Path(tmp.name))))
     for scene_file in map(Path, a.scenes):
         scene_file = scene_file.resolve()
-        per_tree = {tree: renders(tree, src, scene_file, a.techniques, a.size, cache) for tree, src in trees}
+        per_tree = {tree: renders(tree, src, scene_file, a.techniques, a.size, cache, a.reuse_work) for tree, src in trees}
         columns = []
         for t in a.techniques:
             for tree, _ in trees:

@@ -27,43 +27,6 @@ vec3 transmittance_profile(float d_mm) {
     return T;
 }
 
-// sum_k w_k max(0, exp(-d^2 / 2 v_k) - exp(-g^2 / 2 v_k)): what the path of length d through the
-// tissue carries beyond the surface path of length g between the same two points (tsd's rule,
-// tsd/translucency.frag), per channel, wide Gaussians only.
-vec3 transmittance_excess(float d_mm, float g_mm) {
-    vec3 T = vec3(0.0);
-    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-        if (k >= uGaussianCount) break;
-        if (uVariances[k] < uTranslucencyMinVariance) continue;
-        float inv = 1.0 / (2.0 * uVariances[k]);
-        T += uWeights[k] * max(exp(-d_mm * d_mm * inv) - exp(-g_mm * g_mm * inv), 0.0);
-    }
-    return T;
-}
-
-// Surface distance (mm) from P (texture-space uv_ts) to the point of texture-space uv_far, to first
-// order: the screen derivatives give the map from a uv offset to a world offset,
-// dP = [dP/dx dP/dy] [duv/dx duv/dy]^-1 duv. Exact on a flat layout; where the two points are far
-// apart on the surface or in other UV islands it is long, as the surface path is. Degenerate
-// derivatives (a pixel with no UV area): far (the transmitted light is kept whole).
-struct SurfaceFrame { mat2 screen_from_uv; vec3 dpdx_mm; vec3 dpdy_mm; bool ok; };
-SurfaceFrame surface_frame(vec3 P, vec2 uv_ts) {
-    SurfaceFrame F;
-    vec3 P_mm = P * uMmPerUnit;
-    F.dpdx_mm = dFdx(P_mm);
-    F.dpdy_mm = dFdy(P_mm);
-    mat2 uv_from_screen = mat2(dFdx(uv_ts), dFdy(uv_ts));  // columns: duv/dx, duv/dy
-    float det = determinant(uv_from_screen);
-    F.ok = abs(det) > 1e-14;
-    F.screen_from_uv = F.ok ? inverse(uv_from_screen) : mat2(0.0);
-    return F;
-}
-float surface_distance_mm(SurfaceFrame F, vec2 uv_ts, vec2 uv_far) {
-    if (!F.ok) return 1e6;
-    vec2 s = F.screen_from_uv * (uv_far - uv_ts);  // pixels
-    return length(F.dpdx_mm * s.x + F.dpdy_mm * s.y);
-}
-
 // Irradiance transmitted to P (geometric normal Ng, texture-space uv_ts) from every shadow-casting
 // light behind it. The irradiance that enters is the light's at the ENTRY side, E max(N_entry.L, 0),
 // which the TSM stores; taking the exit side's -N.L instead lit a band just past every terminator
@@ -76,7 +39,6 @@ float surface_distance_mm(SurfaceFrame F, vec2 uv_ts, vec2 uv_far) {
 // A longer t means the light's path left the tissue (the head behind a back-lit ear): t is kept.
 // Near terminators of thick parts h >= t, so d = t as before: no lines.
 vec3 transmitted_irradiance(vec3 P, vec3 Ng, vec2 uv_ts) {
-    SurfaceFrame F = surface_frame(P, uv_ts);  // derivatives: before any branch
     vec3 T = vec3(0.0);
     if (uTranslucencyStrength <= 0.0) return T;
     vec2 th = texture(uThicknessMap, uv_ts).xy;
@@ -95,8 +57,7 @@ vec3 transmitted_irradiance(vec3 P, vec3 Ng, vec2 uv_ts) {
         // 1 where t agrees with the slab, fading to 0 (keep t) between 1.5 and 2.5 h / |N.L| + 1 mm
         float slab = h < 0.0 ? 0.0 : 1.0 - smoothstep(1.5, 2.5, (t - 1.0) * max(cos_exit, 1e-3) / max(h, 1e-3));
         float d = mix(t, min(t, h), slab);
-        float g = surface_distance_mm(F, uv_ts, uv_near);
-        T += Ei * (away * tsm_entry_cosine(i, P)) * transmittance_excess(d, g);
+        T += Ei * (away * tsm_entry_cosine(i, P)) * transmittance_profile(d);
     }
     return T * uTranslucencyStrength;
 }

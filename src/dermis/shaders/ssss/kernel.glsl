@@ -29,7 +29,7 @@
 // Renormalisation keeps the energy: light neither bleeds across silhouettes nor leaks into the
 // background, and slanted surfaces get narrower screen-space kernels, as they should.
 //
-// Tissue paths (as dermis.reference's paths = "tissue", integrate.TISSUE_TAU): a tap q is skipped
+// Tissue paths (as dermis.reference's paths = "tissue", TISSUE_TAU in techniques/shared.py): a tap q is skipped
 // where the straight segment between the two surface points leaves either of them into the AIR,
 // more than asin(uTissueTau) above its tangent plane: u.N_p > tau or -u.N_q > tau (u the unit
 // offset from p to q, N the geometric normals of the pixels, view space). Across a crease (closed
@@ -38,6 +38,9 @@
 // saturated orange line along both eyelid creases, where tsd (whose texture-space neighbours are
 // the crease's own walls) and the reference show a dark line. Smooth convex skin keeps every tap
 // (its neighbours lie below the tangent plane); concave skin of radius R keeps those within ~R/2.
+// The kernel is renormalised over the taps kept. Keeping a rejected tap's weight with no light
+// (the crease's hidden walls taken as dark) was tried: the wide red Gaussians lost the most
+// weight, and cyan lines appeared along every crease (nose wings, eye sockets).
 #include "common/profile.glsl"
 
 uniform sampler2D uIrradiance;          // pass 1: rgb pre-scatter irradiance, a = view depth mm (0: none)
