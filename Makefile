@@ -56,7 +56,7 @@ bench-batch: sysdeps install
 	$(PY) benchmarks/batch_bench.py --renders 200
 
 # the skin presets' Monte Carlo tables shipped in src/dermis/data (photons and seeds recorded in the
-# file; about 2-4 minutes a preset on 2 cores): after changing a preset or the skin coefficients
+# file; about 1-3 minutes a preset on 2 cores): after changing a preset or the skin coefficients
 mc-tables: install
 	nice -n 10 $(PY) -m dermis.profiles.monte_carlo_tables $(PRESETS)
 

@@ -12,11 +12,13 @@ MC / multipole of the totals (per wavelength, MC_PHOTONS photons at each of 400-
 20 nm, interpolated to 10 nm) taken at the current solution: bounded least squares
 (scipy.optimize.least_squares) on the log ratios of the three linear-sRGB channels plus, with
 weight 0.1, the mean squared log ratio of the 400-700 nm spectrum, first without the ratio, then
-with it; then Nelder-Mead on the largest channel |log ratio| (plus the same spectral term) from
-there, twice, the ratio renewed at the polished solution in between. brown's C_m was then set
-by a scan of that criterion on the shipped table's ratio (0.0787: red 0.86, blue 1.14 of
-measured; the least-squares point leaves blue 15.3 % high). The ratio varies slowly with the parameters (0.8-1.0; the multipole is 2-25 % high, most
-for dark skin). Prints the fitted parameters and the Monte Carlo and pbd colours beside the
+with it; then Nelder-Mead on the largest channel |model / measured - 1| (plus the same spectral
+term) from there, twice, the ratio renewed at the polished solution in between. The ratio varies
+slowly with the parameters (0.8-1.0: the multipole is 2-25 % high, most for dark skin). The
+shipped presets except brown were fitted with the largest |log ratio| as the Nelder-Mead
+criterion (< 1 % apart); brown's C_m was then set by a scan of the ratio criterion on its
+shipped table's MC / multipole (0.0787: red 0.86, blue 1.14 of measured; the fitted point left
+blue 15.3 % high). Prints the fitted parameters and the Monte Carlo and pbd colours beside the
 measured ones.
 """
 

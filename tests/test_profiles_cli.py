@@ -65,8 +65,9 @@ def test_a_preset_defaults_to_its_shipped_monte_carlo_table(tmp_path, monkeypatc
     assert document["model"] == "mc" and len(document["medium"]["wavelength_nm"]) == table.wavelength_nm.size
     np.testing.assert_allclose(document["total_reflectance_rgb"], table.profile().total_reflectance_rgb, rtol=1e-9)
     assert np.all(np.array(document["standard_error_rgb"]) >= 0)
-    # asking for photons runs the Monte Carlo (here: refused by the stub, so the run was attempted)
-    ran = CliRunner().invoke(profile_cmd, ["--preset", "dark", "--photons", "1000", "--wavelength-step", "100"])
+    # --model mc with photons runs the Monte Carlo (here: refused by the stub, so the run was attempted)
+    ran = CliRunner().invoke(profile_cmd, ["--preset", "dark", "--model", "mc", "--photons", "1000",
+                                           "--wavelength-step", "100"])
     assert isinstance(ran.exception, AssertionError)
 
 

@@ -22,11 +22,9 @@ SHAPE_GOAL = 0.05  # issue 13: a rendered preset's shape within 5 % of the Monte
 
 
 @pytest.fixture(autouse=True)
-def private_cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("DERMIS_CACHE_DIR", str(tmp_path / "cache"))
-    scene_skin._fitted_physical.cache_clear()
-    yield
-    scene_skin._fitted_physical.cache_clear()
+def no_disk_cache(monkeypatch):
+    """Fits here are computed, not read from (or written to) the user's disk cache."""
+    monkeypatch.setenv("DERMIS_CACHE_DIR", "off")
 
 
 def test_every_preset_ships_a_current_table_with_its_provenance():

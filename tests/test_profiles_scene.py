@@ -73,8 +73,7 @@ def test_results_are_cached_in_memory_and_on_disk(tmp_path, monkeypatch):
     started = time.perf_counter()
     first = resolve_skin_profile({"profile": "asian"}, tmp_path, SOURCE)
     cold = time.perf_counter() - started
-    print(f"asian preset, its Monte Carlo table + 6-Gaussian fit, not cached: {cold:.2f} s")
-    assert cold < 10.0  # about 1 s on 2 cores; the bound only catches gross regressions
+    print(f"asian preset, its Monte Carlo table + 6-Gaussian fit, not cached: {cold:.2f} s")  # no timed assert
     assert list((tmp_path / "cache" / "profiles").glob("*.json"))
     scene_skin._fitted_physical.cache_clear()
 

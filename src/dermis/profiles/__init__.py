@@ -7,7 +7,8 @@ diffusion, Christensen-Burley, the spectral skin model and a Monte Carlo referen
       -> combined in the frequency domain (layers.py, hankel.py)
       -> linear sRGB profile (models.py) -> K Gaussians (fit.py)
       -> the renderer (scene_skin.resolve_skin_profile), the CLI (cli.py), JSON (profile_json.py)
-    monte_carlo.py (MCML in numba) is the reference the models are tested against.
+    monte_carlo.py (MCML in numba) is the reference the models are tested against; its tables
+    for the shipped presets (monte_carlo_tables.py, data/) are the shape those presets render with.
 
 Heavy modules (scipy, numba, colour-science) load on first use of their names.
 """
@@ -44,6 +45,8 @@ _LAZY = {
     "LayerResponse": "layers",
     "monte_carlo_reflectance": "monte_carlo",
     "MonteCarloResult": "monte_carlo",
+    "MonteCarloTable": "monte_carlo_tables",
+    "shipped_table": "monte_carlo_tables",
     "read_profile_json": "profile_json",
 }
 

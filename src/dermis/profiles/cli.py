@@ -230,7 +230,11 @@ def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, 
                 model = model or "pbd"
                 profile = skin_profile(parameters, model, wavelength_nm=wavelength, illuminant=illuminant,
                                        progress=model == "mc", name=preset or "physical", **run_options)
-        fit = fit_sum_of_gaussians(profile, fit_k) if fit_k is not None else None
+        # a Monte Carlo profile is fitted from MC_FIT_MIN_RADIUS_MM out, as a scene fits it (scene_skin.py)
+        from dermis.profiles.scene_skin import MC_FIT_MIN_RADIUS_MM
+
+        r_min = MC_FIT_MIN_RADIUS_MM if model == "mc" else 0.0
+        fit = fit_sum_of_gaussians(profile, fit_k, r_min_mm=r_min) if fit_k is not None else None
     except DermisError as exc:
         raise click.ClickException(str(exc)) from None
 
@@ -250,7 +254,8 @@ def profile_cmd(model, preset, melanin, melanin_blend, hemoglobin, oxygenation, 
     click.echo("  mean radius (mm): " + " ".join(f"{v:.3f}" for v in profile.mean_radius_mm()))
     if fit is not None:
         click.echo(f"  fit: {fit.profile.k} Gaussians, r-weighted relative L2 error "
-                   + " ".join(f"{100 * v:.2f}%" for v in fit.relative_error_rgb))
+                   + " ".join(f"{100 * v:.2f}%" for v in fit.relative_error_rgb)
+                   + (f" (shape from {r_min:g} mm out)" if r_min > 0 else ""))
         for v, w in zip(fit.profile.variances_mm2, fit.profile.weights):
             click.echo(f"    variance {v:9.5f} mm^2   weights {w[0]:.4f} {w[1]:.4f} {w[2]:.4f}")
 

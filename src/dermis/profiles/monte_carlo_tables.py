@@ -13,7 +13,7 @@ profiles come from the MCML Monte Carlo (monte_carlo.py) itself, tabulated once 
                  (models.MONTE_CARLO_BIN_EDGES_MM) the mean reflectance (1/mm^2, per unit power
                  entering) with its standard error, and R_d with its standard error.
 
-Regenerate (about 2-4 minutes a preset on 2 cores; ``make mc-tables``):
+Regenerate (about 1-3 minutes a preset on 2 cores, 10-15 minutes in all; ``make mc-tables``):
 
     PYTHONPATH=src nice -n 10 python -m dermis.profiles.monte_carlo_tables [PRESET ...]
 

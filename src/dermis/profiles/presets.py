@@ -16,10 +16,10 @@ its layers (the profile it renders with: monte_carlo_tables.py) matches its meas
 
 Why ``fair`` is not the ColorChecker "light skin" patch (as it was first): by the same ITA that
 classes the NIST subjects (computed with the same code), the patch is "light" skin (ITA 42.4 deg,
-L* 66.2), not the lightest category, and it is redder than any measured category (a* 14.5 and
-R/G 1.81 in linear sRGB, against 8.4-11.5 and 1.45-1.89 for the NIST forearms of every category,
-the tan and brown ones included; its body reflectance reaches 0.71 at 700 nm, above even the
-lightest forearms' 0.65 WITH the specular part). No C_m, beta_m, C_h of the two-layer model
+L* 66.2), not the lightest category, and it is redder than any measured category (a* 14.5
+against 8.4-11.5 for the NIST forearms of every category, tan and brown included; its R/G in
+linear sRGB, 1.81, is tan skin's at the lightness of light skin, whose R/G is 1.53; its body
+reflectance reaches 0.71 at 700 nm, above even the lightest forearms' 0.65 WITH the specular part). No C_m, beta_m, C_h of the two-layer model
 reaches it: with Jacques' baseline absorption (0.0244 /mm at 700 nm) and the dermis's sigma_s'
 (2.2 /mm) pigment-free skin tops out at 0.59 at 700 nm (body reflectance), and the fits left red
 14-19 % low or green and blue 22 % high; 98 % instead of 75 % oxygenation raises red by 0.6 %.
