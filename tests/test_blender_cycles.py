@@ -488,3 +488,5 @@ def test_largest_difference_and_table_columns():
     assert "shadow_edge" not in table and "FLIP lips (floor)" in table
     assert "| a/spec | tsd | 0.0700 (0.0200) |" in table and "0.2000 (0.0300)" in table
     assert "64 (not converged)" in table
+    rows = table.splitlines()
+    assert len({r.count("|") for r in rows}) == 1  # the delimiter row has as many columns as the header

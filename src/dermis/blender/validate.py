@@ -365,7 +365,7 @@ def markdown_table(report, regions=None) -> str:
     regions = list(regions or report["regions"])
     head = ("| scene | technique | mean FLIP (floor) | SSIM (floor) | rel. RMSE (floor) | mean ratio R/G/B | "
             + " | ".join(f"FLIP {r} (floor)" for r in regions) + " | Cycles spp |")
-    lines = [head, "|" + "---|" * (7 + len(regions) - 1)]
+    lines = [head, "|" + "---|" * (7 + len(regions))]  # one per header column
     for s, e in report["scenes"].items():
         fl = e["floor"]
         for t, m in e["techniques"].items():
