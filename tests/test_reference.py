@@ -141,6 +141,25 @@ def test_uniform_light_on_plane_is_albedo_times_irradiance():
     assert res.stats["samples"] > 1000 and res.stats["pairs"] > 0
 
 
+def test_profile_coloured_skin_is_the_profiles_total_reflectance():
+    """With skin_color = "profile" (the default for spectral presets) the skin's mean colour is
+    the profile's total diffuse reflectance, in the reference as in the techniques (uAlbedoScale):
+    a uniformly lit plane (E = pi) shows R_d, the profile's own total, whatever the albedo colour,
+    and lambert on the GPU shows the same within 1%. (The reference once ignored skin_color.)"""
+    from dermis import render
+    from dermis.profiles.gaussians import SumOfGaussians
+
+    profile = SumOfGaussians(weights=np.array([[0.3, 0.15, 0.1], [0.25, 0.1, 0.05]]),
+                             variances_mm2=np.array([0.05, 1.0]))
+    sc = _plane((0.6, 0.4, 0.3))
+    sc.profile, sc.skin_color = profile, "profile"
+    expected = profile.total_reflectance
+    res = render_reference(sc, (24, 24), spp=1, progress=False)
+    assert np.abs(res.image / expected - 1).max() < 5e-3, (res.image.mean((0, 1)), expected)
+    gpu = render(sc, "lambert", size=(24, 24))  # linear radiance
+    np.testing.assert_allclose(gpu.mean((0, 1)), expected, rtol=0.01)
+
+
 def _spot_expected(positions_mm, profile, half_angle_deg, blend, height_mm, intensity):
     """(1 / pi) integral over the plane of R(|x - y|) E(y) dA, E from the spot-light formula
     (lights.glsl), by brute-force quadrature on a 5 um grid; R the untruncated profile. E is

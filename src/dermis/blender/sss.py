@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.scene import model
 
 TABLE = Path(__file__).resolve().parents[1] / "data" / "cycles_edge_response.json"
 METHOD = "RANDOM_WALK"
@@ -131,22 +132,13 @@ def fit_channel(profile, channel: int, albedo: float, table=None) -> tuple[float
 
 
 def mean_skin_albedo(scene) -> np.ndarray:
-    """Mean albedo over the skin texels (brighter than 2%, as the renderer's albedo_mean), or the
-    constant albedo colour; the colour Cycles' base colour carries on average."""
-    mat = scene.material
-    if mat.albedo is None:
-        return np.asarray(mat.albedo_color, np.float64)
-    a = np.asarray(mat.albedo.data, np.float64)[..., :3].reshape(-1, 3)
-    keep = a.max(axis=1) > 0.02
-    return (a[keep] if keep.any() else a).mean(axis=0)
+    """The colour Cycles' base colour carries on average (dermis.scene.model.mean_skin_albedo)."""
+    return model.mean_skin_albedo(scene.material)
 
 
 def albedo_scale(scene) -> np.ndarray:
-    """1, or with skin_color = "profile" the profile's total reflectance over the mean albedo (as
-    gl.resources.MeshResources.albedo_scale) so the base colour is the profile's colour."""
-    if getattr(scene, "skin_color", "albedo") != "profile":
-        return np.ones(3)
-    return np.asarray(scene.profile.total_reflectance, np.float64) / np.maximum(mean_skin_albedo(scene), 1e-4)
+    """As the renderer's uAlbedoScale (dermis.scene.model.skin_albedo_scale)."""
+    return model.skin_albedo_scale(scene)
 
 
 def cycles_subsurface(scene, table=None) -> CyclesSubsurface:

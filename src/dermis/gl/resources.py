@@ -12,6 +12,7 @@ from dermis.camera import light_matrices
 from dermis.environment import environment_sh
 from dermis.geometry.visibility import open_visibility
 from dermis.images import as_rgb
+from dermis.scene.model import mean_skin_albedo, skin_albedo_scale
 from dermis.techniques.shared import LIGHT_TYPES, MAX_LIGHTS, SHARED_SAMPLERS
 
 VERTEX_FORMAT = "3f 3f 2f 4f 2f 4f 2f"
@@ -204,12 +205,7 @@ class GpuScene:
             # no map: rho_s as given (bias + scale * 1 would rescale it)
         self.has_specular_map = mat.specular_map is not None
         # mean albedo on the skin (texels brighter than 2%), for profile-driven skin colour
-        if mat.albedo is not None:
-            a = as_rgb(mat.albedo.data[::4, ::4]).reshape(-1, 3)
-            a = a[a.mean(axis=1) > 0.02]
-            self.albedo_mean = a.mean(axis=0) if len(a) else np.ones(3)
-        else:
-            self.albedo_mean = np.asarray(mat.albedo_color, np.float64)
+        self.albedo_mean = mean_skin_albedo(mat)
         if mat.roughness_map is not None:
             self.textures["roughness"] = upload_texture(self.ctx, mat.roughness_map.data[:, :, :1], components=1, dtype="f2",
                                                      **sampler(mat.roughness_map))
@@ -241,10 +237,7 @@ class GpuScene:
     def albedo_scale(self) -> np.ndarray:
         """uAlbedoScale: 1, or (with scene.skin_color == "profile") the profile's total diffuse
         reflectance over the albedo map's mean on the skin (texels brighter than 2%)."""
-        sc = self.scene
-        if getattr(sc, "skin_color", "albedo") != "profile":
-            return np.ones(3)
-        return sc.profile.total_reflectance / np.maximum(self.albedo_mean, 1e-4)
+        return skin_albedo_scale(self.scene, self.albedo_mean)
 
     def release(self):
         release_mesh_objects(self)

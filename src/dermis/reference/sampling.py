@@ -24,6 +24,7 @@ import numpy as np
 
 from dermis.environment import environment_sh, irradiance_sh_eval
 from dermis.images import as_rgb
+from dermis.scene.model import skin_albedo_scale
 from dermis.specular import rho_dt_table, roughness_to_y
 
 
@@ -252,10 +253,13 @@ class SurfaceModel:
         self.radii = np.max(np.stack([np.linalg.norm(c - self.centroids, axis=1) for c in (self.v0, self.v1, self.v2)]), axis=0)
         mat = scene.material
         self.material = mat
+        # times uAlbedoScale of common/surface.glsl: with skin_color = "profile" the profile's total
+        # reflectance is the skin's mean colour (dermis.scene.model.skin_albedo_scale)
+        scale = skin_albedo_scale(scene).astype(np.float32)
         if mat.albedo is not None:
-            self.albedo_map = np.ascontiguousarray(mat.albedo.data[:, :, :3], np.float32)
+            self.albedo_map = np.ascontiguousarray(as_rgb(mat.albedo.data) * scale, np.float32)
         else:
-            self.albedo_map = np.asarray(mat.albedo_color, np.float32).reshape(1, 1, 3)
+            self.albedo_map = (np.asarray(mat.albedo_color, np.float32) * scale).reshape(1, 1, 3)
         # the GPU keeps the normal map as 8-bit UNORM: quantise likewise
         if mat.normal_map is not None:
             nm = np.asarray(mat.normal_map.data[:, :, :3], np.float32)

@@ -201,6 +201,29 @@ SKIN_COLORS = ("albedo", "profile")
 """Scene.skin_color: where the skin's total diffuse colour comes from (see Scene)."""
 
 
+def mean_skin_albedo(material) -> np.ndarray:
+    """The albedo map's mean over the skin (every 4th texel, texels whose mean is above 2%: the
+    background of a UV layout is not skin), or the constant albedo colour. One definition for the
+    real-time techniques, the offline reference and the Blender export."""
+    if material.albedo is None:
+        return np.asarray(material.albedo_color, np.float64)
+    from dermis.images import as_rgb
+
+    a = as_rgb(material.albedo.data[::4, ::4]).reshape(-1, 3).astype(np.float64)
+    a = a[a.mean(axis=1) > 0.02]
+    return a.mean(axis=0) if len(a) else np.ones(3)
+
+
+def skin_albedo_scale(scene, albedo_mean=None) -> np.ndarray:
+    """The factor on the skin's albedo: 1, or with ``skin_color = "profile"`` the profile's total
+    diffuse reflectance over the albedo's mean (:func:`mean_skin_albedo`), so that the skin's mean
+    colour is the profile's and the map keeps only its variation."""
+    if getattr(scene, "skin_color", "albedo") != "profile":
+        return np.ones(3)
+    mean = mean_skin_albedo(scene.material) if albedo_mean is None else albedo_mean
+    return np.asarray(scene.profile.total_reflectance, np.float64) / np.maximum(mean, 1e-4)
+
+
 @dataclass
 class Scene:
     mesh: Mesh
