@@ -322,7 +322,10 @@ def test_interrupt_then_resume_gives_the_same_dataset(local_run, tmp_path):
     out = tmp_path / "data"
     env = {**os.environ, "PYTHONPATH": str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
     proc = subprocess.Popen([sys.executable, "-m", "dermis.cli", "batch", str(sweep), "--out", str(out), "-j", "1",
-                             "--no-progress"], env=env, stderr=subprocess.PIPE, text=True)
+                             "--no-progress"], env=env, stderr=subprocess.PIPE, text=True,
+                            # a test run started in the background (CI, `cmd &`) inherits SIGINT
+                            # ignored, and Python then installs no KeyboardInterrupt handler
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     journal = out / "journal.jsonl"
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and proc.poll() is None:
