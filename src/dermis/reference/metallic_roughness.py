@@ -59,36 +59,20 @@ def environment_specular_ggx_mc(env_image, N, V, f0, roughness, samples: int = 6
     phi = 2 pi xi2), l = reflect(-V, h), pdf(l) = D(h) (N.h) / (4 (V.h)), so the weight
     f (N.l) / pdf = 4 F Vis (N.l) (V.h) / (N.h). ``samples`` jittered strata per point (a square
     number), deterministic for a seed. Returns (n, 3)."""
-    from dermis.prefiltered_environment import bilinear_equirect, direction_to_equirect
-    from dermis.reference.shading import ENV_SPECULAR_CHUNK, _tangent_frames
+    from dermis.reference.shading import sampled_reflections
 
-    s = int(round(np.sqrt(samples)))
-    grid = np.stack(np.meshgrid(np.arange(s), np.arange(s), indexing="ij"), -1).reshape(1, -1, 2).astype(np.float64)
+    a2_all = np.asarray(roughness, np.float64) ** 4
+    # GGX cos(theta_h) from xi1 (Walter et al. 2007, eq. 35)
+    lobe = lambda xi, c0, c1: np.sqrt((1.0 - xi) / (1.0 + (a2_all[c0:c1, None] - 1.0) * xi))
     out = np.zeros((len(N), 3))
-    for batch, c0 in enumerate(range(0, len(N), ENV_SPECULAR_CHUNK)):
-        c1 = min(len(N), c0 + ENV_SPECULAR_CHUNK)
-        nn, vv = N[c0:c1], V[c0:c1]
-        a2 = (np.asarray(roughness[c0:c1], np.float64) ** 4)[:, None]
-        rng = np.random.default_rng([seed, batch])
-        xi = (grid + rng.random((c1 - c0, s * s, 2))) / s
-        cos2 = (1.0 - xi[..., 0]) / (1.0 + (a2 - 1.0) * xi[..., 0])
-        cos_h = np.sqrt(cos2)
-        sin_h = np.sqrt(np.maximum(1.0 - cos2, 0.0))
-        phi = 2.0 * np.pi * xi[..., 1]
-        t, b = _tangent_frames(nn)
-        h = (sin_h * np.cos(phi))[..., None] * t[:, None] + (sin_h * np.sin(phi))[..., None] * b[:, None] \
-            + cos_h[..., None] * nn[:, None]
-        vh = np.sum(vv[:, None] * h, -1)
-        l = 2.0 * vh[..., None] * h - vv[:, None]
-        nl = np.sum(nn[:, None] * l, -1)
-        nv = np.maximum(np.sum(nn * vv, -1), 1e-12)[:, None]
+    for c0, c1, cos_h, vh, nl, L in sampled_reflections(env_image, N, V, lobe, samples, seed):
+        a2 = a2_all[c0:c1, None]
+        nv = np.maximum(np.sum(N[c0:c1] * V[c0:c1], -1), 1e-12)[:, None]
         ok = (vh > 0.0) & (nl > 0.0)
         nlc = np.maximum(nl, 1e-12)
         vis = 0.5 / (nlc * np.sqrt(nv * nv * (1 - a2) + a2) + nv * np.sqrt(nlc * nlc * (1 - a2) + a2))
         w = np.where(ok, 4.0 * vis * nlc * vh / np.maximum(cos_h, 1e-12), 0.0)
         F = f0[c0:c1, None, :] + (1.0 - f0[c0:c1, None, :]) * ((1.0 - np.clip(vh, 0, 1)) ** 5)[..., None]
-        u, v = direction_to_equirect(l.reshape(-1, 3))
-        L = bilinear_equirect(env_image, u, v).reshape(c1 - c0, s * s, 3)
         out[c0:c1] = np.mean(w[..., None] * F * L, axis=1)
     return out
 

@@ -218,19 +218,34 @@ def environment_specular_mc(env_image, n, V, m: float, rho_s, samples: int = ENV
     l = reflect(-V, h), pdf(l) = P(h) (n.h) / (4 pi (V.h)); the weight f (n.l) / (pi pdf) is
     rho_s F(V.h) (n.l) / ((V.h) (n.h)) (the integrand of dermis.specular.rho_dt). ``samples``
     jittered strata per point (a square number), deterministic for a seed. Returns (n, 3)."""
-    from dermis.prefiltered_environment import bilinear_equirect, direction_to_equirect
     from dermis.specular import fresnel_schlick
+
+    rho_s = np.broadcast_to(np.asarray(rho_s, np.float64), (len(n),))
+    out = np.zeros((len(n), 3))
+    lobe = lambda xi, c0, c1: 1.0 / np.sqrt(1.0 - m * m * np.log1p(-xi))  # Beckmann cos(theta_h)
+    for c0, c1, cos_h, vh, nl, L in sampled_reflections(env_image, n, V, lobe, samples, seed):
+        ok = (vh > 0.0) & (nl > 0.0)
+        w = np.where(ok, fresnel_schlick(vh) * nl / np.where(ok, vh * cos_h, 1.0), 0.0)
+        out[c0:c1] = rho_s[c0:c1, None] * np.mean(w[..., None] * L, axis=1)
+    return out
+
+
+def sampled_reflections(env_image, n, V, cos_theta_h, samples: int, seed: int):
+    """The shared Monte Carlo loop of the environment's specular integrals: per chunk of points,
+    ``samples`` jittered strata (a square number) of half vectors h about n with cos(theta_h) =
+    ``cos_theta_h(xi1, c0, c1)`` (the lobe's inverse CDF) and phi = 2 pi xi2, the reflected
+    directions l = reflect(-V, h) and the equirect's radiance along them (bilinear).
+    Yields (c0, c1, cos_h, V.h, n.l, L), deterministic for a seed."""
+    from dermis.prefiltered_environment import bilinear_equirect, direction_to_equirect
 
     s = int(round(np.sqrt(samples)))
     grid = np.stack(np.meshgrid(np.arange(s), np.arange(s), indexing="ij"), -1).reshape(1, -1, 2).astype(np.float64)
-    rho_s = np.broadcast_to(np.asarray(rho_s, np.float64), (len(n),))
-    out = np.zeros((len(n), 3))
     for batch, c0 in enumerate(range(0, len(n), ENV_SPECULAR_CHUNK)):
         c1 = min(len(n), c0 + ENV_SPECULAR_CHUNK)
         nn, vv = n[c0:c1], V[c0:c1]
         rng = np.random.default_rng([seed, batch])
         xi = (grid + rng.random((c1 - c0, s * s, 2))) / s
-        cos_h = 1.0 / np.sqrt(1.0 - m * m * np.log1p(-xi[..., 0]))
+        cos_h = cos_theta_h(xi[..., 0], c0, c1)
         sin_h = np.sqrt(np.maximum(1.0 - cos_h * cos_h, 0.0))
         phi = 2.0 * np.pi * xi[..., 1]
         t, b = _tangent_frames(nn)
@@ -239,9 +254,5 @@ def environment_specular_mc(env_image, n, V, m: float, rho_s, samples: int = ENV
         vh = np.sum(vv[:, None] * h, -1)
         l = 2.0 * vh[..., None] * h - vv[:, None]
         nl = np.sum(nn[:, None] * l, -1)
-        ok = (vh > 0.0) & (nl > 0.0)
-        w = np.where(ok, fresnel_schlick(vh) * nl / np.where(ok, vh * cos_h, 1.0), 0.0)
         u, v = direction_to_equirect(l.reshape(-1, 3))
-        L = bilinear_equirect(env_image, u, v).reshape(c1 - c0, s * s, 3)
-        out[c0:c1] = rho_s[c0:c1, None] * np.mean(w[..., None] * L, axis=1)
-    return out
+        yield c0, c1, cos_h, vh, nl, bilinear_equirect(env_image, u, v).reshape(c1 - c0, s * s, 3)
