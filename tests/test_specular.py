@@ -330,8 +330,12 @@ void main() {
 def test_table_atlas_reads_what_separate_tables_read(gl):
     # packing the two tables into one texture changes no lookup: each table's texture alone
     # (rect = the whole texture, as before the atlas) against its rectangle of the atlas, at
-    # random coordinates including the clamped edges. Beckmann identical; rho_dt within 1e-6 relative
-    # (its row offset rounds t to 2^-15 texel; measured on llvmpipe: max 2e-7).
+    # random coordinates including the clamped edges. Beckmann identical; rho_dt's row offset rounds t
+    # to 2^-15 texel, which moves a bilinear weight by that much on llvmpipe (measured: max 2e-7
+    # relative) but can cross one step of a GPU's sub-texel weight precision (GL leaves it to the
+    # implementation; NVIDIA: 8 bits, measured on an H100: 13 of 4096 lookups off by up to 1.5e-4):
+    # at most one 1/256 step of the largest difference between adjacent rows.
+    from dermis.gl.context import is_software
     from dermis.gl.shaders import load_shader_source
     from dermis.gl.tables import _float_table_texture, upload_specular_tables
 
@@ -362,7 +366,8 @@ def test_table_atlas_reads_what_separate_tables_read(gl):
         alone.release()
         if name == "beckmann":  # same row and column grid scaled by powers of two: exact
             np.testing.assert_array_equal(b, a)
-        np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-12)
+        one_weight_step = float(np.abs(np.diff(table, axis=0)).max()) / 256.0
+        np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-12 if is_software(gl) else one_weight_step)
     for o in (inp, out, prog, atlas):
         o.release()
 
