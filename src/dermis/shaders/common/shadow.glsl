@@ -1,7 +1,8 @@
 // Shadow maps for all lights, packed in one atlas: tile i holds light i's depth map.
 // uShadowAtlas is a depth texture sampled with hardware comparison (each tap is itself a
 // bilinear 2x2 PCF); uShadowAux holds, per texel, the (u, v) of the lit surface and its distance
-// to the light in mm (the translucent shadow map of d'Eon & Luebke 2007, sec. 14.5.3).
+// to the light in mm (the translucent shadow map of d'Eon & Luebke 2007, sec. 14.5.3). No skin
+// technique reads it since round 4 (translucency comes from the thickness bake's far face).
 #include "common/lights.glsl"
 
 uniform mat4 uLightViewProj[MAX_LIGHTS];
@@ -91,55 +92,4 @@ float shadow_soft(int i, vec3 P, vec3 N) {
         sum += shadow_tap(i, c.xy + delta, z + dot(dz, delta));
     }
     return sum / 16.0;
-}
-
-// Translucent shadow map lookup: (u, v) of the surface nearest the light and its distance to
-// the light in mm, at the projection of P. Returns false where the map has no surface.
-// The nearest of the 3x3 texels around P is taken: the map is point-sampled, and where the
-// light's view crosses a depth edge (a nose wing, an eyelid seen edge-on) single texels read the
-// surface behind the edge and a far-off entry point: isolated thin spots that lit bright specks.
-// Thickness varies smoothly in tissue, so the thickest reading of the neighbourhood is kept.
-bool tsm_lookup(int i, vec3 P, out vec2 uv_near, out float dist_near_mm) {
-    vec3 c;
-    if (!shadow_coords(i, P, vec3(0.0), c)) return false;
-    float texel = uShadowParams[i].w;
-    bool found = false;
-    dist_near_mm = 1e30;
-    for (int y = -1; y <= 1; ++y)
-        for (int x = -1; x <= 1; ++x) {
-            vec2 uv = clamp(c.xy + vec2(x, y) * texel, vec2(0.5 * texel), vec2(1.0 - 0.5 * texel));
-            vec4 a = texture(uShadowAux, uShadowTile[i].xy + uv * uShadowTile[i].zw);
-            if (a.w > 0.5 && a.z < dist_near_mm) {
-                dist_near_mm = a.z;
-                uv_near = a.xy;
-                found = true;
-            }
-        }
-    return found;
-}
-
-// The entry side's cosine to the light, max(N.L, 0) where the light enters (shadow/shadow.frag
-// stores 1 + it; 0 where the map has no surface).
-float tsm_entry_cosine(int i, vec3 P) {
-    vec3 c;
-    if (!shadow_coords(i, P, vec3(0.0), c)) return 0.0;
-    return max(texture(uShadowAux, uShadowTile[i].xy + c.xy * uShadowTile[i].zw).w - 1.0, 0.0);
-}
-
-// Distance from P to the light along the light's depth axis, in mm (matches uShadowAux.z).
-float light_distance_mm(int i, vec3 P) {
-    int type = int(uLightPosType[i].w + 0.5);
-    if (type == LIGHT_DIRECTIONAL) return dot(P - uLightPosType[i].xyz, uLightDir[i].xyz) * uMmPerUnit;
-    return length(P - uLightPosType[i].xyz) * uMmPerUnit;
-}
-
-// Thickness (mm) of the tissue between P and the side where light i enters, along the light:
-// d = light_distance(P) - TSM depth (d'Eon & Luebke 2007, 14.5.3). Projecting d on the exit normal
-// (the slab's perpendicular thickness) was tried: it shrinks d to ~0 just past every terminator of
-// thick parts and brought back the bright lines there (translucency buffer of the example head:
-// 99.9th percentile 0.26 with it, 0.02 without). Returns -1 where the map has no surface.
-float tsm_thickness_mm(int i, vec3 P, out vec2 uv_near) {
-    float dist_near_mm;
-    if (!tsm_lookup(i, P, uv_near, dist_near_mm)) return -1.0;
-    return max(light_distance_mm(i, P) - dist_near_mm, 0.0);
 }
