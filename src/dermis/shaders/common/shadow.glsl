@@ -21,7 +21,9 @@ bool shadow_coords(int i, vec3 P, vec3 N, out vec3 c) {
 float shadow_tap(int i, vec2 uv, float z) {
     vec2 h = vec2(0.5 * uShadowParams[i].w);  // stay half a texel inside the tile
     uv = clamp(uv, h, 1.0 - h);
-    return texture(uShadowAtlas, vec3(uShadowTile[i].xy + uv * uShadowTile[i].zw, z - uShadowParams[i].y));
+    // explicit level 0 (the atlas has no mips): no implicit derivatives, which are undefined in the
+    // non-uniform control flow of the callers (per-light loops with continue)
+    return textureLod(uShadowAtlas, vec3(uShadowTile[i].xy + uv * uShadowTile[i].zw, z - uShadowParams[i].y), 0.0);
 }
 
 // Receiver-plane depth bias (Isidoro 2006, "Shadow Mapping: GPU-based Tips and Techniques", GDC):
@@ -92,4 +94,54 @@ float shadow_soft(int i, vec3 P, vec3 N) {
         sum += shadow_tap(i, c.xy + delta, z + dot(dz, delta));
     }
     return sum / 16.0;
+}
+
+// The soft shadow and the width (mm, on the surface) of the penumbra it lies in, from the PCF
+// taps themselves rather than from screen derivatives of s (which differ between GPUs: coarse
+// or fine, quad by quad; preintegrated on an H100 vs llvmpipe: back-ears red 3% apart). The taps'
+// values s_k at the map offsets delta_k give the least-squares gradient g of s in map uv,
+//   g = C^-1 sum_k (s_k - mean s) delta_k,  C = sum_k (delta_k - mean delta)(delta_k - mean delta)^T,
+// so s ramps across 1 / |g| of uv along g; the receiver's tangent plane (shadow_receiver's frame)
+// maps that uv step back to the surface. 1e30 where the taps agree (no ramp within the disc).
+float shadow_soft_penumbra(int i, vec3 P, vec3 N, out float width_mm) {
+    width_mm = 1e30;
+    if (uLightRadiance[i].w < 0.5) return 1.0;
+    vec3 c;
+    vec2 dz;
+    if (!shadow_receiver(i, P, N, c, dz)) return 1.0;
+    float texel = uShadowParams[i].w;
+    float z = c.z - 2.0 * length(dz) * texel;
+    float radius = uShadowParams[i].x * texel;
+    if (radius <= 0.0) return shadow_tap(i, c.xy, z);
+    float sum = 0.0;
+    vec2 sd = vec2(0.0), d_mean = vec2(0.0);
+    mat2 C = mat2(0.0);
+    for (int k = 0; k < 16; ++k) {
+        vec2 delta = POISSON16[k] * radius;
+        float s = shadow_tap(i, c.xy + delta, z + dot(dz, delta));
+        sum += s;
+        sd += s * delta;
+        d_mean += delta;
+        C += outerProduct(delta, delta);
+    }
+    float s_mean = sum / 16.0;
+    d_mean /= 16.0;
+    C -= 16.0 * outerProduct(d_mean, d_mean);
+    vec2 g = inverse(C) * (sd - 16.0 * s_mean * d_mean);  // ds per map uv
+    float gl = length(g);
+    if (gl <= 1e-6) return s_mean;
+    // the tangent-plane step whose map projection is (1 / |g|) along g: J a = step, J's columns
+    // the map uv moved by a unit step along two tangents (scene units)
+    float h = max(uShadowParams[i].z, 1e-6);
+    vec3 t1 = normalize(cross(N, abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
+    vec3 t2 = cross(N, t1);
+    vec3 c1, c2;
+    shadow_coords(i, P + t1 * h, vec3(0.0), c1);
+    shadow_coords(i, P + t2 * h, vec3(0.0), c2);
+    mat2 J = mat2((c1.xy - c.xy) / h, (c2.xy - c.xy) / h);
+    float det = determinant(J);
+    if (abs(det) < 1e-20) return s_mean;  // the light grazes the surface: the caller bounds it
+    vec2 a = inverse(J) * (g / (gl * gl));
+    width_mm = length(a) * uMmPerUnit;
+    return s_mean;
 }

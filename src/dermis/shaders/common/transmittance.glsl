@@ -46,7 +46,7 @@ const float FAR_FACE_LIFT_MM = 0.5;
 vec3 transmitted_irradiance(vec3 P, vec3 Ng, vec2 uv_ts) {
     vec3 T = vec3(0.0);
     if (uTranslucencyStrength <= 0.0) return T;
-    vec2 th = texture(uThicknessMap, uv_ts).xy;  // (h x valid, valid), bilinear
+    vec2 th = textureLod(uThicknessMap, uv_ts, 0.0).xy;  // (h x valid, valid), bilinear, one level
     if (th.y <= 0.0) return T;  // no far face within reach
     float h = th.x / th.y;  // mm
     vec3 T_h = transmittance_profile(h) * th.y;  // partial coverage at the bake's edge: fades over a texel
