@@ -12,6 +12,14 @@ OUT_PREFIX_<technique>.png (sRGB, the scene's output transform) and OUT_PREFIX_<
 renders the offline reference (dermis.reference, paths = "tissue": the profile integrated over
 the surface at 3-D distance, light through thin tissue included; about 30 s at N = 160 on 2 cores)
 and the techniques at N x N and prints the ear's mean radiance of each against it.
+
+    PYTHONPATH=src python benchmarks/ear_translucency.py --slab
+the theory behind light through thin parts (issue 12): per channel, what dermis transmits through
+a back-lit slab d = 0.5..5 mm thick, A sum_k w_k exp(-d^2 / 2 v_k) over the wide Gaussians (A the
+scene's mean albedo), against MCML (dermis.profiles.monte_carlo) of the homogeneous random walk
+that Cycles is given for this profile (mean free path = the fitted Subsurface Radius,
+dermis.blender.sss; single-scattering albedo solved so that the semi-infinite medium reflects A).
+About 90 s on 2 cores.
 """
 
 from __future__ import annotations
@@ -89,8 +97,43 @@ def against_reference(n, techniques):
                       f"ratio r {a[0] / b[0]:.3f} g {a[1] / b[1]:.3f}")
 
 
+def slab_theory():
+    from dermis.blender.sss import cycles_subsurface
+    from dermis.profiles.medium import Layer, Medium
+    from dermis.profiles.monte_carlo import monte_carlo_reflectance
+    from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
+
+    sc = dermis.load_scene(SCENE)
+    cs = cycles_subsurface(sc)
+    prof = sc.profile.normalized()
+    w, v = prof.weights, prof.variances_mm2
+    wide = v >= TRANSLUCENCY_MIN_VARIANCE_MM2
+
+    def mc(alpha, mfp, d, n, seed=1):
+        st = 1.0 / mfp
+        m = Medium(np.array([st * (1 - alpha)]), np.array([st * alpha]), 0.0, 1.4)
+        return monte_carlo_reflectance([Layer(m, d)], n, np.array([0.0, 1e3]), seed=seed)
+
+    for c, name in enumerate("RGB"):
+        A, r = cs.albedo[c], cs.radius_mm[c]
+        lo, hi = 0.0, 1.0 - 1e-7
+        for _ in range(22):  # bisection, common random numbers
+            a = 0.5 * (lo + hi)
+            lo, hi = (a, hi) if mc(a, r, np.inf, 20000).total_reflectance < A else (lo, a)
+        a = 0.5 * (lo + hi)
+        R = mc(a, r, np.inf, 200000).total_reflectance
+        print(f"{name}: albedo {A:.3f}, mean free path {r:.2f} mm, single-scattering albedo {a:.6f} (MC R {R:.4f})")
+        for d in (0.5, 1.0, 2.0, 3.0, 4.0, 5.0):
+            res = mc(a, r, d, 100000)
+            tg = A * (w[wide, c] * np.exp(-d * d / (2 * v[wide]))).sum()
+            print(f"  d {d} mm: MC transmittance {res.total_transmittance:.4f} (reflectance {res.total_reflectance:.4f}); "
+                  f"dermis {tg:.4f}; MC / dermis {res.total_transmittance / max(tg, 1e-30):.3g}")
+
+
 if __name__ == "__main__":
-    if sys.argv[1] == "--reference":
+    if sys.argv[1] == "--slab":
+        slab_theory()
+    elif sys.argv[1] == "--reference":
         against_reference(int(sys.argv[2]), sys.argv[3:] or ["tsd"])
     else:
         main(sys.argv[1], sys.argv[2:] or ["tsd"])
