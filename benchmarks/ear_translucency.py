@@ -99,32 +99,21 @@ def against_reference(n, techniques):
 
 def slab_theory():
     from dermis.blender.sss import cycles_subsurface
-    from dermis.profiles.medium import Layer, Medium
-    from dermis.profiles.monte_carlo import monte_carlo_reflectance
     from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
+    from dermis.verification import random_walk_slab
 
     sc = dermis.load_scene(SCENE)
     cs = cycles_subsurface(sc)
     prof = sc.profile.normalized()
     w, v = prof.weights, prof.variances_mm2
     wide = v >= TRANSLUCENCY_MIN_VARIANCE_MM2
-
-    def mc(alpha, mfp, d, n, seed=1):
-        st = 1.0 / mfp
-        m = Medium(np.array([st * (1 - alpha)]), np.array([st * alpha]), 0.0, 1.4)
-        return monte_carlo_reflectance([Layer(m, d)], n, np.array([0.0, 1e3]), seed=seed)
-
     for c, name in enumerate("RGB"):
         A, r = cs.albedo[c], cs.radius_mm[c]
-        lo, hi = 0.0, 1.0 - 1e-7
-        for _ in range(22):  # bisection, common random numbers
-            a = 0.5 * (lo + hi)
-            lo, hi = (a, hi) if mc(a, r, np.inf, 20000).total_reflectance < A else (lo, a)
-        a = 0.5 * (lo + hi)
-        R = mc(a, r, np.inf, 200000).total_reflectance
-        print(f"{name}: albedo {A:.3f}, mean free path {r:.2f} mm, single-scattering albedo {a:.6f} (MC R {R:.4f})")
+        alpha, semi = random_walk_slab(A, r, np.inf, photons=200_000)
+        print(f"{name}: albedo {A:.3f}, mean free path {r:.2f} mm, single-scattering albedo {alpha:.6f} "
+              f"(MC R {semi.total_reflectance:.4f})")
         for d in (0.5, 1.0, 2.0, 3.0, 4.0, 5.0):
-            res = mc(a, r, d, 100000)
+            res = random_walk_slab(A, r, d)[1]
             tg = A * (w[wide, c] * np.exp(-d * d / (2 * v[wide]))).sum()
             print(f"  d {d} mm: MC transmittance {res.total_transmittance:.4f} (reflectance {res.total_reflectance:.4f}); "
                   f"dermis {tg:.4f}; MC / dermis {res.total_transmittance / max(tg, 1e-30):.3g}")
