@@ -12,6 +12,14 @@ OUT_PREFIX_<technique>.png (sRGB, the scene's output transform) and OUT_PREFIX_<
 renders the offline reference (dermis.reference, paths = "tissue": the profile integrated over
 the surface at 3-D distance, light through thin tissue included; about 30 s at N = 160 on 2 cores)
 and the techniques at N x N and prints the ear's mean radiance of each against it.
+
+    PYTHONPATH=src python benchmarks/ear_translucency.py --slab
+the theory behind light through thin parts (issue 12): per channel, what dermis transmits through
+a back-lit slab d = 0.5..5 mm thick, A sum_k w_k exp(-d^2 / 2 v_k) over the wide Gaussians (A the
+scene's mean albedo), against MCML (dermis.profiles.monte_carlo) of the homogeneous random walk
+that Cycles is given for this profile (mean free path = the fitted Subsurface Radius,
+dermis.blender.sss; single-scattering albedo solved so that the semi-infinite medium reflects A).
+About 90 s on 2 cores.
 """
 
 from __future__ import annotations
@@ -89,8 +97,32 @@ def against_reference(n, techniques):
                       f"ratio r {a[0] / b[0]:.3f} g {a[1] / b[1]:.3f}")
 
 
+def slab_theory():
+    from dermis.blender.sss import cycles_subsurface
+    from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
+    from dermis.verification import random_walk_slab
+
+    sc = dermis.load_scene(SCENE)
+    cs = cycles_subsurface(sc)
+    prof = sc.profile.normalized()
+    w, v = prof.weights, prof.variances_mm2
+    wide = v >= TRANSLUCENCY_MIN_VARIANCE_MM2
+    for c, name in enumerate("RGB"):
+        A, r = cs.albedo[c], cs.radius_mm[c]
+        alpha, semi = random_walk_slab(A, r, np.inf, photons=200_000)
+        print(f"{name}: albedo {A:.3f}, mean free path {r:.2f} mm, single-scattering albedo {alpha:.6f} "
+              f"(MC R {semi.total_reflectance:.4f})")
+        for d in (0.5, 1.0, 2.0, 3.0, 4.0, 5.0):
+            res = random_walk_slab(A, r, d)[1]
+            tg = A * (w[wide, c] * np.exp(-d * d / (2 * v[wide]))).sum()
+            print(f"  d {d} mm: MC transmittance {res.total_transmittance:.4f} (reflectance {res.total_reflectance:.4f}); "
+                  f"dermis {tg:.4f}; MC / dermis {res.total_transmittance / max(tg, 1e-30):.3g}")
+
+
 if __name__ == "__main__":
-    if sys.argv[1] == "--reference":
+    if sys.argv[1] == "--slab":
+        slab_theory()
+    elif sys.argv[1] == "--reference":
         against_reference(int(sys.argv[2]), sys.argv[3:] or ["tsd"])
     else:
         main(sys.argv[1], sys.argv[2:] or ["tsd"])

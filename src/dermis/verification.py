@@ -304,3 +304,27 @@ def ssss_plane_impulse(gl_ctx=None, profile=None):
         cut.append(float(mid[nonzero[-1]]) if nonzero.size else 0.0)
     return {"error": np.array(errors), "ripple": np.array(ripple), "cut_mm": np.array(cut), "reach_mm": reach,
             "energy": out.sum(axis=(0, 1)) / 4.0}
+
+
+def random_walk_slab(total_reflectance: float, mean_free_path_mm: float, thickness_mm: float,
+                     photons: int = 100_000, bisection_photons: int = 20_000, steps: int = 22, seed: int = 1):
+    """Light through a back-lit slab of the homogeneous random walk (isotropic, index 1.4 inside,
+    air outside) that reflects ``total_reflectance`` when semi-infinite: MCML
+    (dermis.profiles.monte_carlo) at ``thickness_mm``, the single-scattering albedo solved by
+    bisection with common random numbers. Returns (single-scattering albedo, MonteCarloResult);
+    its total_transmittance is per unit power entering the far face. The theory the
+    techniques' transmittance through thin parts is held against (issue 12)."""
+    from dermis.profiles.medium import Layer, Medium
+    from dermis.profiles.monte_carlo import monte_carlo_reflectance
+
+    def run(alpha, d, n):
+        st = 1.0 / mean_free_path_mm
+        m = Medium(np.array([st * (1.0 - alpha)]), np.array([st * alpha]), 0.0, 1.4)
+        return monte_carlo_reflectance([Layer(m, d)], n, np.array([0.0, 1e3]), seed=seed)
+
+    lo, hi = 0.0, 1.0 - 1e-7
+    for _ in range(steps):
+        a = 0.5 * (lo + hi)
+        lo, hi = (a, hi) if run(a, np.inf, bisection_photons).total_reflectance < total_reflectance else (lo, a)
+    alpha = 0.5 * (lo + hi)
+    return alpha, run(alpha, thickness_mm, photons)

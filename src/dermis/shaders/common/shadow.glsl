@@ -1,7 +1,8 @@
 // Shadow maps for all lights, packed in one atlas: tile i holds light i's depth map.
 // uShadowAtlas is a depth texture sampled with hardware comparison (each tap is itself a
 // bilinear 2x2 PCF); uShadowAux holds, per texel, the (u, v) of the lit surface and its distance
-// to the light in mm (the translucent shadow map of d'Eon & Luebke 2007, sec. 14.5.3).
+// to the light in mm (the translucent shadow map of d'Eon & Luebke 2007, sec. 14.5.3). No skin
+// technique reads it since round 4 (translucency comes from the thickness bake's far face).
 #include "common/lights.glsl"
 
 uniform mat4 uLightViewProj[MAX_LIGHTS];
@@ -20,7 +21,9 @@ bool shadow_coords(int i, vec3 P, vec3 N, out vec3 c) {
 float shadow_tap(int i, vec2 uv, float z) {
     vec2 h = vec2(0.5 * uShadowParams[i].w);  // stay half a texel inside the tile
     uv = clamp(uv, h, 1.0 - h);
-    return texture(uShadowAtlas, vec3(uShadowTile[i].xy + uv * uShadowTile[i].zw, z - uShadowParams[i].y));
+    // explicit level 0 (the atlas has no mips): no implicit derivatives, which are undefined in the
+    // non-uniform control flow of the callers (per-light loops with continue)
+    return textureLod(uShadowAtlas, vec3(uShadowTile[i].xy + uv * uShadowTile[i].zw, z - uShadowParams[i].y), 0.0);
 }
 
 // Receiver-plane depth bias (Isidoro 2006, "Shadow Mapping: GPU-based Tips and Techniques", GDC):
@@ -93,53 +96,52 @@ float shadow_soft(int i, vec3 P, vec3 N) {
     return sum / 16.0;
 }
 
-// Translucent shadow map lookup: (u, v) of the surface nearest the light and its distance to
-// the light in mm, at the projection of P. Returns false where the map has no surface.
-// The nearest of the 3x3 texels around P is taken: the map is point-sampled, and where the
-// light's view crosses a depth edge (a nose wing, an eyelid seen edge-on) single texels read the
-// surface behind the edge and a far-off entry point: isolated thin spots that lit bright specks.
-// Thickness varies smoothly in tissue, so the thickest reading of the neighbourhood is kept.
-bool tsm_lookup(int i, vec3 P, out vec2 uv_near, out float dist_near_mm) {
+// The soft shadow and the width (mm, on the surface) of the penumbra it lies in, from the PCF
+// taps themselves rather than from screen derivatives of s (which differ between GPUs: coarse
+// or fine, quad by quad; preintegrated on an H100 vs llvmpipe: back-ears red 3% apart). The taps'
+// values s_k at the map offsets delta_k give the least-squares gradient g of s in map uv,
+//   g = C^-1 sum_k (s_k - mean s) delta_k,  C = sum_k (delta_k - mean delta)(delta_k - mean delta)^T,
+// so s ramps across 1 / |g| of uv along g; the receiver's tangent plane (shadow_receiver's frame)
+// maps that uv step back to the surface. 1e30 where the taps agree (no ramp within the disc).
+float shadow_soft_penumbra(int i, vec3 P, vec3 N, out float width_mm) {
+    width_mm = 1e30;
+    if (uLightRadiance[i].w < 0.5) return 1.0;
     vec3 c;
-    if (!shadow_coords(i, P, vec3(0.0), c)) return false;
+    vec2 dz;
+    if (!shadow_receiver(i, P, N, c, dz)) return 1.0;
     float texel = uShadowParams[i].w;
-    bool found = false;
-    dist_near_mm = 1e30;
-    for (int y = -1; y <= 1; ++y)
-        for (int x = -1; x <= 1; ++x) {
-            vec2 uv = clamp(c.xy + vec2(x, y) * texel, vec2(0.5 * texel), vec2(1.0 - 0.5 * texel));
-            vec4 a = texture(uShadowAux, uShadowTile[i].xy + uv * uShadowTile[i].zw);
-            if (a.w > 0.5 && a.z < dist_near_mm) {
-                dist_near_mm = a.z;
-                uv_near = a.xy;
-                found = true;
-            }
-        }
-    return found;
-}
-
-// The entry side's cosine to the light, max(N.L, 0) where the light enters (shadow/shadow.frag
-// stores 1 + it; 0 where the map has no surface).
-float tsm_entry_cosine(int i, vec3 P) {
-    vec3 c;
-    if (!shadow_coords(i, P, vec3(0.0), c)) return 0.0;
-    return max(texture(uShadowAux, uShadowTile[i].xy + c.xy * uShadowTile[i].zw).w - 1.0, 0.0);
-}
-
-// Distance from P to the light along the light's depth axis, in mm (matches uShadowAux.z).
-float light_distance_mm(int i, vec3 P) {
-    int type = int(uLightPosType[i].w + 0.5);
-    if (type == LIGHT_DIRECTIONAL) return dot(P - uLightPosType[i].xyz, uLightDir[i].xyz) * uMmPerUnit;
-    return length(P - uLightPosType[i].xyz) * uMmPerUnit;
-}
-
-// Thickness (mm) of the tissue between P and the side where light i enters, along the light:
-// d = light_distance(P) - TSM depth (d'Eon & Luebke 2007, 14.5.3). Projecting d on the exit normal
-// (the slab's perpendicular thickness) was tried: it shrinks d to ~0 just past every terminator of
-// thick parts and brought back the bright lines there (translucency buffer of the example head:
-// 99.9th percentile 0.26 with it, 0.02 without). Returns -1 where the map has no surface.
-float tsm_thickness_mm(int i, vec3 P, out vec2 uv_near) {
-    float dist_near_mm;
-    if (!tsm_lookup(i, P, uv_near, dist_near_mm)) return -1.0;
-    return max(light_distance_mm(i, P) - dist_near_mm, 0.0);
+    float z = c.z - 2.0 * length(dz) * texel;
+    float radius = uShadowParams[i].x * texel;
+    if (radius <= 0.0) return shadow_tap(i, c.xy, z);
+    float sum = 0.0;
+    vec2 sd = vec2(0.0), d_mean = vec2(0.0);
+    mat2 C = mat2(0.0);
+    for (int k = 0; k < 16; ++k) {
+        vec2 delta = POISSON16[k] * radius;
+        float s = shadow_tap(i, c.xy + delta, z + dot(dz, delta));
+        sum += s;
+        sd += s * delta;
+        d_mean += delta;
+        C += outerProduct(delta, delta);
+    }
+    float s_mean = sum / 16.0;
+    d_mean /= 16.0;
+    C -= 16.0 * outerProduct(d_mean, d_mean);
+    vec2 g = inverse(C) * (sd - 16.0 * s_mean * d_mean);  // ds per map uv
+    float gl = length(g);
+    if (gl <= 1e-6) return s_mean;
+    // the tangent-plane step whose map projection is (1 / |g|) along g: J a = step, J's columns
+    // the map uv moved by a unit step along two tangents (scene units)
+    float h = max(uShadowParams[i].z, 1e-6);
+    vec3 t1 = normalize(cross(N, abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
+    vec3 t2 = cross(N, t1);
+    vec3 c1, c2;
+    shadow_coords(i, P + t1 * h, vec3(0.0), c1);
+    shadow_coords(i, P + t2 * h, vec3(0.0), c2);
+    mat2 J = mat2((c1.xy - c.xy) / h, (c2.xy - c.xy) / h);
+    float det = determinant(J);
+    if (abs(det) < 1e-20) return s_mean;  // the light grazes the surface: the caller bounds it
+    vec2 a = inverse(J) * (g / (gl * gl));
+    width_mm = length(a) * uMmPerUnit;
+    return s_mean;
 }

@@ -56,41 +56,42 @@ vec3 penumbra_lookup(float shadow, float width_mm) {
     return textureLod(uPenumbraTable, table_coord(uPenumbraTable, vec2(shadow, t)), 0.0).rgb;
 }
 
-// Width (mm) of light i's penumbra on the surface at P. The shadow value s rises from 0 to 1
-// across it, so where 0 < s < 1 the width is 1 / |grad s|, the gradient from the screen
-// derivatives of s over the pixel's size in mm (pixel_mm). It is bounded by the PCF filter's
-// diameter, 2 (softness + 1) texels (the Poisson disc and each tap's bilinear 2x2), in world
-// units from the light's projection (uv per world unit = |row 0| / 2w), projected on the surface:
-// from that (an edge along the light's projected direction) to that / N.L (across it).
-float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float ds_per_pixel, float pixel_mm) {
+// Width (mm) of light i's penumbra on the surface at P: measured from the PCF taps' own gradient
+// (common/shadow.glsl, shadow_soft_penumbra; no screen derivatives), bounded by the PCF filter's
+// diameter, 2 (softness + 1) texels (the Poisson disc and each tap's bilinear 2x2), in world units
+// from the light's projection (uv per world unit = |row 0| / 2w), projected on the surface: from
+// that (an edge along the light's projected direction) to that / N.L (across it).
+float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
     mat4 M = uLightViewProj[i];
     float w = (M * vec4(P, 1.0)).w;
     float row0 = length(vec3(M[0][0], M[1][0], M[2][0]));
     float texel_world = uShadowParams[i].w * 2.0 * abs(w) / max(row0, 1e-12);
     float pcf_mm = 2.0 * (uShadowParams[i].x + 1.0) * texel_world * uMmPerUnit;
-    float measured = pixel_mm / max(ds_per_pixel, 1e-6);
-    return clamp(measured, pcf_mm, pcf_mm / max(ndl_geometric, 0.2));
+    return clamp(measured_mm, pcf_mm, pcf_mm / max(ndl_geometric, 0.2));
 }
 
 void main() {
     vec3 Ngeo = normalize(v_normal);
     vec3 P_mm = v_world * uMmPerUnit;
-    // curvature (1/mm): the mesh's, or Penner's length(fwidth(N)) / length(fwidth(P))
-    float curvature_derivatives = length(fwidth(Ngeo)) / max(length(fwidth(P_mm)), 1e-9);
+    // curvature (1/mm): the mesh's, or Penner's length(fwidth(N)) / length(fwidth(P)). Every screen
+    // derivative here is the fine one (per pixel, not per 2x2 quad): GLSL leaves plain dFdx / fwidth
+    // to the implementation, which picks coarse or fine per GPU.
+    float curvature_derivatives = length(fwidthFine(Ngeo)) / max(length(fwidthFine(P_mm)), 1e-9);
     float curvature = uCurvatureFromMesh > 0.5 ? abs(v_curvature) : curvature_derivatives;
     // the normal map's texels per mm (square root of the area ratio of a pixel's footprint)
     vec2 tex = vec2(textureSize(uNormalMap, 0));
     vec2 nuv = normal_map_uv(v_uv);  // the normal map's own coordinates (its UV set and transform)
-    vec2 duvx = dFdx(nuv) * tex, duvy = dFdy(nuv) * tex;
+    vec2 duvx = dFdxFine(nuv) * tex, duvy = dFdyFine(nuv) * tex;
     float area_uv = abs(duvx.x * duvy.y - duvx.y * duvy.x);
-    float area_mm = length(cross(dFdx(P_mm), dFdy(P_mm)));  // a pixel's footprint, mm^2
-    float pixel_mm = sqrt(area_mm);
+    float area_mm = length(cross(dFdxFine(P_mm), dFdyFine(P_mm)));  // a pixel's footprint, mm^2
     float texels_per_mm = sqrt(area_uv / max(area_mm, 1e-12));
 
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     // blurred normals: mip level L averages 2^L texels, a box of standard deviation 2^L / sqrt(12);
-    // never finer than the pixel's own footprint (the level texture() would pick)
-    float footprint_lod = textureQueryLod(uNormalMap, nuv).x;
+    // never finer than the pixel's own footprint: the level of the OpenGL 4.5 spec's (8.14) isotropic
+    // formula, log2 of the longer of the two texel-space derivatives (textureQueryLod is allowed to
+    // approximate it, and GPUs do)
+    float footprint_lod = 0.5 * log2(max(max(dot(duvx, duvx), dot(duvy, duvy)), 1e-12));
     vec3 lod = max(log2(max(uScatterRadiusMm * texels_per_mm * 3.4641016, vec3(1.0))) * uBlurredNormals,
                    vec3(footprint_lod));
     vec3 N_red = perturb_normal_lod(v_normal, v_tangent, v_uv, lod.r);
@@ -109,12 +110,12 @@ void main() {
         vec3 Ei = light_incident(i, v_world, L);
         vec3 D = diffuse_lookup(vec3(dot(N_red, L), dot(N_green, L), dot(N_blue, L)), curvature);
         bool lit = max(D.r, max(D.g, D.b)) > 0.0;
-        float s = lit ? shadow_soft(i, v_world, Ngeo) : 0.0;
-        float ds = length(vec2(dFdx(s), dFdy(s)));  // outside any branch: derivatives need all 4 pixels
         if (!lit) continue;
+        float width_mm;
+        float s = shadow_soft_penumbra(i, v_world, Ngeo, width_mm);
         vec3 S = vec3(s);
         if (uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0)
-            S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), ds, pixel_mm));
+            S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm));
         E += Ei * D * S * energy_transmitted(rho_s, clamp(dot(N, L), 0.0, 1.0), m);
     }
     vec3 ambient = vec3(environment_irradiance_occluded(N_red, Ngeo, v_visibility).r,
