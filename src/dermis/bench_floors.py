@@ -24,7 +24,7 @@ import moderngl
 import numpy as np
 
 from dermis.camera import camera_matrices
-from dermis.gl.resources import mat_bytes
+from dermis.gl.resources import mat_bytes, set_uniform
 from dermis.gl.shaders import program
 from dermis.techniques.base import PassTimer
 
@@ -73,7 +73,7 @@ def measure_floors(renderer, irradiance_size: int | None = None, repeats: int = 
             fbo.use()
             fbo.viewport = (0, 0, w, h)
             src.use(0)
-            p_copy["uSource"].value = 0
+            set_uniform(p_copy, "uSource", 0)
             vao_copy.render(moderngl.TRIANGLES, vertices=3)
         return run, fbo
 
@@ -109,7 +109,7 @@ def measure_floors(renderer, irradiance_size: int | None = None, repeats: int = 
     p_screen = keep(program(ctx, "bench/screen_raster.vert", "bench/constant.frag"))
     lo, hi = scene.bounds()
     view, proj, *_ = camera_matrices(scene.camera, w / h, lo, hi)
-    p_screen["uViewProj"].write(mat_bytes(np.asarray(proj) @ np.asarray(view)))
+    set_uniform(p_screen, "uViewProj", mat_bytes(np.asarray(proj) @ np.asarray(view)))
     vao_screen = gpu.vao(p_screen)
 
     def screen():
@@ -136,7 +136,7 @@ def measure_floors(renderer, irradiance_size: int | None = None, repeats: int = 
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
         for i in shadowed:
-            p_depth["uViewProj"].write(mat_bytes(lights.viewproj[i]))
+            set_uniform(p_depth, "uViewProj", mat_bytes(lights.viewproj[i]))
             vao_depth.render(moderngl.TRIANGLES)
 
     out["depth_only"] = _median_ms(timer, "depth_only", depth_only, repeats) if shadowed else 0.0
