@@ -90,6 +90,36 @@ def fingerprint(a) -> tuple | None:
     return (a.shape, a.dtype.str, a.strides, offset, owner.nbytes, _digest(owner))
 
 
+_MEMO: dict = {}  # (name, id(first array), params) -> (content key of the arrays, value)
+_MEMO_KEEP = 64
+
+
+def memo_by_content(name: str, arrays: tuple, params, compute):
+    """``compute()``, a function of the CONTENT of ``arrays`` (and of the hashable ``params``) only,
+    remembered until that content changes: each call fingerprints the arrays (cheap: a pass of
+    XXH3 over their bytes, none for immutable ones) instead of recomputing what is derived from
+    them (a mesh's bounds, its head vertices, its positions in float64). The slot is chosen by the
+    first array's id, but a value is returned only when the fingerprints equal those it was computed
+    from, so a reused id or an in-place edit costs a recomputation, never a stale value. Values are
+    shared between callers: return them read-only or copy them."""
+    key = tuple(fingerprint(a) for a in arrays)
+    slot = (name, id(arrays[0]), params)
+    hit = _MEMO.get(slot)
+    if hit is not None and hit[0] == key:
+        return hit[1]
+    value = compute()
+    if slot not in _MEMO and len(_MEMO) >= _MEMO_KEEP:
+        _MEMO.pop(next(iter(_MEMO)))
+    _MEMO[slot] = (key, value)
+    return value
+
+
+def read_only(a: np.ndarray) -> np.ndarray:
+    """``a`` flagged read-only (for values shared through memo_by_content)."""
+    a.flags.writeable = False
+    return a
+
+
 def _texture(t):
     return None if t is None else (fingerprint(t.data), tuple(t.wrap), t.filters, int(t.texcoord),
                                    fingerprint(t.transform))
@@ -141,11 +171,15 @@ def scene_inputs(scene, *, irradiance_size: int, epoch: int) -> dict:
 
 def product_keys(inputs: dict) -> dict:
     """One hex key per product of PRODUCTS, from the inputs it declares."""
+    reprs = {}  # each input written out once, however many products share it
     out = {}
     for product, names in PRODUCTS.items():
         h = hashlib.sha1()
         for n in names:
+            r = reprs.get(n)
+            if r is None:
+                r = reprs[n] = repr(inputs[n]).encode()
             h.update(n.encode())
-            h.update(repr(inputs[n]).encode())
+            h.update(r)
         out[product] = h.hexdigest()
     return out

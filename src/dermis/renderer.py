@@ -62,6 +62,7 @@ class Renderer:
         self._built = {}  # product -> the key it was built with (dermis.invalidation.PRODUCTS)
         self._lights = None  # LightUniforms of the key self._built["light_uniforms"]
         self._epoch = 0  # bumped by invalidate(): an input of the products that invalidate() re-runs
+        self._keys_memo = None  # (inputs, product keys) of the last product_keys()
         self._last_camera = None
         self.visibility = None  # the last VertexVisibility uploaded (geometry/visibility.py), None when off
         self._texture_space_checked = None  # the mesh object _texture_space_mesh last returned
@@ -140,8 +141,14 @@ class Renderer:
         return scene_inputs(self.scene, irradiance_size=self.irradiance_size, epoch=self._epoch)
 
     def product_keys(self) -> dict:
-        """The key of every cached product of dermis.invalidation.PRODUCTS for the current scene."""
-        return product_keys(self.inputs())
+        """The key of every cached product of dermis.invalidation.PRODUCTS for the current scene.
+        Inputs equal to the last call's (compared as values: content keys and numbers) give the
+        last call's keys without hashing them again (the viewer asks for them several times a frame)."""
+        inputs = self.inputs()
+        memo = self._keys_memo
+        if memo is None or memo[0] != inputs:
+            memo = self._keys_memo = (inputs, product_keys(inputs))
+        return dict(memo[1])
 
     def lighting_key(self) -> str:
         """Everything the view-independent (texture-space) passes depend on."""

@@ -14,6 +14,7 @@ from dermis.camera import light_matrices
 from dermis.environment import environment_sh
 from dermis.geometry.visibility import open_visibility
 from dermis.images import as_rgb
+from dermis.invalidation import memo_by_content, read_only
 from dermis.scene.model import mean_skin_albedo, skin_albedo_scale
 from dermis.techniques.shared import LIGHT_TYPES, MAX_LIGHTS, SHARED_SAMPLERS
 
@@ -289,8 +290,11 @@ class LightUniforms:
         self.viewproj = np.zeros((n, 4, 4), np.float32)
         self.map_half_extent = np.zeros(n, np.float64)  # half a shadow map's width, scene units
         lo, hi = scene.bounds()
+        points = scene.all_positions()
+        # the frusta are fitted to every vertex in float64: converted once per mesh content
+        points = memo_by_content("float64", (points,), (), lambda: read_only(np.array(points, np.float64)))
         for i, L in enumerate(lights):
-            vp, eye, half = light_matrices(L, lo, hi, scene.all_positions())
+            vp, eye, half = light_matrices(L, lo, hi, points)
             self.viewproj[i] = vp
             self.map_half_extent[i] = half
             pos = np.asarray(L.position, np.float32) if L.kind != "directional" else eye.astype(np.float32)
