@@ -101,7 +101,7 @@ def workload_frames(scene, renderer, technique, workload):
 
 
 def measure(techniques=("tsd",), workloads=("camera", "lights"), frames=30, size=64, irradiance=128, shadow=256,
-            scene_path=HEAD) -> dict:
+            scene_path=HEAD, profiler=None) -> dict:
     import dermis
     from dermis.renderer import Renderer
 
@@ -116,12 +116,16 @@ def measure(techniques=("tsd",), workloads=("camera", "lights"), frames=30, size
                     for f in range(3):  # warm-up: compile, first-frame products
                         frame(f)
                     walls, gls, cpus = [], [], []
+                    if profiler:
+                        profiler.enable()
                     for f in range(frames):
                         g0, c0, t0 = clock.total, time.thread_time(), time.perf_counter()
                         frame(f + 3)
                         walls.append((time.perf_counter() - t0) * 1e3)
                         gls.append((clock.total - g0) * 1e3)
                         cpus.append((time.thread_time() - c0) * 1e3)
+                    if profiler:
+                        profiler.disable()
                     py = [w - g for w, g in zip(walls, gls)]
                     out[f"{tech}/{workload}"] = {"python_ms": statistics.median(py), "gl_ms": statistics.median(gls),
                                                  "wall_ms": statistics.median(walls),
@@ -217,9 +221,7 @@ def main():
         import pstats
 
         pr = cProfile.Profile()
-        pr.enable()
-        measure(techs, loads, a.frames, a.size, a.irradiance)
-        pr.disable()
+        measure(techs, loads, a.frames, a.size, a.irradiance, profiler=pr)
         pstats.Stats(pr).sort_stats("tottime").print_stats(40)
         return
     if a.baseline:
