@@ -156,14 +156,20 @@ def set_profile_uniforms(prog, profile, max_gaussians: int = MAX_GAUSSIANS) -> N
     normalised per channel (sum_k w_k = 1), padded to ``max_gaussians`` (weights 0, variances 1:
     a padded entry adds nothing and never divides by zero)."""
     from dermis.gl.resources import set_uniform
+    from dermis.invalidation import memo_by_content, read_only
 
     K = profile.k
     if K > max_gaussians:
         raise DermisError(f"profile '{profile.name}' has {K} Gaussians; at most {max_gaussians} are supported")
-    weights = np.zeros((max_gaussians, 3), np.float32)
-    weights[:K] = profile.normalized().weights
-    variances = np.ones(max_gaussians, np.float32)
-    variances[:K] = profile.variances_mm2
+
+    def arrays():  # per profile content, not per pass
+        weights = np.zeros((max_gaussians, 3), np.float32)
+        weights[:K] = profile.normalized().weights
+        variances = np.ones(max_gaussians, np.float32)
+        variances[:K] = profile.variances_mm2
+        return read_only(weights), read_only(variances)
+    weights, variances = memo_by_content("profile_uniforms", (profile.variances_mm2, profile.weights), max_gaussians,
+                                         arrays)
     set_uniform(prog, "uGaussianCount", K)
     for name, arr in (("uWeights", weights), ("uVariances", variances)):
         u = prog.get(name, None)
