@@ -98,7 +98,11 @@ def _plain(x) -> bool:
 def _num(value, where, lo, hi, lo_open=False):
     if _plain(value) and math.isfinite(value) and lo <= value <= hi and not (lo_open and value == lo):
         return float(value)
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+    try:
+        finite = math.isfinite(value)
+    except (OverflowError, TypeError):  # an int beyond float's range (10 ** 400), not a number
+        finite = False
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not finite:
         raise DermisError(f"{where} must be a finite number, got {value!r}")
     if value < lo or (lo_open and value == lo) or value > hi:
         raise DermisError(f"{where} must be in {'(' if lo_open else '['}{lo:g}, {hi:g}], got {value!r}")
