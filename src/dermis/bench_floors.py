@@ -9,7 +9,8 @@ no arithmetic:
   texel: the floor of one blur pass; a chain of K Gaussians (2K passes) has a floor of 2K copies
   (``copy_screen``, the same at the output size, bounds screen-space blurs);
 - ``uv_raster``: the mesh rasterised in its UV layout into an S x S RGBA16F target with a constant
-  fragment: the floor of the texture-space irradiance and translucency passes;
+  fragment: the floor of the texture-space irradiance and translucency passes (tsd's irradiance
+  pass also dilates its result into the UV gutters, a full-screen pass: its floor adds one copy);
 - ``screen_raster``: the mesh rasterised on screen into the frame's multisampled target, depth
   tested, constant fragment: the floor of a technique's final (screen-space) pass;
 - ``depth_only``: the mesh into a depth-only target of the shadow tile size, once per shadowed
@@ -151,8 +152,10 @@ def measure_floors(renderer, irradiance_size: int | None = None, repeats: int = 
 def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
     if pass_name == "shadow":
         return floors["depth_only"] or None
-    if pass_name in ("tsd_irradiance", "ssss_irradiance"):
-        return floors["uv_raster"] if pass_name.startswith("tsd") else floors["screen_raster"]
+    if pass_name == "tsd_irradiance":  # the UV-space raster, then the dilation into the gutters (one copy)
+        return floors["uv_raster"] + floors["copy"]
+    if pass_name == "ssss_irradiance":
+        return floors["screen_raster"]
     if pass_name == "tsd_translucency":
         return floors["uv_raster_half"]
     if pass_name == "tsd_blur":

