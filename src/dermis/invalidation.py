@@ -4,7 +4,9 @@ A cached product (the shadow atlas, the mesh on the GPU, the material textures, 
 texture-space passes, ...) is rebuilt when the key of its inputs changes. Keys are computed from
 CONTENT, never from object identity: an array's key is a checksum of its bytes (so an in-place
 edit is seen and a new array with equal values is not a change), a scalar's is its value. No key
-uses ``id()``, which an unrelated object can reuse once the first is garbage-collected.
+uses ``id()``, which an unrelated object can reuse once the first is garbage-collected (values
+derived from arrays, memo_by_content, use an id only to pick a slot and are returned only when the
+arrays' content keys match).
 
 Checking content costs a pass over the bytes each frame: XXH3 (128 bit) reads about 20 GB/s on
 one core, about 1.5 ms for the head's three 1024^2 float maps (zlib's CRC-32 took 10-25 ms).
@@ -21,6 +23,7 @@ map must make a new array (numpy raises on an in-place write), which gets a new 
 from __future__ import annotations
 
 import hashlib
+import threading
 
 import numpy as np
 import xxhash
@@ -92,6 +95,7 @@ def fingerprint(a) -> tuple | None:
 
 _MEMO: dict = {}  # (name, id(first array), params) -> (content key of the arrays, value)
 _MEMO_KEEP = 64
+_MEMO_LOCK = threading.Lock()
 
 
 def memo_by_content(name: str, arrays: tuple, params, compute):
@@ -108,9 +112,10 @@ def memo_by_content(name: str, arrays: tuple, params, compute):
     if hit is not None and hit[0] == key:
         return hit[1]
     value = compute()
-    if slot not in _MEMO and len(_MEMO) >= _MEMO_KEEP:
-        _MEMO.pop(next(iter(_MEMO)))
-    _MEMO[slot] = (key, value)
+    with _MEMO_LOCK:  # the viewer's worker threads may call in too
+        if slot not in _MEMO and len(_MEMO) >= _MEMO_KEEP:
+            _MEMO.pop(next(iter(_MEMO)))
+        _MEMO[slot] = (key, value)
     return value
 
 
