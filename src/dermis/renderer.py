@@ -206,10 +206,10 @@ class Renderer:
         msaa = ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
         resolved = ctx.texture((w, h), 4, dtype="f4")
         resolve_fbo = ctx.framebuffer(color_attachments=[resolved])
-        # readback buffers, RGB and RGBA: glReadPixels drops alpha itself (numpy's 3-of-4 copy cost
-        # 4x a plain copy: 12 ms at 960x640 on the loaded 2-core machine)
+        # readback buffers by channel count (3 or 4), made on first use: glReadPixels drops alpha itself
+        # (numpy's 3-of-4 copy cost 4x a plain copy: 12 ms at 960x640 on the loaded 2-core machine)
         self._targets = {"color": color, "depth": depth, "fbo": msaa, "resolved": resolved, "resolve_fbo": resolve_fbo,
-                         "readback": {3: np.empty((h, w, 3), np.float32), 4: np.empty((h, w, 4), np.float32)}}
+                         "readback": {}}
         self._targets_size = size
 
     @staticmethod
@@ -363,8 +363,12 @@ class Renderer:
     def _read_resolved(self, with_alpha: bool) -> np.ndarray:
         """The resolved frame as float32 (H, W, 3 or 4), row 0 = top: one read, one flipping copy."""
         t = self._targets
-        buf = t["readback"][4 if with_alpha else 3]
-        t["resolve_fbo"].read_into(buf, components=buf.shape[2], dtype="f4")
+        c = 4 if with_alpha else 3
+        buf = t["readback"].get(c)
+        if buf is None:
+            w, h = t["resolved"].size
+            buf = t["readback"][c] = np.empty((h, w, c), np.float32)
+        t["resolve_fbo"].read_into(buf, components=c, dtype="f4")
         return buf[::-1].copy()
 
     def read_frame(self, with_alpha: bool = False) -> np.ndarray:
