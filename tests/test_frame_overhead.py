@@ -81,6 +81,9 @@ def test_framed_camera_follows_an_in_place_mesh_edit_and_a_new_up():
     assert grown == expected(sc.camera)
     tilted = dataclasses.replace(sc.camera, up=(0.2, 1.0, 0.0))
     assert framed_camera(tilted, m, 1.5) == expected(tilted)
+    moved = dataclasses.replace(sc.camera, position=(1.0, 0.5, 4.0))  # the fit is kept per view too
+    assert framed_camera(moved, m, 1.5) == expected(moved) != expected(sc.camera)
+    assert framed_camera(sc.camera, m, 1.2) == fit_camera(sc.camera, head_vertices(m.positions, sc.camera.up), 1.2)
     assert m.positions.flags.writeable  # the memo's copies are read-only, the mesh's arrays are not
 
 

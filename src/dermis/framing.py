@@ -91,4 +91,15 @@ def framed_camera(camera, mesh, aspect: float):
         p = np.array(head_vertices(mesh.positions, up))  # a copy: it may be the positions themselves
         return read_only(p), read_only(_box_centre(p))
     p, c = memo_by_content("framing.head", (mesh.positions,), up, head)
-    return fit_camera(camera, p, aspect, centre=c)
+    try:  # the fit itself per view too: a frame whose camera did not move (lights moving) reuses it
+        view = (tuple(float(x) for x in camera.position), tuple(float(x) for x in camera.target), up,
+                float(camera.fov_deg), float(aspect))
+    except (TypeError, ValueError):
+        return fit_camera(camera, p, aspect, centre=c)
+    last = memo_by_content("framing.fit", (mesh.positions,), up, dict)  # {view: fit}, the last one per mesh content
+    fitted = last.get(view)
+    if fitted is None:
+        fitted = fit_camera(camera, p, aspect, centre=c)
+        last.clear()
+        last[view] = fitted
+    return dataclasses.replace(camera, position=fitted.position, target=fitted.target)
