@@ -13,6 +13,7 @@ import json
 import math
 import platform
 import statistics
+import time
 from pathlib import Path
 
 import click
@@ -29,10 +30,104 @@ def _rotate(v, angle):
     return (c * x + s * z, y, -s * x + c * z)
 
 
+class GpuBusyClock:
+    """GPU time of a run of frames submitted back to back, read only after all were submitted.
+
+    On a GPU: one GL_TIME_ELAPSED query around each whole frame (nothing else queried meanwhile:
+    the pass timer is off), read after the last frame. A query counts from the moment the GPU
+    reaches the frame's first command to its last, so where the CPU submits slower than the GPU
+    draws, the GPU's waits inside the frame are counted too: then it is the CPU's submit time.
+    On Mesa's CPU rasteriser (timer queries unreliable there, see PassTimer) the "GPU" is
+    llvmpipe's rasteriser threads: their run time (/proc/self/task/*/schedstat, ns) over the run,
+    divided by their number, i.e. how long they were busy per frame if evenly loaded (a lower
+    bound: llvmpipe's vertex processing and setup run in the calling thread, not counted)."""
+
+    def __init__(self, ctx, frames: int):
+        from dermis.gl.context import is_software
+
+        self.ctx = ctx
+        self.software = is_software(ctx)
+        self.queries = [] if self.software else [ctx.query(time=True) for _ in range(frames)]
+        self._start = None
+
+    @staticmethod
+    def _rasteriser_ns() -> tuple[int, int]:
+        """(summed run time in ns, thread count) of llvmpipe's threads in this process."""
+        total, n = 0, 0
+        for task in Path("/proc/self/task").iterdir():
+            try:
+                if not (task / "comm").read_text().startswith("llvmpipe"):
+                    continue
+                total += int((task / "schedstat").read_text().split()[0])
+                n += 1
+            except (OSError, ValueError, IndexError):
+                continue
+        return total, n
+
+    def start(self):
+        if self.software:
+            self._start = self._rasteriser_ns()[0]
+
+    def frame(self, i: int):
+        """Context manager around frame i's submission (a query on a GPU; nothing on llvmpipe)."""
+        if self.software:
+            from contextlib import nullcontext
+
+            return nullcontext()
+        return self.queries[i]
+
+    def ms_per_frame(self, frames: int) -> float:
+        """After ctx.finish(): the GPU ms per frame (mean)."""
+        if self.software:
+            total, n = self._rasteriser_ns()
+            return (total - self._start) / 1e6 / max(n, 1) / frames
+        ms = [q.elapsed / 1e6 for q in self.queries[:frames]]
+        return sum(ms) / len(ms)
+
+    def release(self):
+        self.queries = []  # moderngl's Query has no release(); the context frees them with itself
+
+
+def pipelined(renderer, technique: str, step, frames: int) -> dict:
+    """``frames`` frames of ``technique`` back to back, as a viewer draws them: ``step(f)`` moves
+    the scene before frame f, the pass timer is off (no per-pass queries or finishes), nothing is
+    read back between frames and the GPU is waited for once, after the last. Returns ms per frame:
+    ``gpu_ms`` (GpuBusyClock), ``throughput_ms`` (wall time of all frames and the one finish /
+    frames: CPU and GPU together, overlapped as far as the driver lets them) and ``readback_ms``
+    (one extra frame's read back alone: the GPU->CPU copy, the row flip and the finite check)."""
+    r, ctx = renderer, renderer.ctx
+    timing = r.timer.enabled
+    r.timer.enabled = False
+    clock = GpuBusyClock(ctx, frames)
+    try:
+        step(-1)
+        r.render(technique, readback=False)  # the first frame after a change of workload: warm
+        ctx.finish()
+        clock.start()
+        t0 = time.perf_counter()
+        for f in range(frames):
+            step(f)
+            with clock.frame(f):
+                r.render(technique, readback=False)
+        ctx.finish()
+        wall = (time.perf_counter() - t0) * 1e3 / frames
+        gpu = clock.ms_per_frame(frames)
+        t1 = time.perf_counter()
+        r.read_frame()
+        readback = (time.perf_counter() - t1) * 1e3
+    finally:
+        r.timer.enabled = timing
+        clock.release()
+    return {"frames": frames, "gpu_ms": gpu, "throughput_ms": wall, "readback_ms": readback,
+            "gpu_clock": "llvmpipe rasteriser threads" if clock.software else "GL_TIME_ELAPSED per frame"}
+
+
 def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames=5, progress=None, device=None,
-              floors: bool = True):
+              floors: bool = True, pipelined_frames: int = 10):
     """Median frame and pass times per technique and workload; with ``floors``, also the floors of
-    dermis.bench_floors measured on the same renderer (``info["floors_ms"]``)."""
+    dermis.bench_floors measured on the same renderer (``info["floors_ms"]``); with
+    ``pipelined_frames``, also each workload's frames back to back (:func:`pipelined`:
+    ``results[technique]["pipelined"][workload]``)."""
     from dermis.bench_floors import measure_floors
     from dermis.renderer import Renderer
 
@@ -49,13 +144,16 @@ def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames
             res = {}
             for mode in ("lights", "camera"):
                 times, passes = [], {}
-                for f in range(frames):
+
+                def step(f, mode=mode):
                     if mode == "lights":
                         for L, d in zip(scene.lights, base_light):
                             L.direction = _rotate(d, 0.02 * (f + 1))
                     else:
                         off = np.asarray(base_cam, float) - target
                         scene.camera.position = tuple(target + np.asarray(_rotate(off, 0.03 * (f + 1))))
+                for f in range(frames):
+                    step(f)
                     r.render(name)
                     times.append(r.stats["frame_ms"])
                     for k, v in r.stats["passes_ms"].items():
@@ -68,6 +166,11 @@ def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames
                 res[mode] = {"frame_ms": statistics.median(times),
                              "passes_ms": {k: statistics.median(v) for k, v in passes.items()},
                              "passes_run": list(r.stats["passes_run"])}
+                if pipelined_frames > 0:
+                    res.setdefault("pipelined", {})[mode] = pipelined(r, name, step, pipelined_frames)
+                    for L, d in zip(scene.lights, base_light):
+                        L.direction = d
+                    scene.camera.position = base_cam
             results[name] = res
     return info, results
 
@@ -84,6 +187,21 @@ def markdown_table(info, results, size, irradiance_size, gaussians: int = 6):
         rc = f"{cm / base['camera']['frame_ms']:.2f}x" if base else "-"
         passes = ", ".join(f"{k} {v:.0f}" for k, v in res["lights"]["passes_ms"].items())
         lines.append(f"| {name} | {lm:.0f} | {rl} | {cm:.0f} | {rc} | {passes} |")
+    piped = {name: res["pipelined"] for name, res in results.items() if res.get("pipelined")}
+    if piped:
+        first = next(iter(piped.values()))
+        n, clock = next(iter(first.values()))["frames"], next(iter(first.values()))["gpu_clock"]
+        lines += ["", f"Pipelined frames ({n} back to back per workload as a viewer draws them: pass timer off, nothing read "
+                  f"back between frames, one finish at the end; GPU ms per frame from {clock}; throughput = wall time / "
+                  f"frames, CPU and GPU together; readback = one frame's read back alone):", "",
+                  "| technique | lights moving: GPU ms/frame | lights moving: throughput ms/frame | "
+                  "camera moving: GPU ms/frame | camera moving: throughput ms/frame | readback (ms) |",
+                  "|---|---|---|---|---|---|"]
+        for name, p in piped.items():
+            lm, cm = p.get("lights", {}), p.get("camera", {})
+            cell = lambda d, k: f"{d[k]:.2f}" if k in d else "-"  # noqa: E731
+            lines.append(f"| {name} | {cell(lm, 'gpu_ms')} | {cell(lm, 'throughput_ms')} | {cell(cm, 'gpu_ms')} | "
+                         f"{cell(cm, 'throughput_ms')} | {cell(lm or cm, 'readback_ms')} |")
     floors = info.get("floors_ms")
     if floors:
         lines += ["", "Floors (ms, same run; dermis.bench_floors): " +
@@ -115,13 +233,17 @@ def floor_ratios(passes_ms: dict, floors: dict, gaussians: int) -> dict:
               help="Texture-space resolution (default 1024; with --viewer the viewer's own choice from the head's size "
                    "on screen, dermis.adaptive_resolution).")
 @click.option("--frames", type=int, default=5, show_default=True, help="Timed frames per workload (median).")
+@click.option("--pipelined-frames", type=click.IntRange(0, 10000), default=10, show_default=True,
+              help="Also this many frames per workload back to back without per-pass timing or readback "
+                   "(GPU ms and throughput per frame; 0: off).")
 @click.option("--json", "json_out", default=None, help="Write the results as JSON.")
 @click.option("--markdown", default=None, help="Write the table as Markdown.")
 @click.option("--accuracy/--no-accuracy", default=True, help="Also measure tsd's impulse error with and without reduced-resolution blurs.")
 @click.option("--device", type=int, default=None)
 @click.option("--viewer", is_flag=True, help="Measure the interactive viewer instead (a scripted session in a real "
               "window, 960x640 unless --size is given; needs a display: xvfb-run -a dermis bench --viewer).")
-def bench_cmd(scene, techniques, size, irradiance_size, frames, json_out, markdown, accuracy, device, viewer):
+def bench_cmd(scene, techniques, size, irradiance_size, frames, pipelined_frames, json_out, markdown, accuracy, device,
+              viewer):
     """Time every technique on the real head (default) relative to lambert."""
     import dermis
     import dermis.verification
@@ -151,7 +273,8 @@ def bench_cmd(scene, techniques, size, irradiance_size, frames, json_out, markdo
     from tqdm import tqdm
 
     with tqdm(total=len(names) * 2 * frames, desc="bench", unit="frame") as bar:
-        info, results = run_bench(sc, names, (w, h), irradiance_size, frames, progress=bar.update, device=device)
+        info, results = run_bench(sc, names, (w, h), irradiance_size, frames, progress=bar.update, device=device,
+                                  pipelined_frames=pipelined_frames)
     table = markdown_table(info, results, (w, h), irradiance_size, gaussians=sc.profile.k)
     click.echo(table)
     extra = {}

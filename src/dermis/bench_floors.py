@@ -9,7 +9,8 @@ no arithmetic:
   texel: the floor of one blur pass; a chain of K Gaussians (2K passes) has a floor of 2K copies
   (``copy_screen``, the same at the output size, bounds screen-space blurs);
 - ``uv_raster``: the mesh rasterised in its UV layout into an S x S RGBA16F target with a constant
-  fragment: the floor of the texture-space irradiance and translucency passes;
+  fragment: the floor of the texture-space irradiance and translucency passes (tsd's irradiance
+  pass also dilates its result into the UV gutters, a full-screen pass: its floor adds one copy);
 - ``screen_raster``: the mesh rasterised on screen into the frame's multisampled target, depth
   tested, constant fragment: the floor of a technique's final (screen-space) pass;
 - ``depth_only``: the mesh into a depth-only target of the shadow tile size, once per shadowed
@@ -24,7 +25,7 @@ import moderngl
 import numpy as np
 
 from dermis.camera import camera_matrices
-from dermis.gl.resources import mat_bytes
+from dermis.gl.resources import mat_bytes, set_uniform
 from dermis.gl.shaders import program
 from dermis.techniques.base import PassTimer
 
@@ -73,7 +74,7 @@ def measure_floors(renderer, irradiance_size: int | None = None, repeats: int = 
             fbo.use()
             fbo.viewport = (0, 0, w, h)
             src.use(0)
-            p_copy["uSource"].value = 0
+            set_uniform(p_copy, "uSource", 0)
             vao_copy.render(moderngl.TRIANGLES, vertices=3)
         return run, fbo
 
@@ -109,7 +110,7 @@ def measure_floors(renderer, irradiance_size: int | None = None, repeats: int = 
     p_screen = keep(program(ctx, "bench/screen_raster.vert", "bench/constant.frag"))
     lo, hi = scene.bounds()
     view, proj, *_ = camera_matrices(scene.camera, w / h, lo, hi)
-    p_screen["uViewProj"].write(mat_bytes(np.asarray(proj) @ np.asarray(view)))
+    set_uniform(p_screen, "uViewProj", mat_bytes(np.asarray(proj) @ np.asarray(view)))
     vao_screen = gpu.vao(p_screen)
 
     def screen():
@@ -136,7 +137,7 @@ def measure_floors(renderer, irradiance_size: int | None = None, repeats: int = 
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
         for i in shadowed:
-            p_depth["uViewProj"].write(mat_bytes(lights.viewproj[i]))
+            set_uniform(p_depth, "uViewProj", mat_bytes(lights.viewproj[i]))
             vao_depth.render(moderngl.TRIANGLES)
 
     out["depth_only"] = _median_ms(timer, "depth_only", depth_only, repeats) if shadowed else 0.0
@@ -151,8 +152,10 @@ def measure_floors(renderer, irradiance_size: int | None = None, repeats: int = 
 def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
     if pass_name == "shadow":
         return floors["depth_only"] or None
-    if pass_name in ("tsd_irradiance", "ssss_irradiance"):
-        return floors["uv_raster"] if pass_name.startswith("tsd") else floors["screen_raster"]
+    if pass_name == "tsd_irradiance":  # the UV-space raster, then the dilation into the gutters (one copy)
+        return floors["uv_raster"] + floors["copy"]
+    if pass_name == "ssss_irradiance":
+        return floors["screen_raster"]
     if pass_name == "tsd_translucency":
         return floors["uv_raster_half"]
     if pass_name == "tsd_blur":

@@ -17,7 +17,7 @@ import dataclasses
 
 import numpy as np
 
-from dermis.camera import normalize
+from dermis.camera import cross3, normalize
 
 
 def head_vertices(positions, up=(0.0, 1.0, 0.0), bins: int = 48, neck_ratio: float = 0.75):
@@ -45,16 +45,21 @@ def head_vertices(positions, up=(0.0, 1.0, 0.0), bins: int = 48, neck_ratio: flo
     return p[idx >= neck]
 
 
-def fit_camera(camera, positions, aspect: float, margin: float = 0.04):
+def _box_centre(p: np.ndarray) -> np.ndarray:
+    return (p.min(axis=0) + p.max(axis=0)) / 2
+
+
+def fit_camera(camera, positions, aspect: float, margin: float = 0.04, centre=None):
     """A copy of ``camera`` moved along and across its viewing direction so that every vertex of
     ``positions`` (N, 3, scene units) projects inside the view with ``margin`` (fraction of the
-    half-width) to spare; direction, up vector and field of view are kept. ``aspect`` = W / H."""
+    half-width) to spare; direction, up vector and field of view are kept. ``aspect`` = W / H.
+    ``centre``: the centre of the positions' bounding box, if the caller has it."""
     p = np.asarray(positions, np.float64).reshape(-1, 3)
     eye = np.asarray(camera.position, np.float64)
     f = normalize(np.asarray(camera.target, np.float64) - eye)
-    r = normalize(np.cross(f, np.asarray(camera.up, np.float64)))
-    u = np.cross(r, f)
-    c = (p.min(axis=0) + p.max(axis=0)) / 2
+    r = normalize(cross3(f, np.asarray(camera.up, np.float64)))
+    u = cross3(r, f)
+    c = _box_centre(p) if centre is None else centre
     q = p - c
     x, y, z = q @ r, q @ u, q @ f
     t_y = np.tan(np.radians(camera.fov_deg) / 2) * (1.0 - margin)
@@ -78,4 +83,23 @@ def framed_camera(camera, mesh, aspect: float):
     anything that must match the rendered pixels (a batch's depth map) use this one function."""
     if not getattr(camera, "fit", False):
         return camera
-    return fit_camera(camera, head_vertices(mesh.positions, camera.up), aspect)
+    from dermis.invalidation import memo_by_content, read_only
+
+    up = tuple(float(x) for x in camera.up)
+
+    def head():  # per mesh content and up vector, not per frame (a pass over the mesh: ~4 ms)
+        p = np.array(head_vertices(mesh.positions, up))  # a copy: it may be the positions themselves
+        return read_only(p), read_only(_box_centre(p))
+    p, c = memo_by_content("framing.head", (mesh.positions,), up, head)
+    try:  # the fit itself per view too: a frame whose camera did not move (lights moving) reuses it
+        view = (tuple(float(x) for x in camera.position), tuple(float(x) for x in camera.target), up,
+                float(camera.fov_deg), float(aspect))
+    except (TypeError, ValueError):
+        return fit_camera(camera, p, aspect, centre=c)
+    last = memo_by_content("framing.fit", (mesh.positions,), up, dict)  # {view: fit}, the last one per mesh content
+    fitted = last.get(view)
+    if fitted is None:
+        fitted = fit_camera(camera, p, aspect, centre=c)
+        last.clear()
+        last[view] = fitted
+    return dataclasses.replace(camera, position=fitted.position, target=fitted.target)

@@ -62,6 +62,7 @@ class Renderer:
         self._built = {}  # product -> the key it was built with (dermis.invalidation.PRODUCTS)
         self._lights = None  # LightUniforms of the key self._built["light_uniforms"]
         self._epoch = 0  # bumped by invalidate(): an input of the products that invalidate() re-runs
+        self._keys_memo = None  # (inputs, product keys) of the last product_keys()
         self._last_camera = None
         self.visibility = None  # the last VertexVisibility uploaded (geometry/visibility.py), None when off
         self._texture_space_checked = None  # the mesh object _texture_space_mesh last returned
@@ -140,8 +141,14 @@ class Renderer:
         return scene_inputs(self.scene, irradiance_size=self.irradiance_size, epoch=self._epoch)
 
     def product_keys(self) -> dict:
-        """The key of every cached product of dermis.invalidation.PRODUCTS for the current scene."""
-        return product_keys(self.inputs())
+        """The key of every cached product of dermis.invalidation.PRODUCTS for the current scene.
+        Inputs equal to the last call's (compared as values: content keys and numbers) give the
+        last call's keys without hashing them again (the viewer asks for them several times a frame)."""
+        inputs = self.inputs()
+        memo = self._keys_memo
+        if memo is None or memo[0] != inputs:
+            memo = self._keys_memo = (inputs, product_keys(inputs))
+        return dict(memo[1])
 
     def lighting_key(self) -> str:
         """Everything the view-independent (texture-space) passes depend on."""
@@ -199,8 +206,10 @@ class Renderer:
         msaa = ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
         resolved = ctx.texture((w, h), 4, dtype="f4")
         resolve_fbo = ctx.framebuffer(color_attachments=[resolved])
+        # readback buffers by channel count (3 or 4), made on first use: glReadPixels drops alpha itself
+        # (numpy's 3-of-4 copy cost 4x a plain copy: 12 ms at 960x640 on the loaded 2-core machine)
         self._targets = {"color": color, "depth": depth, "fbo": msaa, "resolved": resolved, "resolve_fbo": resolve_fbo,
-                         "readback": np.empty((h, w, 4), np.float32)}
+                         "readback": {}}
         self._targets_size = size
 
     @staticmethod
@@ -297,11 +306,13 @@ class Renderer:
             self.stats, self.last_frame, self._last_camera, self.timer.times_ms = saved
 
     def render(self, technique: str | None = None, size=None, camera=None, *, with_alpha: bool = False,
-               output_mode: int = OutputMode.FULL, samples: int | None = None):
+               output_mode: int = OutputMode.FULL, samples: int | None = None, readback: bool = True):
         """Render one frame; returns linear float32 (H, W, 3) (or (H, W, 4) with coverage alpha).
         ``output_mode`` (dermis.techniques.shared.OutputMode): the full image, or one of its terms.
         ``samples``: MSAA samples of this frame only (default: the Renderer's; at most those), for
-        the viewer's reduced frames while dragging."""
+        the viewer's reduced frames while dragging. ``readback=False``: the frame is drawn and
+        resolved on the GPU and nothing is read back (returns None; :meth:`read_frame` reads it):
+        frames back to back without waiting for the GPU, as a viewer that shows them on the GPU."""
         if self.scene is None:
             raise DermisError("Renderer has no scene: call set_scene(scene) first")
         try:
@@ -338,16 +349,35 @@ class Renderer:
         tech.render(frame, output_mode=output_mode)
         with self.timer("resolve"):
             self.ctx.copy_framebuffer(t["resolve_fbo"], t["fbo"])
-            t["resolved"].read_into(t["readback"])
-        img = t["readback"][::-1].copy()
-        check_rendered(img, scene, name)
+            img = self._read_resolved(with_alpha) if readback else None
+        if img is not None:
+            check_rendered(img, scene, name)
         total = (time.perf_counter() - t0) * 1e3
         self.stats = {"technique": name, "size": list(size), "renderer": self.info["renderer"],
                       "irradiance_size": self.irradiance_size, "shadow_size": self.shadows.tile_size,
                       "passes_ms": dict(self.timer.times_ms), "passes_run": list(frame.passes_run),
                       "frame_ms": total}
         self.last_frame = frame
-        return img if with_alpha else np.ascontiguousarray(img[:, :, :3])
+        return img
+
+    def _read_resolved(self, with_alpha: bool) -> np.ndarray:
+        """The resolved frame as float32 (H, W, 3 or 4), row 0 = top: one read, one flipping copy."""
+        t = self._targets
+        c = 4 if with_alpha else 3
+        buf = t["readback"].get(c)
+        if buf is None:
+            w, h = t["resolved"].size
+            buf = t["readback"][c] = np.empty((h, w, c), np.float32)
+        t["resolve_fbo"].read_into(buf, components=c, dtype="f4")
+        return buf[::-1].copy()
+
+    def read_frame(self, with_alpha: bool = False) -> np.ndarray:
+        """The last frame (one rendered with ``readback=False``) read back as :meth:`render` returns it."""
+        if self._targets is None or self.last_frame is None:
+            raise DermisError("Renderer.read_frame: no frame has been rendered yet")
+        img = self._read_resolved(with_alpha)
+        check_rendered(img, self.scene, self.stats.get("technique", "?"))
+        return img
 
     def debug_buffers(self, technique: str | None = None) -> dict:
         """Intermediate buffers of the last frame as float32 (H, W, C) arrays, row 0 = top: the

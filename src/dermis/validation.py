@@ -74,6 +74,10 @@ def check_exposure(value, name: str = "exposure") -> float:
 
 
 def _vec(value, where, n=3, lo=-math.inf, hi=math.inf):
+    if type(value) in (tuple, list) and len(value) == n and all(_plain(x) for x in value):
+        # plain floats (what scene files and the viewer give): the same checks without numpy (per frame)
+        if all(math.isfinite(x) and lo <= x <= hi for x in value):
+            return np.array(value, np.float64)
     try:
         a = np.asarray(value, np.float64).reshape(-1)
     except (TypeError, ValueError):
@@ -85,8 +89,20 @@ def _vec(value, where, n=3, lo=-math.inf, hi=math.inf):
     return a
 
 
+def _plain(x) -> bool:
+    """A float, or an int that float() takes exactly: checked without numpy or ABCs (per frame)."""
+    t = type(x)
+    return t is float or t is np.float64 or (t is int and -2 ** 53 <= x <= 2 ** 53)
+
+
 def _num(value, where, lo, hi, lo_open=False):
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+    if _plain(value) and math.isfinite(value) and lo <= value <= hi and not (lo_open and value == lo):
+        return float(value)
+    try:
+        finite = math.isfinite(value)
+    except (OverflowError, TypeError):  # an int beyond float's range (10 ** 400), not a number
+        finite = False
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not finite:
         raise DermisError(f"{where} must be a finite number, got {value!r}")
     if value < lo or (lo_open and value == lo) or value > hi:
         raise DermisError(f"{where} must be in {'(' if lo_open else '['}{lo:g}, {hi:g}], got {value!r}")

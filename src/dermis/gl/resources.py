@@ -6,12 +6,15 @@ the first uploaded row at t = 0, and dermis UVs have v = 0 at the bottom of the 
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 
 from dermis.camera import light_matrices
 from dermis.environment import environment_sh
 from dermis.geometry.visibility import open_visibility
 from dermis.images import as_rgb
+from dermis.invalidation import memo_by_content, read_only
 from dermis.scene.model import mean_skin_albedo, skin_albedo_scale
 from dermis.techniques.shared import LIGHT_TYPES, MAX_LIGHTS, SHARED_SAMPLERS
 
@@ -61,28 +64,53 @@ def release_mesh_objects(owner) -> None:
     owner.ibo.release()
 
 
+_IDENTITY_UV = np.ascontiguousarray(np.eye(3, dtype=np.float32)).tobytes()
+
+
 def map_uniforms(prog, prefix: str, texture) -> None:
     """A map's addressing (dermis.scene.model.Texture texcoord / transform): u<prefix>UV (mat3,
     column-major) and u<prefix>Set; identity and set 0 without a map."""
-    T = np.eye(3, dtype=np.float32) if texture is None else texture.uv_matrix()
-    if f"u{prefix}UV" in prog:
-        prog[f"u{prefix}UV"].write(np.ascontiguousarray(T.T, np.float32).tobytes())
+    if prog.get(f"u{prefix}UV", None) is not None:
+        uv = _IDENTITY_UV if texture is None else np.ascontiguousarray(texture.uv_matrix().T, np.float32).tobytes()
+        set_uniform(prog, f"u{prefix}UV", uv)
     set_uniform(prog, f"u{prefix}Set", 0 if texture is None else int(texture.texcoord))
 
 
-def set_uniform(prog, name, value):
-    """Set a uniform if the program uses it (the GLSL compiler drops unused ones)."""
-    if name not in prog:
-        return
-    u = prog[name]
+def uniform_bytes(u, value) -> bytes:
+    """What writing ``value`` to the uniform ``u`` writes: bytes as given, a numpy array as int32 or
+    float32 (an array uniform's rows past the length the compiler kept are dropped), anything else
+    packed as moderngl's ``Uniform.value`` packs it."""
+    if isinstance(value, (bytes, bytearray)):
+        return bytes(value)
     if isinstance(value, np.ndarray):
         arr = np.ascontiguousarray(value, dtype=np.int32 if value.dtype.kind in "iu" else np.float32)
         n = getattr(u, "array_length", 1)
         if arr.ndim >= 2 and n < len(arr):  # the compiler may trim unused array tails
             arr = arr[:n]
-        u.write(arr.tobytes())
-    else:
-        u.value = value
+        return arr.tobytes()
+    if u.array_length > 1:
+        if u.dimension > 1:
+            return b"".join(struct.pack(u.fmt, *row) for row in value)
+        return b"".join(struct.pack(u.fmt, item) for item in value)
+    if u.dimension > 1:
+        return struct.pack(u.fmt, *value)
+    return struct.pack(u.fmt, value)
+
+
+def set_uniform(prog, name, value):
+    """Set a uniform if the program uses it (the GLSL compiler drops unused ones).
+
+    A program keeps its uniforms' values, so a value equal to the one last written through this
+    function is not written again: the uniform's ``extra`` holds the bytes written (moderngl's slot
+    for its user's data; dermis writes every uniform of its programs through here). ``value``:
+    a number, a tuple or list (as ``Uniform.value`` takes it), a numpy array or raw bytes."""
+    u = prog.get(name, None)  # a dict lookup; ``name in prog`` walks every member of the program
+    if u is None:
+        return
+    data = uniform_bytes(u, value)
+    if u.extra != data:
+        u.write(data)
+        u.extra = data
 
 
 def mat_bytes(m) -> bytes:
@@ -217,10 +245,10 @@ class GpuScene:
         mat = self.scene.material
         for name, key in (("uAlbedoMap", "albedo"), ("uNormalMap", "normal"), ("uSpecularMap", "specular"),
                           ("uRoughnessMap", "roughness")):
-            if name in prog:
+            if prog.get(name, None) is not None:
                 unit = int(SHARED_SAMPLERS[name])
                 self.textures[key].use(unit)
-                prog[name].value = unit
+                set_uniform(prog, name, unit)
         for prefix, tex in (("Albedo", mat.albedo), ("Normal", mat.normal_map), ("Specular", mat.specular_map),
                             ("Roughness", mat.roughness_map)):
             map_uniforms(prog, prefix, tex)
@@ -262,8 +290,11 @@ class LightUniforms:
         self.viewproj = np.zeros((n, 4, 4), np.float32)
         self.map_half_extent = np.zeros(n, np.float64)  # half a shadow map's width, scene units
         lo, hi = scene.bounds()
+        points = scene.all_positions()
+        # the frusta are fitted to every vertex in float64: converted once per mesh content
+        points = memo_by_content("float64", (points,), (), lambda: read_only(np.array(points, np.float64)))
         for i, L in enumerate(lights):
-            vp, eye, half = light_matrices(L, lo, hi, scene.all_positions())
+            vp, eye, half = light_matrices(L, lo, hi, points)
             self.viewproj[i] = vp
             self.map_half_extent[i] = half
             pos = np.asarray(L.position, np.float32) if L.kind != "directional" else eye.astype(np.float32)
@@ -282,7 +313,7 @@ class LightUniforms:
         set_uniform(prog, "uLightDir", self.direction)
         set_uniform(prog, "uLightRadiance", self.radiance)
         set_uniform(prog, "uLightSpot", self.spot)
-        if "uLightViewProj" in prog:
-            n = prog["uLightViewProj"].array_length
-            prog["uLightViewProj"].write(b"".join(mat_bytes(m) for m in self.viewproj[:n]))
+        u = prog.get("uLightViewProj", None)
+        if u is not None:
+            set_uniform(prog, "uLightViewProj", b"".join(mat_bytes(m) for m in self.viewproj[:u.array_length]))
         set_uniform(prog, "uEnvSH", self.env_sh)

@@ -88,11 +88,11 @@ class ShadowAtlas:
             if not L.cast_shadows:
                 continue
             self.fbo.viewport = (c * self.tile_size, r * self.tile_size, self.tile_size, self.tile_size)
-            self.prog["uViewProj"].write(mat_bytes(light_uniforms.viewproj[i]))
-            self.prog["uLight"].value = i
+            set_uniform(self.prog, "uViewProj", mat_bytes(light_uniforms.viewproj[i]))
+            set_uniform(self.prog, "uLight", i)
             vao.render(moderngl.TRIANGLES)
             if surfaces:  # non-skin surfaces occlude too (depth), and are no skin in the TSM (w = 0)
-                self.occluder_prog["uViewProj"].write(mat_bytes(light_uniforms.viewproj[i]))
+                set_uniform(self.occluder_prog, "uViewProj", mat_bytes(light_uniforms.viewproj[i]))
                 for s in surfaces:
                     s.uniforms(self.occluder_prog)
                     s.vao(self.occluder_prog).render(moderngl.TRIANGLES)

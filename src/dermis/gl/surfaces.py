@@ -62,10 +62,10 @@ class GpuSurface:
         mat = self.surface.material
         maps = mat.maps()
         for key, (sampler, prefix, _, _) in _MAPS.items():
-            if sampler in prog:
+            if prog.get(sampler, None) is not None:
                 unit = int(METALLIC_ROUGHNESS_SAMPLERS[sampler])
                 self.textures[key].use(unit)
-                prog[sampler].value = unit
+                set_uniform(prog, sampler, unit)
             map_uniforms(prog, prefix, maps[key])
         set_uniform(prog, "uBaseColorFactor", tuple(float(x) for x in mat.base_color))
         set_uniform(prog, "uMetallicFactor", float(mat.metallic))

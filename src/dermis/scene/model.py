@@ -54,7 +54,13 @@ class Mesh:
 
     @property
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.positions.min(axis=0), self.positions.max(axis=0)
+        """(min, max) of the positions per axis; remembered while the positions' content is
+        unchanged (dermis.invalidation.memo_by_content: the renderer asks several times a frame)."""
+        from dermis.invalidation import memo_by_content
+
+        p = self.positions
+        lo, hi = memo_by_content("Mesh.bounds", (p,), (), lambda: (p.min(axis=0), p.max(axis=0)))
+        return lo.copy(), hi.copy()
 
 
 @dataclass

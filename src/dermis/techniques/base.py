@@ -193,8 +193,7 @@ def draw_mesh(frame: Frame, prog, vao=None):
     (with ``frame.gpu.vao(prog)``, or ``vao``: one that adds a technique's own attributes)."""
     from dermis.gl.resources import mat_bytes, set_uniform
 
-    if "uViewProj" in prog:
-        prog["uViewProj"].write(mat_bytes(frame.viewproj))
+    set_uniform(prog, "uViewProj", mat_bytes(frame.viewproj))
     set_uniform(prog, "uCameraPos", tuple(float(x) for x in frame.eye))
     bind_scene(frame, prog)
     (vao or frame.gpu.vao(prog)).render(moderngl.TRIANGLES)
@@ -216,7 +215,7 @@ def draw_surfaces(frame: Frame, output_mode: int = OutputMode.FULL):
     with frame.timer("surfaces"):
         frame.target.use()
         ctx.enable(moderngl.DEPTH_TEST)
-        prog["uViewProj"].write(mat_bytes(frame.viewproj))
+        set_uniform(prog, "uViewProj", mat_bytes(frame.viewproj))
         set_uniform(prog, "uCameraPos", tuple(float(x) for x in frame.eye))
         set_uniform(prog, "uMmPerUnit", float(frame.scene.mm_per_unit))
         set_uniform(prog, "uOutputMode", int(output_mode))

@@ -114,23 +114,30 @@ def glsl_constants() -> str:
 
 # ---------------------------------------------------------------------- binding
 def bind_sampler(prog, name: str, tex, unit: int) -> None:
-    """Bind ``tex`` to ``unit`` and point sampler ``name`` at it, if the program uses it."""
-    if name in prog:
+    """Bind ``tex`` to ``unit`` and point sampler ``name`` at it, if the program uses it. The
+    texture is bound every time (other passes use the same units); the sampler uniform is written
+    only when it changes (dermis.gl.resources.set_uniform)."""
+    from dermis.gl.resources import set_uniform
+
+    if prog.get(name, None) is not None:
         tex.use(int(unit))
-        prog[name].value = int(unit)
+        set_uniform(prog, name, int(unit))
 
 
 def bind_sampler_array(prog, name: str, textures, first_unit: int) -> None:
     """Bind a sampler array (``uniform sampler2D name[N]``) to consecutive units from first_unit;
     the compiler may trim the array's unused tail, so only its active length is bound."""
-    if name not in prog:
+    from dermis.gl.resources import set_uniform
+
+    u = prog.get(name, None)
+    if u is None:
         return
-    n = getattr(prog[name], "array_length", 1)
+    n = getattr(u, "array_length", 1)
     units = []
     for i, tex in enumerate(list(textures)[:n]):
         tex.use(first_unit + i)
         units.append(first_unit + i)
-    prog[name].value = units if n > 1 else units[0]
+    set_uniform(prog, name, units if n > 1 else units[0])
 
 
 def bind_specular_tables(prog, tables: dict) -> None:
@@ -148,34 +155,43 @@ def set_profile_uniforms(prog, profile, max_gaussians: int = MAX_GAUSSIANS) -> N
     """The uniforms of shaders/common/profile.glsl: the profile's K variances (mm^2) and its weights
     normalised per channel (sum_k w_k = 1), padded to ``max_gaussians`` (weights 0, variances 1:
     a padded entry adds nothing and never divides by zero)."""
+    from dermis.gl.resources import set_uniform
+    from dermis.invalidation import memo_by_content, read_only
+
     K = profile.k
     if K > max_gaussians:
         raise DermisError(f"profile '{profile.name}' has {K} Gaussians; at most {max_gaussians} are supported")
-    weights = np.zeros((max_gaussians, 3), np.float32)
-    weights[:K] = profile.normalized().weights
-    variances = np.ones(max_gaussians, np.float32)
-    variances[:K] = profile.variances_mm2
-    if "uGaussianCount" in prog:
-        prog["uGaussianCount"].value = K
+
+    def arrays():  # per profile content, not per pass
+        weights = np.zeros((max_gaussians, 3), np.float32)
+        weights[:K] = profile.normalized().weights
+        variances = np.ones(max_gaussians, np.float32)
+        variances[:K] = profile.variances_mm2
+        return read_only(weights), read_only(variances)
+    weights, variances = memo_by_content("profile_uniforms", (profile.variances_mm2, profile.weights), max_gaussians,
+                                         arrays)
+    set_uniform(prog, "uGaussianCount", K)
     for name, arr in (("uWeights", weights), ("uVariances", variances)):
-        if name in prog:  # the compiler may trim an array's unused tail
-            prog[name].write(np.ascontiguousarray(arr[: getattr(prog[name], "array_length", 1)]).tobytes())
+        u = prog.get(name, None)
+        if u is not None:  # the compiler may trim an array's unused tail
+            set_uniform(prog, name, np.ascontiguousarray(arr[: getattr(u, "array_length", 1)]).tobytes())
 
 
 def translucency_uniforms(prog, enabled: bool, strength: float = 1.0) -> None:
     """Uniforms of the translucency of thin parts (common/transmittance.glsl, tsd/translucency.frag)."""
-    if "uTranslucencyMinVariance" in prog:
-        prog["uTranslucencyMinVariance"].value = TRANSLUCENCY_MIN_VARIANCE_MM2
-    if "uTranslucencyStrength" in prog:
-        prog["uTranslucencyStrength"].value = float(strength) if enabled else 0.0
+    from dermis.gl.resources import set_uniform
+
+    set_uniform(prog, "uTranslucencyMinVariance", TRANSLUCENCY_MIN_VARIANCE_MM2)
+    set_uniform(prog, "uTranslucencyStrength", float(strength) if enabled else 0.0)
 
 
 def surface_detail_uniforms(prog, material, output_mode: int = OutputMode.FULL) -> None:
     """The final passes' procedural pore detail and output mode."""
+    from dermis.gl.resources import set_uniform
+
     for name, value in (("uPoreScaleMm", float(material.pore_scale_mm)), ("uPoreStrength", float(material.pore_strength)),
                         ("uOutputMode", int(OutputMode(output_mode)))):
-        if name in prog:
-            prog[name].value = value
+        set_uniform(prog, name, value)
 
 
 def casts_translucency(scene) -> bool:

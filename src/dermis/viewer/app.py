@@ -99,8 +99,11 @@ class Viewer:
                 irradiance_size, shadow_size = adaptive_sizes(scene, self.framebuffer_size())
             self.params = ViewerParams.from_scene(scene, irradiance_size)
             self.params.validate("viewer")
+            # no pass timer: the panel shows which passes ran, not their times, and timing a pass
+            # costs a GPU round trip (a finish on llvmpipe) per pass
             self.renderer = Renderer(scene, self.framebuffer_size(), ctx=self.ctx, samples=samples,
-                                     irradiance_size=self.params.irradiance_size, shadow_size=shadow_size)
+                                     irradiance_size=self.params.irradiance_size, shadow_size=shadow_size,
+                                     timing=False)
             self.presenter = Presenter(self.ctx)
             from dermis.viewer.progressive import ProgressiveRenderer
 

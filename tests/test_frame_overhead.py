@@ -1,0 +1,155 @@
+"""Per-frame overhead (issue 14): what a frame no longer recomputes is still recomputed the moment
+its inputs change. Each cache added to cut the per-frame Python (values derived from the mesh's
+content, uniform values a program already holds, the blur chain's plan, the product keys) is
+checked against a fresh computation after an in-place edit, a swap and a plain value change;
+frames are compared with a fresh Renderer's. Timings: benchmarks/frame_overhead.py, never here."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from dermis.camera import cross3
+from dermis.errors import DermisError
+from dermis.framing import fit_camera, framed_camera, head_vertices
+from dermis.invalidation import memo_by_content
+from dermis.renderer import Renderer
+from dermis.scene.builtin import uv_sphere
+from dermis.scene.loaders import finish_mesh
+from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial, Texture
+
+
+def _scene():
+    p, n, uv, t = uv_sphere(1.0, 48, 24)
+    rng = np.random.default_rng(3)
+    albedo = (0.3 + 0.4 * rng.random((16, 16, 3))).astype(np.float32)
+    return Scene(mesh=finish_mesh(p, n, uv, t, "test:sphere", "v-up"),
+                 material=SkinMaterial(albedo=Texture(albedo, "test:albedo"), pore_strength=0.0),
+                 lights=[Light(direction=(0.4, -0.5, -0.75), intensity=3.0),
+                         Light(direction=(-0.6, -0.2, -0.5), intensity=1.0, color=(0.7, 0.8, 1.0))],
+                 camera=Camera(position=(0.3, 0.4, 4.0), fov_deg=35.0, fit=True),
+                 environment=Environment(color=(0.05, 0.05, 0.06)), mm_per_unit=20.0, technique="tsd")
+
+
+def _fresh(scene, technique, gl_ctx):
+    with Renderer(scene, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=256) as r:
+        return r.render(technique)
+
+
+def test_cross3_is_numpys_cross_bit_for_bit():
+    rng = np.random.default_rng(0)
+    for _ in range(2000):
+        a, b = rng.normal(size=3) * 10.0 ** rng.integers(-6, 6), rng.normal(size=3)
+        assert np.array_equal(cross3(a, b), np.cross(a, b))
+
+
+def test_memo_by_content_follows_in_place_edits_and_never_hands_out_its_values():
+    p = np.arange(30, dtype=np.float32).reshape(10, 3)
+    calls = []
+
+    def bounds():
+        calls.append(1)
+        return p.min(axis=0), p.max(axis=0)
+    lo, _ = memo_by_content("test.bounds", (p,), (), bounds)
+    memo_by_content("test.bounds", (p,), (), bounds)
+    assert len(calls) == 1  # unchanged content: remembered
+    p[3, 1] = -5.0  # in place: same object, same id
+    lo2, _ = memo_by_content("test.bounds", (p,), (), bounds)
+    assert len(calls) == 2 and lo2[1] == -5.0 and lo[1] == 1.0
+    memo_by_content("test.bounds", (p,), ("other params",), bounds)
+    assert len(calls) == 3  # other parameters: another value
+    # Mesh.bounds hands out copies: editing them leaves the remembered value alone
+    sc = _scene()
+    lo, hi = sc.mesh.bounds
+    lo[:] = 99.0
+    assert np.array_equal(sc.mesh.bounds[0], sc.mesh.positions.min(axis=0))
+    sc.mesh.positions[:, 0] *= 2.0
+    assert np.array_equal(sc.mesh.bounds[1], sc.mesh.positions.max(axis=0))
+
+
+def test_framed_camera_follows_an_in_place_mesh_edit_and_a_new_up():
+    sc = _scene()
+    m = sc.mesh
+
+    def expected(cam):
+        return fit_camera(cam, head_vertices(m.positions, cam.up), 1.5)
+    assert framed_camera(sc.camera, m, 1.5) == expected(sc.camera)
+    m.positions[:] *= 1.7  # the sphere grows: the fitted camera backs off
+    grown = framed_camera(sc.camera, m, 1.5)
+    assert grown == expected(sc.camera)
+    tilted = dataclasses.replace(sc.camera, up=(0.2, 1.0, 0.0))
+    assert framed_camera(tilted, m, 1.5) == expected(tilted)
+    moved = dataclasses.replace(sc.camera, position=(1.0, 0.5, 4.0))  # the fit is kept per view too
+    assert framed_camera(moved, m, 1.5) == expected(moved) != expected(sc.camera)
+    assert framed_camera(sc.camera, m, 1.2) == fit_camera(sc.camera, head_vertices(m.positions, sc.camera.up), 1.2)
+    assert m.positions.flags.writeable  # the memo's copies are read-only, the mesh's arrays are not
+
+
+def test_set_uniform_writes_changes_only_and_the_program_holds_each_value(gl_ctx):
+    from dermis.gl.resources import set_uniform
+
+    prog = gl_ctx.program(
+        vertex_shader="#version 450 core\nuniform vec3 uV; uniform float uF; uniform int uI[2];\n"
+                      "out vec4 c; void main() { c = vec4(uV, uF + float(uI[0] + uI[1])); gl_Position = vec4(0.0); }",
+        fragment_shader="#version 450 core\nin vec4 c; out vec4 f; void main() { f = c; }")
+    writes = []
+    for name in ("uV", "uF", "uI"):
+        u = prog[name]
+        real = u.write
+        u.write = lambda data, real=real, name=name: writes.append(name) or real(data)
+    set_uniform(prog, "uV", (1.0, 2.0, 3.0))
+    set_uniform(prog, "uV", (1.0, 2.0, 3.0))
+    set_uniform(prog, "uV", np.array([1.0, 2.0, 3.0]))  # the same bytes by another route
+    assert writes == ["uV"]
+    set_uniform(prog, "uV", (1.0, 2.0, 4.0))
+    set_uniform(prog, "uF", 0.5)
+    set_uniform(prog, "uI", [3, 4])
+    set_uniform(prog, "uI", [3, 4])
+    set_uniform(prog, "uMissing", 1.0)  # dropped by the compiler / absent: ignored
+    assert writes == ["uV", "uV", "uF", "uI"]
+    assert prog["uV"].value == (1.0, 2.0, 4.0) and prog["uF"].value == 0.5 and prog["uI"].value == [3, 4]
+    prog.release()
+
+
+def test_every_change_between_cached_frames_equals_a_fresh_renderer(gl_ctx):
+    """One Renderer through a sequence of changes (camera, light colour and direction, in-place
+    albedo, profile and mesh edits, the scale), every frame against a fresh Renderer's: the
+    remembered keys, bounds, framing, light fits, blur plan, profile uniforms and uniform values
+    never show a stale value. Each change alters the image (checked), so a stale cache would fail."""
+    sc = _scene()
+    changes = [
+        ("camera", lambda: setattr(sc.camera, "position", (1.2, 0.6, 3.5))),
+        ("light colour", lambda: setattr(sc.lights[1], "color", (1.0, 0.3, 0.2))),
+        ("light direction", lambda: setattr(sc.lights[0], "direction", (-0.2, -0.5, -0.8))),
+        ("albedo in place", lambda: sc.material.albedo.data.__imul__(0.6)),
+        ("profile in place", lambda: sc.profile.variances_mm2.__imul__(3.0)),
+        ("mesh in place", lambda: sc.mesh.positions.__imul__(0.8)),
+        ("scale", lambda: setattr(sc, "mm_per_unit", 35.0)),
+    ]
+    with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=256) as r:
+        prev = r.render("tsd")
+        r.render("lambert")  # another technique in between: its programs hold their own values
+        assert np.array_equal(r.render("tsd"), prev)
+        for what, change in changes:
+            change()
+            img = r.render("tsd")
+            assert np.abs(img - prev).max() > 1e-4, f"{what}: the change did not alter the image"
+            np.testing.assert_allclose(img, _fresh(sc, "tsd", gl_ctx), atol=1e-5, err_msg=what)
+            np.testing.assert_allclose(r.render("lambert"), _fresh(sc, "lambert", gl_ctx), atol=1e-6, err_msg=what)
+            prev = img
+
+
+def test_validation_fast_paths_refuse_what_the_full_checks_refuse():
+    from dermis.validation import check_scene
+
+    for attr, bad, match in (("intensity", float("nan"), "intensity"), ("intensity", True, "intensity"),
+                             ("intensity", 10 ** 400, "intensity"), ("color", (2e13, 0.0, 0.0), "color"), ("color", (-0.1, 0.0, 0.0), "color"),
+                             ("direction", (0.0, 0.0, float("inf")), "direction"),
+                             ("direction", (0.0, 0.0, 0.0), "direction"), ("shadow_softness", -1.0, "shadow_softness")):
+        sc = _scene()
+        setattr(sc.lights[0], attr, bad)
+        with pytest.raises(DermisError, match=match):
+            check_scene(sc, full=False)
+    check_scene(_scene(), full=False)
