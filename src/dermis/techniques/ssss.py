@@ -18,7 +18,8 @@ with each pixel's kernel scaled to millimetres by its depth:
                    Pixels per mm = size / (2 tan(fov/2) depth_mm); taps follow the surface (weight
                    of the 3-D distance, taps across a depth jump > depth_cutoff_mm rejected, taps
                    whose straight path to the pixel crosses air rejected: creases, as the
-                   reference's paths = "tissue", ssss/kernel.glsl).
+                   reference's paths = "tissue"; a rejected tap keeps its weight and brings
+                   the pixel's own light, Jimenez 2015's follow-surface rule, ssss/kernel.glsl).
   ssss_final       the mesh into the frame's target: scattered * albedo^(1-mix) / pi
                    * (1 - rho_s a(N.V, m) / pi) + specular (added after the blur)
 

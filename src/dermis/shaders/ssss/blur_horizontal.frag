@@ -34,7 +34,13 @@ void main() {
                 if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
                 vec4 t = texelFetch(uIrradiance, q, 0);
                 float dz_px = ssss_tap_dz_px(K, c.a, t.a);
-                if (dz_px < 0.0 || !ssss_tissue_path(p, c.a, q, t.a, size)) continue;
+                if (dz_px < 0.0 || !ssss_tissue_path(p, c.a, q, t.a, size)) {
+                    for (int k = 0; k < MAX_GAUSSIANS; ++k) {  // another surface: the pixel's own light
+                        sum[k] += wx[k] * c.rgb;
+                        wsum[k] += wx[k];
+                    }
+                    continue;
+                }
                 for (int k = 0; k < MAX_GAUSSIANS; ++k) {
                     if (wx[k] <= 0.0) continue;
                     float w = wx[k] * ssss_depth_factor(K, k, dz_px);
@@ -56,7 +62,11 @@ void main() {
                 if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
                 vec4 t = texelFetch(uIrradiance, q, 0);
                 float dz_px = ssss_tap_dz_px(K, c.a, t.a);
-                if (dz_px < 0.0 || !ssss_tissue_path(p, c.a, q, t.a, size)) continue;
+                if (dz_px < 0.0 || !ssss_tissue_path(p, c.a, q, t.a, size)) {
+                    sum[k] += w * c.rgb;  // another surface: the pixel's own light
+                    wsum[k] += w;
+                    continue;
+                }
                 w *= ssss_depth_factor(K, k, dz_px);
                 sum[k] += w * t.rgb;
                 wsum[k] += w;

@@ -18,10 +18,12 @@ void main() {
     vec3 sum[MAX_GAUSSIANS];
     float wsum[MAX_GAUSSIANS];
     float edge[MAX_GAUSSIANS];
+    vec3 centre[MAX_GAUSSIANS];  // this pixel's horizontal results: what a rejected tap contributes
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         edge[k] = ssss_centre_weight(K, k);
         wsum[k] = edge[k];
-        sum[k] = k < uGaussianCount ? edge[k] * texelFetch(uGaussian[k], p, 0).rgb : vec3(0.0);
+        centre[k] = k < uGaussianCount ? texelFetch(uGaussian[k], p, 0).rgb : vec3(0.0);
+        sum[k] = edge[k] * centre[k];
     }
     for (int j = 1; j <= K.taps; ++j) {
         float x = float(j * K.step_px);
@@ -35,7 +37,13 @@ void main() {
             if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
             float zq = texelFetch(uIrradiance, q, 0).a;
             float dz_px = ssss_tap_dz_px(K, depth, zq);
-            if (dz_px < 0.0 || !ssss_tissue_path(p, depth, q, zq, size)) continue;
+            if (dz_px < 0.0 || !ssss_tissue_path(p, depth, q, zq, size)) {
+                for (int k = 0; k < MAX_GAUSSIANS; ++k) {  // another surface: the pixel's own light
+                    sum[k] += wx[k] * centre[k];
+                    wsum[k] += wx[k];
+                }
+                continue;
+            }
             for (int k = 0; k < MAX_GAUSSIANS; ++k) {
                 if (wx[k] <= 0.0) continue;
                 float w = wx[k] * ssss_depth_factor(K, k, dz_px);
@@ -57,7 +65,11 @@ void main() {
             if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
             float zq = texelFetch(uIrradiance, q, 0).a;
             float dz_px = ssss_tap_dz_px(K, depth, zq);
-            if (dz_px < 0.0 || !ssss_tissue_path(p, depth, q, zq, size)) continue;
+            if (dz_px < 0.0 || !ssss_tissue_path(p, depth, q, zq, size)) {
+                sum[k] += w * centre[k];  // another surface: the pixel's own light
+                wsum[k] += w;
+                continue;
+            }
             w *= ssss_depth_factor(K, k, dz_px);
             sum[k] += w * texelFetch(uGaussian[k], q, 0).rgb;
             wsum[k] += w;

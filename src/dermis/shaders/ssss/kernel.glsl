@@ -20,14 +20,22 @@
 // image is stable from frame to frame) every pixel is covered with probability 1/s and weight
 // about s g(x), so the blur is exact in expectation and the rings become fine noise that smooth
 // irradiance averages away (Jimenez et al. 2015 jitter/rotate their kernels per pixel for the
-// same reason). Weights are renormalised over the taps used.
+// same reason). Weights are renormalised over the taps used (inside the frame).
 //
 // Following the surface (Jimenez et al. 2009, sec. 4; 2015, SSSS_FOLLOW_SURFACE): a tap whose
 // depth differs by dz mm lies that much further away on the surface, so its weight also carries
-// the Gaussian's factor exp(-dz^2 / 2 v_k) (G(v, sqrt(x^2 + dz^2)) = G(v, x) exp(-dz^2 / 2v));
-// taps with |dz| > uDepthCutoffMm (a silhouette) and taps off the mesh are rejected outright.
-// Renormalisation keeps the energy: light neither bleeds across silhouettes nor leaks into the
-// background, and slanted surfaces get narrower screen-space kernels, as they should.
+// the Gaussian's factor exp(-dz^2 / 2 v_k) (G(v, sqrt(x^2 + dz^2)) = G(v, x) exp(-dz^2 / 2v)),
+// and the kernel is renormalised over those taps: a plane slanted by theta gets the Gaussian of
+// sigma cos(theta) in screen space, exactly what the surface measure ds = dx / cos(theta) asks.
+// Taps with |dz| > uDepthCutoffMm (a silhouette), off the mesh, or across air (below) lie on
+// ANOTHER surface: they keep their kernel weight but bring the pixel's OWN light, not the light
+// of the far side (Jimenez et al. 2015, SeparableSSS.h, SSSS_FOLLOW_SURFACE: "lerp back to
+// colorM"). The surface the kernel would have covered there continues out of sight (under the
+// upper lid, around a silhouette), and the pixel's light is the estimate of it that neither
+// brightens nor darkens it. Renormalising onto the far side instead filled the closed eye's slit,
+// whose few visible pixels are dark and whose walls are hidden, with the lit lower lid's red: an
+// orange line 1.87x the reference's red (benchmarks/eyelid_slit.py, RESULTS "Eyelids, ssss cost").
+// Energy is kept either way; light neither bleeds across silhouettes nor leaks into the background.
 //
 // Tissue paths (as dermis.reference's paths = "tissue", TISSUE_TAU in techniques/shared.py): a tap q is skipped
 // where the straight segment between the two surface points leaves either of them into the AIR,
@@ -38,9 +46,9 @@
 // saturated orange line along both eyelid creases, where tsd (whose texture-space neighbours are
 // the crease's own walls) and the reference show a dark line. Smooth convex skin keeps every tap
 // (its neighbours lie below the tangent plane); concave skin of radius R keeps those within ~R/2.
-// The kernel is renormalised over the taps kept. Keeping a rejected tap's weight with no light
-// (the crease's hidden walls taken as dark) was tried: the wide red Gaussians lost the most
-// weight, and cyan lines appeared along every crease (nose wings, eye sockets).
+// A skipped tap brings the pixel's own light (above). Keeping its weight with NO light (the
+// crease's hidden walls taken as dark) was tried: the wide red Gaussians lost the most weight,
+// and cyan lines appeared along every crease (nose wings, eye sockets).
 #include "common/profile.glsl"
 
 uniform sampler2D uIrradiance;          // pass 1: rgb pre-scatter irradiance, a = view depth mm (0: none)
