@@ -66,6 +66,7 @@ class SsssOptions(TranslucentOptions):
     depth_cutoff_mm: float = DEPTH_CUTOFF_MM  # taps across a larger depth jump are rejected
     follow_surface: bool = True  # weight taps by the 3-D distance and reject depth jumps
     tissue_paths: bool = True  # skip taps whose straight path to the pixel crosses air (creases)
+    surface_measure: bool = True  # weigh taps by the surface each pixel holds (ds/dx from the normal)
 
     def validate(self, technique: str) -> None:
         super().validate(technique)
@@ -73,6 +74,7 @@ class SsssOptions(TranslucentOptions):
         check_float(f"{technique}: depth_cutoff_mm", self.depth_cutoff_mm)
         check_bool(f"{technique}: follow_surface", self.follow_surface)
         check_bool(f"{technique}: tissue_paths", self.tissue_paths)
+        check_bool(f"{technique}: surface_measure", self.surface_measure)
 
 
 class ScreenSpaceSSS(Technique):
@@ -151,6 +153,7 @@ class ScreenSpaceSSS(Technique):
         set_uniform(prog, "uPixelsPerMmXY", (float(0.5 * size[0] * frame.proj[0, 0]), float(0.5 * size[1] * frame.proj[1, 1])))
         tissue = self.options.tissue_paths and self.options.follow_surface  # ignoring depth ignores creases too
         set_uniform(prog, "uTissueTau", float(TISSUE_TAU) if tissue else 2.0)
+        set_uniform(prog, "uSurfaceMeasure", 1.0 if self.options.surface_measure else 0.0)
 
     def screen_space(self, frame: Frame, irradiance: np.ndarray | None = None):
         """Passes 1-3: the pre-scatter irradiance and depth, then the two blurs. ``irradiance``
