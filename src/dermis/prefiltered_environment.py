@@ -193,7 +193,9 @@ def environment_specular_layers(env) -> np.ndarray:
     lobe)."""
     if env.image is None:
         return (np.asarray(env.color, np.float32) * np.float32(env.intensity)).reshape(1, 1, 1, 3)
-    return prefilter_equirect(env.image.data) * np.float32(env.intensity)
+    from dermis.environment import equirect_radiance
+
+    return prefilter_equirect(equirect_radiance(env)) * np.float32(env.intensity)
 
 
 # ---------------------------------------------------------------------- lookup (numpy twin)
