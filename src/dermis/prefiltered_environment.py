@@ -235,6 +235,21 @@ def specular_dominant_direction(N, R, m) -> np.ndarray:
     return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
+SKIN_ENV_GRAZING_EXPONENT = 0.8
+"""skin_environment_specular's lobe narrowing: m_eff = m (N.V)^0.8 (common/environment.glsl)."""
+
+
+def skin_environment_specular(layers, N, V, m) -> np.ndarray:
+    """Numpy twin of skin_environment_specular(N, V, m) (common/environment.glsl): the layers
+    along R = reflect(-V, N) at m (N.V)^0.8. (n, 3)."""
+    N = np.asarray(N, np.float64).reshape(-1, 3)
+    V = np.asarray(V, np.float64).reshape(-1, 3)
+    ndv = np.clip(np.sum(N * V, -1), 1e-4, 1.0)
+    R = 2.0 * ndv[:, None] * N - V
+    m_eff = np.asarray(m, np.float64) * ndv ** SKIN_ENV_GRAZING_EXPONENT
+    return sample_environment_specular(layers, R, m_eff)
+
+
 def sample_environment_specular(layers, R, m) -> np.ndarray:
     """Numpy twin of environment_specular(R, m) (shaders/common/environment.glsl): bilinear in each
     layer, linear between the two layers around y(m) (texel centres, clamped). (n, 3)."""
