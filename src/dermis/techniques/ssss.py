@@ -66,7 +66,7 @@ class SsssOptions(TranslucentOptions):
     depth_cutoff_mm: float = DEPTH_CUTOFF_MM  # taps across a larger depth jump are rejected
     follow_surface: bool = True  # weight taps by the 3-D distance and reject depth jumps
     tissue_paths: bool = True  # skip taps whose straight path to the pixel crosses air (creases)
-    surface_measure: bool = True  # weigh taps by the surface each pixel holds (ds/dx from the normal)
+    surface_measure: bool = False  # weigh taps by the surface each pixel holds (ds/dx; ssss/kernel.glsl: off, why)
 
     def validate(self, technique: str) -> None:
         super().validate(technique)
