@@ -10,7 +10,9 @@ tree ("tsd @aa056b3", "tsd"), then Cycles. Default scenes: examples/lee-perry-sm
 four examples/reference/*.toml. ``--before REV`` renders the same scenes with ``git archive REV
 src`` (a temporary copy, in a subprocess) beside this tree's; renders are cached in OUT_DIR/renders
 (keyed by tree, scene, technique, size). ``--cycles DIR``: DIR/<scene stem>/cycles_spec.exr as
-written by ``dermis validate --against cycles --out DIR`` (skipped where absent).
+written by ``dermis validate --against cycles --out DIR`` (skipped where absent), at any size of
+the renders' aspect (the validation's 64 x 64 included: its crops are cut from the same mm square
+and enlarged to the tile, so they are blurry; the column is labelled with the size).
 
 Crops are located from the MESH, not from pixel boxes: landmarks are points of the head found in
 millimetres about the nose tip (the mesh's frontmost vertex, +z is the face's direction, as in
@@ -165,8 +167,13 @@ def sheet(scene_file: Path, columns, cycles_dir, size, crop_mm, tile):
             from dermis.images import read_image
 
             cyc = read_image(exr, srgb=False)[..., :3]
-            if cyc.shape[0] == size:
-                columns = list(columns) + [("Cycles", (cyc, view0, proj0, eye0))]
+            (h, w), (H, W) = cyc.shape[:2], img0.shape[:2]
+            # any size of the same aspect: the same camera frames the same view, and each crop is
+            # cut from the mm square of its own image (a 64 x 64 Cycles run gives blurry tiles)
+            if abs(w * H - h * W) <= max(W, H) // 64:
+                columns = list(columns) + [(f"Cycles {w}x{h}", (cyc, view0, proj0, eye0))]
+            else:
+                print(f"{exr}: {w}x{h} is not the aspect of the {W}x{H} renders; no Cycles column", file=sys.stderr)
     rows = [(name, p) for name, (p, n) in lm.items() if visible(sc.mesh, p, n, eye0)]
     pad, band = 4, 18
     H = band + len(rows) * (tile + pad) + pad

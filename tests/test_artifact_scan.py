@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import dermis
-from dermis.artifacts import scan, speck_map
+from dermis.artifacts import scan, shadow_leaks, shifts, speck_map
 from dermis.renderer import Renderer
 
 REPO = Path(__file__).resolve().parent.parent
@@ -61,6 +61,54 @@ def test_scan_ignores_broad_glow_and_dark_shadow_noise():
     img[48, 48] *= 1.8
     found = scan(img, ref_dark, mask)
     assert [(sp.row, sp.col) for sp in found] == [(48, 48)]
+
+
+def _shadowed(seed=1, noise=0.05):
+    """The textured image with a cast shadow (rows 20-70, cols 20-60 at 3% of the light) and a
+    reference of the same scene with Monte Carlo-like noise (5% a pixel)."""
+    rng = np.random.default_rng(seed)
+    img = _textured(seed=seed)
+    img[20:70, 20:60] *= 0.03
+    ref = img * (1.0 + noise * rng.standard_normal(img.shape))
+    return img, ref
+
+
+def test_shadow_leak_is_found_where_the_speck_scan_misses_it():
+    """A planted leak (a 12 x 12 patch inside the shadow lit to 40% of the light: a shadow-map leak
+    such as the side view's eye-socket blob) is one region of shadow_leaks, the whole patch; the
+    speck scan flags under a third of it (too broad for its 9 x 9 neighbourhood: at most a rim),
+    and the clean image with the reference's noise has no region."""
+    img, ref = _shadowed()
+    mask = np.ones(img.shape[:2], bool)
+    assert shadow_leaks(img, ref, mask) == []  # noise alone: no region of 4 pixels over 0.5 stops
+    leak = img.copy()
+    leak[40:52, 30:42] /= 0.03 / 0.4
+    found = shadow_leaks(leak, ref, mask)
+    assert len(found) == 1, found
+    assert found[0].pixels == 144 and 40 <= found[0].row < 52 and 30 <= found[0].col < 42
+    assert found[0].peak_stops > 3.0
+    in_patch = sum(sp.pixels for sp in scan(leak, ref, mask) if 40 <= sp.row < 52 and 30 <= sp.col < 42)
+    assert in_patch < 144 / 3, in_patch
+    # the same patch outside the shadow (lit to 1.3x) is no leak: the reference is lit there
+    lit = img.copy()
+    lit[40:47, 70:77] *= 1.3
+    assert shadow_leaks(lit, ref, mask) == []
+
+
+def test_darker_shift_is_found():
+    """A region darkened by 0.8 stops in red (a colour shift, 12 x 12) is one darker region; the
+    speck scan does not see it; 0.3 stops is below the threshold."""
+    img, ref = _shadowed()
+    mask = np.ones(img.shape[:2], bool)
+    assert shifts(img, ref, mask, darker=True) == []
+    dark = img.copy()
+    dark[75:87, 65:77, 0] *= 2.0 ** -0.8
+    found = shifts(dark, ref, mask, darker=True)
+    assert len(found) == 1 and found[0].pixels >= 130 and 75 <= found[0].row < 87, found
+    assert scan(dark, ref, mask) == []
+    faint = img.copy()
+    faint[75:87, 65:77, 0] *= 2.0 ** -0.3
+    assert shifts(faint, ref, mask, darker=True) == []
 
 
 def test_speck_map_outside_mask_is_zero_and_shapes_checked():

@@ -39,6 +39,25 @@ def test_equirect_orientation_matches_dermis():
     assert np.allclose(a[:, 1], b[:, 1], atol=1e-9)
 
 
+def test_equirect_rotation_matches_dermis():
+    """An environment turned by theta about +y (Environment.rotation_deg): dermis reads the source
+    image along d at R_y(-theta) d (dermis.environment.rotate_equirect's convention: what was seen
+    along d is seen along R_y(theta) d); Cycles' lookup with the exporter's mapping reads the same
+    texel of the unturned file along C d."""
+    rng = np.random.default_rng(2)
+    d = rng.normal(size=(2000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    for theta in (30.0, 90.0, -135.0):
+        t = math.radians(-theta)
+        ry = np.array([[math.cos(t), 0.0, math.sin(t)], [0.0, 1.0, 0.0], [-math.sin(t), 0.0, math.cos(t)]])
+        a = convert.dermis_equirect_uv(d @ ry.T)
+        b = convert.blender_equirect_uv(convert.to_blender_dirs(d), theta)
+        du = np.abs(a[:, 0] - b[:, 0])
+        assert np.all(np.minimum(du, 1 - du) < 1e-9), theta
+        assert np.allclose(a[:, 1], b[:, 1], atol=1e-9)
+    # the sense of rotate_equirect's R_y: tests/test_batch.py
+
+
 def test_spot_blend_maps_to_the_same_cone():
     """Cycles' cone smoothstep((c - cos a) / ((1 - cos a) b')) equals dermis's at every angle."""
     for angle, blend in ((30.0, 0.15), (12.0, 0.5), (60.0, 0.02)):

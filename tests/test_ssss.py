@@ -207,3 +207,71 @@ def test_transmittance_through_a_slab(gl_ctx):
     assert measured[2, 0] > 10 * max(measured[2, 2], 1e-6)
 
 
+
+
+def test_a_dark_margin_beside_a_crease_stays_dark(gl_ctx):
+    """The closed eye's slit in small: a far quad 2 mm under a near one (a crease, as above), its
+    first 1.5 mm beside the edge dark (the margin the upper lid shades) and lit beyond; the near
+    quad dark. The far quad continues UNDER the near one, out of sight, as the lower lid does
+    under the upper: a tap across the crease stands for that hidden surface and brings the
+    pixel's own light. So each margin pixel receives only the light of the lit part on its own
+    side, sum_k w_k (G_k * lit pixels), with the hidden side dark (closed form, binned Gaussians),
+    within 3% + 2e-3. Before (rejected taps renormalised onto the visible side, how ssss drew the
+    orange eyelid line: 1.65x the reference's red in the slit, benchmarks/eyelid_slit.py) the
+    pixel at the edge got about twice that: red 0.154 instead of 0.082."""
+    from dermis.verification import binned_gaussian_1d
+
+    S = 256
+    sc = _two_planes(2.0)
+    px_mm = _pixel_mm(sc, S)  # at the far quad (150 mm)
+    dark_px = int(round(1.5 / px_mm))
+    with Renderer(sc, (S, S), ctx=gl_ctx, samples=0) as r:
+        r.render("ssss")
+        ssss = r.technique("ssss")
+        depth = ssss.debug_buffers()["ssss_depth_mm"][:, :, 0]
+        near = depth < depth.max() - 1.0
+        edge = int(np.argmax(~near[S // 2]))  # first far column
+        cols = np.arange(S)
+        lit = (~near) & (cols[None, :] >= edge + dark_px)
+        irr = np.repeat(lit[:, :, None].astype(np.float32), 3, axis=2)
+        ssss.screen_space(r.last_frame, irradiance=irr)
+        out = ssss.scattered()
+    rows = slice(S // 4, 3 * S // 4)
+    prof = sc.profile
+    w = prof.normalized().weights
+    lit_cols = np.arange(edge + dark_px, S)
+    expected = np.zeros((dark_px, 3))
+    for i in range(dark_px):  # margin column edge + i
+        for k, v in enumerate(prof.variances_mm2):
+            expected[i] += w[k] * binned_gaussian_1d((lit_cols - (edge + i)) * px_mm, v, px_mm).sum()
+    measured = out[rows, edge:edge + dark_px].mean(axis=0)
+    spread = np.ptp(out[rows, edge:edge + dark_px], axis=0).max()
+    print(f"margin ({dark_px} px), red measured {np.round(measured[:, 0], 4)}\nexpected {np.round(expected[:, 0], 4)}")
+    assert spread < 1e-3  # uniform along the edge
+    assert np.all(np.abs(measured - expected) <= 0.03 * expected + 2e-3), (measured, expected)
+    assert expected[0, 0] > 0.05  # the red of the wide Gaussians does reach the edge
+
+
+def test_closed_eye_slit_red_near_tsd(gl_ctx):
+    """The real head, a 40 mm close-up of the +x eye at 128 px (benchmarks/eyelid_slit.py): over
+    the slit (pre-scatter light below 0.35 of its 9 x 9 median) ssss's mean red is within 1.35x
+    of tsd's, which is 1.03x the offline reference's there (paths = "tissue", measured; too slow
+    for the suite). Before the follow-surface rule ssss was 1.65x the reference, 1.60x tsd; after
+    it 1.33x and 1.28x."""
+    import importlib.util
+
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "eyelid_slit.py"
+    spec = importlib.util.spec_from_file_location("eyelid_slit", path)
+    slit = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(slit)
+    sc = slit.closeup_scene(40.0)
+    with Renderer(sc, (128, 128), ctx=gl_ctx, irradiance_size=1024) as r:
+        tsd = r.render("tsd")
+        ssss = r.render("ssss")
+        mask = slit.slit_mask(r.technique("ssss").debug_buffers()["ssss_irradiance"][:, :, 0])
+    ratio = ssss[mask, 0].mean() / tsd[mask, 0].mean()
+    print(f"slit: {mask.sum()} px, ssss / tsd red {ratio:.3f}")
+    assert mask.sum() >= 20
+    assert ratio < 1.35, ratio

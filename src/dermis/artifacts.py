@@ -22,6 +22,20 @@ A pixel is flagged when speck(p) > threshold stops AND I(p) exceeds its own neig
 (a pixel darker than its surroundings is no speck); flagged pixels are grouped into 8-connected
 components, each reported with its size, peak and position. Units: stops (log2 of a radiance
 ratio); images are linear radiance (H, W, 3), row 0 = top.
+
+The speck scan cannot see defects that are BROAD (the neighbourhood's median takes them away) or
+DARKER (it asks for a pixel brighter than its surroundings): a shadow-map leak lights a patch of
+a shadow several pixels wide, a wrong term darkens or shifts the colour of a whole region. For
+those, ``shifts`` compares the two images region by region without the neighbourhood step:
+
+    shift(p)      = max_c excess_c(p)  (brighter)   or   -min_c excess_c(p)  (darker)
+
+flagged where > threshold stops, grouped into 8-connected regions of at least ``min_pixels``
+(one stray pixel of Monte Carlo noise is no region), optionally only where another mask says
+(``where``). ``shadow_leaks`` is the brighter shift restricted to the reference's SHADOW (pixels
+whose luminance is below ``shadow_fraction`` of the reference's median over the mask): light
+where the reference has none. The reference must then be one whose shadows are right (the
+offline reference's ray-cast shadows, dermis.reference), not the same technique with a term off.
 """
 
 from __future__ import annotations
@@ -91,15 +105,70 @@ def scan(image, reference, mask, *, threshold_stops: float = THRESHOLD_STOPS, wi
          eps_fraction: float = EPS_FRACTION) -> list[Speck]:
     """The defects of ``image`` beyond ``reference`` on ``mask``: 8-connected groups of pixels whose
     speck_map exceeds threshold_stops, largest peak first."""
+    s = speck_map(image, reference, mask, window=window, eps_fraction=eps_fraction)
+    return _regions(s, threshold_stops, 1)
+
+
+def _regions(score: np.ndarray, threshold: float, min_pixels: int) -> list[Speck]:
     from scipy import ndimage
 
-    s = speck_map(image, reference, mask, window=window, eps_fraction=eps_fraction)
-    lab, n = ndimage.label(s > threshold_stops, structure=np.ones((3, 3), int))
+    lab, n = ndimage.label(score > threshold, structure=np.ones((3, 3), int))
     if n == 0:
         return []
     ids = np.arange(1, n + 1)
-    sizes = ndimage.sum_labels(np.ones_like(s), lab, ids)
-    peaks = ndimage.maximum(s, lab, ids)
-    where = ndimage.maximum_position(s, lab, ids)
-    out = [Speck(pixels=int(a), peak_stops=float(p), row=int(rc[0]), col=int(rc[1])) for a, p, rc in zip(sizes, peaks, where)]
+    sizes = ndimage.sum_labels(np.ones_like(score), lab, ids)
+    peaks = ndimage.maximum(score, lab, ids)
+    where = ndimage.maximum_position(score, lab, ids)
+    out = [Speck(pixels=int(a), peak_stops=float(p), row=int(rc[0]), col=int(rc[1]))
+           for a, p, rc in zip(sizes, peaks, where) if a >= min_pixels]
     return sorted(out, key=lambda sp: -sp.peak_stops)
+
+
+def shift_map(image, reference, mask, *, darker: bool = False, eps_fraction: float = EPS_FRACTION) -> np.ndarray:
+    """(H, W) float32: stops by which each mask pixel is brighter (or, with ``darker``, darker) than
+    the reference in its most-changed channel, 0 outside the mask or where it is not."""
+    I = np.asarray(image, np.float64)[..., :3]
+    R = np.asarray(reference, np.float64)[..., :3]
+    m = np.asarray(mask, bool)
+    if I.shape != R.shape or I.shape[:2] != m.shape:
+        raise DermisError(f"shift_map: image {I.shape}, reference {R.shape} and mask {m.shape} must agree")
+    if not m.any():
+        return np.zeros(m.shape, np.float32)
+    eps = eps_fraction * np.maximum(np.median(R[m], axis=0), 1e-12)
+    e = np.log2((I + eps) / (R + eps))
+    s = -e.min(axis=2) if darker else e.max(axis=2)
+    return np.where(m, np.maximum(s, 0.0), 0.0).astype(np.float32)
+
+
+def shifts(image, reference, mask, *, darker: bool = False, threshold_stops: float = THRESHOLD_STOPS,
+           min_pixels: int = 4, where=None, eps_fraction: float = EPS_FRACTION) -> list[Speck]:
+    """Regions of at least ``min_pixels`` where ``image`` is brighter (``darker``: darker) than
+    ``reference`` by more than threshold_stops (module docstring), inside ``mask`` (and ``where``
+    if given), largest peak first."""
+    if min_pixels < 1:
+        raise DermisError(f"shifts: min_pixels must be >= 1, got {min_pixels}")
+    m = np.asarray(mask, bool)
+    if where is not None:
+        w = np.asarray(where, bool)
+        if w.shape != m.shape:
+            raise DermisError(f"shifts: where {w.shape} and mask {m.shape} must agree")
+        m = m & w
+    return _regions(shift_map(image, reference, m, darker=darker, eps_fraction=eps_fraction), threshold_stops, min_pixels)
+
+
+SHADOW_FRACTION = 0.25  # a reference pixel this far below the median luminance is in shadow
+
+
+def shadow_leaks(image, reference, mask, *, shadow_fraction: float = SHADOW_FRACTION,
+                 threshold_stops: float = THRESHOLD_STOPS, min_pixels: int = 4) -> list[Speck]:
+    """Light where the reference has none: brighter regions (``shifts``) inside the reference's
+    shadow, the pixels of ``mask`` whose luminance is below shadow_fraction of its median there."""
+    R = np.asarray(reference, np.float64)[..., :3]
+    m = np.asarray(mask, bool)
+    if R.shape[:2] != m.shape:
+        raise DermisError(f"shadow_leaks: reference {R.shape} and mask {m.shape} must agree")
+    if not m.any():
+        return []
+    lum = R @ np.array([0.2126, 0.7152, 0.0722])
+    shadow = lum < shadow_fraction * np.median(lum[m])
+    return shifts(image, reference, m, where=shadow, threshold_stops=threshold_stops, min_pixels=min_pixels)

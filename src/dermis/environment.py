@@ -7,6 +7,8 @@ common/environment.glsl.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 # cosine-lobe convolution constants A_l (Ramamoorthi & Hanrahan 2001, eq. 8)
@@ -54,7 +56,35 @@ def irradiance_sh_eval(coeffs, n):
     return np.maximum(sh9_basis(np.asarray(n, np.float64)) @ np.asarray(coeffs, np.float64), 0.0)
 
 
+def rotate_equirect(image: np.ndarray, degrees: float) -> np.ndarray:
+    """An equirectangular image (row 0 = up, centre = -z; this module's convention) turned
+    by ``degrees`` about +y: what was seen along direction d is then seen along R_y(degrees) d.
+
+    With u = 0.5 + atan2(x, -z) / 2 pi, R_y(theta) moves a feature from u to u - theta / 2 pi,
+    so column u of the result samples the source at u + theta / 2 pi, linearly interpolated
+    between columns (periodic in u); a multiple of 360 / width is an exact column shift."""
+    img = np.asarray(image, np.float32)
+    w = img.shape[1]
+    shift = (float(degrees) / 360.0) * w  # in columns
+    whole = math.floor(shift)
+    frac = shift - whole
+    a = np.roll(img, -whole, axis=1)
+    if frac < 1e-9:
+        return a
+    b = np.roll(img, -(whole + 1), axis=1)
+    return ((1.0 - frac) * a + frac * b).astype(np.float32)
+
+
+def equirect_radiance(env) -> np.ndarray:
+    """The environment's equirect image as every consumer must see it (SH, the prefiltered
+    specular, the reference, the Blender export's mapping): turned by ``env.rotation_deg`` about
+    +y. Not scaled by the intensity. ``env.image`` must not be None."""
+    if not float(env.rotation_deg) % 360.0:
+        return env.image.data
+    return rotate_equirect(env.image.data, float(env.rotation_deg))
+
+
 def environment_sh(env) -> np.ndarray:
     if env.image is not None:
-        return sh_irradiance_from_equirect(env.image.data) * env.intensity
+        return sh_irradiance_from_equirect(equirect_radiance(env)) * env.intensity
     return sh_irradiance_constant(env.color) * env.intensity

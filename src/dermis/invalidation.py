@@ -165,7 +165,7 @@ def scene_inputs(scene, *, irradiance_size: int, epoch: int) -> dict:
                              mat.specular_map_scale, mat.mix),
         "light_geometry": [light_geometry(L) for L in scene.lights],
         "lights": [light_state(L) for L in scene.lights],
-        "environment": (tuple(env.color), env.intensity, _texture(env.image)),
+        "environment": (tuple(env.color), env.intensity, _texture(env.image), float(env.rotation_deg)),
         "environment_occlusion": bool(env.occlusion),
         "profile": (fingerprint(np.asarray(scene.profile.variances_mm2, np.float64)),
                     fingerprint(np.asarray(scene.profile.weights, np.float64)), scene.skin_color),

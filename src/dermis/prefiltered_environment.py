@@ -193,7 +193,9 @@ def environment_specular_layers(env) -> np.ndarray:
     lobe)."""
     if env.image is None:
         return (np.asarray(env.color, np.float32) * np.float32(env.intensity)).reshape(1, 1, 1, 3)
-    return prefilter_equirect(env.image.data) * np.float32(env.intensity)
+    from dermis.environment import equirect_radiance
+
+    return prefilter_equirect(equirect_radiance(env)) * np.float32(env.intensity)
 
 
 # ---------------------------------------------------------------------- lookup (numpy twin)
@@ -231,6 +233,21 @@ def specular_dominant_direction(N, R, m) -> np.ndarray:
     f = np.asarray(s * (np.sqrt(s) + m))[..., None] if np.ndim(m) else s * (np.sqrt(s) + m)
     d = np.asarray(N, np.float64) + (np.asarray(R, np.float64) - N) * f
     return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+SKIN_ENV_GRAZING_EXPONENT = 0.8
+"""skin_environment_specular's lobe narrowing: m_eff = m (N.V)^0.8 (common/environment.glsl)."""
+
+
+def skin_environment_specular(layers, N, V, m) -> np.ndarray:
+    """Numpy twin of skin_environment_specular(N, V, m) (common/environment.glsl): the layers
+    along R = reflect(-V, N) at m (N.V)^0.8. (n, 3)."""
+    N = np.asarray(N, np.float64).reshape(-1, 3)
+    V = np.asarray(V, np.float64).reshape(-1, 3)
+    ndv = np.clip(np.sum(N * V, -1), 1e-4, 1.0)
+    R = 2.0 * ndv[:, None] * N - V
+    m_eff = np.asarray(m, np.float64) * ndv ** SKIN_ENV_GRAZING_EXPONENT
+    return sample_environment_specular(layers, R, m_eff)
 
 
 def sample_environment_specular(layers, R, m) -> np.ndarray:

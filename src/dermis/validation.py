@@ -222,6 +222,7 @@ def check_scene(scene, full: bool = True):
     _vec(env.color, f"{src}: [environment] color", 3, 0.0, MAX_INTENSITY)
     _num(env.intensity, f"{src}: [environment] intensity", 0.0, MAX_INTENSITY)
     tv(env.image, f"{src}: [environment] image", 0.0, MAX_INTENSITY)
+    _num(env.rotation_deg, f"{src}: [environment] rotation", -3600.0, 3600.0)
     o = scene.output
     check_exposure(o.exposure, f"{src}: [output] exposure")
     _vec(o.background, f"{src}: [output] background", 3, 0.0, FRAMEBUFFER_MAX)

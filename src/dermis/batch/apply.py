@@ -21,28 +21,10 @@ import math
 
 import numpy as np
 
+from dermis.environment import rotate_equirect  # noqa: F401  (turning the HDR, re-exported)
 from dermis.errors import DermisError
 
 SKIN_PREFIX = "skin."
-
-
-def rotate_equirect(image: np.ndarray, degrees: float) -> np.ndarray:
-    """An equirectangular image (row 0 = up, centre = -z; dermis.environment's convention) turned
-    by ``degrees`` about +y: what was seen along direction d is then seen along R_y(degrees) d.
-
-    With u = 0.5 + atan2(x, -z) / 2 pi, R_y(theta) moves a feature from u to u - theta / 2 pi,
-    so column u of the result samples the source at u + theta / 2 pi, linearly interpolated
-    between columns (periodic in u); a multiple of 360 / width is an exact column shift."""
-    img = np.asarray(image, np.float32)
-    w = img.shape[1]
-    shift = (float(degrees) / 360.0) * w  # in columns
-    whole = math.floor(shift)
-    frac = shift - whole
-    a = np.roll(img, -whole, axis=1)
-    if frac < 1e-9:
-        return a
-    b = np.roll(img, -(whole + 1), axis=1)
-    return ((1.0 - frac) * a + frac * b).astype(np.float32)
 
 
 def spherical_offset(camera) -> tuple[float, float, float]:

@@ -119,10 +119,18 @@ def dermis_equirect_uv(d_dermis) -> np.ndarray:
     return np.stack([u % 1.0, v], -1)
 
 
-def blender_equirect_uv(d_blender) -> np.ndarray:
+def equirect_mapping_z_deg(rotation_deg: float = 0.0) -> float:
+    """The Mapping node's z rotation for an environment turned by ``rotation_deg`` about dermis's
+    +y (Environment.rotation_deg: what was seen along d is seen along R_y(theta) d, so the lookup
+    along d reads the image at R_y(-theta) d). dermis +y is Blender +z and the axis change is a
+    proper rotation, so R_y(-theta) becomes R_z(-theta), composed with the fixed turn above."""
+    return EQUIRECT_ROTATION_Z_DEG - float(rotation_deg)
+
+
+def blender_equirect_uv(d_blender, rotation_deg: float = 0.0) -> np.ndarray:
     """Cycles' direction_to_equirectangular after the Mapping rotation (v = 1 at the top row)."""
     d = np.asarray(d_blender, np.float64)
-    a = np.radians(EQUIRECT_ROTATION_Z_DEG)
+    a = np.radians(equirect_mapping_z_deg(rotation_deg))
     x = np.cos(a) * d[..., 0] - np.sin(a) * d[..., 1]
     y = np.sin(a) * d[..., 0] + np.cos(a) * d[..., 1]
     u = 0.5 - np.arctan2(y, x) / (2 * np.pi)

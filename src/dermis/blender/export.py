@@ -270,7 +270,7 @@ def build_world(bpy, scene, opts: ExportOptions):
         tex.projection = "EQUIRECTANGULAR"
         coord = nodes.new("ShaderNodeTexCoord")
         mapping = nodes.new("ShaderNodeMapping")
-        mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(convert.EQUIRECT_ROTATION_Z_DEG))
+        mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(convert.equirect_mapping_z_deg(env.rotation_deg)))
         links.new(coord.outputs["Generated"], mapping.inputs["Vector"])
         links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
         links.new(tex.outputs["Color"], light_bg.inputs["Color"])

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from dermis.environment import environment_sh, irradiance_sh_eval
+from dermis.environment import environment_sh, equirect_radiance, irradiance_sh_eval
 from dermis.images import as_rgb
 from dermis.scene.model import skin_albedo_scale
 from dermis.specular import rho_dt_table, roughness_to_y
@@ -278,7 +278,7 @@ class SurfaceModel:
         # the HDR itself (linear radiance x intensity) for the environment's specular integral
         # (shading.environment_specular_mc); None for a constant environment
         self.env_image = None if env.image is None else \
-            np.ascontiguousarray(as_rgb(env.image.data), np.float64) * float(env.intensity)
+            np.ascontiguousarray(as_rgb(equirect_radiance(env)), np.float64) * float(env.intensity)
         self.rho_dt = np.asarray(rho_dt_table(), np.float64)
 
     # ------------------------------------------------------------------ interpolation

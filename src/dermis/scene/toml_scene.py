@@ -34,7 +34,7 @@ _SCHEMA = {
               "shadow_softness": float, "shadow_bias": float},
     "camera": {"position": "vec3", "target": "vec3", "up": "vec3", "fov_deg": float, "near": float, "far": float,
                "fit": bool},
-    "environment": {"color": "rgb", "image": str, "intensity": float, "occlusion": bool},
+    "environment": {"color": "rgb", "image": str, "intensity": float, "occlusion": bool, "rotation": float},
     "output": {"exposure": float, "tonemap": str, "background": "rgb", "bloom": float, "bloom_radius": float},
 }
 _TOP = {"scene", "mesh", "material", "lights", "camera", "environment", "output", "skin"}
@@ -184,7 +184,7 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
     _positive(cam.fov_deg, "[camera] fov_deg", path, 0.0, 170.0)
     env_t = _check(doc.get("environment", {}), "environment", path)
     env = Environment(color=env_t.get("color", Environment.color), intensity=env_t.get("intensity", 1.0),
-                      occlusion=env_t.get("occlusion", True))
+                      occlusion=env_t.get("occlusion", True), rotation_deg=env_t.get("rotation", 0.0))
     if "image" in env_t:
         env.image = _texture(folder, env_t["image"], True, path, max_pixels)
     out = Output(**_check(doc.get("output", {}), "output", path))

@@ -26,7 +26,7 @@ from enum import IntEnum
 import numpy as np
 
 from dermis.errors import DermisError
-from dermis.prefiltered_environment import LAYERS as ENV_SPECULAR_LAYERS
+from dermis.prefiltered_environment import LAYERS as ENV_SPECULAR_LAYERS, SKIN_ENV_GRAZING_EXPONENT
 from dermis.specular import M_MAX, M_MIN, SKIN_F0, TABLE_ATLAS
 
 MAX_LIGHTS = 8
@@ -104,7 +104,8 @@ def glsl_constants() -> str:
              f"#define DERMIS_SPECULAR_M_MIN {_glsl_float(M_MIN)}",
              f"#define DERMIS_SPECULAR_M_MAX {_glsl_float(M_MAX)}",
              "#ifndef DERMIS_SKIN_F0", f"#define DERMIS_SKIN_F0 {_glsl_float(SKIN_F0)}", "#endif",
-             f"#define DERMIS_ENV_SPECULAR_LAYERS {ENV_SPECULAR_LAYERS}"]
+             f"#define DERMIS_ENV_SPECULAR_LAYERS {ENV_SPECULAR_LAYERS}",
+             f"#define DERMIS_SKIN_ENV_GRAZING_EXPONENT {_glsl_float(SKIN_ENV_GRAZING_EXPONENT)}"]
     lines += [f"#define DERMIS_{name.upper()}_RECT vec4({', '.join(_glsl_float(v) for v in rect)})"
               for name, rect in TABLE_ATLAS.items()]
     lines += [f"#define LIGHT_{kind.upper()} {v}" for kind, v in LIGHT_TYPES.items()]

@@ -18,7 +18,8 @@ with each pixel's kernel scaled to millimetres by its depth:
                    Pixels per mm = size / (2 tan(fov/2) depth_mm); taps follow the surface (weight
                    of the 3-D distance, taps across a depth jump > depth_cutoff_mm rejected, taps
                    whose straight path to the pixel crosses air rejected: creases, as the
-                   reference's paths = "tissue", ssss/kernel.glsl).
+                   reference's paths = "tissue"; a rejected tap keeps its weight and brings
+                   the pixel's own light, Jimenez 2015's follow-surface rule, ssss/kernel.glsl).
   ssss_final       the mesh into the frame's target: scattered * albedo^(1-mix) / pi
                    * (1 - rho_s a(N.V, m) / pi) + specular (added after the blur)
 
@@ -65,6 +66,7 @@ class SsssOptions(TranslucentOptions):
     depth_cutoff_mm: float = DEPTH_CUTOFF_MM  # taps across a larger depth jump are rejected
     follow_surface: bool = True  # weight taps by the 3-D distance and reject depth jumps
     tissue_paths: bool = True  # skip taps whose straight path to the pixel crosses air (creases)
+    surface_measure: bool = False  # weigh taps by the surface each pixel holds (ds/dx; ssss/kernel.glsl: off, why)
 
     def validate(self, technique: str) -> None:
         super().validate(technique)
@@ -72,6 +74,7 @@ class SsssOptions(TranslucentOptions):
         check_float(f"{technique}: depth_cutoff_mm", self.depth_cutoff_mm)
         check_bool(f"{technique}: follow_surface", self.follow_surface)
         check_bool(f"{technique}: tissue_paths", self.tissue_paths)
+        check_bool(f"{technique}: surface_measure", self.surface_measure)
 
 
 class ScreenSpaceSSS(Technique):
@@ -150,6 +153,7 @@ class ScreenSpaceSSS(Technique):
         set_uniform(prog, "uPixelsPerMmXY", (float(0.5 * size[0] * frame.proj[0, 0]), float(0.5 * size[1] * frame.proj[1, 1])))
         tissue = self.options.tissue_paths and self.options.follow_surface  # ignoring depth ignores creases too
         set_uniform(prog, "uTissueTau", float(TISSUE_TAU) if tissue else 2.0)
+        set_uniform(prog, "uSurfaceMeasure", 1.0 if self.options.surface_measure else 0.0)
 
     def screen_space(self, frame: Frame, irradiance: np.ndarray | None = None):
         """Passes 1-3: the pre-scatter irradiance and depth, then the two blurs. ``irradiance``

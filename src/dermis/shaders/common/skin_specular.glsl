@@ -8,7 +8,7 @@
 
 // d'Eon & Luebke 2007 (GPU Gems 3, 14.3): sum over lights of E_i * SHARP shadow * KS_Skin_Specular
 // / pi on the (pore-detailed) normal Ns, plus the environment's specular: the environment
-// prefiltered for the lobe at the reflected direction (environment_specular, common/environment.glsl)
+// prefiltered for the lobe at the reflected direction (skin_environment_specular, common/environment.glsl)
 // times the specular albedo rho_s a(N.V, m) / pi (Karis 2013's split sum).
 // The environment's term is scaled by the specular occlusion of common/environment.glsl.
 // P: world position; Ng: geometric normal (shadow lookups, back-facing lights); V: to the eye;
@@ -22,7 +22,7 @@ vec3 skin_specular_radiance(vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho
         spec += Ei * shadow_sharp(i, P, Ng) * ks_skin_specular(Ns, L, V, m, rho_s, beckmannTex) * INV_PI;
     }
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
-    spec += environment_specular(specular_dominant_direction(Ns, reflect(-V, Ns), m), m) * rho_s * rho_dt_lookup(uSpecularTables, ndv, m) * INV_PI
+    spec += skin_environment_specular(Ns, V, m) * rho_s * rho_dt_lookup(uSpecularTables, ndv, m) * INV_PI
             * specular_occlusion(ndv, vis.x, m);
     return spec;
 }

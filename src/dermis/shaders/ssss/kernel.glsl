@@ -20,14 +20,22 @@
 // image is stable from frame to frame) every pixel is covered with probability 1/s and weight
 // about s g(x), so the blur is exact in expectation and the rings become fine noise that smooth
 // irradiance averages away (Jimenez et al. 2015 jitter/rotate their kernels per pixel for the
-// same reason). Weights are renormalised over the taps used.
+// same reason). Weights are renormalised over the taps used (inside the frame).
 //
 // Following the surface (Jimenez et al. 2009, sec. 4; 2015, SSSS_FOLLOW_SURFACE): a tap whose
 // depth differs by dz mm lies that much further away on the surface, so its weight also carries
-// the Gaussian's factor exp(-dz^2 / 2 v_k) (G(v, sqrt(x^2 + dz^2)) = G(v, x) exp(-dz^2 / 2v));
-// taps with |dz| > uDepthCutoffMm (a silhouette) and taps off the mesh are rejected outright.
-// Renormalisation keeps the energy: light neither bleeds across silhouettes nor leaks into the
-// background, and slanted surfaces get narrower screen-space kernels, as they should.
+// the Gaussian's factor exp(-dz^2 / 2 v_k) (G(v, sqrt(x^2 + dz^2)) = G(v, x) exp(-dz^2 / 2v)),
+// and the kernel is renormalised over those taps: a plane slanted by theta gets the Gaussian of
+// sigma cos(theta) in screen space, exactly what the surface measure ds = dx / cos(theta) asks.
+// Taps with |dz| > uDepthCutoffMm (a silhouette), off the mesh, or across air (below) lie on
+// ANOTHER surface: they keep their kernel weight but bring the pixel's OWN light, not the light
+// of the far side (Jimenez et al. 2015, SeparableSSS.h, SSSS_FOLLOW_SURFACE: "lerp back to
+// colorM"). The surface the kernel would have covered there continues out of sight (under the
+// upper lid, around a silhouette), and the pixel's light is the estimate of it that neither
+// brightens nor darkens it. Renormalising onto the far side instead filled the closed eye's slit,
+// whose few visible pixels are dark and whose walls are hidden, with the lit lower lid's red: an
+// orange line 1.87x the reference's red (benchmarks/eyelid_slit.py, RESULTS "Eyelids, ssss cost").
+// Energy is kept either way; light neither bleeds across silhouettes nor leaks into the background.
 //
 // Tissue paths (as dermis.reference's paths = "tissue", TISSUE_TAU in techniques/shared.py): a tap q is skipped
 // where the straight segment between the two surface points leaves either of them into the AIR,
@@ -38,9 +46,9 @@
 // saturated orange line along both eyelid creases, where tsd (whose texture-space neighbours are
 // the crease's own walls) and the reference show a dark line. Smooth convex skin keeps every tap
 // (its neighbours lie below the tangent plane); concave skin of radius R keeps those within ~R/2.
-// The kernel is renormalised over the taps kept. Keeping a rejected tap's weight with no light
-// (the crease's hidden walls taken as dark) was tried: the wide red Gaussians lost the most
-// weight, and cyan lines appeared along every crease (nose wings, eye sockets).
+// A skipped tap brings the pixel's own light (above). Keeping its weight with NO light (the
+// crease's hidden walls taken as dark) was tried: the wide red Gaussians lost the most weight,
+// and cyan lines appeared along every crease (nose wings, eye sockets).
 #include "common/profile.glsl"
 
 uniform sampler2D uIrradiance;          // pass 1: rgb pre-scatter irradiance, a = view depth mm (0: none)
@@ -52,12 +60,12 @@ uniform float uFollowSurface;           // 1: weigh taps by the depth difference
 uniform sampler2D uViewNormal;          // pass 1: the geometric normal in view space (0: none)
 uniform vec2 uPixelsPerMmXY;            // uPixelsPerMmAtUnitDepth along x and y: view-space offsets
 uniform float uTissueTau;               // sin of the largest angle above the tangent plane; > 1: off
+uniform float uSurfaceMeasure;          // 1: weigh taps by their surface per pixel (below); 0: off
 
 const float SSSS_REACH_SIGMAS = 3.7169;  // sqrt(2 ln 1000): a Gaussian at 1e-3 of its peak
 
 struct SsssKernel {
     float ppm;                           // pixels per mm at this pixel's depth
-    int step_px;                         // tap spacing of the shared taps: 1 pixel
     int taps;                            // shared taps per side (Gaussians with step 1)
     float inv_sqrt2_sigma[MAX_GAUSSIANS]; // 1 / (sqrt(2) sigma_k), 1/px
     float inv_2var[MAX_GAUSSIANS];       // 1 / (2 v_k ppm^2), 1/px^2
@@ -103,7 +111,6 @@ float ssss_bin_weight(float low, float high, float inv) {
 SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index) {
     SsssKernel K;
     K.ppm = uPixelsPerMmAtUnitDepth / depth_mm;
-    K.step_px = 1;
     float shared_reach = 0.0;
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         float sigma_px = max(sqrt(uVariances[k]) * K.ppm, 1e-4);
@@ -138,24 +145,6 @@ float ssss_wide_weight(SsssKernel K, int k, int d) {
     return ssss_bin_weight(low, high, K.inv_sqrt2_sigma[k]);
 }
 
-// Signed offset (pixels) of a wide Gaussian's j-th tap (j in [-wide_taps, wide_taps]).
-int ssss_wide_offset(SsssKernel K, int k, int j) {
-    return j * K.wide_step_px[k] + K.wide_offset_px[k];
-}
-
-// Centre bin of Gaussian k: integral over [-step/2, step/2].
-float ssss_centre_weight(SsssKernel K, int k) {
-    return ssss_erf(0.5 * float(K.step_px) * K.inv_sqrt2_sigma[k]);
-}
-
-// Depth factor of a tap for Gaussian k: exp(-dz^2 / 2 v_k); dz_px = depth difference in pixels.
-// Below an exponent of 2e-3, 1 - u is exact to 2e-6 and skips the exp (a third of the blurs' time
-// on llvmpipe: most taps of the wide Gaussians barely change depth).
-float ssss_depth_factor(SsssKernel K, int k, float dz_px) {
-    float u = dz_px * dz_px * K.inv_2var[k];
-    return u < 2e-3 ? 1.0 - u : exp(-u);
-}
-
 // Depth difference of a tap in pixels at this depth, or -1 to reject the tap.
 float ssss_tap_dz_px(SsssKernel K, float depth_mm, float tap_depth_mm) {
     if (tap_depth_mm <= 0.0) return -1.0;  // no surface there
@@ -171,14 +160,130 @@ vec3 ssss_view_position_mm(ivec2 p, ivec2 size, float z_mm) {
     return vec3(c, -z_mm);
 }
 
-// False where the straight path between the surface points of pixels p and q crosses air (above).
-bool ssss_tissue_path(ivec2 p, float zp, ivec2 q, float zq, ivec2 size) {
+// Surface measure (uSurfaceMeasure = 1): the profile is integrated over the SURFACE,
+// sum_q R(d) E_q dA_q, and a pixel whose surface is inclined to the view holds more of it than one
+// facing the camera: along the blur's axis a, ds/dx = sqrt(n_a^2 + n_z^2) / |n_z| (n the view-space
+// normal, orthographic approximation), a tap's weight is multiplied by its own ds/dx. For the
+// separable pair the product of the two axes' factors stands for the area's 1 / |n_z| (exact where
+// the surface tilts along one axis). It matters where the visible surface folds away: the pixels
+// at the closed eye's slit are the lids' margins turning into it (n_z 0.5-0.7), dark, and hold
+// 1.4-1.9x the surface of a pixel facing the camera (slit red 1.33x -> 1.27x the reference,
+// benchmarks/eyelid_slit.py). Facing planes (every impulse test) are unchanged. At most
+// SSSS_MAX_MEASURE (n_z >= 0.2): silhouettes stay finite. 1 when not following the surface.
+// OFF by default (option surface_measure): on the whole head it moved the environment scene's
+// validate FLIP 0.0272 -> 0.0281 (the straight-path reference), so its net effect is not shown
+// to be a gain; the eye close-up's mean error against the tissue-path reference 0.0213 -> 0.0205.
+const float SSSS_MAX_MEASURE = 5.0;
+float ssss_measure(vec3 n) {
+    if (uFollowSurface == 0.0 || uSurfaceMeasure == 0.0) return 1.0;
+    float na = dot(n.xy, vec2(uDirection));
+    return min(sqrt(na * na + n.z * n.z) / max(abs(n.z), 1e-6), SSSS_MAX_MEASURE);
+}
+
+// False where the straight path from the pixel's surface point (view space, mm, with its normal
+// np) to pixel q's (normal nq) crosses air (above).
+bool ssss_tissue_path(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size) {
     if (uTissueTau > 1.0) return true;
-    vec3 np = texelFetch(uViewNormal, p, 0).xyz;
-    vec3 nq = texelFetch(uViewNormal, q, 0).xyz;
-    vec3 d = ssss_view_position_mm(q, size, zq) - ssss_view_position_mm(p, size, zp);
+    vec3 d = ssss_view_position_mm(q, size, zq) - pp;
     float len = length(d);
     if (len <= 0.0) return true;
     vec3 u = d / len;
     return dot(u, np) <= uTissueTau && -dot(u, nq) <= uTissueTau;
+}
+
+// Gaussian k's light at pixel q whose irradiance texel is ``tap``: defined by each pass (the
+// horizontal pass: tap.rgb for every k; the vertical one: the horizontal pass's k-th image).
+vec3 ssss_tap_light(int k, ivec2 q, vec4 tap);
+
+// The 1-D blur along uDirection at pixel p, per Gaussian: out[k] = sum_taps w E_k / sum_taps w
+// (pass_index 0 horizontal, 1 vertical), for a pixel on the skin (depth > 0).
+// Written so that a GPU compiler keeps everything in registers: every loop over the Gaussians has
+// a constant trip count (MAX_GAUSSIANS = the profile's K) and no loop inside, so it unrolls and
+// each array is indexed by constants (a dynamic index sends the arrays to local memory: the
+// first version looped over the wide Gaussians' own taps INSIDE a loop over k). Per tap and
+// Gaussian there is one erfc (each bin's upper edge is the next bin's lower edge, kept), and
+// the pixel's own position and normal are fetched once.
+void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS]) {
+    ivec2 size = textureSize(uIrradiance, 0);
+    vec4 c = texelFetch(uIrradiance, p, 0);
+    SsssKernel K = ssss_kernel(c.a, p, pass_index);
+    vec3 pp = ssss_view_position_mm(p, size, c.a);
+    vec3 np = texelFetch(uViewNormal, p, 0).xyz;
+    vec3 centre[MAX_GAUSSIANS];  // the pixel's own light: what a tap on another surface brings
+    vec3 sum[MAX_GAUSSIANS];
+    float wsum[MAX_GAUSSIANS];
+    float own[MAX_GAUSSIANS];    // weight carried by the pixel's own light (its bin and rejected taps)
+    float lower[MAX_GAUSSIANS];  // erfc at the lower edge of the next bin
+    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+        centre[k] = ssss_tap_light(k, p, c);
+        sum[k] = vec3(0.0);
+        wsum[k] = 0.0;
+        own[k] = ssss_erf(0.5 * K.inv_sqrt2_sigma[k]);  // the centre bin [-1/2, 1/2]
+        lower[k] = ssss_erfc_positive(0.5 * K.inv_sqrt2_sigma[k]);
+    }
+    // Gaussians whose reach fits in uMaxTaps: taps at every pixel, shared
+    for (int j = 1; j <= K.taps; ++j) {
+        float wx[MAX_GAUSSIANS];  // the bin [j - 1/2, j + 1/2] of each Gaussian
+        for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+            if (float(j) - 0.5 > K.reach_px[k]) { wx[k] = 0.0; continue; }  // also wide ones, k >= count
+            float upper = ssss_erfc_positive((float(j) + 0.5) * K.inv_sqrt2_sigma[k]);
+            wx[k] = 0.5 * (lower[k] - upper);
+            lower[k] = upper;
+        }
+        for (int side = -1; side <= 1; side += 2) {
+            ivec2 q = p + uDirection * (side * j);
+            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+            vec4 t = texelFetch(uIrradiance, q, 0);
+            vec3 nq = texelFetch(uViewNormal, q, 0).xyz;
+            float dz_px = ssss_tap_dz_px(K, c.a, t.a);
+            if (dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, t.a, size)) {
+                for (int k = 0; k < MAX_GAUSSIANS; ++k) own[k] += wx[k];  // another surface
+                continue;
+            }
+            float dz2 = dz_px * dz_px;
+            float measure = ssss_measure(nq);
+            for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+                if (wx[k] <= 0.0) continue;
+                float u = dz2 * K.inv_2var[k];
+                float w = wx[k] * measure * (u < 2e-3 ? 1.0 - u : exp(-u));  // the depth factor (above)
+                sum[k] += w * ssss_tap_light(k, q, t);
+                wsum[k] += w;
+            }
+        }
+    }
+    // Gaussians wider than uMaxTaps pixels: their own jittered taps, s pixels apart (above)
+    int wide_taps = 0;
+    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+        if (K.wide_step_px[k] == 0) continue;
+        sum[k] = vec3(0.0);
+        wsum[k] = 0.0;
+        own[k] = 0.0;
+        wide_taps = max(wide_taps, K.wide_taps[k]);
+    }
+    for (int j = -wide_taps; j <= wide_taps; ++j) {
+        for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+            if (K.wide_step_px[k] == 0 || abs(j) > K.wide_taps[k]) continue;
+            int d = j * K.wide_step_px[k] + K.wide_offset_px[k];
+            float w = ssss_wide_weight(K, k, d);
+            if (w <= 0.0) continue;
+            ivec2 q = p + uDirection * d;
+            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+            vec4 t = texelFetch(uIrradiance, q, 0);
+            vec3 nq = texelFetch(uViewNormal, q, 0).xyz;
+            float dz_px = ssss_tap_dz_px(K, c.a, t.a);
+            if (dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, t.a, size)) {
+                own[k] += w;  // another surface
+                continue;
+            }
+            float u = dz_px * dz_px * K.inv_2var[k];
+            w *= ssss_measure(nq) * (u < 2e-3 ? 1.0 - u : exp(-u));
+            sum[k] += w * ssss_tap_light(k, q, t);
+            wsum[k] += w;
+        }
+    }
+    float own_measure = ssss_measure(np);
+    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+        float w = own[k] * own_measure;
+        result[k] = (sum[k] + w * centre[k]) / max(wsum[k] + w, 1e-20);
+    }
 }

@@ -1,0 +1,54 @@
+"""benchmarks/crop_sheet.py's Cycles column: a Cycles image of another size (the validation's
+64 x 64) is cut from the same millimetre square as the renders, so its tiles show the same part
+of the head. Stand-in for Cycles: the render itself, box-downsampled to 64 x 64."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+
+import dermis
+from dermis.images import write_exr
+from dermis.renderer import Renderer
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def _crop_sheet():
+    spec = importlib.util.spec_from_file_location("crop_sheet", REPO / "benchmarks" / "crop_sheet.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_cycles_column_of_another_size_shows_the_same_crops(gl_ctx, tmp_path):
+    cs = _crop_sheet()
+    scene_file = REPO / "examples" / "lee-perry-smith.toml"
+    S, tile = 256, 48
+    with Renderer(dermis.load_scene(scene_file), (S, S), ctx=gl_ctx, irradiance_size=256) as r:
+        img = r.render("lambert").astype(np.float32)
+        f = r.last_frame
+        cam = (img, f.view, f.proj, np.asarray(f.eye))
+    small = img.reshape(64, S // 64, 64, S // 64, 3).mean(axis=(1, 3))
+    (tmp_path / scene_file.stem).mkdir()
+    write_exr(tmp_path / scene_file.stem / "cycles_spec.exr", small)
+    sheet_img, rows = cs.sheet(scene_file, [("lambert", cam)], tmp_path, S, 56.0, tile)
+    plain, _ = cs.sheet(scene_file, [("lambert", cam)], None, S, 56.0, tile)
+    assert rows and "eye +x" in rows
+    assert sheet_img.shape[1] == plain.shape[1] + tile + 4  # one more column
+    band, pad, x0 = 18, 4, 70
+    ours, cyc = [], []
+    for i in range(len(rows)):
+        y = band + i * (tile + pad)
+        ours.append(sheet_img[y:y + tile, x0:x0 + tile].astype(float))
+        cyc.append(sheet_img[y:y + tile, x0 + tile + pad:x0 + 2 * tile + pad].astype(float))
+        assert cyc[-1].std() > 1.0  # a tile with content, not the padding
+    # each Cycles tile is the same square as its row's render tile: closer to it (mean absolute
+    # difference of the display values, the 64 x 64 stand-in's tile blurred) than to any other row's
+    d = np.array([[np.abs(o - c).mean() for o in ours] for c in cyc])
+    print(f"rows {rows}\nmean |difference| (Cycles tile x render tile)\n{np.round(d, 1)}")
+    assert np.all(np.diag(d) < 16.0), np.diag(d)
+    for i in range(len(rows)):
+        assert d[i, i] < 0.6 * np.delete(d[i], i).min(), d
