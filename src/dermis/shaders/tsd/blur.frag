@@ -42,6 +42,9 @@ float erf_as(float x) {
 #ifndef TAPS
 #define TAPS 4
 #endif
+#ifndef REACH
+#define REACH 3.0
+#endif
 
 void main() {
     ivec2 ip = ivec2(gl_FragCoord.xy);
@@ -50,12 +53,12 @@ void main() {
     vec2 st = texelFetch(uStretch, min(ip, textureSize(uStretch, 0) - 1), 0).xy;
     float sigma = uSigmaMm * dot(st, uDirection) * uLevelScale;  // texels of this level
     if (sigma < 0.02) { f_color = center; return; }
-    float step_ = max(1.0, ceil(3.0 * sigma / float(TAPS)));
+    float step_ = max(1.0, ceil(REACH * sigma / float(TAPS)));
     ivec2 dir = ivec2(uDirection) * int(step_);
 #ifdef FOOTPRINT
     // bins of `step_` texels, the Gaussian integrated over each (Sheppard: bins of more than one
     // texel integrate sigma^2 - step^2 / 12 ... except the receiving texel's own, which is the point)
-    int n = int(min(ceil(3.0 * sigma / step_ - 0.001), float(TAPS)));
+    int n = int(min(ceil(REACH * sigma / step_ - 0.001), float(TAPS)));
     float sb = step_ > 1.0 ? sqrt(max(sigma * sigma - (step_ * step_ - 1.0) / 12.0, 0.0025)) : sigma;
     float inv = 1.0 / (sb * 1.41421356);
     float edge = erf_as(0.5 * step_ * inv);
