@@ -61,6 +61,14 @@ LEVEL_MIN_SIGMA_TEXELS = 1.2
 TAP_STRETCH_PERCENTILE = 75.0
 TAP_REACH_SIGMAS = 3.0  # a pass's taps per side reach this many sigmas at TAP_STRETCH_PERCENTILE
 LEVEL_MIN_INPUT_SIGMA_TEXELS = 0.5
+# a light Gaussian (its largest normalised weight, over the channels, below LEVEL_LIGHT_WEIGHT) may go
+# one level coarser: its I_k's share of the error a reduced level brings is small. On the head at
+# 1024^2 (d'Eon's profile) I_4 (weights <= 0.113) then runs at level 1: the impulse error at the
+# head's 0.49 mm texels went 0.45 -> 1.02 % (red) and the chain 1/4 of a level-0 pair cheaper; moving
+# the heavy I_5 (red 0.358) too would give 2.8 % (benchmarks/RESULTS.md, round 4)
+LEVEL_LIGHT_WEIGHT = 0.15
+LEVEL_MIN_SIGMA_TEXELS_LIGHT = 0.65
+LEVEL_MIN_INPUT_SIGMA_TEXELS_LIGHT = 0.35
 # I_1 and I_2 come from one 3x3 pass (tsd/blur_narrow.frag) when both are at level 0 and I_2's sigma
 # is at most this many texels at the NARROW_STRETCH_PERCENTILE of the stretch: there G(v_2)
 # integrated over the texels has a variance <= 2/3 texel^2, what a 3-tap kernel [a, 1 - 2a, a] holds
@@ -258,13 +266,16 @@ class TextureSpaceDiffusion(Technique):
         texel0 = 1.0 / self._stretch_uv()  # mm per level-0 texel along u, v
         t0 = float(np.max(texel0))
         max_level = max(0, int(math.log2(max(S, 16) / 16)))
+        heavy = np.max(np.asarray(profile.normalized().weights, np.float64), axis=1) >= LEVEL_LIGHT_WEIGHT
         levels, prev = [], 0
         for k in range(1, len(v)):
             lvl = prev
+            own, inp = ((LEVEL_MIN_SIGMA_TEXELS, LEVEL_MIN_INPUT_SIGMA_TEXELS) if heavy[k - 1] else
+                        (LEVEL_MIN_SIGMA_TEXELS_LIGHT, LEVEL_MIN_INPUT_SIGMA_TEXELS_LIGHT))
             for cand in range(max_level, prev, -1):
                 tex = (2.0 ** cand) * t0
-                ok = (math.sqrt(v[k]) >= LEVEL_MIN_SIGMA_TEXELS * tex
-                      and math.sqrt(v[k - 1]) >= LEVEL_MIN_INPUT_SIGMA_TEXELS * tex
+                ok = (math.sqrt(v[k]) >= own * tex
+                      and math.sqrt(v[k - 1]) >= inp * tex
                       and np.all(self._steps_for(v, levels + [cand], texel0)[-1] >= 0.0))
                 if ok:
                     lvl = cand
