@@ -59,7 +59,11 @@ OVERLAP_TOLERANCE = 0.01  # fraction of covered texels a UV layout may cover twi
 # that level and I_(k-1)'s >= LEVEL_MIN_INPUT_SIGMA_TEXELS (and no finer than I_(k-1)): _plan_levels
 LEVEL_MIN_SIGMA_TEXELS = 1.2
 TAP_STRETCH_PERCENTILE = 75.0
-TAP_REACH_SIGMAS = 3.0  # a pass's taps per side reach this many sigmas at TAP_STRETCH_PERCENTILE
+# a pass's taps per side reach this many sigmas at TAP_STRETCH_PERCENTILE: the first step's erf bins
+# (FOOTPRINT) to 3 sigma, the later steps' sampled Gaussians, whose variance the correction tap makes
+# exact (tsd/blur.frag), to TAP_REACH_SIGMAS
+FOOTPRINT_REACH_SIGMAS = 3.0
+TAP_REACH_SIGMAS = 2.5
 LEVEL_MIN_INPUT_SIGMA_TEXELS = 0.5
 # a light Gaussian (its largest normalised weight, over the channels, below LEVEL_LIGHT_WEIGHT) may go
 # one level coarser: its I_k's share of the error a reduced level brings is small. On the head at
@@ -319,12 +323,13 @@ class TextureSpaceDiffusion(Technique):
         Compiled on first use."""
         widest = sigma_mm * (self.tap_stretch or self.median_stretch or 1.0) * 2.0 ** -level
         cap = max_taps or self.options.max_taps
-        need = min(math.ceil(TAP_REACH_SIGMAS * widest), cap)
+        reach = FOOTPRINT_REACH_SIGMAS if footprint else TAP_REACH_SIGMAS
+        need = min(math.ceil(reach * widest), cap)
         taps = max(1, min(need, cap))
-        key = (taps, bool(footprint), TAP_REACH_SIGMAS)
+        key = (taps, bool(footprint), reach)
         prog = self._blur_programs.get(key)
         if prog is None:
-            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TAPS": taps, "REACH": f"{float(TAP_REACH_SIGMAS):.6f}"}
+            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TAPS": taps, "REACH": f"{float(reach):.6f}"}
             if footprint:
                 defines["FOOTPRINT"] = 1
             prog = program(self.ctx, "common/fullscreen.vert", "tsd/blur.frag", defines)
