@@ -16,7 +16,7 @@ VARIANTS = json.loads(os.environ.get("VARIANTS", '[{}]'))
 S = int(os.environ.get("IRR", 1024))
 def apply(v):
     for k, val in v.items(): setattr(T, k, val)
-base = {k: getattr(T, k) for k in ("TAP_REACH_SIGMAS", "LEVEL_MIN_SIGMA_TEXELS", "LEVEL_MIN_INPUT_SIGMA_TEXELS", "NARROW_PASS", "LEVEL_LIGHT_WEIGHT", "LEVEL_MIN_SIGMA_TEXELS_LIGHT", "LEVEL_MIN_INPUT_SIGMA_TEXELS_LIGHT")}
+base = {k: getattr(T, k) for k in ("TAP_REACH_SIGMAS", "LEVEL_MIN_SIGMA_TEXELS", "LEVEL_MIN_INPUT_SIGMA_TEXELS", "NARROW_PASS", "LEVEL_LIGHT_WEIGHT", "LEVEL_MIN_SIGMA_TEXELS_LIGHT", "LEVEL_MIN_INPUT_SIGMA_TEXELS_LIGHT", "TAP_STRETCH_PERCENTILE")}
 rs, fns = [], []
 ctx = None
 for v in VARIANTS:
