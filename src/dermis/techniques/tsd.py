@@ -68,7 +68,7 @@ LEVEL_MIN_INPUT_SIGMA_TEXELS = 0.5
 # a light Gaussian (its largest normalised weight, over the channels, below LEVEL_LIGHT_WEIGHT) may go
 # one level coarser: its I_k's share of the error a reduced level brings is small. On the head at
 # 1024^2 (d'Eon's profile) I_4 (weights <= 0.113) then runs at level 1: the impulse error at the
-# head's 0.49 mm texels went 0.45 -> 1.02 % (red) and the chain 1/4 of a level-0 pair cheaper; moving
+# head's 0.49 mm texels went 0.45 -> 1.0-1.1 % (red) and the chain a level-0 pair cheaper; moving
 # the heavy I_5 (red 0.358) too would give 2.8 % (benchmarks/RESULTS.md, round 4)
 LEVEL_LIGHT_WEIGHT = 0.15
 LEVEL_MIN_SIGMA_TEXELS_LIGHT = 0.65
