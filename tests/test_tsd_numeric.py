@@ -39,9 +39,9 @@ def test_impulse_response_matches_sum_of_gaussians(gl_ctx, multires):
 @pytest.mark.parametrize("texel", [0.4, 0.49])
 def test_impulse_response_with_narrow_gaussians(gl_ctx, texel):
     """At the head's texel size (about 0.49 mm at 1024^2) I_1 and I_2 are sub-texel (sigma 0.16-0.2 and
-    0.45-0.55 texels) and come from the one 3x3 pass (tsd/blur_narrow.frag): the impulse response
-    still matches the closed form within 3%, and the pass really ran (its weight table exists).
-    Measured: 0.45 / 0.27 / 0.18 % at 0.49 mm (the four 1-D passes gave 2.1 / 2.8 / 1.8 %)."""
+    0.45-0.55 texels) and come from the one 3x3 pass (tsd/blur_narrow.frag; that it runs there:
+    test_narrow_pass_variances_per_texel): the impulse response still matches the closed form within
+    3%. Measured: 1.04 / 0.25 / 0.18 % at 0.49 mm (round 3's four 1-D passes: 2.1 / 2.8 / 1.8 %)."""
     from dermis.verification import impulse_error
 
     err = impulse_error(gl_ctx, S=256, texel_mm=texel)
