@@ -11,7 +11,8 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
   dilate I_0 into the UV gutters
   for k = 1..K:  I_k = I_(k-1) * G(v_k - v_(k-1)) as a U then a V pass (chained: G(a)*G(b) = G(a+b)),
                  tap spacing from S_k, the stretch blurred by the same chain; wide Gaussians run at
-                 half or quarter resolution (they hold no fine detail)
+                 half or quarter resolution (they hold no fine detail); where I_1 and I_2 are
+                 sub-texel, both come from one 3x3 pass (tsd/blur_narrow.frag)
   translucency T through thin parts: sum over wide k of w_k exp(-d^2 / 2 v_k) I_k(far face), d the
                  tissue's thickness behind the texel along -N (ray cast once per mesh, geometry/thickness.py)
   final (screen space): (sum_k w_k I_k + T) * albedo^(1-mix)/pi * (1 - rho_s a(N.V, m)/pi) + specular
