@@ -23,3 +23,22 @@ def test_a_frame_can_drop_msaa_without_touching_the_renderers_own_samples(gl_ctx
     np.testing.assert_allclose(one, ref_one, atol=1e-6)  # the same frame as a 1x Renderer's
     edge = np.abs(full - one).max(axis=2) > 1e-4
     assert 0 < edge.mean() < 0.2  # only the antialiased edges differ
+
+
+def test_refine_waits_after_input_but_not_after_a_drags_release():
+    """The progressive viewer refines REFINE_AFTER_S after the last input, never while a drag is
+    held, and at once after a drag's mouse button is released (the release ends the input)."""
+    import time
+
+    from dermis.viewer.progressive import REFINE_AFTER_S, ProgressiveRenderer
+
+    p = ProgressiveRenderer(full=None)
+    assert not p.needs_refine()  # the last image is the full one
+    p.quality = "interactive"
+    p.last_input_time = now = time.perf_counter()
+    assert not p.needs_refine(now + 0.5 * REFINE_AFTER_S)
+    assert p.needs_refine(now + 1.5 * REFINE_AFTER_S)
+    assert not p.needs_refine(now + 1.5 * REFINE_AFTER_S, input_held=True)
+    p.input_released()
+    assert p.needs_refine(now)  # no wait after the release
+    assert not p.needs_refine(now, input_held=True)

@@ -11,7 +11,8 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
   dilate I_0 into the UV gutters
   for k = 1..K:  I_k = I_(k-1) * G(v_k - v_(k-1)) as a U then a V pass (chained: G(a)*G(b) = G(a+b)),
                  tap spacing from S_k, the stretch blurred by the same chain; wide Gaussians run at
-                 half or quarter resolution (they hold no fine detail)
+                 half or quarter resolution (they hold no fine detail); where I_1 and I_2 are
+                 sub-texel, both come from one 3x3 pass (tsd/blur_narrow.frag)
   translucency T through thin parts: sum over wide k of w_k exp(-d^2 / 2 v_k) I_k(far face), d the
                  tissue's thickness behind the texel along -N (ray cast once per mesh, geometry/thickness.py)
   final (screen space): (sum_k w_k I_k + T) * albedo^(1-mix)/pi * (1 - rho_s a(N.V, m)/pi) + specular
@@ -59,7 +60,27 @@ OVERLAP_TOLERANCE = 0.01  # fraction of covered texels a UV layout may cover twi
 # that level and I_(k-1)'s >= LEVEL_MIN_INPUT_SIGMA_TEXELS (and no finer than I_(k-1)): _plan_levels
 LEVEL_MIN_SIGMA_TEXELS = 1.2
 TAP_STRETCH_PERCENTILE = 75.0
+# a pass's taps per side reach this many sigmas at TAP_STRETCH_PERCENTILE: the first step's erf bins
+# (FOOTPRINT) to 3 sigma, the later steps' sampled Gaussians, whose variance the correction tap makes
+# exact (tsd/blur.frag), to TAP_REACH_SIGMAS
+FOOTPRINT_REACH_SIGMAS = 3.0
+TAP_REACH_SIGMAS = 2.5
 LEVEL_MIN_INPUT_SIGMA_TEXELS = 0.5
+# a light Gaussian (its largest normalised weight, over the channels, below LEVEL_LIGHT_WEIGHT) may go
+# one level coarser: its I_k's share of the error a reduced level brings is small. On the head at
+# 1024^2 (d'Eon's profile) I_4 (weights <= 0.113) then runs at level 1: the impulse error at the
+# head's 0.49 mm texels went 0.45 -> 1.0-1.1 % (red) and the chain a level-0 pair cheaper; moving
+# the heavy I_5 (red 0.358) too would give 2.8 % (benchmarks/RESULTS.md, round 4)
+LEVEL_LIGHT_WEIGHT = 0.15
+LEVEL_MIN_SIGMA_TEXELS_LIGHT = 0.65
+LEVEL_MIN_INPUT_SIGMA_TEXELS_LIGHT = 0.35
+# I_1 and I_2 come from one 3x3 pass (tsd/blur_narrow.frag) when both are at level 0 and I_2's sigma
+# is at most this many texels at the NARROW_STRETCH_PERCENTILE of the stretch: there G(v_2)
+# integrated over the texels has a variance <= 2/3 texel^2, what a 3-tap kernel [a, 1 - 2a, a] holds
+# (where the stretch is larger the pass spaces its taps, as tsd/blur.frag does)
+NARROW_MAX_SIGMA_TEXELS = 0.75
+NARROW_STRETCH_PERCENTILE = TAP_STRETCH_PERCENTILE
+NARROW_PASS = True
 
 
 @dataclass(frozen=True)
@@ -91,6 +112,8 @@ class TextureSpaceDiffusion(Technique):
         self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)
         self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine)}
         self._blur_programs = {}  # (taps per side, footprint) -> program (blur.frag with TAPS unrolled)
+        self._p_narrow = None  # tsd/blur_narrow.frag, compiled on first use
+        self._narrow_key = None
         self._cache_key = None
         self._stretch_key = None
         self._plan = None  # (key, levels, step variances) of the blur chain (texture_space)
@@ -132,13 +155,14 @@ class TextureSpaceDiffusion(Technique):
         built with are forgotten too (the next frame rebuilds, whatever its inputs)."""
         for k, o in list(self.tex.items()):
             if isinstance(k, tuple) and k[0] == "fbo":
-                o.release()
+                (o[0] if isinstance(o, tuple) else o).release()
         for k, o in list(self.tex.items()):
             if not (isinstance(k, tuple) and k[0] == "fbo"):
                 o.release()
         self.tex = {}
         self.scene_changed()
         self._stretch_chain_key = None
+        self._narrow_key = None
         self.thickness.release()
 
     def scene_changed(self):
@@ -202,6 +226,7 @@ class TextureSpaceDiffusion(Technique):
         # stretch is larger the taps space out (integer steps, the kernel's variance still exact:
         # tsd/blur.frag) instead of every texel paying for more
         self.tap_stretch = float(np.percentile(vals, TAP_STRETCH_PERCENTILE))
+        self.narrow_stretch = np.percentile(vals, NARROW_STRETCH_PERCENTILE, axis=0).astype(np.float64)
         # per axis too: a layout squashed along one axis adds more variance (mm^2) along it when
         # reduced 2x2 (_step_variances)
         self.median_stretch_uv = np.median(vals, axis=0).astype(np.float64)
@@ -212,6 +237,8 @@ class TextureSpaceDiffusion(Technique):
         filled[:, :, 3] = 1.0
         s0 = self._texture("stretch_0", (S, S), 4, "f4")
         s0.write(np.ascontiguousarray(filled).tobytes())
+        self._stretch0 = np.ascontiguousarray(filled[:, :, :2])  # texels per mm (u, v), for _narrow_weights
+        self._narrow_key = None
 
     def _stretch_uv(self):
         stretch_uv = getattr(self, "median_stretch_uv", None)
@@ -246,13 +273,16 @@ class TextureSpaceDiffusion(Technique):
         texel0 = 1.0 / self._stretch_uv()  # mm per level-0 texel along u, v
         t0 = float(np.max(texel0))
         max_level = max(0, int(math.log2(max(S, 16) / 16)))
+        heavy = np.max(np.asarray(profile.normalized().weights, np.float64), axis=1) >= LEVEL_LIGHT_WEIGHT
         levels, prev = [], 0
         for k in range(1, len(v)):
             lvl = prev
+            own, inp = ((LEVEL_MIN_SIGMA_TEXELS, LEVEL_MIN_INPUT_SIGMA_TEXELS) if heavy[k - 1] else
+                        (LEVEL_MIN_SIGMA_TEXELS_LIGHT, LEVEL_MIN_INPUT_SIGMA_TEXELS_LIGHT))
             for cand in range(max_level, prev, -1):
                 tex = (2.0 ** cand) * t0
-                ok = (math.sqrt(v[k]) >= LEVEL_MIN_SIGMA_TEXELS * tex
-                      and math.sqrt(v[k - 1]) >= LEVEL_MIN_INPUT_SIGMA_TEXELS * tex
+                ok = (math.sqrt(v[k]) >= own * tex
+                      and math.sqrt(v[k - 1]) >= inp * tex
                       and np.all(self._steps_for(v, levels + [cand], texel0)[-1] >= 0.0))
                 if ok:
                     lvl = cand
@@ -296,12 +326,13 @@ class TextureSpaceDiffusion(Technique):
         Compiled on first use."""
         widest = sigma_mm * (self.tap_stretch or self.median_stretch or 1.0) * 2.0 ** -level
         cap = max_taps or self.options.max_taps
-        need = min(math.ceil(3.0 * widest), cap)
+        reach = FOOTPRINT_REACH_SIGMAS if footprint else TAP_REACH_SIGMAS
+        need = min(math.ceil(reach * widest), cap)
         taps = max(1, min(need, cap))
-        key = (taps, bool(footprint))
+        key = (taps, bool(footprint), reach)
         prog = self._blur_programs.get(key)
         if prog is None:
-            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TAPS": taps}
+            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TAPS": taps, "REACH": f"{float(reach):.6f}"}
             if footprint:
                 defines["FOOTPRINT"] = 1
             prog = program(self.ctx, "common/fullscreen.vert", "tsd/blur.frag", defines)
@@ -328,6 +359,65 @@ class TextureSpaceDiffusion(Technique):
         self._fullscreen(prog, out)
         return out
 
+    def _narrow_ok(self, levels, steps):
+        """Whether I_1 and I_2 come from one pass (tsd/blur_narrow.frag): both at level 0 and I_2's
+        sigma (per axis) <= NARROW_MAX_SIGMA_TEXELS at the NARROW_STRETCH_PERCENTILE of the stretch."""
+        ns = getattr(self, "narrow_stretch", None)
+        if not NARROW_PASS or ns is None or len(levels) < 2 or levels[0] != 0 or levels[1] != 0:
+            return False
+        v2 = np.asarray(steps[0]) + np.asarray(steps[1])  # mm^2 along u, v (level 0: nothing taken off)
+        return bool(np.all(np.sqrt(v2) * ns <= NARROW_MAX_SIGMA_TEXELS))
+
+    @staticmethod
+    def binned_variance(sigma_texels):
+        """Variance (texel^2) of a Gaussian of ``sigma_texels`` integrated over unit bins centred on
+        the texels (binned_gaussian_1d of dermis.verification): 2 sum_j j^2 m_j over the bins' masses
+        m_j (j = 1..8) below 1 texel, Sheppard's sigma^2 + 1/12 from there (exact to < 1e-6)."""
+        from scipy.special import erf
+
+        sig = np.asarray(sigma_texels, np.float64)
+        s = np.maximum(sig, 1e-6) * math.sqrt(2.0)
+        edges = [erf((j + 0.5) / s) for j in range(9)]
+        binned = sum(j * j * (edges[j] - edges[j - 1]) for j in range(1, 9))
+        return np.where(sig >= 1.0, sig * sig + 1.0 / 12.0, binned)
+
+    def _narrow_weights(self, v1, v2):
+        """(S, S, 4) float32: the binned variances (texel^2) of I_1 along u, v and of I_2 along u, v
+        per texel (v1, v2 in mm^2 per axis) from the level-0 stretch (tsd/blur_narrow.frag makes its
+        kernels from them); uploaded when the stretch or the variances change."""
+        key = (self._stretch_key, tuple(np.round(v1, 12)), tuple(np.round(v2, 12)))
+        old = self.tex.get("narrow_weights")
+        tex = self._texture("narrow_weights", self.tex["stretch_0"].size, 4, "f4")
+        if key != self._narrow_key or tex is not old:
+            st = self._stretch0
+            a = np.concatenate([self.binned_variance(np.sqrt(v1) * st), self.binned_variance(np.sqrt(v2) * st)], axis=-1)
+            tex.write(np.ascontiguousarray(a, np.float32).tobytes())
+            self._narrow_key = key
+        return tex
+
+    def _blur_narrow(self, dil, steps):
+        """I_1 and I_2 from the dilated irradiance in one pass with two targets."""
+        v1 = np.asarray(steps[0], np.float64)
+        weights = self._narrow_weights(v1, v1 + np.asarray(steps[1], np.float64))
+        out1 = self._texture(("blur", 0), dil.size)
+        out2 = self._texture(("blur", 1), dil.size)
+        fbo, t1, t2 = self.tex.get(("fbo", "narrow"), (None, None, None))
+        if t1 is not out1 or t2 is not out2:  # first use, or a target was reallocated (new size)
+            if fbo is not None:
+                fbo.release()
+            fbo = self.ctx.framebuffer(color_attachments=[out1, out2])
+            self.tex[("fbo", "narrow")] = (fbo, out1, out2)
+        if self._p_narrow is None:
+            self._p_narrow = program(self.ctx, "common/fullscreen.vert", "tsd/blur_narrow.frag", {"MAX_GAUSSIANS": MAX_GAUSSIANS})
+            self.vaos[self._p_narrow] = self.ctx.vertex_array(self._p_narrow, [])
+        prog = self._p_narrow
+        bind_sampler(prog, "uSource", dil, 0)
+        bind_sampler(prog, "uWeights", weights, 1)
+        fbo.use()
+        fbo.viewport = (0, 0, *dil.size)
+        self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
+        return out2
+
     def _blur_chain(self, dil, levels, steps):
         """I_1..I_K from the dilated irradiance: step k blurs I_(k-1) by variance steps[k] at
         resolution level levels[k]; the stretch map goes through the same chain (once per mesh)."""
@@ -335,6 +425,9 @@ class TextureSpaceDiffusion(Technique):
         redo_stretch = chain_key != self._stretch_chain_key
         src, st = dil, self.tex["stretch_0"]
         level = 0
+        narrow = self._narrow_ok(levels, steps)
+        if narrow:
+            src = self._blur_narrow(dil, steps)
         for k, (lvl, var) in enumerate(zip(levels, steps)):
             while level < lvl:
                 level += 1
@@ -348,7 +441,8 @@ class TextureSpaceDiffusion(Technique):
                 st = self._blur(st, st, sigma, level, ("stretch", k))
             else:
                 st = self.tex[("stretch", k)]
-            src = self._blur(src, st, sigma, level, ("blur", k), footprint=(k == 0))
+            if not (narrow and k < 2):
+                src = self._blur(src, st, sigma, level, ("blur", k), footprint=(k == 0))
         self._stretch_chain_key = chain_key
 
     def _profile_uniforms(self, prog, profile, first_unit):
@@ -479,5 +573,5 @@ class TextureSpaceDiffusion(Technique):
         for v in self.vaos.values():
             v.release()
         for p in (self.p_stretch, self.p_irradiance, self.p_dilate, self.p_down, self.p_trans, self.p_final,
-                  self.p_combine, *self._blur_programs.values()):
+                  self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else [])):
             p.release()

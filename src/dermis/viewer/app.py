@@ -186,6 +186,8 @@ class Viewer:
         if self.input and self.show_gui:
             self.input.mouse_button(button, action)
         if action == glfw.RELEASE:
+            if self._drag is not None:
+                self.progressive.input_released()  # a drag's release ends the input: refine at once
             self._drag = None
             return
         if self._gui_wants("mouse"):

@@ -31,6 +31,8 @@ SCALE_STEPS = (0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0)
 FAST_IRRADIANCE = 128
 FAST_SHADOW = 512      # shadow tile size of the interactive renderer
 REFINE_AFTER_S = 0.2   # an interactive session refines this long after the last input
+# ... except after a mouse drag's release, which ends the input for sure: the refine starts with the
+# next frame (input_released), 0.2 s of the wait for the full frame after a light drag saved
 INTERACTIVE_SAMPLES = 0  # MSAA samples of a reduced frame (the full frame has the Renderer's)
 
 
@@ -47,6 +49,7 @@ class ProgressiveRenderer:
         self.quality = "full"     # of the image last drawn
         self._full_lighting = None  # lighting key the full renderer's texture space holds
         self.last_input_time = -math.inf
+        self._released_at = None  # when a drag's mouse button was released (input_released)
         self.stats = {}
 
     @property
@@ -75,10 +78,16 @@ class ProgressiveRenderer:
 
     def needs_refine(self, now: float | None = None, input_held: bool = False) -> bool:
         """Whether the last image is a reduced one that should now be replaced by the full frame."""
-        if self.quality == "full":
+        if self.quality == "full" or input_held:
             return False
+        if self._released_at is not None:
+            return True
         now = time.perf_counter() if now is None else now
-        return not input_held and now - self.last_input_time >= REFINE_AFTER_S
+        return now - self.last_input_time >= REFINE_AFTER_S
+
+    def input_released(self):
+        """The drag ended (mouse button released): the next frame may refine without waiting."""
+        self._released_at = time.perf_counter()
 
     def render(self, technique: str, size, camera, *, interactive: bool, lighting_key: str | None = None):
         """Render one frame; ``interactive`` asks for a reduced frame (input is active).
@@ -87,6 +96,9 @@ class ProgressiveRenderer:
         full = self.full
         if interactive and self.enabled:
             self.last_input_time = time.perf_counter()
+            # input after the release (not the drag's last motion, drawn just after it) waits again
+            if self._released_at is not None and self.last_input_time - self._released_at > REFINE_AFTER_S:
+                self._released_at = None
             w, h = size
             small = (max(1, int(round(w * self.scale))), max(1, int(round(h * self.scale))))
             lighting = lighting_key or full.lighting_key()
@@ -98,6 +110,7 @@ class ProgressiveRenderer:
             self.quality = "interactive"
             return img
         img = full.render(technique, size=size, camera=camera)
+        self._released_at = None
         self._full_lighting = full.last_frame.lighting_key  # the key this frame was built with
         self.stats = dict(full.stats, quality="full", scale=1.0, renderer="full")
         self.quality = "full"
