@@ -42,3 +42,32 @@ def test_refine_waits_after_input_but_not_after_a_drags_release():
     p.input_released()
     assert p.needs_refine(now)  # no wait after the release
     assert not p.needs_refine(now, input_held=True)
+
+
+def test_reduced_frames_sample_the_maps_without_anisotropic_filtering(gl_ctx, example_head_toml):
+    """A reduced (interactive) frame draws with the material maps at 1x anisotropy (8x costs
+    llvmpipe's final pass up to 13x); the full frame that follows has the maps' own 8x back."""
+    import dermis
+    from dermis.renderer import Renderer
+    from dermis.viewer.progressive import ProgressiveRenderer
+
+    scene = dermis.load_scene(example_head_toml)
+    with Renderer(scene, (96, 64), ctx=gl_ctx, irradiance_size=128, shadow_size=256) as full:
+        full.render("tsd")  # the first full frame: the maps are uploaded
+        mipmapped = [t for t in full.gpu.textures.values() if t.anisotropy > 1.0]
+        assert mipmapped, "the head's maps are mipmapped with anisotropic filtering"
+        seen = []
+        render = full.render
+
+        def recording_render(*args, **kwargs):
+            seen.append(sorted({t.anisotropy for t in mipmapped}))
+            return render(*args, **kwargs)
+
+        full.render = recording_render
+        p = ProgressiveRenderer(full)
+        p._full_lighting = full.last_frame.lighting_key  # the orbit case: the full renderer draws it
+        small = p.render("tsd", (96, 64), None, interactive=True)
+        assert p.stats["renderer"] == "full" and small.shape[0] < 64
+        after = sorted({t.anisotropy for t in mipmapped})
+        p.render("tsd", (96, 64), None, interactive=False)
+        assert seen == [[1.0], after] and after == [8.0], (seen, after)

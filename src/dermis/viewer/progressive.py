@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import time
+from contextlib import contextmanager
 
 SCALE_STEPS = (0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0)
 # texels per side of the interactive renderer's texture space (at most): a preview while a light or a
@@ -34,6 +35,21 @@ REFINE_AFTER_S = 0.2   # an interactive session refines this long after the last
 # ... except after a mouse drag's release, which ends the input for sure: the refine starts with the
 # next frame (input_released), 0.2 s of the wait for the full frame after a light drag saved
 INTERACTIVE_SAMPLES = 0  # MSAA samples of a reduced frame (the full frame has the Renderer's)
+
+
+@contextmanager
+def _without_anisotropy(renderer):
+    """A reduced frame samples the material maps without anisotropic filtering (8x costs llvmpipe's
+    tsd final pass 1.2-13x: RESULTS, round 4); the maps' own setting comes back for the full frame."""
+    gpu = getattr(renderer, "gpu", None)
+    changed = [(t, t.anisotropy) for t in (gpu.textures.values() if gpu is not None else ()) if t.anisotropy != 1.0]
+    for t, _ in changed:
+        t.anisotropy = 1.0
+    try:
+        yield
+    finally:
+        for t, a in changed:
+            t.anisotropy = a
 
 
 class ProgressiveRenderer:
@@ -103,7 +119,8 @@ class ProgressiveRenderer:
             small = (max(1, int(round(w * self.scale))), max(1, int(round(h * self.scale))))
             lighting = lighting_key or full.lighting_key()
             r = full if lighting == self._full_lighting else self._fast_renderer()
-            img = r.render(technique, size=small, camera=camera, samples=INTERACTIVE_SAMPLES)
+            with _without_anisotropy(r):
+                img = r.render(technique, size=small, camera=camera, samples=INTERACTIVE_SAMPLES)
             self._adapt(r.stats["frame_ms"])
             self.stats = dict(r.stats, quality="interactive", scale=self.scale,
                               renderer="full" if r is full else "fast")
