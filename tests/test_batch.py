@@ -21,8 +21,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dermis.batch.apply import place_camera, rotate_equirect, spherical_offset
+from dermis.batch.apply import place_camera, spherical_offset
 from dermis.batch.sweep import expand, load_sweep, render_id
+from dermis.environment import rotate_equirect
 from dermis.errors import DermisError
 
 REPO = Path(__file__).resolve().parent.parent

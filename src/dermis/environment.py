@@ -86,5 +86,10 @@ def equirect_radiance(env) -> np.ndarray:
 
 def environment_sh(env) -> np.ndarray:
     if env.image is not None:
-        return sh_irradiance_from_equirect(equirect_radiance(env)) * env.intensity
+        from dermis.invalidation import memo_by_content, read_only
+
+        # projected once per image content and rotation: LightUniforms asks on every light change
+        sh = memo_by_content("environment_sh", (env.image.data,), float(env.rotation_deg),
+                             lambda: read_only(sh_irradiance_from_equirect(equirect_radiance(env))))
+        return sh * env.intensity
     return sh_irradiance_constant(env.color) * env.intensity

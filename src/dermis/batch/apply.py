@@ -21,7 +21,6 @@ import math
 
 import numpy as np
 
-from dermis.environment import rotate_equirect  # noqa: F401  (turning the HDR, re-exported)
 from dermis.errors import DermisError
 
 SKIN_PREFIX = "skin."

@@ -113,7 +113,7 @@ class RenderWorker:
         Renderer keys its environment state on the image object's id, so the same request must
         give the same object, and a new one must not reuse the address of the last one: the
         cache keeps the texture in use while the next one is made."""
-        from dermis.batch.apply import rotate_equirect
+        from dermis.environment import rotate_equirect
         from dermis.images import as_rgb, read_image
         from dermis.scene.model import Texture
 

@@ -290,9 +290,11 @@ class LightUniforms:
         self.viewproj = np.zeros((n, 4, 4), np.float32)
         self.map_half_extent = np.zeros(n, np.float64)  # half a shadow map's width, scene units
         lo, hi = scene.bounds()
-        points = scene.all_positions()
-        # the frusta are fitted to every vertex in float64: converted once per mesh content
-        points = memo_by_content("float64", (points,), (), lambda: read_only(np.array(points, np.float64)))
+        # the frusta are fitted to every vertex drawn (skin first) in float64: converted once per
+        # content of the meshes' own arrays (Scene.all_positions concatenates a new array each call)
+        arrays = (scene.mesh.positions, *(s.mesh.positions for s in scene.surfaces))
+        points = memo_by_content("float64", arrays, len(arrays),
+                                 lambda: read_only(np.concatenate(arrays).astype(np.float64)))
         for i, L in enumerate(lights):
             vp, eye, half = light_matrices(L, lo, hi, points)
             self.viewproj[i] = vp

@@ -171,8 +171,8 @@ class ScreenSpaceSSS(Technique):
             self.ctx.disable(moderngl.CULL_FACE)
             prog = p_irradiance
             set_uniform(prog, "uViewZ", view_z_row(frame.view))
-            if "uViewRotation" in prog:  # mat3, column-major
-                prog["uViewRotation"].write(np.ascontiguousarray(np.asarray(frame.view, np.float32)[:3, :3].T).tobytes())
+            set_uniform(prog, "uViewRotation",  # mat3, column-major
+                        np.ascontiguousarray(np.asarray(frame.view, np.float32)[:3, :3].T).tobytes())
             set_profile_uniforms(prog, profile, profile.k)
             translucency_uniforms(prog, self.options.translucency and casts_translucency(scene), self.options.translucency_strength)
             bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),

@@ -39,10 +39,12 @@ INTERACTIVE_SAMPLES = 0  # MSAA samples of a reduced frame (the full frame has t
 
 @contextmanager
 def _without_anisotropy(renderer):
-    """A reduced frame samples the material maps without anisotropic filtering (8x costs llvmpipe's
-    tsd final pass 1.2-13x: RESULTS, round 4); the maps' own setting comes back for the full frame."""
+    """A reduced frame samples the material maps (skin and non-skin surfaces) without anisotropic
+    filtering (8x costs llvmpipe's tsd final pass 1.2-13x: RESULTS, round 4); the maps' own setting
+    comes back for the full frame."""
     gpu = getattr(renderer, "gpu", None)
-    changed = [(t, t.anisotropy) for t in (gpu.textures.values() if gpu is not None else ()) if t.anisotropy != 1.0]
+    maps = [] if gpu is None else [*gpu.textures.values(), *(t for s in gpu.surfaces for t in s.textures.values())]
+    changed = [(t, t.anisotropy) for t in maps if t.anisotropy != 1.0]
     for t, _ in changed:
         t.anisotropy = 1.0
     try:
