@@ -7,6 +7,7 @@ the first uploaded row at t = 0, and dermis UVs have v = 0 at the bottom of the 
 from __future__ import annotations
 
 import struct
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -166,6 +167,27 @@ def upload_texture(ctx, data: np.ndarray, *, components=None, dtype="f4", mipmap
 
         tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
     return tex
+
+
+@contextmanager
+def maps_without_anisotropy(gpu, surfaces: bool = True):
+    """Within the block the scene's material maps (and, with ``surfaces``, the non-skin surfaces')
+    are filtered trilinearly, without anisotropy; their own setting comes back after it. For
+    passes that gain nothing from anisotropic filtering (a texture-space raster, whose footprint
+    in the maps is square) or trade it for speed (the viewer's reduced frames): Mesa's llvmpipe
+    filters every lookup of an anisotropic sampler with its elliptical kernel, a textureLod
+    included, at 3-6x the cost of a trilinear one (benchmarks/RESULTS.md, "Passes (round 5)")."""
+    maps = [] if gpu is None else [*gpu.textures.values()]
+    if surfaces and gpu is not None:
+        maps += [t for s in gpu.surfaces for t in s.textures.values()]
+    changed = [(t, t.anisotropy) for t in maps if t.anisotropy > 1.0]  # unset (0) filters as 1
+    for t, _ in changed:
+        t.anisotropy = 1.0
+    try:
+        yield
+    finally:
+        for t, a in changed:
+            t.anisotropy = a
 
 
 class GpuScene:

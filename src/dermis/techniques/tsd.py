@@ -38,7 +38,7 @@ import numpy as np
 
 from dermis.errors import DermisError
 from dermis.geometry.texture_space import UV_RANGE_TOLERANCE
-from dermis.gl.resources import read_texture, set_uniform
+from dermis.gl.resources import maps_without_anisotropy, read_texture, set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
@@ -481,7 +481,9 @@ class TextureSpaceDiffusion(Technique):
         bind_scene(frame, prog)
         with timer("tsd_irradiance"):
             if irradiance is None:
-                self._uv_pass(frame, prog, irr)
+                # a texture-space raster: the maps' footprint is square, anisotropy only costs
+                with maps_without_anisotropy(frame.gpu, surfaces=False):
+                    self._uv_pass(frame, prog, irr)
             else:
                 a = np.ascontiguousarray(np.asarray(irradiance, np.float32)[::-1])
                 if a.shape != (S, S, 4):

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 import time
-from contextlib import contextmanager
 
 SCALE_STEPS = (0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0)
 # texels per side of the interactive renderer's texture space (at most): a preview while a light or a
@@ -37,21 +36,13 @@ REFINE_AFTER_S = 0.2   # an interactive session refines this long after the last
 INTERACTIVE_SAMPLES = 0  # MSAA samples of a reduced frame (the full frame has the Renderer's)
 
 
-@contextmanager
 def _without_anisotropy(renderer):
     """A reduced frame samples the material maps (skin and non-skin surfaces) without anisotropic
     filtering (8x costs llvmpipe's tsd final pass 1.2-13x: RESULTS, round 4); the maps' own setting
     comes back for the full frame."""
-    gpu = getattr(renderer, "gpu", None)
-    maps = [] if gpu is None else [*gpu.textures.values(), *(t for s in gpu.surfaces for t in s.textures.values())]
-    changed = [(t, t.anisotropy) for t in maps if t.anisotropy != 1.0]
-    for t, _ in changed:
-        t.anisotropy = 1.0
-    try:
-        yield
-    finally:
-        for t, a in changed:
-            t.anisotropy = a
+    from dermis.gl.resources import maps_without_anisotropy
+
+    return maps_without_anisotropy(getattr(renderer, "gpu", None))
 
 
 class ProgressiveRenderer:

@@ -1,0 +1,200 @@
+"""Where tsd's irradiance and final passes and lambert's pass spend their time, by elimination:
+variants of each fragment shader (one part removed or replaced at a time) timed in ONE process on
+the head, interleaved, median of ``--repeats``. The variants are text substitutions on the
+expanded shader source; one that no longer applies is reported and skipped (the shader changed).
+
+    PYTHONPATH=src python benchmarks/pass_breakdown.py [--size 512] [--irradiance-size 1024] [--repeats 3]
+
+Prints one table per pass: CPU ms (min over the repeats, all llvmpipe threads), and ms as a multiple of the pass's constant-output variant (what a
+shader with the same raster and no work costs: the lower bound of what shader work can save).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+
+import moderngl
+
+import dermis
+from dermis.bench import HEAD_TOML
+from dermis.gl.shaders import load_shader_source
+from dermis.renderer import Renderer
+from dermis.techniques.base import bind_scene, draw_mesh
+from dermis.techniques.shared import MAX_GAUSSIANS, Unit, bind_sampler, surface_detail_uniforms
+
+SHADOW_SOFT = "shadow_soft(i, P, Ng)"
+
+
+def irradiance_variants(fs0: str) -> dict:
+    return {
+        "full": fs0,
+        "no shadow": fs0.replace(SHADOW_SOFT, "1.0"),
+        "no energy table (per light)": fs0.replace("E += Ei * ndl * shadow_soft(i, P, Ng) * energy_transmitted(rho_s, ndl, m);",
+                                                   "E += Ei * ndl * shadow_soft(i, P, Ng);"),
+        "no shadow, no energy table": fs0.replace("E += Ei * ndl * shadow_soft(i, P, Ng) * energy_transmitted(rho_s, ndl, m);",
+                                                  "E += Ei * ndl;"),
+        "no normal map": fs0.replace("vec3 N = perturb_normal(v_normal, v_tangent, v_uv);", "vec3 N = Ng;"),
+        "no env": fs0.replace("E += environment_irradiance_occluded(N, Ng, vis) * energy_transmitted(rho_s, 0.5, m);", ""),
+        "no albedo power": fs0.replace("E * albedo_power(albedo, uMix)", "E * albedo"),
+        "no albedo map": fs0.replace("vec3 albedo = albedo_at(v_uv);", "vec3 albedo = vec3(0.5);"),
+        "no spec/rough maps": fs0.replace("float rho_s = specular_intensity(v_uv);", "float rho_s = uRhoS;")
+                                 .replace("float m = roughness_at(v_uv);", "float m = uRoughness;"),
+        "const": fs0.replace("f_irradiance = vec4(E * albedo_power(albedo, uMix), 1.0);", "f_irradiance = vec4(1.0);"),
+    }
+
+
+def final_variants(fs0: str) -> dict:
+    spec_call = "vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility);"
+    return {
+        "full": fs0,
+        "no pores": fs0.replace("vec3 Ns = pore_normal(N, v_world * uMmPerUnit, uPoreScaleMm, uPoreStrength);", "vec3 Ns = N;"),
+        "no specular": fs0.replace(spec_call, "vec3 spec = vec3(0.0);"),
+        "no sharp shadow": fs0.replace("Ei * shadow_sharp(i, P, Ng) * ks_skin_specular", "Ei * ks_skin_specular"),
+        "no env specular": fs0.replace("spec += skin_environment_specular(Ns, V, m) * rho_s", "spec += vec3(0.0) * rho_s"),
+        "no blurs": fs0.replace("vec3 E = diffuse_irradiance(v_uv_ts) +", "vec3 E = vec3(0.5) +"),
+        "no translucency": fs0.replace("+ texture(uTranslucency, v_uv_ts).rgb;", ";"),
+        "no normal map": fs0.replace("vec3 N = perturb_normal(v_normal, v_tangent, v_uv);", "vec3 N = Ng;"),
+        "no energy table": fs0.replace("* INV_PI * energy_transmitted(rho_s, ndv, m);", "* INV_PI;"),
+        "no albedo power": fs0.replace("albedo_power(albedo, 1.0 - uMix)", "albedo"),
+        "const": fs0.replace("f_color = vec4(color, 1.0);", "f_color = vec4(1.0);"),
+    }
+
+
+def lambert_variants(fs0: str) -> dict:
+    return {
+        "full": fs0,
+        "no shadow": fs0.replace("float s = shadow_soft(i, v_world, Ng);", "float s = 1.0;"),
+        "no normal map": fs0.replace("vec3 N = perturb_normal(v_normal, v_tangent, v_uv);", "vec3 N = Ng;"),
+        "no env": fs0.replace("vec3 color = albedo * INV_PI * environment_irradiance_occluded(N, Ng, v_visibility);",
+                              "vec3 color = vec3(0.0);"),
+        "no env specular": fs0.replace("color += albedo_bp * environment_specular(", "color += 0.0 * environment_specular("),
+        "const": fs0.replace("f_color = vec4(color, 1.0);", "f_color = vec4(1.0);"),
+    }
+
+
+def compile_variants(ctx, vs, variants):
+    progs = {}
+    fs0 = variants["full"]
+    for k, fs in variants.items():
+        if k != "full" and fs == fs0:
+            print(f"  variant did not apply: {k}")
+            continue
+        progs[k] = ctx.program(vertex_shader=vs, fragment_shader=fs)
+    return progs
+
+
+def timed(ctx, fn, repeats):
+    """Min over ``repeats`` of the CPU time of the whole process (llvmpipe's rasteriser threads
+    are in it) around fn + finish: under load from other processes this moves far less than wall
+    time, which counts the time the threads wait for a core."""
+    out = []
+    fn(); ctx.finish()  # warm: first use compiles the variant's JIT code
+    for _ in range(repeats):
+        ctx.finish()
+        t0 = time.process_time()
+        fn(); ctx.finish()
+        out.append((time.process_time() - t0) * 1e3)
+    return min(out)
+
+
+def set_anisotropy(renderer, a):
+    for t in renderer.gpu.textures.values():
+        if t.anisotropy != 1.0 or a != 1.0:
+            try:
+                t.anisotropy = a
+            except Exception:
+                pass
+
+
+def table(title, res):
+    const = res.get("const")
+    print(f"\n{title} (load {os.getloadavg()[0]:.1f})")
+    print("| variant | ms | x const |\n|---|---|---|")
+    for k, v in res.items():
+        print(f"| {k} | {v:.1f} | {v / const:.1f} |" if const else f"| {k} | {v:.1f} | |")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--irradiance-size", type=int, default=1024)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--scene", default=str(HEAD_TOML))
+    ap.add_argument("--only", default="irradiance,final,lambert")
+    ap.add_argument("--samples", type=int, default=4, help="MSAA samples of the frame (dermis render: 4)")
+    a = ap.parse_args(argv)
+    only = a.only.split(",")
+    sc = dermis.load_scene(a.scene)
+    S = a.irradiance_size
+    defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
+    with Renderer(sc, (a.size, a.size), irradiance_size=S, samples=a.samples) as r:
+        r.render("tsd")
+        r.render("lambert")
+        t = r.technique("tsd")
+        frame = r.last_frame
+        ctx = r.ctx
+        print(f"dermis {dermis.__file__}; {a.size}^2 output, samples {r.samples}, irradiance {S}^2")
+        if "irradiance" in only:
+            vs = load_shader_source("tsd/uv_space.vert", defines)
+            progs = compile_variants(ctx, vs, irradiance_variants(load_shader_source("tsd/irradiance.frag", defines)))
+            out = t._texture("irradiance", (S, S))
+            res = {}
+            for aniso in (8.0, 1.0):
+                set_anisotropy(r, aniso)
+                for k, p in progs.items():
+                    if aniso == 1.0 and k not in ("full", "no shadow", "const"):
+                        continue
+                    bind_scene(frame, p)
+                    res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: t._uv_pass(frame, p, out), a.repeats)
+            set_anisotropy(r, 8.0)
+            table(f"tsd irradiance pass at {S}^2 (no dilation)", res)
+        if "final" in only:
+            vs = load_shader_source("common/mesh.vert", defines)
+            progs = compile_variants(ctx, vs, final_variants(load_shader_source("tsd/final.frag", defines)))
+            res = {}
+
+            def final(p):
+                frame.target.use()
+                ctx.enable(moderngl.DEPTH_TEST)
+                ctx.disable(moderngl.CULL_FACE)
+                frame.target.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+                draw_mesh(frame, p)
+
+            for p in progs.values():
+                bind_sampler(p, "uTranslucency", t.tex["translucency"], Unit.FIRST_FREE)
+                t._profile_uniforms(p, sc.profile, Unit.FIRST_FREE + 1)
+                surface_detail_uniforms(p, sc.material)
+            for aniso in (8.0, 1.0):
+                set_anisotropy(r, aniso)
+                for k, p in progs.items():
+                    if aniso == 1.0 and k not in ("full", "no specular", "const"):
+                        continue
+                    res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: final(p), a.repeats)
+            set_anisotropy(r, 8.0)
+            table(f"tsd final pass at {a.size}^2", res)
+        if "lambert" in only:
+            vs = load_shader_source("common/mesh.vert", {})
+            progs = compile_variants(ctx, vs, lambert_variants(load_shader_source("lambert/lambert.frag", {})))
+            res = {}
+
+            def lam(p):
+                frame.target.use()
+                ctx.enable(moderngl.DEPTH_TEST)
+                ctx.disable(moderngl.CULL_FACE)
+                frame.target.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+                draw_mesh(frame, p)
+
+            for aniso in (8.0, 1.0):
+                set_anisotropy(r, aniso)
+                for k, p in progs.items():
+                    if aniso == 1.0 and k not in ("full", "const"):
+                        continue
+                    res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: lam(p), a.repeats)
+            set_anisotropy(r, 8.0)
+            table(f"lambert pass at {a.size}^2", res)
+
+
+if __name__ == "__main__":
+    main()
