@@ -203,6 +203,8 @@ def check_scene(scene, full: bool = True):
     for k in ("normal_strength", "specular_map_bias", "specular_map_scale", "pore_strength"):
         _num(getattr(m, k), f"{src}: [material] {k}", -1e3, 1e3)
     _num(m.pore_scale_mm, f"{src}: [material] pore_scale_mm", 0.0, 1e6, lo_open=True)
+    if m.double_sided not in (True, False):
+        raise DermisError(f"{src}: [material] double_sided must be true or false, got {m.double_sided!r}")
     for i, L in enumerate(scene.lights):
         w = f"{src}: [[lights]] #{i + 1}"
         if L.kind not in ("directional", "point", "spot"):

@@ -115,6 +115,13 @@ class SkinMaterial:
     mix: float = 0.5  # albedo^mix before scattering, albedo^(1-mix) after (d'Eon 2007 sec 14.5.2)
     pore_scale_mm: float = 0.5  # spacing of procedural pore-detail normals in the final pass
     pore_strength: float = 0.15  # 0 disables procedural pore detail
+    # False: the skin is a closed surface wound counter-clockwise seen from outside (its vertex
+    # normals' side), so the screen-space passes skip its back faces (glTF 2.0, 3.9.6
+    # doubleSided). A rasteriser shades a back face before the front face that hides it is drawn
+    # (llvmpipe: the head's final passes took 1.7-2x as long with them); seen from outside they
+    # change only a few MSAA samples on silhouettes. True: both faces drawn (an open sheet seen
+    # from behind, a mesh wound either way). The shadow pass draws both faces either way.
+    double_sided: bool = True
 
 
 ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")

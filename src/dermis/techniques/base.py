@@ -196,7 +196,12 @@ def draw_mesh(frame: Frame, prog, vao=None):
     set_uniform(prog, "uViewProj", mat_bytes(frame.viewproj))
     set_uniform(prog, "uCameraPos", tuple(float(x) for x in frame.eye))
     bind_scene(frame, prog)
+    cull = not frame.scene.material.double_sided  # a closed skin: its back faces are hidden (SkinMaterial)
+    if cull:
+        frame.ctx.enable(moderngl.CULL_FACE)  # front faces counter-clockwise, GL's default
     (vao or frame.gpu.vao(prog)).render(moderngl.TRIANGLES)
+    if cull:
+        frame.ctx.disable(moderngl.CULL_FACE)  # the techniques' passes expect it off
 
 
 def draw_surfaces(frame: Frame, output_mode: int = OutputMode.FULL):
