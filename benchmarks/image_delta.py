@@ -5,6 +5,9 @@ the crop's mm square cut at full resolution, not resized), per scene and techniq
     PYTHONPATH=src python benchmarks/image_delta.py OUT_DIR --before REV [--size 768]
         [--techniques tsd lambert] [--scenes A.toml ...]
 
+``--before double-sided``: this tree on a copy of each scene with [material] double_sided = true
+(written beside the scene, removed after) against the scene as it is.
+
 Prints a markdown table: max |display before - after| (the display image of the scene's exposure
 and tone map, 0..1 per channel) and mean FLIP (flip-evaluator, LDR, as dermis validate) over the
 rendered pixels. Renders are cached in OUT_DIR/renders as crop_sheet.py caches them.
@@ -54,11 +57,23 @@ def main(argv=None):
     cache.mkdir(parents=True, exist_ok=True)
     rows = ["| scene | technique | region | max abs | FLIP |", "|---|---|---|---|---|"]
     with tempfile.TemporaryDirectory() as tmp:
-        old_src = cs.old_tree(a.before, Path(tmp))
+        toggle = a.before == "double-sided"
+        old_src = cs.REPO / "src" if toggle else cs.old_tree(a.before, Path(tmp))
         for scene_file in map(Path, a.scenes):
-            before = cs.renders(a.before, old_src, scene_file, a.techniques, a.size, cache)
+            if toggle:
+                twin = scene_file.with_name(scene_file.stem + ".double-sided.toml")
+                text = scene_file.read_text()
+                assert "double_sided = false" in text, scene_file
+                twin.write_text(text.replace("double_sided = false", "double_sided = true"))
+                try:
+                    before = cs.renders("double-sided", old_src, twin, a.techniques, a.size, cache)
+                finally:
+                    twin.unlink()
+            else:
+                before = cs.renders(a.before, old_src, scene_file, a.techniques, a.size, cache)
             after = cs.renders("work", cs.REPO / "src", scene_file, a.techniques, a.size, cache)
             sc = dermis.load_scene(scene_file)
+            first = len(rows)
             mm = float(sc.mm_per_unit)
             lm = cs.landmarks(sc.mesh, mm)
             for t in a.techniques:
@@ -73,7 +88,7 @@ def main(argv=None):
                                       a.crop_mm * cs.CROP_SCALE[name], mm)
                     m, f = delta(sc, img0, img1, box)
                     rows.append(f"| {scene_file.stem} | {t} | {name} | {m:.4f} | {f:.5f} |")
-            print("\n".join(rows[-1 - len(lm) * len(a.techniques):]), flush=True)
+            print("\n".join(rows[first:]), flush=True)
     text = "\n".join(rows)
     (out / "image_delta.md").write_text(text + "\n")
     print(text)
