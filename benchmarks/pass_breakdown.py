@@ -99,6 +99,15 @@ def timed(ctx, fn, repeats):
     return min(out)
 
 
+def screen_pass(frame, p):
+    """A technique's mesh pass as render() draws it (draw_mesh: camera, scene state, face culling)."""
+    frame.target.use()
+    frame.ctx.enable(moderngl.DEPTH_TEST)
+    frame.ctx.disable(moderngl.CULL_FACE)
+    frame.target.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+    draw_mesh(frame, p)
+
+
 def set_anisotropy(renderer, a):
     for t in renderer.gpu.textures.values():
         if t.anisotropy != 1.0 or a != 1.0:
@@ -154,14 +163,6 @@ def main(argv=None):
             vs = load_shader_source("common/mesh.vert", defines)
             progs = compile_variants(ctx, vs, final_variants(load_shader_source("tsd/final.frag", defines)))
             res = {}
-
-            def final(p):
-                frame.target.use()
-                ctx.enable(moderngl.DEPTH_TEST)
-                ctx.disable(moderngl.CULL_FACE)
-                frame.target.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-                draw_mesh(frame, p)
-
             for p in progs.values():
                 bind_sampler(p, "uTranslucency", t.tex["translucency"], Unit.FIRST_FREE)
                 t._profile_uniforms(p, sc.profile, Unit.FIRST_FREE + 1)
@@ -171,27 +172,19 @@ def main(argv=None):
                 for k, p in progs.items():
                     if aniso == 1.0 and k not in ("full", "no specular", "const"):
                         continue
-                    res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: final(p), a.repeats)
+                    res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: screen_pass(frame, p), a.repeats)
             set_anisotropy(r, 8.0)
             table(f"tsd final pass at {a.size}^2", res)
         if "lambert" in only:
             vs = load_shader_source("common/mesh.vert", {})
             progs = compile_variants(ctx, vs, lambert_variants(load_shader_source("lambert/lambert.frag", {})))
             res = {}
-
-            def lam(p):
-                frame.target.use()
-                ctx.enable(moderngl.DEPTH_TEST)
-                ctx.disable(moderngl.CULL_FACE)
-                frame.target.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-                draw_mesh(frame, p)
-
             for aniso in (8.0, 1.0):
                 set_anisotropy(r, aniso)
                 for k, p in progs.items():
                     if aniso == 1.0 and k not in ("full", "const"):
                         continue
-                    res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: lam(p), a.repeats)
+                    res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: screen_pass(frame, p), a.repeats)
             set_anisotropy(r, 8.0)
             table(f"lambert pass at {a.size}^2", res)
 
