@@ -1,15 +1,13 @@
 // Shadow maps for all lights, packed in one atlas: tile i holds light i's depth map.
 // uShadowAtlas is a depth texture sampled with hardware comparison (each tap is itself a
-// bilinear 2x2 PCF); uShadowAux holds, per texel, the (u, v) of the lit surface and its distance
-// to the light in mm (the translucent shadow map of d'Eon & Luebke 2007, sec. 14.5.3). No skin
-// technique reads it since round 4 (translucency comes from the thickness bake's far face).
+// bilinear 2x2 PCF). The atlas is depth only: translucency comes from the thickness bake's far
+// face (common/transmittance.glsl), not from a translucent shadow map.
 #include "common/lights.glsl"
 
 uniform mat4 uLightViewProj[MAX_LIGHTS];
 uniform vec4 uShadowTile[MAX_LIGHTS];   // xy atlas offset, zw scale (atlas uv = off + uv * scale)
 uniform vec4 uShadowParams[MAX_LIGHTS]; // x soft radius (texels), y depth bias, z normal offset (scene units), w = 1/tile size
 uniform sampler2DShadow uShadowAtlas;
-uniform sampler2D uShadowAux;
 
 // Light-space coordinates: xy tile uv in [0,1], z depth in [0,1]; returns false outside the map.
 bool shadow_coords(int i, vec3 P, vec3 N, out vec3 c) {
