@@ -1,6 +1,7 @@
 """What the soft-shadow lookups (common/shadow.glsl) cost in tsd's texture-space irradiance pass on
 the head: the shadow code of a given commit vs the working tree's, no shadow, and one sharp tap
-per light, timed in one process (alternating, median of REPEATS) at 512^2 and 1024^2.
+per light, timed in one process (alternating, median of REPEATS) at 512^2 and 1024^2: wall time
+and the process's CPU time (all llvmpipe threads; less disturbed by other jobs on a loaded machine).
 
     PYTHONPATH=src python benchmarks/shadow_pcf_cost.py [COMMIT]   (default d7c6e97, round 4)
 """
@@ -53,17 +54,19 @@ for S in (512, 1024):
         frame, ctx = r.last_frame, r.ctx
         progs = {k: ctx.program(vertex_shader=vs, fragment_shader=f) for k, f in variants.items()}
         out = t._texture("irradiance", (S, S))
-        res = {}
+        res, cpu = {}, {}
         for _ in range(REPEATS):
             for k, p in progs.items():
                 bind_scene(frame, p)
                 t._uv_pass(frame, p, out)
                 ctx.finish()
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 t._uv_pass(frame, p, out)
                 ctx.finish()
                 res.setdefault(k, []).append((time.perf_counter() - t0) * 1e3)
+                cpu.setdefault(k, []).append((time.process_time() - c0) * 1e3)
         print(f"irradiance {S}^2, load {os.getloadavg()[0]:.1f}:",
-              ", ".join(f"{k} {statistics.median(v):.1f} ms" for k, v in res.items()), flush=True)
+              ", ".join(f"{k} {statistics.median(v):.0f} ms (CPU {statistics.median(cpu[k]):.0f})"
+                        for k, v in res.items()), flush=True)
         for p in progs.values():
             p.release()
