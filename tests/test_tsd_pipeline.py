@@ -86,7 +86,7 @@ def test_debug_buffers_and_stats_from_cli(tmp_path):
     s = json.loads(stats.read_text())
     assert s["technique"] == "tsd" and "tsd_blur" in s["passes_ms"] and "tsd_final" in s["passes_run"]
     names = {p.stem for p in dbg.glob("*.exr")}
-    assert {"irradiance", "stretch", "blur_1", "blur_6", "translucency", "shadow_depth", "shadow_tsm", "specular"} <= names
+    assert {"irradiance", "stretch", "blur_1", "blur_6", "translucency", "shadow_depth", "specular"} <= names
     with OpenEXR.File(str(dbg / "irradiance.exr")) as f:
         rgb = f.channels()["RGB"].pixels
     assert rgb.shape == (128, 128, 3) and np.isfinite(rgb).all() and rgb.max() > 0

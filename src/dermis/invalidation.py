@@ -36,7 +36,7 @@ PRODUCTS = {
     # the environment prefiltered for the specular lobe (prefiltered_environment.py, gl/environment.py)
     "environment_specular": ("environment",),
     # non-skin surfaces cast shadows (MASK maps cut them) and widen the maps' frusta
-    "shadow_atlas": ("mesh", "surfaces", "scale", "light_geometry", "epoch"),
+    "shadow_atlas": ("mesh", "surfaces", "light_geometry", "epoch"),  # depth only: no mm in it
     "mesh_curvature": ("mesh", "scale"),
     "stretch": ("mesh", "scale", "irradiance_size"),
     "thickness": ("mesh", "scale", "irradiance_size"),  # the texel thickness bake of translucency (gl/thickness.py)

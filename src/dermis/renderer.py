@@ -270,10 +270,9 @@ class Renderer:
         if self._stale("light_uniforms", keys):
             self._lights = LightUniforms(scene)
             self._built["light_uniforms"] = keys["light_uniforms"]
-        # the TSM stores distances in mm: the scale is part of what the shadow pass wrote
         if self._stale("shadow_atlas", keys):
             with self.timer("shadow"):
-                self.shadows.render(self.gpu, self._lights, scene)
+                self.shadows.render(self.gpu, self._lights)
             self._built["shadow_atlas"] = keys["shadow_atlas"]
             passes.append("shadow")
         else:
@@ -381,17 +380,14 @@ class Renderer:
 
     def debug_buffers(self, technique: str | None = None) -> dict:
         """Intermediate buffers of the last frame as float32 (H, W, C) arrays, row 0 = top: the
-        shared shadow atlas (depth, and the translucent shadow map: uv, distance to the light in mm,
-        coverage) and whatever the technique keeps (tsd: irradiance, stretch, each blur, ...)."""
-        from dermis.gl.resources import read_texture
-
+        shared shadow atlas's depth and whatever the technique keeps (tsd: irradiance, stretch, each
+        blur, ...)."""
         name = technique or self.scene.technique
         bufs = {}
         sh = self.shadows
         if sh.depth is not None:
             d = np.frombuffer(sh.depth.read(), np.float32).reshape(sh.depth.size[1], sh.depth.size[0])[::-1]
             bufs["shadow_depth"] = np.repeat(d[:, :, None], 3, axis=2).copy()
-            bufs["shadow_tsm"] = read_texture(sh.aux)
         bufs.update(self.technique(name).debug_buffers())
         return bufs
 

@@ -1,9 +1,9 @@
-"""Shadow maps for all lights in one atlas, with the translucent-shadow-map channel.
+"""Shadow maps for all lights in one depth-only atlas.
 
-Tile i of the atlas is light i's map. The depth attachment is sampled with hardware comparison
-(sampler2DShadow); the colour attachment (RGBA32F) keeps, per texel, the (u, v) of the surface
-nearest the light, its distance to the light in mm and a coverage flag: the translucent shadow
-map of d'Eon & Luebke 2007 (GPU Gems 3, sec. 14.5.3).
+Tile i of the atlas is light i's map, sampled with hardware comparison (sampler2DShadow,
+common/shadow.glsl). There is no colour target: translucency comes from the thickness bake's far
+face (common/transmittance.glsl), not from a translucent shadow map (d'Eon & Luebke 2007, sec.
+14.5.3), which round 4 stopped reading and round 5 removed.
 """
 
 from __future__ import annotations
@@ -37,10 +37,10 @@ class ShadowAtlas:
         self.tile_size = int(tile_size)
         self.cols = 4 if max_lights > 4 else max(1, min(max_lights, 2))
         self.rows = math.ceil(max_lights / self.cols)
-        self.prog = program(ctx, "shadow/shadow.vert", "shadow/shadow.frag")
+        self.prog = program(ctx, "shadow/shadow.vert")  # depth only: no fragment shader
         self.occluder_prog = None  # non-skin surfaces (shadow/occluder.frag), compiled when a scene has any
         self._size = None
-        self.depth = self.aux = self.fbo = None
+        self.depth = self.fbo = None
         self.tiles = np.zeros((max_lights, 4), np.float32)
         self.params = np.zeros((max_lights, 4), np.float32)
 
@@ -60,24 +60,19 @@ class ShadowAtlas:
         self.depth.compare_func = "<="
         self.depth.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.depth.repeat_x = self.depth.repeat_y = False
-        self.aux = self.ctx.texture(size, 4, dtype="f4")
-        self.aux.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self.aux.repeat_x = self.aux.repeat_y = False
-        self.fbo = self.ctx.framebuffer(color_attachments=[self.aux], depth_attachment=self.depth)
+        self.fbo = self.ctx.framebuffer(depth_attachment=self.depth)
         self.grid = (cols, rows)
 
-    def render(self, gpu_scene, light_uniforms, scene):
+    def render(self, gpu_scene, light_uniforms):
         """Render every light's tile. Returns the number of tiles drawn."""
         n = light_uniforms.count
         self._ensure(n)
         cols, rows = self.grid
         W, H = self._size
         self.fbo.use()
-        self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        self.fbo.clear(depth=1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)  # thin parts: both faces occlude
-        light_uniforms.apply(self.prog)
-        set_uniform(self.prog, "uMmPerUnit", float(scene.mm_per_unit))
         vao = gpu_scene.vao(self.prog)
         surfaces = getattr(gpu_scene, "surfaces", [])
         if surfaces and self.occluder_prog is None:
@@ -89,9 +84,8 @@ class ShadowAtlas:
                 continue
             self.fbo.viewport = (c * self.tile_size, r * self.tile_size, self.tile_size, self.tile_size)
             set_uniform(self.prog, "uViewProj", mat_bytes(light_uniforms.viewproj[i]))
-            set_uniform(self.prog, "uLight", i)
             vao.render(moderngl.TRIANGLES)
-            if surfaces:  # non-skin surfaces occlude too (depth), and are no skin in the TSM (w = 0)
+            if surfaces:  # non-skin surfaces occlude too
                 set_uniform(self.occluder_prog, "uViewProj", mat_bytes(light_uniforms.viewproj[i]))
                 for s in surfaces:
                     s.uniforms(self.occluder_prog)
@@ -109,17 +103,16 @@ class ShadowAtlas:
             self.params[i] = (L.shadow_softness, L.shadow_bias, offset, 1.0 / self.tile_size)
 
     def bind(self, prog):
-        """The atlas and its translucent shadow map at their contract units, and each tile's parameters."""
+        """The atlas at its contract unit, and each tile's parameters."""
         bind_sampler(prog, "uShadowAtlas", self.depth, Unit.SHADOW_ATLAS)
-        bind_sampler(prog, "uShadowAux", self.aux, Unit.SHADOW_AUX)
         set_uniform(prog, "uShadowTile", self.tiles)
         set_uniform(prog, "uShadowParams", self.params)
 
     def _release_targets(self):
-        for o in (self.fbo, self.depth, self.aux):
+        for o in (self.fbo, self.depth):
             if o is not None:
                 o.release()
-        self.fbo = self.depth = self.aux = None
+        self.fbo = self.depth = None
         self._size = None
 
     def release(self):

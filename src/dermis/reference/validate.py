@@ -14,7 +14,7 @@ Error attribution: every technique is also measured against the reference with
 ``paths = "tissue"`` (no light across the air gap of creases: eyelids, lips, folds), which says
 how much of its error is the crease semantics of the 3-D-distance model; for ``tsd``, the same
 metric after toggling one part of the pipeline at a time (irradiance texture resolution,
-shadow-map resolution, PCF softness, multi-resolution blurs, translucent shadow maps), and FLIP
+shadow-map resolution, PCF softness, multi-resolution blurs, translucency), and FLIP
 split between pixels near the UV seams and the rest.
 Both sides render the same material with ``pore_strength = 0`` (the reference has no procedural
 pore normals) and the same SH environment light, occluded by ambient occlusion and bent normals
@@ -128,7 +128,7 @@ def attribution_toggles():
         ("shadow_4096", "shadow-map tiles 4096^2 instead of 1024^2 (shadow resolution)", {"shadow_size": 4096}, None),
         ("pcf_off", "shadow_softness = 0: one bilinear compare instead of the PCF disc (shadow softening)", {}, soft0),
         ("multires_off", "every blur at full resolution (multi-resolution blurs)", {"tweak": multires_off}, None),
-        ("translucency_off", "no translucent shadow maps (light through thin parts)", {"tweak": translucency_off}, None),
+        ("translucency_off", "no translucency (light through thin parts)", {"tweak": translucency_off}, None),
     ]
 
 

@@ -64,7 +64,7 @@ class Unit(IntEnum):
     """Texture units of the shared samplers; a technique's own textures start at FIRST_FREE."""
 
     SHADOW_ATLAS = 0
-    SHADOW_AUX = 1
+    # 1 is free: it held the translucent shadow map (removed in round 5)
     ALBEDO = 2
     NORMAL = 3
     SPECULAR = 4
@@ -74,7 +74,7 @@ class Unit(IntEnum):
     FIRST_FREE = 8
 
 
-SHARED_SAMPLERS = {"uShadowAtlas": Unit.SHADOW_ATLAS, "uShadowAux": Unit.SHADOW_AUX, "uAlbedoMap": Unit.ALBEDO,
+SHARED_SAMPLERS = {"uShadowAtlas": Unit.SHADOW_ATLAS, "uAlbedoMap": Unit.ALBEDO,
                    "uNormalMap": Unit.NORMAL, "uSpecularMap": Unit.SPECULAR, "uRoughnessMap": Unit.ROUGHNESS,
                    "uSpecularTables": Unit.SPECULAR_TABLES, "uEnvSpecular": Unit.ENVIRONMENT_SPECULAR}
 """Sampler uniform -> unit, for every sampler the shared GLSL (shaders/common) declares."""

@@ -4,7 +4,7 @@ What it approximates: subsurface scattering in skin as a convolution of the irra
 surface with a radial diffusion profile R(r), represented as a sum of Gaussians sum_k w_k G(v_k, r)
 (variances in mm^2, RGB weights; dermis.profiles). The convolution is done in the mesh's UV layout:
 
-  shadow atlas + translucent shadow maps   (shared, gl/shadows.py)
+  shadow atlas (depth only)                (shared, gl/shadows.py)
   stretch map S_0 (texels per mm)           once per mesh / scale / resolution
   irradiance I_0 = E * albedo^mix           E from all lights with soft shadows, ambient, energy
                                              conservation (1 - rho_s a(N.L, m)/pi)
