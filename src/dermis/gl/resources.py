@@ -12,6 +12,7 @@ import numpy as np
 
 from dermis.camera import light_matrices
 from dermis.environment import environment_sh
+from dermis.geometry.hull import extreme_points
 from dermis.geometry.visibility import open_visibility
 from dermis.images import as_rgb
 from dermis.invalidation import memo_by_content, read_only
@@ -290,11 +291,12 @@ class LightUniforms:
         self.viewproj = np.zeros((n, 4, 4), np.float32)
         self.map_half_extent = np.zeros(n, np.float64)  # half a shadow map's width, scene units
         lo, hi = scene.bounds()
-        # the frusta are fitted to every vertex drawn (skin first) in float64: converted once per
-        # content of the meshes' own arrays (Scene.all_positions concatenates a new array each call)
+        # the frusta are fitted to every vertex drawn (skin first) in float64: their extents along a
+        # light's axes are maxima of linear functions, held by the convex hull's vertices
+        # (dermis.geometry.hull), found once per content of the meshes' own arrays
         arrays = (scene.mesh.positions, *(s.mesh.positions for s in scene.surfaces))
-        points = memo_by_content("float64", arrays, len(arrays),
-                                 lambda: read_only(np.concatenate(arrays).astype(np.float64)))
+        points = memo_by_content("light_fit_points", arrays, len(arrays),
+                                 lambda: read_only(extreme_points(np.concatenate(arrays))))
         for i, L in enumerate(lights):
             vp, eye, half = light_matrices(L, lo, hi, points)
             self.viewproj[i] = vp

@@ -9,6 +9,7 @@ the environment are shared through ``frame``, so every technique lights the same
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from contextlib import contextmanager
@@ -133,6 +134,12 @@ class TranslucentOptions(TechniqueOptions):
         check_float(f"{technique}: translucency_strength", self.translucency_strength)
 
 
+@functools.lru_cache(maxsize=None)
+def _option_names(options_class) -> frozenset:
+    """The fields of a technique's Options dataclass (asked on every attribute a technique sets)."""
+    return frozenset(f.name for f in dataclasses.fields(options_class))
+
+
 class Technique:
     name = ""
     description = ""
@@ -159,7 +166,7 @@ class Technique:
         self.options = new
 
     def __setattr__(self, name, value):
-        if name != "options" and name in {f.name for f in dataclasses.fields(self.Options)}:
+        if name != "options" and name in _option_names(self.Options):
             raise DermisError(f"technique '{self.name}': option {name} is set with "
                               f"Renderer.technique('{self.name}', {name}=...), which validates it")
         super().__setattr__(name, value)
