@@ -127,6 +127,11 @@ def test_every_change_between_cached_frames_equals_a_fresh_renderer(gl_ctx):
         ("profile in place", lambda: sc.profile.variances_mm2.__imul__(3.0)),
         ("mesh in place", lambda: sc.mesh.positions.__imul__(0.8)),
         ("scale", lambda: setattr(sc, "mm_per_unit", 35.0)),
+        ("shadow softness", lambda: setattr(sc.lights[0], "shadow_softness", 6.0)),
+        ("environment colour", lambda: setattr(sc.environment, "color", (0.3, 0.2, 0.1))),
+        ("pores", lambda: (setattr(sc.material, "pore_strength", 0.8), setattr(sc.material, "pore_scale_mm", 40.0))),
+        ("albedo swapped", lambda: setattr(sc.material, "albedo", Texture(np.full((8, 8, 3), 0.2, np.float32), "test:grey"))),
+        ("camera again", lambda: setattr(sc.camera, "position", (-0.5, 0.2, 3.8))),
     ]
     with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=256) as r:
         prev = r.render("tsd")
@@ -247,3 +252,59 @@ def test_per_frame_validation_memo_still_refuses_a_value_changed_after_a_good_fr
     bad(lambda sc: setattr(sc.camera, "fov_deg", 170.0), "fov")
     bad(lambda sc: setattr(sc.output, "exposure", 100.0), "exposure")
     bad(lambda sc: sc.lights.append(Light(direction=(0.0, 0.0, 0.0))), "direction")
+
+
+def test_tsd_prepared_passes_follow_options_and_sizes(gl_ctx):
+    """tsd draws its blur chain from a prepared list (programs, framebuffers, uniform bytes): a
+    change of options (taps, levels) or of the irradiance size gives a fresh Renderer's image."""
+    sc = _scene()
+    with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=256) as r:
+        before = r.render("tsd")
+        for opts, size in (({"max_taps": 2}, 64), ({"max_taps": 2, "multires": False}, 64), ({"multires": False}, 128)):
+            r.technique("tsd", **opts)
+            if size != r.irradiance_size:
+                r.set_irradiance_size(size)
+            sc.lights[0].intensity *= 1.1  # and a lights-moving frame after it
+            for _ in range(2):
+                img = r.render("tsd")
+                with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=size, shadow_size=256) as fresh:
+                    fresh.technique("tsd", **dataclasses.asdict(r.technique("tsd").options))
+                    np.testing.assert_allclose(img, fresh.render("tsd"), atol=1e-5, err_msg=f"{opts} {size} {_}")
+        assert np.abs(img - before).max() > 1e-4
+
+
+def test_a_camera_only_frame_prepares_only_the_per_frame_uniforms(gl_ctx, monkeypatch):
+    """The fast path: once a frame has set a program up, a frame where only the camera moved does
+    not even compute the bytes of the scene's uniforms (lights, shadows, material, profile: held by
+    the programs, dermis.gl.resources.prepared), and writes only the camera's; a frame whose
+    lights changed computes and writes the lights' again."""
+    import moderngl
+
+    from dermis.gl import resources
+
+    sc = _scene()
+    computed, written = [], []
+    real_bytes, real_write = resources.uniform_bytes, moderngl.Uniform.write
+    per_frame = {"uViewProj", "uCameraPos", "uTranslucency", "uPoreScaleMm", "uPoreStrength", "uOutputMode", "uViewZ",
+                 "uScattered"}
+    with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=256) as r:
+        monkeypatch.setattr(resources, "uniform_bytes", lambda u, v: computed.append(u.name) or real_bytes(u, v))
+        monkeypatch.setattr(moderngl.Uniform, "write", lambda u, data: written.append(u.name) or real_write(u, data))
+        for tech in ("tsd", "lambert", "preintegrated"):
+            r.render(tech)
+            r.render("tsd")  # another technique in between
+            sc.camera.position = (0.2 + 0.1 * len(written), 0.5, 4.0)
+            computed.clear()
+            written.clear()
+            r.render(tech)
+            assert set(written) == {"uViewProj", "uCameraPos"}, (tech, written)
+            assert set(computed) <= per_frame | {"uDiffuseTable", "uPenumbraTable", "uThicknessMap", "uTranslucencyMinVariance",
+                                                 "uTranslucencyStrength", "uCurvatureMaxPerMm", "uPenumbraWidthRangeMm",
+                                                 "uCurvatureFromMesh", "uScatterRadiusMm", "uBlurredNormals",
+                                                 "uPenumbraScattering", "uGaussianCount", "uWeights", "uVariances"}, (tech, computed)
+            if tech != "preintegrated":  # tsd's and lambert's final passes: the per-frame ones alone
+                assert set(computed) <= per_frame and "uLightRadiance" not in computed, (tech, computed)
+        sc.lights[1].color = (0.2, 0.9, 0.4)
+        written.clear()
+        r.render("tsd")
+        assert "uLightRadiance" in written

@@ -61,6 +61,7 @@ class Renderer:
         self.gpu = None
         self._built = {}  # product -> the key it was built with (dermis.invalidation.PRODUCTS)
         self._lights = None  # LightUniforms of the key self._built["light_uniforms"]
+        self._shadow_params_for = None  # (LightUniforms, tile size) the shadow atlas's parameters were set for
         self._epoch = 0  # bumped by invalidate(): an input of the products that invalidate() re-runs
         self._product_keys = ProductKeys()  # the keys, re-derived only for inputs that changed
         self._last_camera = None
@@ -273,8 +274,17 @@ class Renderer:
                 self.shadows.render(self.gpu, self._lights, scene)
             self._built["shadow_atlas"] = keys["shadow_atlas"]
             passes.append("shadow")
-        else:
+        elif self._shadow_params_for != (self._lights, self.shadows.tile_size):  # else they are as they were
             self.shadows.update_params(self._lights)
+        self._shadow_params_for = (self._lights, self.shadows.tile_size)
+
+    def _scene_state(self, keys: dict) -> tuple:
+        """What the uniforms of techniques.base.bind_scene come from: the texture-space key (lights,
+        material, environment, profile, scale, mesh) and the objects holding the derived values
+        (compared by identity: each is replaced when its inputs change)."""
+        sh = self.shadows
+        return (keys["texture_space"], self._lights, sh.tile_size, sh._size, sh.depth, sh.aux, self._environment_specular,
+                self.specular_tables["atlas"], self.gpu, tuple(self.gpu.textures.values()))
 
     def _upload_visibility(self, passes: list):
         """in_visibility: the mesh's baked ambient occlusion and bent normals (cached per mesh
@@ -345,7 +355,7 @@ class Renderer:
         t["fbo"].clear(bg[0], bg[1], bg[2], 0.0, depth=1.0)
         frame = Frame(renderer=self, ctx=self.ctx, scene=scene, gpu=self.gpu, lights=lights, shadows=self.shadows,
                       view=view, proj=proj, eye=eye, size=size, target=t["fbo"], timer=self.timer,
-                      keys=keys, passes_run=passes, near=near, far=far)
+                      keys=keys, passes_run=passes, near=near, far=far, scene_state=self._scene_state(keys))
         self._last_camera = camera
         tech.render(frame, output_mode=output_mode)
         with self.timer("resolve"):

@@ -6,6 +6,7 @@ the first uploaded row at t = 0, and dermis UVs have v = 0 at the bottom of the 
 
 from __future__ import annotations
 
+import contextvars
 import struct
 
 import numpy as np
@@ -112,6 +113,40 @@ def set_uniform(prog, name, value):
     if u.extra != data:
         u.write(data)
         u.extra = data
+
+
+_RECORDING = contextvars.ContextVar("dermis_texture_binds", default=None)
+
+
+def use_texture(tex, unit: int) -> None:
+    """Bind ``tex`` to texture ``unit`` (what every dermis sampler binding goes through, so that
+    :func:`prepared` can replay it)."""
+    tex.use(unit)
+    binds = _RECORDING.get()
+    if binds is not None:
+        binds.append((tex, unit))
+
+
+def prepared(prog, slot: str, key, setup) -> None:
+    """``setup(prog)`` (uniform writes through set_uniform, texture binds through use_texture),
+    skipped when this program's ``slot`` last ran it with an equal ``key``: the program still holds
+    those uniforms, and only the textures it bound are bound again (other passes use the same
+    units). ``key`` must change whenever anything ``setup`` writes would; it may hold the objects
+    the values come from (compared by identity, kept alive by the memo, so no id is reused).
+    Nothing else may write the uniforms ``setup`` writes on ``prog``."""
+    states = prog.__dict__.setdefault("_dermis_prepared", {})
+    state = states.get(slot)
+    if state is not None and state[0] == key:
+        for tex, unit in state[1]:
+            tex.use(unit)
+        return
+    binds = []
+    token = _RECORDING.set(binds)
+    try:
+        setup(prog)
+    finally:
+        _RECORDING.reset(token)
+    states[slot] = (key, binds)
 
 
 def mat_bytes(m) -> bytes:
@@ -248,7 +283,7 @@ class GpuScene:
                           ("uRoughnessMap", "roughness")):
             if prog.get(name, None) is not None:
                 unit = int(SHARED_SAMPLERS[name])
-                self.textures[key].use(unit)
+                use_texture(self.textures[key], unit)
                 set_uniform(prog, name, unit)
         for prefix, tex in (("Albedo", mat.albedo), ("Normal", mat.normal_map), ("Specular", mat.specular_map),
                             ("Roughness", mat.roughness_map)):

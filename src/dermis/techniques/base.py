@@ -80,6 +80,8 @@ class Frame:
     passes_run: list = field(default_factory=list)
     near: float = 0.1
     far: float = 100.0
+    # changes whenever anything bind_scene writes would (the Renderer's; None: always written)
+    scene_state: object = None
 
     @property
     def viewproj(self) -> np.ndarray:
@@ -187,7 +189,18 @@ class Technique:
 
 def bind_scene(frame: Frame, prog):
     """Bind the shared scene state every lighting pass reads: lights, shadow atlas, material, the
-    specular tables and the prefiltered environment, each at its unit of the shading contract (dermis.techniques.shared)."""
+    specular tables and the prefiltered environment, each at its unit of the shading contract
+    (dermis.techniques.shared). The uniforms are written only when ``frame.scene_state`` differs
+    from the one this program last got (dermis.gl.resources.prepared); the textures every time."""
+    from dermis.gl.resources import prepared
+
+    if frame.scene_state is None:
+        _bind_scene(frame, prog)
+    else:
+        prepared(prog, "scene", frame.scene_state, lambda p: _bind_scene(frame, p))
+
+
+def _bind_scene(frame: Frame, prog):
     frame.lights.apply(prog)
     frame.shadows.bind(prog)
     frame.gpu.material_uniforms(prog)
