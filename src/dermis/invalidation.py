@@ -44,6 +44,8 @@ PRODUCTS = {
     # ambient occlusion and bent normals (geometry/visibility.py, cached per mesh content), or the
     # open sky's (1, normal) with [environment] occlusion = false, in the vertex buffer
     "environment_visibility": ("mesh", "environment_occlusion"),
+    # the skin material's uniforms (GpuScene.material_uniforms: scalars, map addressing, profile-driven albedo scale)
+    "material_uniforms": ("material_maps", "material_scalars", "scale", "profile"),
     "texture_space": ("mesh", "surfaces", "scale", "lights", "environment", "environment_occlusion", "material_maps",
                       "material_scalars", "profile", "irradiance_size", "epoch"),
 }

@@ -279,12 +279,15 @@ class Renderer:
         self._shadow_params_for = (self._lights, self.shadows.tile_size)
 
     def _scene_state(self, keys: dict) -> tuple:
-        """What the uniforms of techniques.base.bind_scene come from: the texture-space key (lights,
-        material, environment, profile, scale, mesh) and the objects holding the derived values
-        (compared by identity: each is replaced when its inputs change)."""
+        """What the uniforms of techniques.base.bind_scene come from, as (lights, material): the
+        objects holding the derived values (compared by identity: each is replaced when its inputs
+        change: LightUniforms per PRODUCTS "light_uniforms", the shadow atlas's textures per size)
+        and the material's key (PRODUCTS "material_uniforms")."""
         sh = self.shadows
-        return (keys["texture_space"], self._lights, sh.tile_size, sh._size, sh.depth, sh.aux, self._environment_specular,
-                self.specular_tables["atlas"], self.gpu, tuple(self.gpu.textures.values()))
+        lights = (self._lights, sh.tile_size, sh._size, sh.depth, sh.aux)
+        material = (keys["material_uniforms"], self.gpu, tuple(self.gpu.textures.values()), self._environment_specular,
+                    self.specular_tables["atlas"])
+        return lights, material
 
     def _upload_visibility(self, passes: list):
         """in_visibility: the mesh's baked ambient occlusion and bent normals (cached per mesh

@@ -80,7 +80,8 @@ class Frame:
     passes_run: list = field(default_factory=list)
     near: float = 0.1
     far: float = 100.0
-    # changes whenever anything bind_scene writes would (the Renderer's; None: always written)
+    # (lights, material): each changes whenever what bind_scene writes from it would (the
+    # Renderer's; None: always written)
     scene_state: object = None
 
     @property
@@ -195,14 +196,20 @@ def bind_scene(frame: Frame, prog):
     from dermis.gl.resources import prepared
 
     if frame.scene_state is None:
-        _bind_scene(frame, prog)
-    else:
-        prepared(prog, "scene", frame.scene_state, lambda p: _bind_scene(frame, p))
+        _bind_lights(frame, prog)
+        _bind_material(frame, prog)
+    else:  # lights and material apart: a frame whose lights moved leaves the material's alone
+        lights_state, material_state = frame.scene_state
+        prepared(prog, "lights", lights_state, lambda p: _bind_lights(frame, p))
+        prepared(prog, "material", material_state, lambda p: _bind_material(frame, p))
 
 
-def _bind_scene(frame: Frame, prog):
+def _bind_lights(frame: Frame, prog):
     frame.lights.apply(prog)
     frame.shadows.bind(prog)
+
+
+def _bind_material(frame: Frame, prog):
     frame.gpu.material_uniforms(prog)
     bind_specular_tables(prog, frame.renderer.specular_tables)
     bind_environment_specular(prog, frame.renderer.environment_specular)
