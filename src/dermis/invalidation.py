@@ -125,7 +125,8 @@ def _fingerprint(a) -> tuple:
         owner = owner.base
     if not owner.flags.c_contiguous:
         owner = a if a.flags.c_contiguous else np.ascontiguousarray(a)
-    offset = a.__array_interface__["data"][0] - owner.__array_interface__["data"][0]
+    # (the addresses only for a view: __array_interface__ builds a dict per call)
+    offset = 0 if owner is a else a.__array_interface__["data"][0] - owner.__array_interface__["data"][0]
     return (a.shape, a.dtype.str, a.strides, offset, owner.nbytes, _digest(owner))
 
 
