@@ -400,14 +400,13 @@ class TextureSpaceDiffusion(Technique):
     @staticmethod
     def binned_variance(sigma_texels):
         """Variance (texel^2) of a Gaussian of ``sigma_texels`` integrated over unit bins centred on
-        the texels (binned_gaussian_1d of dermis.verification): 2 sum_j j^2 m_j over the bins' masses
-        m_j (j = 1..8) below 1 texel, Sheppard's sigma^2 + 1/12 from there (exact to < 1e-6)."""
-        from scipy.special import erf
+        the texels: 2 sum_j j^2 m_j over the bins' masses m_j (j = 1..8, binned_gaussian_1d of
+        dermis.verification) below 1 texel, Sheppard's sigma^2 + 1/12 from there (exact to < 1e-6)."""
+        from dermis.verification import binned_gaussian_1d
 
         sig = np.asarray(sigma_texels, np.float64)
-        s = np.maximum(sig, 1e-6) * math.sqrt(2.0)
-        edges = [erf((j + 0.5) / s) for j in range(9)]
-        binned = sum(j * j * (edges[j] - edges[j - 1]) for j in range(1, 9))
+        var = np.maximum(sig, 1e-6) ** 2
+        binned = sum(2.0 * j * j * binned_gaussian_1d(float(j), var, 1.0) for j in range(1, 9))
         return np.where(sig >= 1.0, sig * sig + 1.0 / 12.0, binned)
 
     def _narrow_weights(self, v1, v2):
