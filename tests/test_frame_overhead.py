@@ -239,6 +239,7 @@ def test_per_frame_validation_memo_still_refuses_a_value_changed_after_a_good_fr
     def bad(edit, match):
         sc = _scene()
         sc.lights[0].color = [1.0, 1.0, 1.0]  # a list: edited in place below
+        sc.lights[1].intensity = 1.0
         check_render_call(sc, None)
         check_render_call(sc, None)  # remembered
         edit(sc)
@@ -252,6 +253,8 @@ def test_per_frame_validation_memo_still_refuses_a_value_changed_after_a_good_fr
     bad(lambda sc: setattr(sc.camera, "fov_deg", 170.0), "fov")
     bad(lambda sc: setattr(sc.output, "exposure", 100.0), "exposure")
     bad(lambda sc: sc.lights.append(Light(direction=(0.0, 0.0, 0.0))), "direction")
+    bad(lambda sc: setattr(sc.lights[1], "intensity", True), "intensity")  # True == 1.0: a snapshot must tell them apart
+    bad(lambda sc: setattr(sc.output, "bloom", np.float32("nan")), "bloom")
 
 
 def test_tsd_prepared_passes_follow_options_and_sizes(gl_ctx):

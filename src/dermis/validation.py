@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import operator
 import threading
 
 import numpy as np
@@ -150,21 +151,40 @@ class _Unfrozen(Exception):
     pass
 
 
+_SCALARS = frozenset({float, int, str, np.float64, type(None)})
+_NUMBERS = frozenset({float, int, np.float64})
+
+
 def _frozen(v):
+    """``v`` as an immutable value for a snapshot: a number, string or None as it is, a tuple or
+    list of numbers as a tuple; a bool tagged (True == 1.0, but only one of them is valid where a
+    number is asked for); anything else raises _Unfrozen."""
     t = type(v)
-    if t is float or t is int or t is str or t is bool or t is np.float64 or v is None:
+    if t in _SCALARS:
         return v
-    if (t is tuple or t is list) and all(_plain(x) for x in v):
+    if (t is tuple or t is list) and set(map(type, v)) <= _NUMBERS:
         return tuple(v)
+    if t is bool:
+        return ("bool", v)
     raise _Unfrozen
 
 
-_MATERIAL_FIELDS = ("albedo_color", "roughness", "rho_s", "mix", "normal_strength", "specular_map_bias",
-                    "specular_map_scale", "pore_strength", "pore_scale_mm")
-_SURFACE_FIELDS = ("base_color", "emissive", "metallic", "roughness", "occlusion_strength", "normal_scale",
-                   "alpha_cutoff", "alpha_mode", "double_sided")
-_LIGHT_FIELDS = ("kind", "color", "intensity", "direction", "position", "spot_angle_deg", "spot_blend",
-                 "shadow_softness", "shadow_bias")
+def _frozen_all(values: tuple) -> tuple:
+    """A tuple of attribute values as a snapshot (all plain scalars: as it is, no call per value)."""
+    if set(map(type, values)) <= _SCALARS:
+        return values
+    return tuple(map(_frozen, values))
+
+
+_MATERIAL_FIELDS = operator.attrgetter("albedo_color", "roughness", "rho_s", "mix", "normal_strength",
+                                       "specular_map_bias", "specular_map_scale", "pore_strength", "pore_scale_mm")
+_SURFACE_FIELDS = operator.attrgetter("base_color", "emissive", "metallic", "roughness", "occlusion_strength",
+                                      "normal_scale", "alpha_cutoff", "alpha_mode", "double_sided")
+_LIGHT_FIELDS = operator.attrgetter("kind", "color", "intensity", "direction", "position", "spot_angle_deg",
+                                    "spot_blend", "shadow_softness", "shadow_bias")
+_ENV_FIELDS = operator.attrgetter("color", "intensity", "rotation_deg")
+_OUTPUT_FIELDS = operator.attrgetter("exposure", "background", "tonemap", "bloom", "bloom_radius")
+_CAMERA_FIELDS = operator.attrgetter("position", "target", "up", "fov_deg", "near", "far")
 
 
 def _snapshots(scene):
@@ -177,15 +197,13 @@ def _snapshots(scene):
     if type(surfaces) is not list or not all(type(s) is Surface and type(s.material) is MetallicRoughnessMaterial
                                               for s in surfaces):
         return None
-    f = _frozen
+    f = _frozen_all
     try:
-        m, env, o, cam = scene.material, scene.environment, scene.output, scene.camera
-        rest = ("scene", scene.source, f(scene.mm_per_unit), tuple(f(getattr(m, k)) for k in _MATERIAL_FIELDS),
-                tuple(tuple(f(getattr(s.material, k)) for k in _SURFACE_FIELDS) for s in surfaces),
-                f(env.color), f(env.intensity), f(env.rotation_deg),
-                f(o.exposure), f(o.background), f(o.tonemap), f(o.bloom), f(o.bloom_radius))
-        lights = [("light", tuple(f(getattr(L, k)) for k in _LIGHT_FIELDS)) for L in scene.lights]
-        camera = ("camera", f(cam.position), f(cam.target), f(cam.up), f(cam.fov_deg), f(cam.near), f(cam.far))
+        rest = ("scene", scene.source, _frozen(scene.mm_per_unit), f(_MATERIAL_FIELDS(scene.material)),
+                tuple(f(_SURFACE_FIELDS(s.material)) for s in surfaces), f(_ENV_FIELDS(scene.environment)),
+                f(_OUTPUT_FIELDS(scene.output)))
+        lights = [("light", f(_LIGHT_FIELDS(L))) for L in scene.lights]
+        camera = ("camera", f(_CAMERA_FIELDS(scene.camera)))
     except (_Unfrozen, AttributeError):
         return None
     return rest, lights, camera

@@ -347,12 +347,22 @@ class LightUniforms:
         self.lights = lights
 
     def apply(self, prog):
+        """Write the lights' uniforms into ``prog``; their bytes are packed once per LightUniforms
+        (and array length the compiler kept), not once per program and frame."""
+        packed = self.__dict__.setdefault("_packed", {})
         set_uniform(prog, "uLightCount", self.count)
-        set_uniform(prog, "uLightPosType", self.pos_type)
-        set_uniform(prog, "uLightDir", self.direction)
-        set_uniform(prog, "uLightRadiance", self.radiance)
-        set_uniform(prog, "uLightSpot", self.spot)
-        u = prog.get("uLightViewProj", None)
-        if u is not None:
-            set_uniform(prog, "uLightViewProj", b"".join(mat_bytes(m) for m in self.viewproj[:u.array_length]))
-        set_uniform(prog, "uEnvSH", self.env_sh)
+        for name, value in (("uLightPosType", self.pos_type), ("uLightDir", self.direction),
+                            ("uLightRadiance", self.radiance), ("uLightSpot", self.spot),
+                            ("uLightViewProj", self.viewproj), ("uEnvSH", self.env_sh)):
+            u = prog.get(name, None)
+            if u is None:
+                continue
+            key = (name, u.array_length)
+            data = packed.get(key)
+            if data is None:
+                if name == "uLightViewProj":
+                    data = b"".join(mat_bytes(m) for m in value[:u.array_length])
+                else:
+                    data = uniform_bytes(u, value)
+                packed[key] = data
+            set_uniform(prog, name, data)
