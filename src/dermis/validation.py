@@ -246,7 +246,7 @@ def check_scene_per_frame(scene):
 def _camera_clearly_valid(camera, centre, radius) -> bool:
     """check_camera's tests in plain floats, for a camera that passes them by a clear margin (else
     the full check decides, and words the error): finite coordinates within range, a view direction,
-    an up vector at least 0.1 degree off it, the field of view in range, near/far unset."""
+    an up vector more than 0.08 degree off it, the field of view in range, near/far unset."""
     try:
         vals = [_frozen(getattr(camera, k)) for k in ("position", "target", "up")]
         fov = camera.fov_deg
