@@ -39,8 +39,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 HEAD = ROOT / "examples" / "lee-perry-smith.toml"
 
-# moderngl calls that make llvmpipe rasterise, clear, copy, transfer or wait
-_GL_CALLS = {"VertexArray": ("render",), "Framebuffer": ("clear", "read", "read_into"),
+# moderngl calls that make llvmpipe rasterise, clear, copy, transfer or wait (binding another
+# framebuffer makes llvmpipe rasterise what was queued for the last one: Framebuffer.use)
+_GL_CALLS = {"VertexArray": ("render",), "Framebuffer": ("clear", "read", "read_into", "use"),
              "Context": ("clear", "finish", "copy_framebuffer"),
              "Texture": ("read", "read_into", "write", "build_mipmaps"), "Texture3D": ("read", "write", "build_mipmaps"),
              "Buffer": ("read", "write"), "ComputeShader": ("run",)}

@@ -127,6 +127,11 @@ def test_every_change_between_cached_frames_equals_a_fresh_renderer(gl_ctx):
         ("profile in place", lambda: sc.profile.variances_mm2.__imul__(3.0)),
         ("mesh in place", lambda: sc.mesh.positions.__imul__(0.8)),
         ("scale", lambda: setattr(sc, "mm_per_unit", 35.0)),
+        ("shadow softness", lambda: setattr(sc.lights[0], "shadow_softness", 6.0)),
+        ("environment colour", lambda: setattr(sc.environment, "color", (0.3, 0.2, 0.1))),
+        ("pores", lambda: (setattr(sc.material, "pore_strength", 0.8), setattr(sc.material, "pore_scale_mm", 40.0))),
+        ("albedo swapped", lambda: setattr(sc.material, "albedo", Texture(np.full((8, 8, 3), 0.2, np.float32), "test:grey"))),
+        ("camera again", lambda: setattr(sc.camera, "position", (-0.5, 0.2, 3.8))),
     ]
     with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=256) as r:
         prev = r.render("tsd")
@@ -153,3 +158,156 @@ def test_validation_fast_paths_refuse_what_the_full_checks_refuse():
         with pytest.raises(DermisError, match=match):
             check_scene(sc, full=False)
     check_scene(_scene(), full=False)
+
+
+def test_extreme_points_give_the_same_fits_as_every_vertex():
+    """The view and shadow-map fits on the hull's points (dermis.geometry.hull) equal, bit for bit,
+    the fits on every vertex, for random views and light directions; degenerate clouds keep all."""
+    from dermis.camera import light_matrices
+    from dermis.framing import _box_centre, fit_camera
+    from dermis.geometry.hull import extreme_points
+
+    rng = np.random.default_rng(7)
+    sc = _scene()
+    sc.mesh.positions[:] += rng.normal(scale=0.02, size=sc.mesh.positions.shape).astype(np.float32)  # a lumpy sphere
+    p = sc.mesh.positions.astype(np.float64)
+    q = extreme_points(p)
+    assert 4 <= len(q) < len(p) and q.flags.c_contiguous
+    lo, hi = sc.bounds()
+    c = _box_centre(p)
+    for _ in range(300):
+        d = rng.normal(size=3)
+        assert (p @ d).max() == (q @ d).max()
+        L = dataclasses.replace(sc.lights[0], direction=tuple(d))
+        a, b = light_matrices(L, lo, hi, p), light_matrices(L, lo, hi, q)
+        assert np.array_equal(a[0], b[0]) and a[2] == b[2]
+        cam = dataclasses.replace(sc.camera, position=tuple(rng.normal(size=3) * 5.0), fov_deg=float(rng.uniform(10, 80)))
+        aspect = float(rng.uniform(0.5, 2.0))
+        assert fit_camera(cam, p, aspect, centre=c) == fit_camera(cam, q, aspect, centre=c)
+    flat = np.c_[rng.random((50, 2)), np.zeros(50)]
+    assert np.array_equal(extreme_points(flat), flat)  # no 3-D hull: every point
+    assert np.array_equal(extreme_points(p[:4]), p[:4])
+
+
+def test_product_keys_with_memory_equal_fresh_keys():
+    """ProductKeys (the Renderer's: only changed inputs written out again) gives the keys a fresh
+    product_keys gives, through a sequence of changes, and a product keeps its key exactly when
+    none of its inputs changed."""
+    from dermis.invalidation import PRODUCTS, ProductKeys, product_keys, scene_inputs
+
+    sc = _scene()
+    keys = ProductKeys()
+    changes = [lambda: None, lambda: setattr(sc.camera, "position", (1.0, 0.2, 3.0)),
+               lambda: setattr(sc.lights[0], "direction", (0.1, -0.9, -0.3)),
+               lambda: sc.material.albedo.data.__imul__(0.5), lambda: sc.mesh.positions.__imul__(1.1),
+               lambda: setattr(sc, "mm_per_unit", 30.0), lambda: setattr(sc.lights[1], "intensity", 2.0)]
+    prev_inputs = prev = None
+    for change in changes:
+        change()
+        inputs = scene_inputs(sc, irradiance_size=64, epoch=0)
+        got = keys(inputs)
+        assert got == product_keys(inputs)
+        if prev is not None:
+            for product, names in PRODUCTS.items():
+                same = all(inputs[n] == prev_inputs[n] for n in names)
+                assert (got[product] == prev[product]) == same, product
+        prev_inputs, prev = inputs, got
+
+
+def test_frame_scope_hashes_an_array_once_and_forgets_on_exit(monkeypatch):
+    from dermis import invalidation
+
+    calls = []
+    real = invalidation._fingerprint
+    monkeypatch.setattr(invalidation, "_fingerprint", lambda a: calls.append(1) or real(a))
+    a = np.arange(12.0)
+    with invalidation.frame_scope():
+        k = invalidation.fingerprint(a)
+        with invalidation.frame_scope():  # nested: the outer scope's memo
+            assert invalidation.fingerprint(a) == k
+        assert invalidation.fingerprint(a) == k and len(calls) == 1
+    a[3] = -1.0  # between frames: seen
+    assert invalidation.fingerprint(a) != k and len(calls) == 2
+    assert invalidation.fingerprint(a) == invalidation.fingerprint(a) and len(calls) == 4  # no scope: each call hashes
+
+
+def test_per_frame_validation_memo_still_refuses_a_value_changed_after_a_good_frame():
+    """check_render_call remembers the parts of a scene that passed; a later bad value (also one
+    edited in place in a list the scene holds) is refused as the full check refuses it."""
+    from dermis.validation import check_render_call
+
+    def bad(edit, match):
+        sc = _scene()
+        sc.lights[0].color = [1.0, 1.0, 1.0]  # a list: edited in place below
+        sc.lights[1].intensity = 1.0
+        check_render_call(sc, None)
+        check_render_call(sc, None)  # remembered
+        edit(sc)
+        with pytest.raises(DermisError, match=match):
+            check_render_call(sc, None)
+    bad(lambda sc: sc.lights[0].color.__setitem__(0, -1.0), "color")
+    bad(lambda sc: setattr(sc.lights[1], "intensity", float("nan")), "intensity")
+    bad(lambda sc: setattr(sc.material, "roughness", 0.0), "roughness")
+    bad(lambda sc: setattr(sc.camera, "up", (0.3, 0.4, 4.0)), "up")  # along the view direction
+    bad(lambda sc: setattr(sc.camera, "position", sc.camera.target), "coincide")
+    bad(lambda sc: setattr(sc.camera, "fov_deg", 170.0), "fov")
+    bad(lambda sc: setattr(sc.output, "exposure", 100.0), "exposure")
+    bad(lambda sc: sc.lights.append(Light(direction=(0.0, 0.0, 0.0))), "direction")
+    bad(lambda sc: setattr(sc.lights[1], "intensity", True), "intensity")  # True == 1.0: a snapshot must tell them apart
+    bad(lambda sc: setattr(sc.output, "bloom", np.float32("nan")), "bloom")
+
+
+def test_tsd_prepared_passes_follow_options_and_sizes(gl_ctx):
+    """tsd draws its blur chain from a prepared list (programs, framebuffers, uniform bytes): a
+    change of options (taps, levels) or of the irradiance size gives a fresh Renderer's image."""
+    sc = _scene()
+    with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=256) as r:
+        before = r.render("tsd")
+        for opts, size in (({"max_taps": 2}, 64), ({"max_taps": 2, "multires": False}, 64), ({"multires": False}, 128)):
+            r.technique("tsd", **opts)
+            if size != r.irradiance_size:
+                r.set_irradiance_size(size)
+            sc.lights[0].intensity *= 1.1  # and a lights-moving frame after it
+            for _ in range(2):
+                img = r.render("tsd")
+                with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=size, shadow_size=256) as fresh:
+                    fresh.technique("tsd", **dataclasses.asdict(r.technique("tsd").options))
+                    np.testing.assert_allclose(img, fresh.render("tsd"), atol=1e-5, err_msg=f"{opts} {size} {_}")
+        assert np.abs(img - before).max() > 1e-4
+
+
+def test_a_camera_only_frame_prepares_only_the_per_frame_uniforms(gl_ctx, monkeypatch):
+    """The fast path: once a frame has set a program up, a frame where only the camera moved does
+    not even compute the bytes of the scene's uniforms (lights, shadows, material, profile: held by
+    the programs, dermis.gl.resources.prepared), and writes only the camera's; a frame whose
+    lights changed computes and writes the lights' again."""
+    import moderngl
+
+    from dermis.gl import resources
+
+    sc = _scene()
+    computed, written = [], []
+    real_bytes, real_write = resources.uniform_bytes, moderngl.Uniform.write
+    per_frame = {"uViewProj", "uCameraPos", "uTranslucency", "uPoreScaleMm", "uPoreStrength", "uOutputMode", "uViewZ",
+                 "uScattered"}
+    with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=256) as r:
+        monkeypatch.setattr(resources, "uniform_bytes", lambda u, v: computed.append(u.name) or real_bytes(u, v))
+        monkeypatch.setattr(moderngl.Uniform, "write", lambda u, data: written.append(u.name) or real_write(u, data))
+        for tech in ("tsd", "lambert", "preintegrated"):
+            r.render(tech)
+            r.render("tsd")  # another technique in between
+            sc.camera.position = (0.2 + 0.1 * len(written), 0.5, 4.0)
+            computed.clear()
+            written.clear()
+            r.render(tech)
+            assert set(written) == {"uViewProj", "uCameraPos"}, (tech, written)
+            assert set(computed) <= per_frame | {"uDiffuseTable", "uPenumbraTable", "uThicknessMap", "uTranslucencyMinVariance",
+                                                 "uTranslucencyStrength", "uCurvatureMaxPerMm", "uPenumbraWidthRangeMm",
+                                                 "uCurvatureFromMesh", "uScatterRadiusMm", "uBlurredNormals",
+                                                 "uPenumbraScattering", "uGaussianCount", "uWeights", "uVariances"}, (tech, computed)
+            if tech != "preintegrated":  # tsd's and lambert's final passes: the per-frame ones alone
+                assert set(computed) <= per_frame and "uLightRadiance" not in computed, (tech, computed)
+        sc.lights[1].color = (0.2, 0.9, 0.4)
+        written.clear()
+        r.render("tsd")
+        assert "uLightRadiance" in written

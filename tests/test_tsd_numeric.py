@@ -220,3 +220,15 @@ def test_energy_uniform_irradiance(gl_ctx):
     assert np.all(rel < 0.005), f"energy: {px.mean(axis=0)} vs {expected} ({rel})"
     # the factors matter: without them the value would be off by more than the tolerance
     assert np.all(np.abs(E * albedo / np.pi / expected - 1) > 0.005)
+
+
+def test_binned_variance_is_the_variance_of_the_binned_gaussian():
+    """tsd's narrow-pass variances (TextureSpaceDiffusion.binned_variance) against the variance of
+    the Gaussian's texel masses summed over 200 texels each side (independent: no Sheppard term)."""
+    from dermis.techniques.tsd import TextureSpaceDiffusion
+    from dermis.verification import binned_gaussian_1d
+
+    sig = np.array([0.05, 0.2, 0.45, 0.7, 0.99, 1.0, 1.5, 3.0])
+    j = np.arange(-200, 201, dtype=np.float64)
+    ref = np.array([(j * j * binned_gaussian_1d(j, s * s, 1.0)).sum() for s in sig])
+    np.testing.assert_allclose(TextureSpaceDiffusion.binned_variance(sig), ref, rtol=0, atol=2e-6)

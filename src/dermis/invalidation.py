@@ -44,6 +44,8 @@ PRODUCTS = {
     # ambient occlusion and bent normals (geometry/visibility.py, cached per mesh content), or the
     # open sky's (1, normal) with [environment] occlusion = false, in the vertex buffer
     "environment_visibility": ("mesh", "environment_occlusion"),
+    # the skin material's uniforms (GpuScene.material_uniforms: scalars, map addressing, profile-driven albedo scale)
+    "material_uniforms": ("material_maps", "material_scalars", "scale", "profile"),
     "texture_space": ("mesh", "surfaces", "scale", "lights", "environment", "environment_occlusion", "material_maps",
                       "material_scalars", "profile", "irradiance_size", "epoch"),
 }
@@ -77,19 +79,54 @@ def _digest(owner: np.ndarray) -> str:
     return xxhash.xxh3_128_hexdigest(memoryview(owner.reshape(-1).view(np.uint8)))
 
 
+_SCOPE = threading.local()  # .memo: {id(array): (array, fingerprint)} while a frame_scope() is open
+
+
+class frame_scope:
+    """Within ``with frame_scope():`` (one Renderer frame), an array's fingerprint is computed once
+    and remembered until the scope closes: the frame asks for the mesh's several times (its keys,
+    bounds, framing, the light fits), and nothing edits the scene's arrays while a frame is drawn.
+    The memo holds each array, so its id cannot be reused within the scope; it is per thread (the
+    viewer's workers render on their own) and nests (the outermost scope owns it)."""
+
+    def __enter__(self):
+        self.owner = getattr(_SCOPE, "memo", None) is None
+        if self.owner:
+            _SCOPE.memo = {}
+        return self
+
+    def __exit__(self, *exc):
+        if self.owner:
+            _SCOPE.memo = None
+
+
 def fingerprint(a) -> tuple | None:
     """Content key of an array (or None): its layout and the XXH3-128 hash of its bytes. A view
     (e.g. an image's first three channels) is keyed on its layout within the contiguous array it
-    views and that array's bytes, so it is never copied; an edit anywhere in that array counts."""
+    views and that array's bytes, so it is never copied; an edit anywhere in that array counts.
+    Inside a :class:`frame_scope`, each array object is hashed once."""
     if a is None:
         return None
+    memo = getattr(_SCOPE, "memo", None)
+    if memo is not None and type(a) is np.ndarray:
+        hit = memo.get(id(a))
+        if hit is not None and hit[0] is a:
+            return hit[1]
+        fp = _fingerprint(a)
+        memo[id(a)] = (a, fp)
+        return fp
+    return _fingerprint(a)
+
+
+def _fingerprint(a) -> tuple:
     a = np.asarray(a)
     owner = a
     while isinstance(owner.base, np.ndarray):
         owner = owner.base
     if not owner.flags.c_contiguous:
         owner = a if a.flags.c_contiguous else np.ascontiguousarray(a)
-    offset = a.__array_interface__["data"][0] - owner.__array_interface__["data"][0]
+    # (the addresses only for a view: __array_interface__ builds a dict per call)
+    offset = 0 if owner is a else a.__array_interface__["data"][0] - owner.__array_interface__["data"][0]
     return (a.shape, a.dtype.str, a.strides, offset, owner.nbytes, _digest(owner))
 
 
@@ -174,17 +211,39 @@ def scene_inputs(scene, *, irradiance_size: int, epoch: int) -> dict:
     }
 
 
+def _product_key(names, reprs: dict) -> str:
+    h = hashlib.sha1()
+    for n in names:
+        h.update(n.encode())
+        h.update(reprs[n])
+    return h.hexdigest()
+
+
 def product_keys(inputs: dict) -> dict:
     """One hex key per product of PRODUCTS, from the inputs it declares."""
-    reprs = {}  # each input written out once, however many products share it
-    out = {}
-    for product, names in PRODUCTS.items():
-        h = hashlib.sha1()
-        for n in names:
-            r = reprs.get(n)
-            if r is None:
-                r = reprs[n] = repr(inputs[n]).encode()
-            h.update(n.encode())
-            h.update(r)
-        out[product] = h.hexdigest()
-    return out
+    reprs = {n: repr(v).encode() for n, v in inputs.items()}  # each input written out once
+    return {product: _product_key(names, reprs) for product, names in PRODUCTS.items()}
+
+
+class ProductKeys:
+    """:func:`product_keys` with memory, for a Renderer's frames: an input equal (as a value) to
+    the last call's is not written out again, and a product none of whose inputs changed keeps its
+    key: a camera-only frame writes out nothing, a frame whose lights moved only the light inputs."""
+
+    def __init__(self):
+        self._inputs = {}  # name -> the value last written out
+        self._reprs = {}  # name -> repr(value).encode()
+        self._keys = {}  # product -> key
+
+    def __call__(self, inputs: dict) -> dict:
+        last = self._inputs
+        changed = [n for n, v in inputs.items() if n not in last or last[n] != v]
+        if changed:
+            for n in changed:
+                last[n] = inputs[n]
+                self._reprs[n] = repr(inputs[n]).encode()
+            changed = set(changed)
+            for product, names in PRODUCTS.items():
+                if product not in self._keys or not changed.isdisjoint(names):
+                    self._keys[product] = _product_key(names, self._reprs)
+        return dict(self._keys)

@@ -19,7 +19,7 @@ from dermis.gl.context import create_context, gl_info, is_software
 from dermis.geometry.texture_space import scene_texture_space
 from dermis.gl.resources import GpuScene, LightUniforms
 from dermis.gl.shadows import ShadowAtlas
-from dermis.invalidation import product_keys, scene_inputs
+from dermis.invalidation import ProductKeys, frame_scope, scene_inputs
 from dermis.techniques import technique_class
 from dermis.techniques.base import Frame, PassTimer
 from dermis.techniques.shared import OutputMode
@@ -61,8 +61,9 @@ class Renderer:
         self.gpu = None
         self._built = {}  # product -> the key it was built with (dermis.invalidation.PRODUCTS)
         self._lights = None  # LightUniforms of the key self._built["light_uniforms"]
+        self._shadow_params_for = None  # (LightUniforms, tile size) the shadow atlas's parameters were set for
         self._epoch = 0  # bumped by invalidate(): an input of the products that invalidate() re-runs
-        self._keys_memo = None  # (inputs, product keys) of the last product_keys()
+        self._product_keys = ProductKeys()  # the keys, re-derived only for inputs that changed
         self._last_camera = None
         self.visibility = None  # the last VertexVisibility uploaded (geometry/visibility.py), None when off
         self._texture_space_checked = None  # the mesh object _texture_space_mesh last returned
@@ -142,13 +143,10 @@ class Renderer:
 
     def product_keys(self) -> dict:
         """The key of every cached product of dermis.invalidation.PRODUCTS for the current scene.
-        Inputs equal to the last call's (compared as values: content keys and numbers) give the
-        last call's keys without hashing them again (the viewer asks for them several times a frame)."""
-        inputs = self.inputs()
-        memo = self._keys_memo
-        if memo is None or memo[0] != inputs:
-            memo = self._keys_memo = (inputs, product_keys(inputs))
-        return dict(memo[1])
+        Inputs equal to the last call's (compared as values: content keys and numbers) are not
+        written out and hashed again (dermis.invalidation.ProductKeys)."""
+        with frame_scope():
+            return self._product_keys(self.inputs())
 
     def lighting_key(self) -> str:
         """Everything the view-independent (texture-space) passes depend on."""
@@ -275,8 +273,20 @@ class Renderer:
                 self.shadows.render(self.gpu, self._lights)
             self._built["shadow_atlas"] = keys["shadow_atlas"]
             passes.append("shadow")
-        else:
+        elif self._shadow_params_for != (self._lights, self.shadows.tile_size):  # else they are as they were
             self.shadows.update_params(self._lights)
+        self._shadow_params_for = (self._lights, self.shadows.tile_size)
+
+    def _scene_state(self, keys: dict) -> tuple:
+        """What the uniforms of techniques.base.bind_scene come from, as (lights, material): the
+        objects holding the derived values (compared by identity: each is replaced when its inputs
+        change: LightUniforms per PRODUCTS "light_uniforms", the shadow atlas's textures per size)
+        and the material's key (PRODUCTS "material_uniforms")."""
+        sh = self.shadows
+        lights = (self._lights, sh.tile_size, sh._size, sh.depth, sh.aux)
+        material = (keys["material_uniforms"], self.gpu, tuple(self.gpu.textures.values()), self._environment_specular,
+                    self.specular_tables["atlas"])
+        return lights, material
 
     def _upload_visibility(self, passes: list):
         """in_visibility: the mesh's baked ambient occlusion and bent normals (cached per mesh
@@ -312,6 +322,10 @@ class Renderer:
         the viewer's reduced frames while dragging. ``readback=False``: the frame is drawn and
         resolved on the GPU and nothing is read back (returns None; :meth:`read_frame` reads it):
         frames back to back without waiting for the GPU, as a viewer that shows them on the GPU."""
+        with frame_scope():  # each of the scene's arrays is hashed once per frame
+            return self._render(technique, size, camera, with_alpha, output_mode, samples, readback)
+
+    def _render(self, technique, size, camera, with_alpha, output_mode, samples, readback):
         if self.scene is None:
             raise DermisError("Renderer has no scene: call set_scene(scene) first")
         try:
@@ -343,7 +357,7 @@ class Renderer:
         t["fbo"].clear(bg[0], bg[1], bg[2], 0.0, depth=1.0)
         frame = Frame(renderer=self, ctx=self.ctx, scene=scene, gpu=self.gpu, lights=lights, shadows=self.shadows,
                       view=view, proj=proj, eye=eye, size=size, target=t["fbo"], timer=self.timer,
-                      keys=keys, passes_run=passes, near=near, far=far)
+                      keys=keys, passes_run=passes, near=near, far=far, scene_state=self._scene_state(keys))
         self._last_camera = camera
         tech.render(frame, output_mode=output_mode)
         with self.timer("resolve"):

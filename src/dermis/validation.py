@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import math
 import numbers
+import operator
+import threading
 
 import numpy as np
 
@@ -123,12 +125,146 @@ def check_render_call(scene, technique, camera=None):
     """Per frame (Renderer.render): the technique argument and the scene's scalar values (cheap:
     lights, camera, material and output numbers; the mesh and textures were checked by set_scene)."""
     check_technique_arg(technique)
-    check_scene(scene, full=False)
+    check_scene_per_frame(scene)
     if camera is not None:
         from dermis.camera import check_camera
 
         lo, hi = scene.bounds()
-        check_camera(camera, "camera", (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2)
+        centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+        if not _camera_clearly_valid(camera, centre, radius):
+            check_camera(camera, "camera", centre, radius)
+
+
+# ---------------------------------------------------------------------- per-frame fast path
+# check_render_call runs every frame. What it checks is snapshotted in parts (the scene less its
+# lights and camera; each light; the camera with the bounds it is checked against) as plain numbers
+# and tuples of them, copied. A part that passed its check is remembered: a frame whose parts equal
+# validated ones skips their checks (a camera-only frame checks the camera alone, a frame whose
+# lights moved those lights). A value that is not a plain number (an array) makes its part
+# unsnapshottable, checked every frame; a NaN equals nothing, so it is never taken for validated.
+_VALID_KEEP = 256
+_VALID_LOCK = threading.Lock()
+_VALID: dict = {}  # snapshot -> True, oldest first (the viewer's worker threads validate too)
+
+
+class _Unfrozen(Exception):
+    pass
+
+
+_SCALARS = frozenset({float, int, str, np.float64, type(None)})
+_NUMBERS = frozenset({float, int, np.float64})
+
+
+def _frozen(v):
+    """``v`` as an immutable value for a snapshot: a number, string or None as it is, a tuple or
+    list of numbers as a tuple; a bool tagged (True == 1.0, but only one of them is valid where a
+    number is asked for); anything else raises _Unfrozen."""
+    t = type(v)
+    if t in _SCALARS:
+        return v
+    if (t is tuple or t is list) and set(map(type, v)) <= _NUMBERS:
+        return tuple(v)
+    if t is bool:
+        return ("bool", v)
+    raise _Unfrozen
+
+
+def _frozen_all(values: tuple) -> tuple:
+    """A tuple of attribute values as a snapshot (all plain scalars: as it is, no call per value)."""
+    if set(map(type, values)) <= _SCALARS:
+        return values
+    return tuple(map(_frozen, values))
+
+
+_MATERIAL_FIELDS = operator.attrgetter("albedo_color", "roughness", "rho_s", "mix", "normal_strength",
+                                       "specular_map_bias", "specular_map_scale", "pore_strength", "pore_scale_mm")
+_SURFACE_FIELDS = operator.attrgetter("base_color", "emissive", "metallic", "roughness", "occlusion_strength",
+                                      "normal_scale", "alpha_cutoff", "alpha_mode", "double_sided")
+_LIGHT_FIELDS = operator.attrgetter("kind", "color", "intensity", "direction", "position", "spot_angle_deg",
+                                    "spot_blend", "shadow_softness", "shadow_bias")
+_ENV_FIELDS = operator.attrgetter("color", "intensity", "rotation_deg")
+_OUTPUT_FIELDS = operator.attrgetter("exposure", "background", "tonemap", "bloom", "bloom_radius")
+_CAMERA_FIELDS = operator.attrgetter("position", "target", "up", "fov_deg", "near", "far")
+
+
+def _snapshots(scene):
+    """(rest, lights, camera) snapshots of what check_scene(full=False) reads, or None."""
+    from dermis.scene.model import MetallicRoughnessMaterial, Scene, Surface
+
+    if type(scene) is not Scene:
+        return None
+    surfaces = scene.surfaces
+    if type(surfaces) is not list or not all(type(s) is Surface and type(s.material) is MetallicRoughnessMaterial
+                                              for s in surfaces):
+        return None
+    f = _frozen_all
+    try:
+        rest = ("scene", scene.source, _frozen(scene.mm_per_unit), f(_MATERIAL_FIELDS(scene.material)),
+                tuple(f(_SURFACE_FIELDS(s.material)) for s in surfaces), f(_ENV_FIELDS(scene.environment)),
+                f(_OUTPUT_FIELDS(scene.output)))
+        lights = [("light", f(_LIGHT_FIELDS(L))) for L in scene.lights]
+        camera = ("camera", f(_CAMERA_FIELDS(scene.camera)))
+    except (_Unfrozen, AttributeError):
+        return None
+    return rest, lights, camera
+
+
+def _remember(snapshot):
+    with _VALID_LOCK:
+        if snapshot not in _VALID:
+            while len(_VALID) >= _VALID_KEEP:
+                _VALID.pop(next(iter(_VALID)))
+            _VALID[snapshot] = True
+
+
+def check_scene_per_frame(scene):
+    """check_scene(scene, full=False), skipping the parts whose values already passed it."""
+    from dermis.camera import check_camera
+
+    snaps = _snapshots(scene)
+    if snaps is None or snaps[0] not in _VALID:
+        check_scene(scene, full=False)
+        if snaps is not None:
+            for s in (snaps[0], *snaps[1], snaps[2]):
+                _remember(s)
+        return
+    _, lights, camera = snaps
+    src = scene.source
+    for i, (L, snap) in enumerate(zip(scene.lights, lights)):
+        if snap not in _VALID:
+            _check_light(L, f"{src}: [[lights]] #{i + 1}")
+            _remember(snap)
+    lo, hi = scene.bounds()
+    camera = camera + (tuple(lo.tolist()), tuple(hi.tolist()))  # the check depends on the bounds too
+    if camera not in _VALID:
+        centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+        if not _camera_clearly_valid(scene.camera, centre, radius):
+            check_camera(scene.camera, f"{src}: [camera]", centre, radius)
+        _remember(camera)
+
+
+def _camera_clearly_valid(camera, centre, radius) -> bool:
+    """check_camera's tests in plain floats, for a camera that passes them by a clear margin (else
+    the full check decides, and words the error): finite coordinates within range, a view direction,
+    an up vector more than 0.08 degree off it, the field of view in range, near/far unset."""
+    try:
+        vals = [_frozen(getattr(camera, k)) for k in ("position", "target", "up")]
+        fov = camera.fov_deg
+        if camera.near is not None or camera.far is not None or type(fov) not in (float, int) or not 0 < fov < 170:
+            return False
+        if not all(type(v) is tuple and len(v) == 3 for v in vals):
+            return False
+        if not all(math.isfinite(x) and abs(x) <= 1e12 for v in vals for x in v):
+            return False
+        (px, py, pz), (tx, ty, tz), (ux, uy, uz) = vals
+        vx, vy, vz = tx - px, ty - py, tz - pz
+        vn = math.sqrt(vx * vx + vy * vy + vz * vz)
+        un = math.sqrt(ux * ux + uy * uy + uz * uz)
+        if not vn > 2e-9 * max(abs(px), abs(py), abs(pz), radius, 1e-30) or not un > 0:
+            return False
+        return abs(vx * ux + vy * uy + vz * uz) / (vn * un) < 1.0 - 1e-6
+    except Exception:
+        return False
 
 
 def _skip(*args, **kw):
@@ -173,6 +309,21 @@ def _check_surfaces(scene, full: bool):
             raise DermisError(f"{w} double_sided must be true or false, got {m.double_sided!r}")
 
 
+def _check_light(L, w: str):
+    if L.kind not in ("directional", "point", "spot"):
+        raise DermisError(f"{w} type must be directional, point or spot, got {L.kind!r}")
+    _vec(L.color, f"{w} color", 3, 0.0, MAX_INTENSITY)
+    _num(L.intensity, f"{w} intensity", 0.0, MAX_INTENSITY)
+    d = _vec(L.direction, f"{w} direction")
+    if np.linalg.norm(d) < 1e-9:
+        raise DermisError(f"{w} direction must not be zero")
+    _vec(L.position, f"{w} position", 3, -MAX_COORDINATE, MAX_COORDINATE)
+    _num(L.spot_angle_deg, f"{w} spot_angle_deg", 0.0, 89.0, lo_open=True)
+    _num(L.spot_blend, f"{w} spot_blend", 0.0, 1.0)
+    _num(L.shadow_softness, f"{w} shadow_softness", 0.0, 64.0)
+    _num(L.shadow_bias, f"{w} shadow_bias", -1.0, 1.0)
+
+
 def check_scene(scene, full: bool = True):
     """Every value of a Scene that can break a render: names the scene's source and the key in the
     scene file's words ([camera] near, [[lights]] #2 intensity, ...). ``full``: also the mesh and
@@ -206,19 +357,7 @@ def check_scene(scene, full: bool = True):
     if m.double_sided not in (True, False):
         raise DermisError(f"{src}: [material] double_sided must be true or false, got {m.double_sided!r}")
     for i, L in enumerate(scene.lights):
-        w = f"{src}: [[lights]] #{i + 1}"
-        if L.kind not in ("directional", "point", "spot"):
-            raise DermisError(f"{w} type must be directional, point or spot, got {L.kind!r}")
-        _vec(L.color, f"{w} color", 3, 0.0, MAX_INTENSITY)
-        _num(L.intensity, f"{w} intensity", 0.0, MAX_INTENSITY)
-        d = _vec(L.direction, f"{w} direction")
-        if np.linalg.norm(d) < 1e-9:
-            raise DermisError(f"{w} direction must not be zero")
-        _vec(L.position, f"{w} position", 3, -MAX_COORDINATE, MAX_COORDINATE)
-        _num(L.spot_angle_deg, f"{w} spot_angle_deg", 0.0, 89.0, lo_open=True)
-        _num(L.spot_blend, f"{w} spot_blend", 0.0, 1.0)
-        _num(L.shadow_softness, f"{w} shadow_softness", 0.0, 64.0)
-        _num(L.shadow_bias, f"{w} shadow_bias", -1.0, 1.0)
+        _check_light(L, f"{src}: [[lights]] #{i + 1}")
     check_camera(scene.camera, f"{src}: [camera]", (lo + hi) / 2, diag / 2)
     env = scene.environment
     _vec(env.color, f"{src}: [environment] color", 3, 0.0, MAX_INTENSITY)

@@ -9,6 +9,8 @@
                       light through thin parts), by ray casting.
 * ``atlas``         - texture-space UV atlases from xatlas (charts, parameterisation, packing with
                       gutters), cached on disk by the mesh's content hash.
+* ``hull``          - the points of a cloud that can hold the maximum of a linear function (its
+                      convex hull's): what fitting a view or a shadow map to a mesh needs.
 * ``texture_space`` - the UV set texture-space diffusion works in: the mesh's own when unique,
                       else one generated with xatlas, beside the asset's UVs for its textures.
 """

@@ -6,6 +6,7 @@ the first uploaded row at t = 0, and dermis UVs have v = 0 at the bottom of the 
 
 from __future__ import annotations
 
+import contextvars
 import struct
 from contextlib import contextmanager
 
@@ -13,6 +14,7 @@ import numpy as np
 
 from dermis.camera import light_matrices
 from dermis.environment import environment_sh
+from dermis.geometry.hull import extreme_points
 from dermis.geometry.visibility import open_visibility
 from dermis.images import as_rgb
 from dermis.invalidation import memo_by_content, read_only
@@ -112,6 +114,40 @@ def set_uniform(prog, name, value):
     if u.extra != data:
         u.write(data)
         u.extra = data
+
+
+_RECORDING = contextvars.ContextVar("dermis_texture_binds", default=None)
+
+
+def use_texture(tex, unit: int) -> None:
+    """Bind ``tex`` to texture ``unit`` (what every dermis sampler binding goes through, so that
+    :func:`prepared` can replay it)."""
+    tex.use(unit)
+    binds = _RECORDING.get()
+    if binds is not None:
+        binds.append((tex, unit))
+
+
+def prepared(prog, slot: str, key, setup) -> None:
+    """``setup(prog)`` (uniform writes through set_uniform, texture binds through use_texture),
+    skipped when this program's ``slot`` last ran it with an equal ``key``: the program still holds
+    those uniforms, and only the textures it bound are bound again (other passes use the same
+    units). ``key`` must change whenever anything ``setup`` writes would; it may hold the objects
+    the values come from (compared by identity, kept alive by the memo, so no id is reused).
+    Nothing else may write the uniforms ``setup`` writes on ``prog``."""
+    states = prog.__dict__.setdefault("_dermis_prepared", {})
+    state = states.get(slot)
+    if state is not None and state[0] == key:
+        for tex, unit in state[1]:
+            tex.use(unit)
+        return
+    binds = []
+    token = _RECORDING.set(binds)
+    try:
+        setup(prog)
+    finally:
+        _RECORDING.reset(token)
+    states[slot] = (key, binds)
 
 
 def mat_bytes(m) -> bytes:
@@ -269,7 +305,7 @@ class GpuScene:
                           ("uRoughnessMap", "roughness")):
             if prog.get(name, None) is not None:
                 unit = int(SHARED_SAMPLERS[name])
-                self.textures[key].use(unit)
+                use_texture(self.textures[key], unit)
                 set_uniform(prog, name, unit)
         for prefix, tex in (("Albedo", mat.albedo), ("Normal", mat.normal_map), ("Specular", mat.specular_map),
                             ("Roughness", mat.roughness_map)):
@@ -312,11 +348,12 @@ class LightUniforms:
         self.viewproj = np.zeros((n, 4, 4), np.float32)
         self.map_half_extent = np.zeros(n, np.float64)  # half a shadow map's width, scene units
         lo, hi = scene.bounds()
-        # the frusta are fitted to every vertex drawn (skin first) in float64: converted once per
-        # content of the meshes' own arrays (Scene.all_positions concatenates a new array each call)
+        # the frusta are fitted to every vertex drawn (skin first) in float64: their extents along a
+        # light's axes are maxima of linear functions, held by the convex hull's vertices
+        # (dermis.geometry.hull), found once per content of the meshes' own arrays
         arrays = (scene.mesh.positions, *(s.mesh.positions for s in scene.surfaces))
-        points = memo_by_content("float64", arrays, len(arrays),
-                                 lambda: read_only(np.concatenate(arrays).astype(np.float64)))
+        points = memo_by_content("light_fit_points", arrays, len(arrays),
+                                 lambda: read_only(extreme_points(np.concatenate(arrays))))
         for i, L in enumerate(lights):
             vp, eye, half = light_matrices(L, lo, hi, points)
             self.viewproj[i] = vp
@@ -332,12 +369,22 @@ class LightUniforms:
         self.lights = lights
 
     def apply(self, prog):
+        """Write the lights' uniforms into ``prog``; their bytes are packed once per LightUniforms
+        (and array length the compiler kept), not once per program and frame."""
+        packed = self.__dict__.setdefault("_packed", {})
         set_uniform(prog, "uLightCount", self.count)
-        set_uniform(prog, "uLightPosType", self.pos_type)
-        set_uniform(prog, "uLightDir", self.direction)
-        set_uniform(prog, "uLightRadiance", self.radiance)
-        set_uniform(prog, "uLightSpot", self.spot)
-        u = prog.get("uLightViewProj", None)
-        if u is not None:
-            set_uniform(prog, "uLightViewProj", b"".join(mat_bytes(m) for m in self.viewproj[:u.array_length]))
-        set_uniform(prog, "uEnvSH", self.env_sh)
+        for name, value in (("uLightPosType", self.pos_type), ("uLightDir", self.direction),
+                            ("uLightRadiance", self.radiance), ("uLightSpot", self.spot),
+                            ("uLightViewProj", self.viewproj), ("uEnvSH", self.env_sh)):
+            u = prog.get(name, None)
+            if u is None:
+                continue
+            key = (name, u.array_length)
+            data = packed.get(key)
+            if data is None:
+                if name == "uLightViewProj":
+                    data = b"".join(mat_bytes(m) for m in value[:u.array_length])
+                else:
+                    data = uniform_bytes(u, value)
+                packed[key] = data
+            set_uniform(prog, name, data)

@@ -9,6 +9,7 @@ the environment are shared through ``frame``, so every technique lights the same
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from contextlib import contextmanager
@@ -79,6 +80,9 @@ class Frame:
     passes_run: list = field(default_factory=list)
     near: float = 0.1
     far: float = 100.0
+    # (lights, material): each changes whenever what bind_scene writes from it would (the
+    # Renderer's; None: always written)
+    scene_state: object = None
 
     @property
     def viewproj(self) -> np.ndarray:
@@ -133,6 +137,12 @@ class TranslucentOptions(TechniqueOptions):
         check_float(f"{technique}: translucency_strength", self.translucency_strength)
 
 
+@functools.lru_cache(maxsize=None)
+def _option_names(options_class) -> frozenset:
+    """The fields of a technique's Options dataclass (asked on every attribute a technique sets)."""
+    return frozenset(f.name for f in dataclasses.fields(options_class))
+
+
 class Technique:
     name = ""
     description = ""
@@ -159,7 +169,7 @@ class Technique:
         self.options = new
 
     def __setattr__(self, name, value):
-        if name != "options" and name in {f.name for f in dataclasses.fields(self.Options)}:
+        if name != "options" and name in _option_names(self.Options):
             raise DermisError(f"technique '{self.name}': option {name} is set with "
                               f"Renderer.technique('{self.name}', {name}=...), which validates it")
         super().__setattr__(name, value)
@@ -180,9 +190,26 @@ class Technique:
 
 def bind_scene(frame: Frame, prog):
     """Bind the shared scene state every lighting pass reads: lights, shadow atlas, material, the
-    specular tables and the prefiltered environment, each at its unit of the shading contract (dermis.techniques.shared)."""
+    specular tables and the prefiltered environment, each at its unit of the shading contract
+    (dermis.techniques.shared). The uniforms are written only when ``frame.scene_state`` differs
+    from the one this program last got (dermis.gl.resources.prepared); the textures every time."""
+    from dermis.gl.resources import prepared
+
+    if frame.scene_state is None:
+        _bind_lights(frame, prog)
+        _bind_material(frame, prog)
+    else:  # lights and material apart: a frame whose lights moved leaves the material's alone
+        lights_state, material_state = frame.scene_state
+        prepared(prog, "lights", lights_state, lambda p: _bind_lights(frame, p))
+        prepared(prog, "material", material_state, lambda p: _bind_material(frame, p))
+
+
+def _bind_lights(frame: Frame, prog):
     frame.lights.apply(prog)
     frame.shadows.bind(prog)
+
+
+def _bind_material(frame: Frame, prog):
     frame.gpu.material_uniforms(prog)
     bind_specular_tables(prog, frame.renderer.specular_tables)
     bind_environment_specular(prog, frame.renderer.environment_specular)

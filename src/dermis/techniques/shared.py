@@ -118,17 +118,17 @@ def bind_sampler(prog, name: str, tex, unit: int) -> None:
     """Bind ``tex`` to ``unit`` and point sampler ``name`` at it, if the program uses it. The
     texture is bound every time (other passes use the same units); the sampler uniform is written
     only when it changes (dermis.gl.resources.set_uniform)."""
-    from dermis.gl.resources import set_uniform
+    from dermis.gl.resources import set_uniform, use_texture
 
     if prog.get(name, None) is not None:
-        tex.use(int(unit))
+        use_texture(tex, int(unit))
         set_uniform(prog, name, int(unit))
 
 
 def bind_sampler_array(prog, name: str, textures, first_unit: int) -> None:
     """Bind a sampler array (``uniform sampler2D name[N]``) to consecutive units from first_unit;
     the compiler may trim the array's unused tail, so only its active length is bound."""
-    from dermis.gl.resources import set_uniform
+    from dermis.gl.resources import set_uniform, use_texture
 
     u = prog.get(name, None)
     if u is None:
@@ -136,7 +136,7 @@ def bind_sampler_array(prog, name: str, textures, first_unit: int) -> None:
     n = getattr(u, "array_length", 1)
     units = []
     for i, tex in enumerate(list(textures)[:n]):
-        tex.use(first_unit + i)
+        use_texture(tex, first_unit + i)
         units.append(first_unit + i)
     set_uniform(prog, name, units if n > 1 else units[0])
 

@@ -38,7 +38,7 @@ import numpy as np
 
 from dermis.errors import DermisError
 from dermis.geometry.texture_space import UV_RANGE_TOLERANCE
-from dermis.gl.resources import maps_without_anisotropy, read_texture, set_uniform
+from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
@@ -124,6 +124,7 @@ class TextureSpaceDiffusion(Technique):
         self.tap_stretch = None
         self.uv_overlap = None
         self._stretch_chain_key = None
+        self._chain_passes = None  # ((chain key, dilated irradiance), the irradiance's prepared passes)
         self.thickness = ThicknessTexture(self.ctx)  # the texel thickness bake (light through thin parts)
 
     # ------------------------------------------------------------------ resources
@@ -131,10 +132,9 @@ class TextureSpaceDiffusion(Technique):
         t = self.tex.get(key)
         if t is not None and t.size == size:
             return t
-        if t is not None:
-            f = self.tex.pop(("fbo", id(t)), None)
-            if f is not None:
-                f.release()
+        if t is not None:  # a new size: the framebuffers drawing into the old texture go with it
+            for k in [k for k in self.tex if isinstance(k, tuple) and k[0] == "fbo" and id(t) in k[1:]]:
+                self.tex.pop(k).release()
             t.release()
         t = self.ctx.texture(size, components, dtype=dtype)
         t.filter = (moderngl.LINEAR, moderngl.LINEAR)
@@ -142,26 +142,30 @@ class TextureSpaceDiffusion(Technique):
         self.tex[key] = t
         return t
 
-    def _fbo(self, tex):
-        key = ("fbo", id(tex))
+    def _fbo(self, *textures):
+        """The framebuffer drawing into ``textures`` (kept in self.tex while they live: _texture
+        releases it with them, so an id in its key never outlives its texture)."""
+        key = ("fbo", *(id(t) for t in textures))
         f = self.tex.get(key)
         if f is None:
-            f = self.ctx.framebuffer(color_attachments=[tex])
+            f = self.ctx.framebuffer(color_attachments=list(textures))
+            f.viewport = (0, 0, *textures[0].size)
             self.tex[key] = f
         return f
 
     def release_textures(self):
         """Free every texture-space target; what was built in them is gone, so the keys it was
         built with are forgotten too (the next frame rebuilds, whatever its inputs)."""
-        for k, o in list(self.tex.items()):
+        for k, o in list(self.tex.items()):  # framebuffers first, then their textures
             if isinstance(k, tuple) and k[0] == "fbo":
-                (o[0] if isinstance(o, tuple) else o).release()
+                o.release()
         for k, o in list(self.tex.items()):
             if not (isinstance(k, tuple) and k[0] == "fbo"):
                 o.release()
         self.tex = {}
         self.scene_changed()
         self._stretch_chain_key = None
+        self._chain_passes = None
         self._narrow_key = None
         self.thickness.release()
 
@@ -169,6 +173,7 @@ class TextureSpaceDiffusion(Technique):
         self._cache_key = None
         self._stretch_key = None
         self._plan = None
+        self._chain_passes = None
 
     # ------------------------------------------------------------------ passes
     def _fullscreen(self, prog, target_tex):
@@ -176,6 +181,36 @@ class TextureSpaceDiffusion(Technique):
         fbo.use()
         fbo.viewport = (0, 0, *target_tex.size)
         self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
+
+    def _pass(self, prog, targets, uniforms: dict, samplers: dict) -> tuple:
+        """A full-screen pass prepared for :meth:`_draw`: (vertex array, framebuffer, uniform
+        writes, texture binds). ``uniforms``: name -> value, kept as the bytes set_uniform would
+        write; ``samplers``: name -> (texture, unit). Only what the program uses is kept."""
+        writes, binds = [], []
+        for name, (tex, unit) in samplers.items():
+            if prog.get(name, None) is not None:
+                binds.append((tex, unit))
+                uniforms = {**uniforms, name: unit}
+        for name, value in uniforms.items():
+            u = prog.get(name, None)
+            if u is not None:
+                writes.append((u, uniform_bytes(u, value)))
+        targets = targets if isinstance(targets, tuple) else (targets,)
+        return self.vaos[prog], self._fbo(*targets), tuple(writes), tuple(binds)
+
+    @staticmethod
+    def _draw(passes):
+        """Draw prepared passes (:meth:`_pass`) in order; a uniform is written only when its
+        program holds another value (set_uniform's rule: the bytes written are in ``extra``)."""
+        for vao, fbo, writes, binds in passes:
+            for u, data in writes:
+                if u.extra != data:
+                    u.write(data)
+                    u.extra = data
+            for tex, unit in binds:
+                tex.use(unit)
+            fbo.use()
+            vao.render(moderngl.TRIANGLES, vertices=3)
 
     def _uv_pass(self, frame, prog, target_tex, clear=True):
         fbo = self._fbo(target_tex)
@@ -313,11 +348,10 @@ class TextureSpaceDiffusion(Technique):
         return np.maximum(self._steps_for(v, levels, 1.0 / self._stretch_uv()), 0.0)
 
     def _down(self, src, key, level):
+        """(the 2x2 reduction of ``src``, its pass)."""
         size = (max(1, src.size[0] // 2), max(1, src.size[1] // 2))
         dst = self._texture(key, size)
-        bind_sampler(self.p_down, "uSource", src, 0)
-        self._fullscreen(self.p_down, dst)
-        return dst
+        return dst, [self._pass(self.p_down, dst, {}, {"uSource": (src, 0)})]
 
     def _blur_program(self, sigma_mm, level, footprint, max_taps=None):
         """blur.frag compiled with the fewest taps per side that reach 3 sigma at the widest
@@ -341,23 +375,18 @@ class TextureSpaceDiffusion(Technique):
         return prog
 
     def _blur(self, src, stretch, sigma_mm, level, out_key, footprint=False, max_taps=None):
-        """U then V pass; ``sigma_mm`` a number or a (u, v) pair. Premultiplied in and out."""
+        """(the blurred texture, its U and V passes); ``sigma_mm`` a number or a (u, v) pair.
+        Premultiplied in and out."""
         sigma_u, sigma_v = np.broadcast_to(np.asarray(sigma_mm, np.float64), (2,))
         size = src.size
         tmp = self._texture(("tmp", out_key), size)
         out = self._texture(out_key, size)
         prog = self._blur_program(max(sigma_u, sigma_v), level, footprint, max_taps)
-        set_uniform(prog, "uSigmaMm", float(sigma_u))
-        set_uniform(prog, "uLevelScale", float(2.0 ** -level))
-        bind_sampler(prog, "uStretch", stretch, 1)
-        set_uniform(prog, "uDirection", (1.0, 0.0))
-        bind_sampler(prog, "uSource", src, 0)
-        self._fullscreen(prog, tmp)
-        set_uniform(prog, "uDirection", (0.0, 1.0))
-        set_uniform(prog, "uSigmaMm", float(sigma_v))
-        bind_sampler(prog, "uSource", tmp, 0)
-        self._fullscreen(prog, out)
-        return out
+        common = {"uLevelScale": float(2.0 ** -level)}
+        return out, [self._pass(prog, tmp, {**common, "uSigmaMm": float(sigma_u), "uDirection": (1.0, 0.0)},
+                                {"uStretch": (stretch, 1), "uSource": (src, 0)}),
+                     self._pass(prog, out, {**common, "uSigmaMm": float(sigma_v), "uDirection": (0.0, 1.0)},
+                                {"uStretch": (stretch, 1), "uSource": (tmp, 0)})]
 
     def _narrow_ok(self, levels, steps):
         """Whether I_1 and I_2 come from one pass (tsd/blur_narrow.frag): both at level 0 and I_2's
@@ -371,14 +400,13 @@ class TextureSpaceDiffusion(Technique):
     @staticmethod
     def binned_variance(sigma_texels):
         """Variance (texel^2) of a Gaussian of ``sigma_texels`` integrated over unit bins centred on
-        the texels (binned_gaussian_1d of dermis.verification): 2 sum_j j^2 m_j over the bins' masses
-        m_j (j = 1..8) below 1 texel, Sheppard's sigma^2 + 1/12 from there (exact to < 1e-6)."""
-        from scipy.special import erf
+        the texels: 2 sum_j j^2 m_j over the bins' masses m_j (j = 1..8, binned_gaussian_1d of
+        dermis.verification) below 1 texel, Sheppard's sigma^2 + 1/12 from there (exact to < 1e-6)."""
+        from dermis.verification import binned_gaussian_1d
 
         sig = np.asarray(sigma_texels, np.float64)
-        s = np.maximum(sig, 1e-6) * math.sqrt(2.0)
-        edges = [erf((j + 0.5) / s) for j in range(9)]
-        binned = sum(j * j * (edges[j] - edges[j - 1]) for j in range(1, 9))
+        var = np.maximum(sig, 1e-6) ** 2
+        binned = sum(2.0 * j * j * binned_gaussian_1d(float(j), var, 1.0) for j in range(1, 9))
         return np.where(sig >= 1.0, sig * sig + 1.0 / 12.0, binned)
 
     def _narrow_weights(self, v1, v2):
@@ -396,61 +424,70 @@ class TextureSpaceDiffusion(Technique):
         return tex
 
     def _blur_narrow(self, dil, steps):
-        """I_1 and I_2 from the dilated irradiance in one pass with two targets."""
+        """(I_2, the pass): I_1 and I_2 from the dilated irradiance in one pass with two targets."""
         v1 = np.asarray(steps[0], np.float64)
         weights = self._narrow_weights(v1, v1 + np.asarray(steps[1], np.float64))
         out1 = self._texture(("blur", 0), dil.size)
         out2 = self._texture(("blur", 1), dil.size)
-        fbo, t1, t2 = self.tex.get(("fbo", "narrow"), (None, None, None))
-        if t1 is not out1 or t2 is not out2:  # first use, or a target was reallocated (new size)
-            if fbo is not None:
-                fbo.release()
-            fbo = self.ctx.framebuffer(color_attachments=[out1, out2])
-            self.tex[("fbo", "narrow")] = (fbo, out1, out2)
         if self._p_narrow is None:
             self._p_narrow = program(self.ctx, "common/fullscreen.vert", "tsd/blur_narrow.frag", {"MAX_GAUSSIANS": MAX_GAUSSIANS})
             self.vaos[self._p_narrow] = self.ctx.vertex_array(self._p_narrow, [])
-        prog = self._p_narrow
-        bind_sampler(prog, "uSource", dil, 0)
-        bind_sampler(prog, "uWeights", weights, 1)
-        fbo.use()
-        fbo.viewport = (0, 0, *dil.size)
-        self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
-        return out2
+        return out2, [self._pass(self._p_narrow, (out1, out2), {}, {"uSource": (dil, 0), "uWeights": (weights, 1)})]
 
     def _blur_chain(self, dil, levels, steps):
         """I_1..I_K from the dilated irradiance: step k blurs I_(k-1) by variance steps[k] at
-        resolution level levels[k]; the stretch map goes through the same chain (once per mesh)."""
-        chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12).ravel()))
+        resolution level levels[k]; the stretch map goes through the same chain (once per mesh).
+        The irradiance's passes (programs, framebuffers, uniform bytes, textures) are prepared
+        once per plan, stretch, options and targets, and drawn from that list every frame."""
+        # the options too: the stretch's blurs use max_taps's programs (a fresh Renderer's stretch
+        # chain is blurred with the current options, so a change must redo it)
+        chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12).ravel()), self.options)
         redo_stretch = chain_key != self._stretch_chain_key
+        passes_key = (chain_key, dil)
+        if not redo_stretch and self._chain_passes is not None and self._chain_passes[0] == passes_key:
+            self._draw(self._chain_passes[1])
+            return
+        passes = []  # the irradiance's, drawn after the stretch's (which they read)
         src, st = dil, self.tex["stretch_0"]
         level = 0
         narrow = self._narrow_ok(levels, steps)
         if narrow:
-            src = self._blur_narrow(dil, steps)
+            src, p = self._blur_narrow(dil, steps)
+            passes += p
         for k, (lvl, var) in enumerate(zip(levels, steps)):
             while level < lvl:
                 level += 1
-                src = self._down(src, ("down", k, level), level)
+                src, p = self._down(src, ("down", k, level), level)
+                passes += p
                 if redo_stretch:
-                    st = self._down(st, ("stretch_down", k, level), level)
+                    st, p = self._down(st, ("stretch_down", k, level), level)
+                    self._draw(p)
                 else:
                     st = self.tex[("stretch_down", k, level)]
             sigma = np.sqrt(var)  # (u, v), mm
             if redo_stretch:
-                st = self._blur(st, st, sigma, level, ("stretch", k))
+                st, p = self._blur(st, st, sigma, level, ("stretch", k))
+                self._draw(p)
             else:
                 st = self.tex[("stretch", k)]
             if not (narrow and k < 2):
-                src = self._blur(src, st, sigma, level, ("blur", k), footprint=(k == 0))
+                src, p = self._blur(src, st, sigma, level, ("blur", k), footprint=(k == 0))
+                passes += p
+        self._draw(passes)
         self._stretch_chain_key = chain_key
+        self._chain_passes = (passes_key, passes)
 
-    def _profile_uniforms(self, prog, profile, first_unit):
+    def _profile_uniforms(self, prog, profile, first_unit, frame_keys):
         """The profile (common/profile.glsl) and its blurred irradiances I_k (tsd/gaussians.glsl)
         from ``first_unit`` on; entries past K repeat I_K (never read: the loops stop at K)."""
         K = profile.k
-        set_profile_uniforms(prog, profile, MAX_GAUSSIANS)
-        bind_sampler_array(prog, "uBlur", [self.tex[("blur", min(k, K - 1))] for k in range(MAX_GAUSSIANS)], first_unit)
+        blurs = tuple(self.tex[("blur", min(k, K - 1))] for k in range(MAX_GAUSSIANS))
+
+        def setup(prog):
+            set_profile_uniforms(prog, profile, MAX_GAUSSIANS)
+            bind_sampler_array(prog, "uBlur", blurs, first_unit)
+        # written when the profile's content or a blur target changes; the targets bound every frame
+        prepared(prog, "profile", (frame_keys["profile_tables"], blurs, first_unit), setup)
 
     def texture_space(self, frame: Frame, irradiance: np.ndarray | None = None):
         """Run the view-independent passes. ``irradiance`` (S, S, 4) float, row 0 = top (v = 1),
@@ -504,7 +541,7 @@ class TextureSpaceDiffusion(Technique):
             with timer("tsd_translucency"):
                 prog = self.p_trans
                 translucency_uniforms(prog, True, self.options.translucency_strength)
-                self._profile_uniforms(prog, profile, Unit.FIRST_FREE)
+                self._profile_uniforms(prog, profile, Unit.FIRST_FREE, frame.keys)
                 # surface distance to the far face (uv distance / stretch); past the blurs' units
                 bind_sampler(prog, "uStretch", self.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
                 bind_sampler(prog, "uThickness", thickness, Unit.FIRST_FREE + MAX_GAUSSIANS + 1)
@@ -524,7 +561,7 @@ class TextureSpaceDiffusion(Technique):
             self.ctx.disable(moderngl.CULL_FACE)
             prog = self.p_final
             bind_sampler(prog, "uTranslucency", self.tex["translucency"], Unit.FIRST_FREE)
-            self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE + 1)
+            self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE + 1, frame.keys)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
             draw_mesh(frame, prog)
         frame.passes_run.append("tsd_final")
@@ -534,15 +571,16 @@ class TextureSpaceDiffusion(Technique):
         """sum_k w_k I_k in texture space at the irradiance resolution, (S, S, 3), row 0 = top."""
         S = self.renderer.irradiance_size
         out = self._texture("combined", (S, S), 4, "f4")
-        self._profile_uniforms(self.p_combine, frame.scene.profile, 0)
+        self._profile_uniforms(self.p_combine, frame.scene.profile, 0, frame.keys)
         self._fullscreen(self.p_combine, out)
         return self.read_texture(out)[:, :, :3]
 
     def blur_direct(self, frame: Frame, variance_mm2: float) -> np.ndarray:
         """The dilated raw irradiance blurred once with the full variance (level 0, unchained):
         the reference the chained I_k must equal."""
-        out = self._blur(self.tex["irradiance_dilated"], self.tex["stretch_0"], math.sqrt(variance_mm2), 0, "direct",
-                         footprint=True, max_taps=48)
+        out, passes = self._blur(self.tex["irradiance_dilated"], self.tex["stretch_0"], math.sqrt(variance_mm2), 0,
+                                 "direct", footprint=True, max_taps=48)
+        self._draw(passes)
         return self.read_texture(out)
 
     def blurred(self, k: int) -> np.ndarray:

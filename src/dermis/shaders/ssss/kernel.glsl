@@ -191,6 +191,13 @@ bool ssss_tissue_path(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size) 
     return dot(u, np) <= uTissueTau && -dot(u, nq) <= uTissueTau;
 }
 
+// Pixel q's normal, fetched only when the tissue-path test or the surface measure reads it (they
+// return before reading it otherwise: tissue_paths or follow_surface off, surface_measure off).
+vec3 ssss_tap_normal(ivec2 q) {
+    bool needed = uTissueTau <= 1.0 || (uFollowSurface != 0.0 && uSurfaceMeasure != 0.0);
+    return needed ? texelFetch(uViewNormal, q, 0).xyz : vec3(0.0, 0.0, 1.0);
+}
+
 // Gaussian k's light at pixel q whose irradiance texel is ``tap``: defined by each pass (the
 // horizontal pass: tap.rgb for every k; the vertical one: the horizontal pass's k-th image).
 vec3 ssss_tap_light(int k, ivec2 q, vec4 tap);
@@ -234,7 +241,7 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS]) {
             ivec2 q = p + uDirection * (side * j);
             if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
             vec4 t = texelFetch(uIrradiance, q, 0);
-            vec3 nq = texelFetch(uViewNormal, q, 0).xyz;
+            vec3 nq = ssss_tap_normal(q);
             float dz_px = ssss_tap_dz_px(K, c.a, t.a);
             if (dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, t.a, size)) {
                 for (int k = 0; k < MAX_GAUSSIANS; ++k) own[k] += wx[k];  // another surface
@@ -269,7 +276,7 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS]) {
             ivec2 q = p + uDirection * d;
             if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
             vec4 t = texelFetch(uIrradiance, q, 0);
-            vec3 nq = texelFetch(uViewNormal, q, 0).xyz;
+            vec3 nq = ssss_tap_normal(q);
             float dz_px = ssss_tap_dz_px(K, c.a, t.a);
             if (dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, t.a, size)) {
                 own[k] += w;  // another surface
