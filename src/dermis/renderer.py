@@ -283,7 +283,7 @@ class Renderer:
         change: LightUniforms per PRODUCTS "light_uniforms", the shadow atlas's textures per size)
         and the material's key (PRODUCTS "material_uniforms")."""
         sh = self.shadows
-        lights = (self._lights, sh.tile_size, sh._size, sh.depth, sh.aux)
+        lights = (self._lights, sh.tile_size, sh._size, sh.depth)
         material = (keys["material_uniforms"], self.gpu, tuple(self.gpu.textures.values()), self._environment_specular,
                     self.specular_tables["atlas"])
         return lights, material
