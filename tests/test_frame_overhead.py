@@ -22,7 +22,13 @@ from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial, 
 
 
 def _scene():
+    """A sphere and a small one between it and light 0, so that light 0 casts a shadow whose
+    penumbra (shadow softness) shows; each sphere on its own half of the UV square."""
     p, n, uv, t = uv_sphere(1.0, 48, 24)
+    q, m, uv2, t2 = uv_sphere(0.3, 16, 8)
+    d = -np.array([0.4, -0.5, -0.75]) / np.linalg.norm([0.4, -0.5, -0.75])
+    p, n, t = np.concatenate([p, q + 1.6 * d]), np.concatenate([n, m]), np.concatenate([t, t2 + len(p)])
+    uv = np.concatenate([uv * (0.5, 1.0), uv2 * (0.5, 1.0) + (0.5, 0.0)])
     rng = np.random.default_rng(3)
     albedo = (0.3 + 0.4 * rng.random((16, 16, 3))).astype(np.float32)
     return Scene(mesh=finish_mesh(p, n, uv, t, "test:sphere", "v-up"),
