@@ -50,3 +50,15 @@ def test_monte_carlo_slab_limits():
 def test_dermis_slab_transmittance_matches_monte_carlo(d_mm):
     res = random_walk_slab(ALBEDO_RED, MFP_RED_MM, d_mm, photons=20_000, bisection_photons=10_000, steps=16)[1]
     assert abs(_dermis_transmittance(d_mm) / res.total_transmittance - 1.0) < 0.25
+
+
+def test_random_walk_slab_bisects_once_per_medium():
+    """The albedo's bisection (steps x bisection_photons photons) runs once per medium, not once
+    per thickness: a second thickness reuses it (and gets the same albedo)."""
+    from dermis.verification import random_walk_albedo
+
+    random_walk_albedo.cache_clear()
+    a1 = random_walk_slab(0.3, 1.0, 1.0, photons=2_000, bisection_photons=2_000, steps=8)[0]
+    a2 = random_walk_slab(0.3, 1.0, 3.0, photons=2_000, bisection_photons=2_000, steps=8)[0]
+    info = random_walk_albedo.cache_info()
+    assert (info.misses, info.hits) == (1, 1) and a1 == a2
