@@ -33,15 +33,19 @@ def quad_scene(width_mm: float, height_mm: float, n: int = 8) -> Scene:
     return scene
 
 
-def backlit_slab_scene(thickness_mm: float, size_mm: float = 30.0, fov_deg: float = 10.0, n: int = 16) -> Scene:
-    """A square slab (size_mm, thickness_mm thick, mm_per_unit = 1), white, no specular, lit from
-    behind by a directional light of irradiance pi travelling towards the camera on +z: the front
-    face receives only light transmitted through the slab."""
+SKIN_ALBEDO = (0.535, 0.321, 0.264)  # the Lee Perry-Smith albedo map's mean (back-ears.toml), linear
+
+
+def backlit_slab_scene(thickness_mm: float, size_mm: float = 30.0, fov_deg: float = 10.0, n: int = 16,
+                       albedo=(1.0, 1.0, 1.0)) -> Scene:
+    """A square slab (size_mm, thickness_mm thick, mm_per_unit = 1), of constant ``albedo``, no
+    specular, lit from behind by a directional light of irradiance pi travelling towards the camera
+    on +z: the front face receives only light transmitted through the slab."""
     from dermis.scene.builtin import slab
 
     p, nn, uv, t = slab(size=size_mm, thickness=thickness_mm, n=n)
     mesh = finish_mesh(p, nn, uv, t, f"test:slab{thickness_mm}", "v-up")
-    return Scene(mesh=mesh, material=SkinMaterial(albedo_color=(1.0, 1.0, 1.0), rho_s=0.0, pore_strength=0.0),
+    return Scene(mesh=mesh, material=SkinMaterial(albedo_color=tuple(albedo), rho_s=0.0, pore_strength=0.0),
                  lights=[Light(direction=(0.0, 0.0, 1.0), intensity=np.pi)],
                  camera=Camera(position=(0.0, 0.0, 120.0), fov_deg=fov_deg),
                  environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0)

@@ -501,7 +501,7 @@ class TextureSpaceDiffusion(Technique):
             thickness = self.thickness.get(frame, trans.size[0])
             with timer("tsd_translucency"):
                 prog = self.p_trans
-                translucency_uniforms(prog, True, self.options.translucency_strength)
+                translucency_uniforms(prog, True, self.options.translucency_strength, frame.scene)
                 self._profile_uniforms(prog, profile, Unit.FIRST_FREE)
                 # surface distance to the far face (uv distance / stretch); past the blurs' units
                 bind_sampler(prog, "uStretch", self.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
