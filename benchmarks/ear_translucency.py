@@ -13,6 +13,10 @@ renders the offline reference (dermis.reference, paths = "tissue": the profile i
 the surface at 3-D distance, light through thin tissue included; about 30 s at N = 160 on 2 cores)
 and the techniques at N x N and prints the ear's mean radiance of each against it.
 
+    PYTHONPATH=src python benchmarks/ear_translucency.py --cycles-store STORE.npz [technique ...]
+the back-lit-ear region's FLIP and mean ratio R/G/B per technique (as `dermis validate --against
+cycles`) against a stored Cycles accumulation (validate's cycles_spec_WxH.npz), without bpy.
+
     PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
 the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
 d = 0.5..5 mm thick, the renderers' thin-slab law (dermis.profiles.thin_slab) and d'Eon's
@@ -135,9 +139,42 @@ def slab_theory(cycles: bool = False):
                   f"d'Eon exp(-d^2/2v) {tg:.4f}{extra}")
 
 
+def against_cycles(npz, techniques):
+    """The back-lit-ear region of `dermis validate --against cycles` (its region_masks and _score)
+    against stored Cycles accumulations (a validate store, cycles_spec_64x64.npz: two seed streams),
+    per technique; "tsd-off" renders tsd without translucency."""
+    import os
+
+    from dermis.blender.validate import _score, region_masks
+    from dermis.reference.validate import _render
+
+    z = np.load(npz)
+    spp = int(z["spp"])
+    a, b = z["sums"][0] / spp, z["sums"][1] / spp
+    h, w = a.shape[:2]
+    sc = dermis.load_scene(SCENE)
+    sc.material.pore_strength = 0.0
+    skin = (a[..., 3] >= 0.999) & (b[..., 3] >= 0.999)
+    ref = (0.5 * (a[..., :3] + b[..., :3])).astype(np.float32)
+    reg = region_masks(sc, (w, h), skin)
+    floor, _ = _score(sc, a[..., :3].astype(np.float32), b[..., :3].astype(np.float32), skin, reg)
+    print(f"Cycles {spp} spp x 2: floor FLIP {floor['flip']:.4f}, back-lit ear {floor['regions']['back_lit_ear']['flip']:.4f}")
+    for t in techniques:
+        name, _, opt = t.partition("-")
+        kw = {"tweak": (lambda r, n=name: r.technique(n, translucency=False))} if opt == "off" else {}
+        img, _ = _render(sc, name, (w, h), **kw)
+        m, _ = _score(sc, ref, img, skin, reg)
+        e = m["regions"]["back_lit_ear"]
+        print(f"{t:16s} skin FLIP {m['flip']:.4f} ratio {' '.join('%.3f' % x for x in m['mean_ratio'])} | back-lit ear "
+              f"({e['pixels']} px) FLIP {e['flip']:.4f} ratio {' '.join('%.3f' % x for x in e['mean_ratio'])} "
+              f"(load {os.getloadavg()[0]:.1f})")
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "--slab":
         slab_theory(cycles="--cycles" in sys.argv[2:])
+    elif sys.argv[1] == "--cycles-store":
+        against_cycles(sys.argv[2], sys.argv[3:] or ["tsd", "tsd-off", "ssss", "preintegrated", "lambert"])
     elif sys.argv[1] == "--reference":
         against_reference(int(sys.argv[2]), sys.argv[3:] or ["tsd"])
     else:
