@@ -84,15 +84,15 @@ def reduced_albedo_for(albedo) -> np.ndarray:
 
 
 def _dipole_mean_radius(alpha):
-    """Mean exit radius of the dipole profile (Jensen et al. 2001) at sigma_t' = 1 (so in mean free paths)."""
-    a_b = boundary_coefficient_a(ETA)
-    r = np.geomspace(1e-4, 400.0, 20_000)[:, None]
-    s_tr = np.sqrt(3.0 * (1.0 - alpha))
-    zr, zv = 1.0, 1.0 + 4.0 * a_b / 3.0
-    dr, dv = np.sqrt(r * r + zr * zr), np.sqrt(r * r + zv * zv)
-    prof = zr * (1 + s_tr * dr) * np.exp(-s_tr * dr) / dr**3 + zv * (1 + s_tr * dv) * np.exp(-s_tr * dv) / dv**3
-    ring = prof * r  # R(r) 2 pi r dr, up to 2 pi
-    return np.trapezoid(ring * r, r, axis=0) / np.trapezoid(ring, r, axis=0)
+    """Mean exit radius of the dipole profile (dermis.profiles.dipole, Jensen et al. 2001) of the
+    medium with reduced albedo ``alpha`` at sigma_t' = 1 (so in mean free paths)."""
+    from dermis.profiles.dipole import dipole_reflectance
+    from dermis.profiles.medium import Medium
+
+    a = np.atleast_1d(np.asarray(alpha, np.float64))
+    r = np.geomspace(1e-4, 400.0, 20_000)
+    ring = dipole_reflectance(r, Medium(1.0 - a, a, 0.0, ETA)).reshape(len(r), -1) * r[:, None]  # R(r) r
+    return (np.trapezoid(ring * r[:, None], r, axis=0) / np.trapezoid(ring, r, axis=0)).reshape(np.shape(alpha))
 
 
 def profile_mean_radius_mm(profile) -> np.ndarray:
