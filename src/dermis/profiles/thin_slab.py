@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dermis.numpy_compat import trapezoid
 from dermis.profiles.fresnel import boundary_coefficient_a
 
 ETA = 1.4  # skin against air (both faces of the slab)
@@ -92,7 +93,7 @@ def _dipole_mean_radius(alpha):
     a = np.atleast_1d(np.asarray(alpha, np.float64))
     r = np.geomspace(1e-4, 400.0, 20_000)
     ring = dipole_reflectance(r, Medium(1.0 - a, a, 0.0, ETA)).reshape(len(r), -1) * r[:, None]  # R(r) r
-    return (np.trapezoid(ring * r[:, None], r, axis=0) / np.trapezoid(ring, r, axis=0)).reshape(np.shape(alpha))
+    return (trapezoid(ring * r[:, None], r, axis=0) / trapezoid(ring, r, axis=0)).reshape(np.shape(alpha))
 
 
 def profile_mean_radius_mm(profile) -> np.ndarray:
