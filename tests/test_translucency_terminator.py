@@ -16,7 +16,7 @@ def test_example_head_translucency_has_no_terminator_lines(example_head_toml, gl
     lights' and the environment's irradiance together. Terminator lines of thick parts (the
     translucent shadow map's defect before round 3: max 1.24 where the tissue is centimetres
     thick, T(d) ~ 0) break this bound by orders of magnitude. (Until round 4 this test bounded the
-    buffer's max and 99.9th percentile at 0.6 and 0.12; the slab law carries 2-5x more through
+    buffer's max and 99.9th percentile at 0.6 and 0.12; the slab law carries 1.7-4x more through
     thin parts than d'Eon's exp(-d^2 / 2v) did, which raised the 99.9th percentile in the ears,
     eyelids and lips to 0.16 without a line: the bound now follows the law.)"""
     from dermis.geometry.thickness import texel_thickness

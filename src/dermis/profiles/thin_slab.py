@@ -5,8 +5,8 @@ d'Eon & Luebke's transmittance (GPU Gems 3, 14.5.3) carries the far face's irrad
 as sum_k w_k exp(-d^2 / 2 v_k): the semi-infinite profile at 3-D distance d. That is the light a
 SEMI-INFINITE medium lets out at distance d; a slab lets out far more, because what would wander
 deeper is turned back by the slab's own back face instead of being absorbed: against the Monte
-Carlo of the same medium it is 2x low through 2 mm and 4x through 5 mm in red
-(tests/test_slab_theory.py), and against Cycles' random walk on a back-lit slab 2.7x and 5x
+Carlo of the same medium it is 1.7x low through 2 mm and 2.8x through 5 mm in red
+(tests/test_slab_theory.py), and against Cycles' random walk on a back-lit slab 2.6x and 5x
 (benchmarks/RESULTS.md, "Ears (round 5)").
 
 Here the slab is solved instead, with diffusion theory in one dimension (the slab's total

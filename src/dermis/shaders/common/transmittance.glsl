@@ -4,7 +4,8 @@
 // map). Through tissue d mm thick the irradiance E of the far face arrives as E T(d) / A per
 // channel, T the diffusion-theory slab transmittance of the medium the profile describes
 // (common/thin_slab.glsl, dermis/profiles/thin_slab.py; d'Eon's sum_k w_k exp(-d^2 / 2 v_k), the
-// semi-infinite profile's tail, was 2-5x under the slab's Monte Carlo and Cycles), the same law as
+// semi-infinite profile's tail, was 1.7-2.8x under the slab's Monte Carlo through 2-5 mm and
+// 2.6-5x under Cycles'), the same law as
 // tsd's translucency. The caller multiplies by the albedo (albedo^mix before a blur).
 #include "common/shadow.glsl"
 #include "common/profile.glsl"

@@ -4,7 +4,7 @@
 // comes THROUGH the tissue from the far face is the far face's irradiance, spread laterally by the
 // wide Gaussians' blurred irradiances I_k(A) (their weights' share W_k = w_k / sum_wide w), times
 // the slab law T(d) / A of common/thin_slab.glsl (diffusion theory of a slab of the medium the
-// profile describes; d'Eon's exp(-d^2 / 2 v_k), the semi-infinite profile's tail, is 2-5x under
+// profile describes; d'Eon's exp(-d^2 / 2 v_k), the semi-infinite profile's tail, is 1.7-2.8x under
 // the slab's Monte Carlo): exact for a uniformly lit slab whatever the light's direction, and
 // shadowed as the far face is.
 //
