@@ -13,13 +13,17 @@ renders the offline reference (dermis.reference, paths = "tissue": the profile i
 the surface at 3-D distance, light through thin tissue included; about 30 s at N = 160 on 2 cores)
 and the techniques at N x N and prints the ear's mean radiance of each against it.
 
-    PYTHONPATH=src python benchmarks/ear_translucency.py --slab
-the theory behind light through thin parts (issue 12): per channel, what dermis transmits through
-a back-lit slab d = 0.5..5 mm thick, A sum_k w_k exp(-d^2 / 2 v_k) over the wide Gaussians (A the
-scene's mean albedo), against MCML (dermis.profiles.monte_carlo) of the homogeneous random walk
-that Cycles is given for this profile (mean free path = the fitted Subsurface Radius,
-dermis.blender.sss; single-scattering albedo solved so that the semi-infinite medium reflects A).
-About 90 s on 2 cores.
+    PYTHONPATH=src python benchmarks/ear_translucency.py --cycles-store STORE.npz [technique ...]
+the back-lit-ear region's FLIP and mean ratio R/G/B per technique (as `dermis validate --against
+cycles`) against a stored Cycles accumulation (validate's cycles_spec_WxH.npz), without bpy.
+
+    PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
+the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
+d = 0.5..5 mm thick, the renderers' thin-slab law (dermis.profiles.thin_slab) and d'Eon's
+A sum_k w_k exp(-d^2 / 2 v_k) (A the scene's mean albedo) against MCML (dermis.profiles.monte_carlo)
+of the medium the profile describes (mean free path 1 / sigma_t' from the law's fit to the
+profile's mean radius; single-scattering albedo solved so that the semi-infinite medium reflects
+A); with --cycles also Cycles' random walk on the same slab (bpy). About 90 s on 2 cores.
 """
 
 from __future__ import annotations
@@ -97,31 +101,80 @@ def against_reference(n, techniques):
                       f"ratio r {a[0] / b[0]:.3f} g {a[1] / b[1]:.3f}")
 
 
-def slab_theory():
-    from dermis.blender.sss import cycles_subsurface
+def slab_theory(cycles: bool = False):
+    from dermis.profiles.thin_slab import slab_law
+    from dermis.scene.model import mean_skin_albedo
     from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
-    from dermis.verification import random_walk_slab
+    from dermis.verification import backlit_slab_scene, random_walk_slab
 
     sc = dermis.load_scene(SCENE)
-    cs = cycles_subsurface(sc)
+    albedo = mean_skin_albedo(sc.material)
     prof = sc.profile.normalized()
     w, v = prof.weights, prof.variances_mm2
     wide = v >= TRANSLUCENCY_MIN_VARIANCE_MM2
+    law = slab_law(prof, albedo)
+    ds = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0)
+    cyc = {}
+    if cycles:  # Cycles' random walk (the validation's medium) on the same back-lit slab, head-on
+        from dermis.blender.render import render_cycles
+
+        for d in ds:
+            s = backlit_slab_scene(d, albedo=tuple(albedo))
+            s.profile = sc.profile
+            img, _ = render_cycles(s, (32, 32), spp=256, seed=0, specular=False)
+            cyc[d] = img[12:20, 12:20].reshape(-1, 3).mean(0)  # radiance x pi / E, E = pi
     for c, name in enumerate("RGB"):
-        A, r = cs.albedo[c], cs.radius_mm[c]
-        alpha, semi = random_walk_slab(A, r, np.inf, photons=200_000)
-        print(f"{name}: albedo {A:.3f}, mean free path {r:.2f} mm, single-scattering albedo {alpha:.6f} "
+        A, mfp = albedo[c], 1.0 / law.reduced_sigma_t_per_mm[c]
+        alpha, semi = random_walk_slab(A, mfp, np.inf, photons=200_000)
+        print(f"{name}: albedo {A:.3f}; the profile's medium: mean free path {mfp:.3f} mm, alpha' (diffusion) "
+              f"{law.reduced_albedo[c]:.4f}, single-scattering albedo (MC) {alpha:.6f} "
               f"(MC R {semi.total_reflectance:.4f})")
-        for d in (0.5, 1.0, 2.0, 3.0, 4.0, 5.0):
-            res = random_walk_slab(A, r, d)[1]
+        for d in ds:
+            res = random_walk_slab(A, mfp, d)[1]
             tg = A * (w[wide, c] * np.exp(-d * d / (2 * v[wide]))).sum()
-            print(f"  d {d} mm: MC transmittance {res.total_transmittance:.4f} (reflectance {res.total_reflectance:.4f}); "
-                  f"dermis {tg:.4f}; MC / dermis {res.total_transmittance / max(tg, 1e-30):.3g}")
+            tl = law.transmittance(d)[c]
+            extra = f"; Cycles (head-on) {cyc[d][c]:.4f}" if cycles else ""
+            print(f"  d {d} mm: MC T {res.total_transmittance:.4f} R {res.total_reflectance:.4f}; "
+                  f"thin-slab law T {tl:.4f} R {law.reflectance(d)[c]:.4f} (law / MC {tl / max(res.total_transmittance, 1e-30):.3g}); "
+                  f"d'Eon exp(-d^2/2v) {tg:.4f}{extra}")
+
+
+def against_cycles(npz, techniques):
+    """The back-lit-ear region of `dermis validate --against cycles` (its region_masks and _score)
+    against stored Cycles accumulations (a validate store, cycles_spec_64x64.npz: two seed streams),
+    per technique; "tsd-off" renders tsd without translucency."""
+    import os
+
+    from dermis.blender.validate import _score, region_masks
+    from dermis.reference.validate import _render
+
+    z = np.load(npz)
+    spp = int(z["spp"])
+    a, b = z["sums"][0] / spp, z["sums"][1] / spp
+    h, w = a.shape[:2]
+    sc = dermis.load_scene(SCENE)
+    sc.material.pore_strength = 0.0
+    skin = (a[..., 3] >= 0.999) & (b[..., 3] >= 0.999)
+    ref = (0.5 * (a[..., :3] + b[..., :3])).astype(np.float32)
+    reg = region_masks(sc, (w, h), skin)
+    floor, _ = _score(sc, a[..., :3].astype(np.float32), b[..., :3].astype(np.float32), skin, reg)
+    print(f"Cycles {spp} spp x 2: floor FLIP {floor['flip']:.4f}, back-lit ear {floor['regions']['back_lit_ear']['flip']:.4f}")
+    for t in techniques:
+        name, _, opt = t.partition("-")
+        kw = {"tweak": (lambda r, n=name: r.technique(n, translucency=False))} if opt == "off" else {}
+        img, _ = _render(sc, name, (w, h), **kw)
+        m, _ = _score(sc, ref, img, skin, reg)
+        e = m["regions"]["back_lit_ear"]
+        print(f"{t:16s} skin FLIP {m['flip']:.4f} ratio {' '.join('%.3f' % x for x in m['mean_ratio'])} | back-lit ear "
+              f"({e['pixels']} px) FLIP {e['flip']:.4f} ratio {' '.join('%.3f' % x for x in e['mean_ratio'])} "
+              f"(load {os.getloadavg()[0]:.1f})")
 
 
 if __name__ == "__main__":
     if sys.argv[1] == "--slab":
-        slab_theory()
+        slab_theory(cycles="--cycles" in sys.argv[2:])
+    elif sys.argv[1] == "--cycles-store":
+        against_cycles(sys.argv[2], sys.argv[3:] or ["tsd", "tsd-off", "ssss", "preintegrated", "lambert"])
     elif sys.argv[1] == "--reference":
         against_reference(int(sys.argv[2]), sys.argv[3:] or ["tsd"])
     else:

@@ -178,26 +178,26 @@ def test_uniform_light_energy(gl_ctx):
 
 
 def test_transmittance_through_a_slab(gl_ctx):
-    """A slab lit from behind: the light reaching the front falls with the shadow map's thickness d
-    as sum over the wide Gaussians of w_k exp(-d^2 / 2 v_k) (Jimenez et al. 2010 with the profile's
-    Gaussians; the same falloff as tsd's translucency), within 5% + 1e-4, and glows red."""
-    from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
+    """A skin-coloured slab lit from behind: the light reaching the front falls with the baked
+    thickness d as the thin-slab law T(d) (dermis.profiles.thin_slab; Jimenez et al. 2010's
+    transmittance with the slab solved; the same law as tsd's translucency), within 5% + 1e-4, and
+    glows red."""
+    from dermis.profiles.thin_slab import slab_law
+    from dermis.verification import SKIN_ALBEDO
 
-    profile = dermis.profiles.deon_skin()
-    w, v = profile.normalized().weights, profile.variances_mm2
-    wide = v >= TRANSLUCENCY_MIN_VARIANCE_MM2
+    law = slab_law(dermis.profiles.deon_skin(), np.array(SKIN_ALBEDO))
     measured, expected = [], []
     r = None
     try:
         for d in (0.5, 1.0, 2.0, 4.0):
-            sc = backlit_slab_scene(d)
+            sc = backlit_slab_scene(d, albedo=SKIN_ALBEDO)
             if r is None:
                 r = Renderer(sc, (48, 48), ctx=gl_ctx, samples=0)
             else:
                 r.set_scene(sc)
             img = r.render("ssss", output_mode=1)
             measured.append(img[20:28, 20:28].reshape(-1, 3).mean(axis=0))
-            expected.append((w[wide] * np.exp(-d * d / (2 * v[wide]))[:, None]).sum(axis=0))
+            expected.append(law.transmittance(d))
     finally:
         if r is not None:
             r.release()

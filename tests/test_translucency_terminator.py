@@ -10,13 +10,29 @@ from dermis.renderer import Renderer
 
 
 def test_example_head_translucency_has_no_terminator_lines(example_head_toml, gl_ctx):
-    """The texture-space translucency buffer of examples/lee-perry-smith.toml (768 px, irradiance
-    1024): max under 0.6 and 99.9th percentile under 0.12. Before the terminator fix: max 1.24 and
-    99.9th percentile 0.23 (the terminator lines); after: 0.34 and 0.06."""
+    """The texture-space translucency buffer of examples/lee-perry-smith.toml (irradiance 1024)
+    never exceeds what the thin-slab law (dermis.profiles.thin_slab) lets through the texel's
+    baked thickness d from the brightest far face possible: E_max T(d) / A per channel, E_max the
+    lights' and the environment's irradiance together. Terminator lines of thick parts (the
+    translucent shadow map's defect before round 3: max 1.24 where the tissue is centimetres
+    thick, T(d) ~ 0) break this bound by orders of magnitude. (Until round 4 this test bounded the
+    buffer's max and 99.9th percentile at 0.6 and 0.12; the slab law carries 1.7-4x more through
+    thin parts than d'Eon's exp(-d^2 / 2v) did, which raised the 99.9th percentile in the ears,
+    eyelids and lips to 0.16 without a line: the bound now follows the law.)"""
+    from dermis.geometry.thickness import texel_thickness
+    from dermis.techniques.shared import thin_slab_law
+
     sc = dermis.load_scene(example_head_toml)
     with Renderer(sc, (256, 256), irradiance_size=1024, ctx=gl_ctx, samples=0) as r:
         r.render("tsd")
-        t = r.debug_buffers("tsd")["translucency"][:, :, :3].max(axis=2)
+        t = r.debug_buffers("tsd")["translucency"][:, :, :3]
     assert t.max() > 0.05  # the ears still transmit the key light
-    assert t.max() < 0.6, t.max()
-    assert np.percentile(t, 99.9) < 0.12, np.percentile(t, 99.9)
+    bake = texel_thickness(sc.mesh, t.shape[0], sc.mm_per_unit)  # the pass's own bake (half the irradiance size)
+    e_max = sum(L.intensity * max(L.color) for L in sc.lights) + max(sc.environment.color)
+    albedo, law = thin_slab_law(sc)
+    bound = np.where(bake[..., 3:] > 0.5, e_max * law.transmittance(bake[..., 2]) / albedo, 0.0)
+    over = t - 1.01 * bound
+    assert over.max() <= 1e-4, (over.max(), np.argwhere(over > 1e-4)[:5])
+    # and where the tissue is thick (>= 8 mm: T(d) / A <= 1% in red) nothing shows
+    thick = (bake[..., 3] <= 0.5) | (bake[..., 2] >= 8.0)
+    assert t[thick].max() < 0.05, t[thick].max()

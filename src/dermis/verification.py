@@ -4,6 +4,7 @@ and the r-weighted L2 error. Used by the tests and by ``dermis bench``."""
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 
@@ -32,15 +33,19 @@ def quad_scene(width_mm: float, height_mm: float, n: int = 8) -> Scene:
     return scene
 
 
-def backlit_slab_scene(thickness_mm: float, size_mm: float = 30.0, fov_deg: float = 10.0, n: int = 16) -> Scene:
-    """A square slab (size_mm, thickness_mm thick, mm_per_unit = 1), white, no specular, lit from
-    behind by a directional light of irradiance pi travelling towards the camera on +z: the front
-    face receives only light transmitted through the slab."""
+SKIN_ALBEDO = (0.535, 0.321, 0.264)  # the Lee Perry-Smith albedo map's mean (back-ears.toml), linear
+
+
+def backlit_slab_scene(thickness_mm: float, size_mm: float = 30.0, fov_deg: float = 10.0, n: int = 16,
+                       albedo=(1.0, 1.0, 1.0)) -> Scene:
+    """A square slab (size_mm, thickness_mm thick, mm_per_unit = 1), of constant ``albedo``, no
+    specular, lit from behind by a directional light of irradiance pi travelling towards the camera
+    on +z: the front face receives only light transmitted through the slab."""
     from dermis.scene.builtin import slab
 
     p, nn, uv, t = slab(size=size_mm, thickness=thickness_mm, n=n)
     mesh = finish_mesh(p, nn, uv, t, f"test:slab{thickness_mm}", "v-up")
-    return Scene(mesh=mesh, material=SkinMaterial(albedo_color=(1.0, 1.0, 1.0), rho_s=0.0, pore_strength=0.0),
+    return Scene(mesh=mesh, material=SkinMaterial(albedo_color=tuple(albedo), rho_s=0.0, pore_strength=0.0),
                  lights=[Light(direction=(0.0, 0.0, 1.0), intensity=np.pi)],
                  camera=Camera(position=(0.0, 0.0, 120.0), fov_deg=fov_deg),
                  environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0)
@@ -306,25 +311,41 @@ def ssss_plane_impulse(gl_ctx=None, profile=None):
             "energy": out.sum(axis=(0, 1)) / 4.0}
 
 
+def _random_walk(alpha: float, mean_free_path_mm: float, thickness_mm: float, photons: int, seed: int):
+    """MCML of the isotropic homogeneous random walk (index 1.4 inside, air outside) back-lit
+    through ``thickness_mm`` (np.inf: semi-infinite)."""
+    from dermis.profiles.medium import Layer, Medium
+    from dermis.profiles.monte_carlo import monte_carlo_reflectance
+
+    st = 1.0 / mean_free_path_mm
+    m = Medium(np.array([st * (1.0 - alpha)]), np.array([st * alpha]), 0.0, 1.4)
+    return monte_carlo_reflectance([Layer(m, thickness_mm)], photons, np.array([0.0, 1e3]), seed=seed)
+
+
+@functools.lru_cache(maxsize=64)
+def random_walk_albedo(total_reflectance: float, mean_free_path_mm: float, photons: int = 20_000,
+                       steps: int = 22, seed: int = 1) -> float:
+    """The single-scattering albedo whose semi-infinite random walk reflects ``total_reflectance``:
+    bisection with common random numbers (the same seed every step), so it is deterministic and is
+    solved once per (reflectance, mean free path, photons, steps, seed), not once per thickness."""
+    lo, hi = 0.0, 1.0 - 1e-7
+    for _ in range(steps):
+        a = 0.5 * (lo + hi)
+        if _random_walk(a, mean_free_path_mm, np.inf, photons, seed).total_reflectance < total_reflectance:
+            lo = a
+        else:
+            hi = a
+    return 0.5 * (lo + hi)
+
+
 def random_walk_slab(total_reflectance: float, mean_free_path_mm: float, thickness_mm: float,
                      photons: int = 100_000, bisection_photons: int = 20_000, steps: int = 22, seed: int = 1):
     """Light through a back-lit slab of the homogeneous random walk (isotropic, index 1.4 inside,
     air outside) that reflects ``total_reflectance`` when semi-infinite: MCML
-    (dermis.profiles.monte_carlo) at ``thickness_mm``, the single-scattering albedo solved by
-    bisection with common random numbers. Returns (single-scattering albedo, MonteCarloResult);
-    its total_transmittance is per unit power entering the far face. The theory the
-    techniques' transmittance through thin parts is held against (issue 12)."""
-    from dermis.profiles.medium import Layer, Medium
-    from dermis.profiles.monte_carlo import monte_carlo_reflectance
-
-    def run(alpha, d, n):
-        st = 1.0 / mean_free_path_mm
-        m = Medium(np.array([st * (1.0 - alpha)]), np.array([st * alpha]), 0.0, 1.4)
-        return monte_carlo_reflectance([Layer(m, d)], n, np.array([0.0, 1e3]), seed=seed)
-
-    lo, hi = 0.0, 1.0 - 1e-7
-    for _ in range(steps):
-        a = 0.5 * (lo + hi)
-        lo, hi = (a, hi) if run(a, np.inf, bisection_photons).total_reflectance < total_reflectance else (lo, a)
-    alpha = 0.5 * (lo + hi)
-    return alpha, run(alpha, thickness_mm, photons)
+    (dermis.profiles.monte_carlo) at ``thickness_mm``, the single-scattering albedo from
+    random_walk_albedo (bisected once per medium, cached). Returns (single-scattering albedo,
+    MonteCarloResult); its total_transmittance is per unit power entering the far face. The theory
+    the techniques' transmittance through thin parts is held against (issue 12)."""
+    alpha = random_walk_albedo(float(total_reflectance), float(mean_free_path_mm), int(bisection_photons),
+                               int(steps), int(seed))
+    return alpha, _random_walk(alpha, mean_free_path_mm, thickness_mm, photons, seed)

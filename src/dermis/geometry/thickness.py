@@ -10,10 +10,11 @@ or self-intersecting mesh, not counted). The texel's thickness is the median of 
 projected on -N (for a flat slab every ray gives its thickness exactly), in mm; the exit point is
 the central ray's, as (u, v) in the same texture-space layout.
 
-Through a slab of thickness d, a profile that is a sum of Gaussians carries the irradiance E of
-the far face to the near one as sum_k w_k exp(-d^2 / 2 v_k) (E * G_k) (d'Eon & Luebke 2007,
-14.5.3: G(v, sqrt(r^2 + d^2)) = exp(-d^2 / 2v) G(v, r)); tsd/translucency.frag applies it with
-this bake. Positions and normals are the mesh's; distances are returned in mm (mm_per_unit).
+Through a slab of thickness d the irradiance E of the far face reaches the near one as E T(d),
+T the thin-slab law of the medium the profile describes (dermis.profiles.thin_slab; d'Eon &
+Luebke 2007, 14.5.3, used the semi-infinite exp(-d^2 / 2 v_k)); tsd/translucency.frag and
+common/transmittance.glsl apply it with this bake. Positions and normals are the mesh's;
+distances are returned in mm (mm_per_unit).
 """
 
 from __future__ import annotations

@@ -348,7 +348,8 @@ class PreintegratedSkin(Technique):
             bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
                          UNIT_THICKNESS)
             set_profile_uniforms(prog, profile, MAX_GAUSSIANS)
-            translucency_uniforms(prog, self.options.translucency and casts_translucency(frame.scene), self.options.translucency_strength)
+            translucency_uniforms(prog, self.options.translucency and casts_translucency(frame.scene), self.options.translucency_strength,
+                                  frame.scene)
             set_uniform(prog, "uCurvatureMaxPerMm", float(CURVATURE_MAX_PER_MM))
             set_uniform(prog, "uPenumbraWidthRangeMm", tuple(float(x) for x in PENUMBRA_WIDTH_RANGE_MM))
             set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.options.curvature_source == "mesh" else 0.0)

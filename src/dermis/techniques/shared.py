@@ -178,12 +178,37 @@ def set_profile_uniforms(prog, profile, max_gaussians: int = MAX_GAUSSIANS) -> N
             set_uniform(prog, name, np.ascontiguousarray(arr[: getattr(u, "array_length", 1)]).tobytes())
 
 
-def translucency_uniforms(prog, enabled: bool, strength: float = 1.0) -> None:
-    """Uniforms of the translucency of thin parts (common/transmittance.glsl, tsd/translucency.frag)."""
+def thin_slab_law(scene):
+    """The thin-slab law (dermis.profiles.thin_slab) of the scene's profile at its skin's mean
+    albedo (dermis.scene.model.mean_skin_albedo times the albedo scale), remembered per content."""
+    from dermis.invalidation import memo_by_content
+    from dermis.profiles.thin_slab import slab_law
+    from dermis.scene.model import mean_skin_albedo, skin_albedo_scale
+
+    mat, prof = scene.material, scene.profile
+    colour = mat.albedo.data if mat.albedo is not None else np.asarray(mat.albedo_color, np.float64)
+
+    def compute():
+        albedo = np.clip(mean_skin_albedo(mat) * skin_albedo_scale(scene), 1e-4, 0.999)
+        return albedo, slab_law(prof, albedo)
+
+    return memo_by_content("thin_slab_law", (colour, prof.weights, prof.variances_mm2),
+                           getattr(scene, "skin_color", "albedo"), compute)
+
+
+def translucency_uniforms(prog, enabled: bool, strength: float = 1.0, scene=None) -> None:
+    """Uniforms of the translucency of thin parts (common/transmittance.glsl, tsd/translucency.frag,
+    common/thin_slab.glsl: the slab law of ``scene``'s profile and skin)."""
     from dermis.gl.resources import set_uniform
 
     set_uniform(prog, "uTranslucencyMinVariance", TRANSLUCENCY_MIN_VARIANCE_MM2)
     set_uniform(prog, "uTranslucencyStrength", float(strength) if enabled else 0.0)
+    if scene is not None and enabled:
+        albedo, law = thin_slab_law(scene)
+        for name, value in (("uSlabReducedAlbedo", law.reduced_albedo), ("uSlabKappa", law.kappa_per_mm),
+                            ("uSlabSourceDepth", law.source_depth_mm), ("uSlabExtrapolation", law.extrapolation_mm),
+                            ("uSlabAlbedo", albedo)):
+            set_uniform(prog, name, tuple(float(x) for x in value))
 
 
 def surface_detail_uniforms(prog, material, output_mode: int = OutputMode.FULL) -> None:

@@ -174,7 +174,8 @@ class ScreenSpaceSSS(Technique):
             set_uniform(prog, "uViewRotation",  # mat3, column-major
                         np.ascontiguousarray(np.asarray(frame.view, np.float32)[:3, :3].T).tobytes())
             set_profile_uniforms(prog, profile, profile.k)
-            translucency_uniforms(prog, self.options.translucency and casts_translucency(scene), self.options.translucency_strength)
+            translucency_uniforms(prog, self.options.translucency and casts_translucency(scene), self.options.translucency_strength,
+                                  scene)
             bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
                          Unit.FIRST_FREE)
             draw_mesh(frame, prog)

@@ -107,10 +107,13 @@ class TextureSpaceDiffusion(Technique):
         self.p_irradiance = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines)
         self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
         self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
-        self.p_trans = program(ctx, "tsd/uv_space.vert", "tsd/translucency.frag", defines)
+        # a full-screen triangle: the pass reads only gl_FragCoord and textures, so rasterising the
+        # mesh's layout (its vertex work and thin triangles) bought nothing; uncovered texels have
+        # no far face in the bake and write T = 0, as the cleared target held
+        self.p_trans = program(ctx, "common/fullscreen.vert", "tsd/translucency.frag", defines)
         self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag", defines)
         self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)
-        self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine)}
+        self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine, self.p_trans)}
         self._blur_programs = {}  # (taps per side, footprint) -> program (blur.frag with TAPS unrolled)
         self._p_narrow = None  # tsd/blur_narrow.frag, compiled on first use
         self._narrow_key = None
@@ -540,12 +543,12 @@ class TextureSpaceDiffusion(Technique):
             thickness = self.thickness.get(frame, trans.size[0])
             with timer("tsd_translucency"):
                 prog = self.p_trans
-                translucency_uniforms(prog, True, self.options.translucency_strength)
+                translucency_uniforms(prog, True, self.options.translucency_strength, frame.scene)
                 self._profile_uniforms(prog, profile, Unit.FIRST_FREE, frame.keys)
                 # surface distance to the far face (uv distance / stretch); past the blurs' units
                 bind_sampler(prog, "uStretch", self.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
                 bind_sampler(prog, "uThickness", thickness, Unit.FIRST_FREE + MAX_GAUSSIANS + 1)
-                self._uv_pass(frame, prog, trans)
+                self._fullscreen(prog, trans)
             frame.passes_run.append("tsd_translucency")
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)

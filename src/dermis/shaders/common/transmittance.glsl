@@ -1,28 +1,24 @@
 // Transmittance through thin parts (ears, nostrils) for the screen-space and pre-integrated
 // techniques (after Jimenez, Whelan, Sundstedt & Gutierrez 2010, "Real-Time Realistic Skin
 // Translucency", IEEE CG&A 30(4), with the thickness from a ray-cast bake instead of the shadow
-// map). With the profile as a sum of Gaussians, G(v, sqrt(r^2 + d^2)) = exp(-d^2 / 2v) G(v, r), so
-// through tissue d mm thick the irradiance E of the far face arrives as
-//   T(d) = E * sum_k w_k exp(-d^2 / 2 v_k)
-// per channel (dermis's variance convention), the same falloff as tsd's translucency. Only the
-// wide Gaussians (v_k >= uTranslucencyMinVariance) count, as in tsd: the narrow ones carry nothing
-// through millimetres of tissue. The caller multiplies by the albedo (albedo^mix before a blur).
+// map). Through tissue d mm thick the irradiance E of the far face arrives as E T(d) / A per
+// channel, T the diffusion-theory slab transmittance of the medium the profile describes
+// (common/thin_slab.glsl, dermis/profiles/thin_slab.py; d'Eon's sum_k w_k exp(-d^2 / 2 v_k), the
+// semi-infinite profile's tail, was 1.7-2.8x under the slab's Monte Carlo through 2-5 mm and
+// 2.6-5x under Cycles'), the same law as
+// tsd's translucency. The caller multiplies by the albedo (albedo^mix before a blur).
 #include "common/shadow.glsl"
 #include "common/profile.glsl"
 
 uniform float uTranslucencyMinVariance;  // mm^2
 uniform float uTranslucencyStrength;     // 1 = physical, 0 = off
 uniform sampler2D uThicknessMap;         // texture space, bilinear: thickness (mm) x valid, valid (gl/thickness.py)
+#include "common/thin_slab.glsl"
 
-// sum_k w_k exp(-d^2 / 2 v_k) over the wide Gaussians, per channel.
+// The slab law T(d) / A (dermis/profiles/thin_slab.py) per channel: the light through d mm per
+// unit irradiance of the far face, over the albedo the caller applies.
 vec3 transmittance_profile(float d_mm) {
-    vec3 T = vec3(0.0);
-    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-        if (k >= uGaussianCount) break;
-        if (uVariances[k] < uTranslucencyMinVariance) continue;
-        T += uWeights[k] * exp(-d_mm * d_mm / (2.0 * uVariances[k]));
-    }
-    return T;
+    return slab_transmittance(d_mm);
 }
 
 // Irradiance transmitted to P (interpolated normal Ng, texture-space uv_ts) from every

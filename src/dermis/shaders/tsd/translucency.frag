@@ -1,9 +1,12 @@
 // Translucency through thin parts (d'Eon & Luebke 2007, 14.5.3) with a baked thickness: for the
 // texel B, uThickness (dermis/geometry/thickness.py) holds the point A where tissue ends behind B
-// along -N (as its texture-space (u, v)) and the thickness d (mm) between them. Because
-// G(v, sqrt(r^2 + d^2)) = exp(-d^2 / 2v) G(v, r), the light that Gaussian k carries THROUGH the
-// tissue from the far face is its already-blurred irradiance I_k(A) scaled by exp(-d^2 / 2 v_k):
-// exact for a slab, whatever the light's direction, and shadowed as the far face is.
+// along -N (as its texture-space (u, v)) and the thickness d (mm) between them. The light that
+// comes THROUGH the tissue from the far face is the far face's irradiance, spread laterally by the
+// wide Gaussians' blurred irradiances I_k(A) (their weights' share W_k = w_k / sum_wide w), times
+// the slab law T(d) / A of common/thin_slab.glsl (diffusion theory of a slab of the medium the
+// profile describes; d'Eon's exp(-d^2 / 2 v_k), the semi-infinite profile's tail, is 1.7-2.8x under
+// the slab's Monte Carlo): exact for a uniformly lit slab whatever the light's direction, and
+// shadowed as the far face is.
 //
 // Why not the TSM's distance along the light: an ear nearly edge-on to the light has a path along
 // the light many times its thickness, so exp(-t^2 / 2v) left only a faint rim (back-ears); the
@@ -14,12 +17,13 @@
 // The blur chain has already carried the light of A to B ALONG the surface, with Gaussian k's
 // kernel exp(-g^2 / 2 v_k) G(v_k, r) for a surface distance g; light reaches B by the shorter
 // path, so only the excess of the path through the tissue is added:
-//   T_k = w_k I_k(A) max(0, exp(-d^2 / 2 v_k) - exp(-g^2 / 2 v_k)),
+//   T_k = w_k I_k(A) max(0, T(d) / (A sum_wide w) - exp(-g^2 / 2 v_k)),
 // g measured in the texture (|uv_A - uv_B| in texels over the stretch, texels per mm): exact for a
 // flat layout, longer across a UV seam (A and B in different islands: the whole T_k remains).
 // Only the wide Gaussians (variance >= uTranslucencyMinVariance) are used, the narrow ones carry
 // nothing through millimetres of tissue. Computed in texture space: view-independent, cached.
 #include "tsd/gaussians.glsl"
+#include "common/thin_slab.glsl"
 
 uniform float uTranslucencyMinVariance;
 uniform float uTranslucencyStrength;
@@ -36,10 +40,16 @@ void main() {
         vec2 stretch = max(texture(uStretch, uv).xy, vec2(1e-6));
         vec2 texels = (th.xy - uv) * vec2(textureSize(uStretch, 0));
         float g = length(texels / stretch);  // mm along the surface from A to B
+        vec3 wide = vec3(0.0);
+        for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+            if (k >= uGaussianCount) break;
+            if (uVariances[k] >= uTranslucencyMinVariance) wide += uWeights[k];
+        }
+        vec3 through = slab_transmittance(d) / max(wide, vec3(1e-6));  // per unit of the wide weights
         for (int k = 0; k < MAX_GAUSSIANS; ++k) {
             if (k >= uGaussianCount) break;
             if (uVariances[k] < uTranslucencyMinVariance) continue;
-            float excess = max(exp(-d * d / (2.0 * uVariances[k])) - exp(-g * g / (2.0 * uVariances[k])), 0.0);
+            vec3 excess = max(through - exp(-g * g / (2.0 * uVariances[k])), vec3(0.0));
             T += excess * uWeights[k] * blurred_irradiance(k, th.xy);
         }
     }
