@@ -53,3 +53,16 @@ def test_step_edge_against_quadrature(edge):
 def test_bad_shapes_are_refused():
     with pytest.raises(DermisError, match="times an output size"):
         reconstruct(np.zeros((10, 12, 3)), 4)
+
+
+def test_cli_refuses_a_bad_supersample(tmp_path, capsys):
+    from pathlib import Path
+
+    from dermis.cli import main
+
+    scene = Path(__file__).resolve().parent.parent / "examples" / "reference" / "side.toml"
+    with pytest.raises(SystemExit) as e:
+        main(["validate", "--against", "cycles", "--supersample", "0", str(scene), "--images", str(tmp_path / "v")])
+    assert e.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "dermis: error: --supersample: 0 is not an integer from 1 to 16"]

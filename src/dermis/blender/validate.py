@@ -295,6 +295,8 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
     from dermis.reference.validate import _magma, _render, _save_png, display
     from dermis.techniques import technique_names
 
+    if not (isinstance(supersample, int) and 1 <= supersample <= 16):
+        raise DermisError(f"--supersample: {supersample!r} is not an integer from 1 to 16")
     require_bpy()
     available = technique_names()
     run = [t for t in techniques if t in available]
@@ -302,8 +304,6 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
         if t not in available:
             echo(f"note: technique '{t}' is not available in this build; skipped")
     out = Path(out_dir) if out_dir else None
-    if not (isinstance(supersample, int) and 1 <= supersample <= 16):
-        raise DermisError(f"--supersample: {supersample!r} is not an integer from 1 to 16")
     report = {"against": "cycles", "size": list(size), "floor_target": floor_target, "techniques": run, "scenes": {},
               "supersample": supersample,
               "regions": {"shadow_edge": f"front-facing pixels within {EDGE_PX} px of a cast-shadow boundary",
