@@ -273,14 +273,30 @@ def converge(scene, size, *, spp=16, max_spp=1024, floor_target=0.01, sss=True, 
         "resumed_spp": acc.resumed_spp, "load": [round(load0, 1), round(os.getloadavg()[0], 1)]}
 
 
+def _check_cycles_pixel_filter(bsc, width):
+    """The techniques are reconstructed with Blender's default film filter (Blackman-Harris,
+    ``width`` px); the Cycles scene must use it, or the two sides estimate different pixels."""
+    kind, size = bsc.cycles.pixel_filter_type, float(bsc.render.filter_size)
+    if kind != "BLACKMAN_HARRIS" or abs(size - width) > 1e-6:
+        raise DermisError(f"Cycles' pixel filter is {kind} {size} px; validate reproduces Blackman-Harris "
+                          f"{width} px (Blender's default)")
+
+
 def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_spp=1024, floor_target=0.01,
-                    specular_modes=(True, False), echo=print) -> dict:
+                    specular_modes=(True, False), supersample=4, echo=print) -> dict:
+    """Every technique against Cycles on ``scene_files`` at ``size``. Each technique is rendered at
+    ``supersample`` times the size and reconstructed with Cycles' own pixel filter
+    (dermis.blender.pixel_filter), so that both sides estimate the same pixel integral; 1 compares
+    the technique's own pixels (aliased edges and all)."""
     import dermis
     from dermis.blender import require_bpy
+    from dermis.blender.pixel_filter import CYCLES_FILTER_WIDTH_PX, reconstruct
     from dermis.blender.sss import cycles_subsurface
     from dermis.reference.validate import _magma, _render, _save_png, display
     from dermis.techniques import technique_names
 
+    if not (isinstance(supersample, int) and 1 <= supersample <= 16):
+        raise DermisError(f"--supersample: {supersample!r} is not an integer from 1 to 16")
     require_bpy()
     available = technique_names()
     run = [t for t in techniques if t in available]
@@ -289,6 +305,7 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
             echo(f"note: technique '{t}' is not available in this build; skipped")
     out = Path(out_dir) if out_dir else None
     report = {"against": "cycles", "size": list(size), "floor_target": floor_target, "techniques": run, "scenes": {},
+              "supersample": supersample,
               "regions": {"shadow_edge": f"front-facing pixels within {EDGE_PX} px of a cast-shadow boundary",
                           "backlit_thin": f"pixels facing away from a light, body toward it < {BACKLIT_THICKNESS_MM} mm",
                           "back_lit_ear": f"backlit_thin more than {EAR_LATERAL_MM} mm beside the nose tip, ear height/depth",
@@ -298,6 +315,8 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
               "notes": ["pore_strength = 0 on both sides", "Cycles: random-walk SSS fitted to the scene's profile "
                         "(dermis.blender.sss), occluded environment light, interreflections",
                         "control: Cycles without subsurface scattering",
+                        f"techniques: rendered at {supersample}x the size, reconstructed with Cycles' pixel filter "
+                        f"(Blackman-Harris, {CYCLES_FILTER_WIDTH_PX} px)",
                         "floor: seed 0 vs seed 1 at the final spp, same metrics; the reference is their mean"]}
     for f in scene_files:
         name = Path(f).stem
@@ -315,6 +334,7 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
             if not skin.any():
                 raise DermisError(f"{f}: the mesh covers no pixel fully; nothing to compare")
             ref = 0.5 * (a + b)
+            _check_cycles_pixel_filter(require_bpy().context.scene, CYCLES_FILTER_WIDTH_PX)
             regions = region_masks(sc, size, skin)
             floor, _ = _score(sc, a, b, skin, regions)
             entry = {"source": str(f), "cycles": conv, "skin_pixels": int(skin.sum()),
@@ -331,7 +351,8 @@ def validate_cycles(scene_files, techniques, size, *, out_dir=None, spp=16, max_
             conv["control_spp"] = ctl.spp
             rows = {"cycles-no-sss (control)": ctrl}
             for t in run:
-                rows[t], _ = _render(sc, t, size)
+                big, _ = _render(sc, t, (size[0] * supersample, size[1] * supersample))
+                rows[t] = reconstruct(big[..., :3], supersample)
             strip = [("Cycles (SSS)", display(sc, ref), f"{conv['spp']} spp x 2")]
             for t, img in rows.items():
                 m, fmap = _score(sc, ref, img, skin, regions)

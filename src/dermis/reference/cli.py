@@ -85,7 +85,11 @@ def reference_cmd(scene, size, out, png, spp, spacing, seed, paths, stats, quiet
               help="reference: dermis's offline reference; cycles: Blender Cycles through bpy (the cycles extra); "
                    "then --spp is Cycles' starting samples, doubled until two seeds differ by FLIP <= 0.01.")
 @click.option("--max-spp", type=int, default=1024, show_default=True, help="--against cycles: the most samples per pixel.")
-def validate_cmd(scenes, techniques, size, json_path, images, spp, spacing, attribution, quiet, against, max_spp):
+@click.option("--supersample", type=int, default=4, show_default=True,
+              help="--against cycles: render each technique at this many times the size and reconstruct it with "
+                   "Cycles' pixel filter (1: the technique's own pixels).")
+def validate_cmd(scenes, techniques, size, json_path, images, spp, spacing, attribution, quiet, against, max_spp,
+                 supersample):
     """Compare techniques with the offline reference on SCENES (default: examples/reference/*.toml):
     mean FLIP, SSIM and relative RMSE on the skin pixels, with FLIP error images."""
     from dermis.cli import parse_size, write_json_atomic
@@ -108,7 +112,8 @@ def validate_cmd(scenes, techniques, size, json_path, images, spp, spacing, attr
     if against == "cycles":  # dermis.blender owns it (bpy)
         from dermis.blender.validate import markdown_table as cycles_table, validate_cycles
 
-        report = validate_cycles(files, names, (w, h), out_dir=img_dir, spp=spp, max_spp=max_spp, echo=click.echo)
+        report = validate_cycles(files, names, (w, h), out_dir=img_dir, spp=spp, max_spp=max_spp,
+                                 supersample=supersample, echo=click.echo)
         click.echo(cycles_table(report))
         if json_path:
             write_json_atomic(json_path, report)
