@@ -170,6 +170,11 @@ ACCUMULATOR_VERSION = 1
 """Bumped when what a stored Cycles accumulation means changes (besides dermis.blender's sources)."""
 
 
+_CYCLES_SCENE_INPUTS = ("mesh", "surfaces", "scale", "material_maps", "material_scalars", "light_geometry",
+                        "lights", "environment", "environment_occlusion", "profile", "irradiance_size", "epoch")
+"""The entries of dermis.invalidation.scene_inputs that a stored Cycles accumulation is keyed on."""
+
+
 def _accumulator_key(scene, size, sss, specular) -> str:
     """What a stored accumulation depends on: the scene's content (mesh, maps, lights, profile,
     camera, output), the size, the Cycles set-up (dermis.blender's sources, bpy's version)."""
@@ -179,8 +184,12 @@ def _accumulator_key(scene, size, sss, specular) -> str:
     from dermis.blender import convert, export, render, require_bpy, sss as sss_mod
     from dermis.invalidation import scene_inputs
 
+    inputs = scene_inputs(scene, irradiance_size=0, epoch=0)
+    # A fixed list, not the whole dict: an input that dermis's real-time techniques gain later (and
+    # Cycles never sees) must not make hours of stored samples stale. Same order, same repr as before.
+    inputs = {name: inputs[name] for name in _CYCLES_SCENE_INPUTS}
     h = hashlib.sha1()
-    for part in (ACCUMULATOR_VERSION, scene_inputs(scene, irradiance_size=0, epoch=0), vars(scene.camera),
+    for part in (ACCUMULATOR_VERSION, inputs, vars(scene.camera),
                  tuple(scene.output.background), float(scene.mm_per_unit), tuple(size), bool(sss), bool(specular),
                  require_bpy().app.version_string):
         h.update(repr(part).encode())
