@@ -225,6 +225,28 @@ def test_parameters_applied_to_a_scene_and_reset(tmp_path):
         apply_parameters(state, {"skin.profile": "physical", "skin.melanin": 1.5, "skin.hemoglobin": 0.01})
 
 
+def test_environment_rotation_is_set_on_the_scene_not_baked_into_a_copy(tmp_path):
+    """A sweep's environment.rotation_deg turns the scene's own image by its rotation_deg (added to
+    the scene's), keeps the image object (one SH projection / prefiltered map per angle, not a
+    rotated copy per render), and resets with the scene."""
+    import dermis
+    from dermis.batch.apply import SceneState, apply_parameters
+    from dermis.scene.model import Texture
+
+    _write_sweep(tmp_path)
+    scene = dermis.load_scene(tmp_path / "plane.toml")
+    image = Texture(np.random.default_rng(1).random((8, 16, 3)).astype(np.float32), "sky.exr")
+    scene.environment.image, scene.environment.rotation_deg = image, 30.0
+    state = SceneState(scene)
+    loads = []
+    apply_parameters(state, {"environment.rotation_deg": 45.0},
+                     environment_image=lambda src: loads.append(src) or src)
+    assert scene.environment.image is image and loads == [image]
+    assert scene.environment.rotation_deg == pytest.approx(75.0)
+    apply_parameters(state, {})
+    assert scene.environment.rotation_deg == pytest.approx(30.0)
+
+
 def test_batch_cli_errors_are_one_line(tmp_path, monkeypatch, capsys):
     from dermis.cli import main
 

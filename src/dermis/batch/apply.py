@@ -87,9 +87,9 @@ class SceneState:
 def apply_parameters(state: SceneState, params: dict, *, light_indices="all", folder=".", source="sweep",
                      environment_image=None) -> dict:
     """Reset the scene to its base and set a render's parameters on it. Returns derived values for the
-    metadata (the camera's position, the lights' colours). ``environment_image(source, degrees)``
-    gives the equirect Texture of ``source`` (a path from the sweep, or the scene's own Texture)
-    turned by ``degrees``; the worker caches them so an unchanged environment keeps its identity."""
+    metadata (the camera's position, the lights' colours). ``environment_image(source)`` gives the
+    equirect Texture of ``source`` (a path from the sweep, or the scene's own Texture); the worker
+    caches them so an unchanged environment keeps its identity."""
     from dermis.batch.colour_temperature import blackbody_rgb
     from dermis.scene.toml_scene import resolve_profile_section
     from dermis.viewer.camera_controls import orbit_rig
@@ -125,8 +125,14 @@ def apply_parameters(state: SceneState, params: dict, *, light_indices="all", fo
     env = s.environment
     image = p.get("environment.image")
     base = None if image == "none" else (image if image is not None else env.image)
-    # a constant environment is the same turned any way: only an image is rotated
-    env.image = None if base is None else environment_image(base, p.get("environment.rotation_deg", 0.0))
+    if isinstance(base, str) and environment_image is None:
+        raise DermisError(f"{source}: environment.image {base!r} needs the worker's image loader")
+    env.image = base if base is None or environment_image is None else environment_image(base)
+    # turned the way the renderer turns any environment (dermis.environment.rotate_equirect, on top of the
+    # scene's own rotation), so the SH projection and the prefiltered map are memoised per angle on the
+    # one image, not made for a rotated copy per render; a constant environment is the same any way
+    if base is not None and "environment.rotation_deg" in p:
+        env.rotation_deg = float(env.rotation_deg) + float(p["environment.rotation_deg"])
     if "environment.intensity" in p:
         if p["environment.intensity"] < 0:
             raise DermisError(f"environment.intensity must be >= 0, got {p['environment.intensity']}")

@@ -86,7 +86,6 @@ class RenderWorker:
         self._scenes = {}
         self._bvh = {}
         self._env = {}
-        self._env_rotated = {}
         self._tmp = tempfile.TemporaryDirectory(prefix="dermis-batch-")
         import dermis
 
@@ -108,32 +107,19 @@ class RenderWorker:
             self._scenes[name] = SceneState(scene)
         return self._scenes[name]
 
-    def _environment(self, source, degrees: float = 0.0):
-        """The equirect Texture of a sweep path or a scene's Texture, turned by ``degrees``. The
-        Renderer keys its environment state on the image object's id, so the same request must
-        give the same object, and a new one must not reuse the address of the last one: the
-        cache keeps the texture in use while the next one is made."""
-        from dermis.environment import rotate_equirect
+    def _environment(self, source):
+        """The equirect Texture of a sweep path (read once, then the same object) or a scene's own
+        Texture. The sweep's rotation is set on the scene's environment (``rotation_deg``), not
+        baked into a copy of the image."""
         from dermis.images import as_rgb, read_image
         from dermis.scene.model import Texture
 
-        if isinstance(source, str):
-            if source not in self._env:
-                path = self.folder / source
-                self._env[source] = Texture(as_rgb(read_image(path, srgb=True)), str(path))
-            base = self._env[source]
-        else:
-            base = source
-        if not degrees % 360.0:
-            return base
-        key = (id(base), float(degrees))
-        if key not in self._env_rotated:
-            made = Texture(rotate_equirect(base.data, degrees), base.source)
-            # keep at most the previous one (still referenced by the renderer's last state)
-            while len(self._env_rotated) > 1:
-                self._env_rotated.pop(next(iter(self._env_rotated)))
-            self._env_rotated[key] = made
-        return self._env_rotated[key]
+        if not isinstance(source, str):
+            return source
+        if source not in self._env:
+            path = self.folder / source
+            self._env[source] = Texture(as_rgb(read_image(path, srgb=True)), str(path))
+        return self._env[source]
 
     def _encode(self, name: str, write) -> bytes:
         path = Path(self._tmp.name) / name
