@@ -100,7 +100,6 @@ def test_l_shape_bounce_equals_rho_e_times_the_form_factor(gl_ctx, many_rays):
     got = eb[wall, 0] / (RHO * E)
     sigma = np.sqrt(F * (1.0 - F) / RAYS)  # independent rays' standard error: an upper bound
     # half-float irradiance (I_0 is stored in f16): 1e-3 relative
-    print("max |err|/sigma", (np.abs(got - F) / sigma).max(), "mean err", np.mean(got - F))
     assert np.all(np.abs(got - F) <= 4.0 * sigma + 2e-3 * F), np.abs(got - F).max()
     # no bias: the mean over the wall's vertices within 4 standard errors of the mean
     assert abs(np.mean(got - F)) <= 4.0 * np.sqrt(np.mean(sigma ** 2) / len(F)) + 2e-3
