@@ -50,7 +50,7 @@ BAKE_RAYS = 128
 hemisphere would get a standard error of rho E sqrt(F (1 - F) / K) <= 0.044 rho E; the Latin
 hypercube lowers it, and the vertices' interpolation and the diffusion's blur average several
 vertices. Cost on the head (9279 vertices): 1.2 M closest-hit rays, about a second."""
-CACHE_VERSION = 1  # bump when the bake changes meaning
+CACHE_VERSION = 2  # bump when the bake changes meaning (2: grazing rays behind a neighbouring facet are hits)
 NEAR_REL = 0.01
 """An away-facing first hit closer than this (relative to the mesh's bounding diagonal: 2.5 mm on
 the head) is the ray's own neighbourhood, kept as a hit (_first_front_hits)."""

@@ -27,7 +27,11 @@ generated with xatlas (dermis.geometry.texture_space) while the material keeps t
 Known failure modes: UV seams (mitigated by coverage-normalised blurs and gutter dilation; light
 does not cross a seam), stretch varying faster than the blur width, translucency sums all lights'
 irradiance at the far face (every light and the ambient) through the thickness along -N only: light
-entering elsewhere (a nose wing lit from its side) is not transmitted.
+entering elsewhere (a nose wing lit from its side) is not transmitted. Interreflection is one
+bounce, per vertex (K rays: Monte Carlo noise of a few % of the bounce, blurred by the diffusion),
+of the skin mesh alone (non-skin surfaces neither block nor reflect), with the light leaving a hit
+read from a ~2 mm box average of rho E instead of the diffused light, and without the Fresnel
+factors (1 - rho_s a / pi) of the bounce's exit and entry.
 Shaders: shaders/tsd/*.glsl; specular in shaders/common/brdf.glsl.
 """
 
