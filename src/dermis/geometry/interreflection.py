@@ -33,17 +33,14 @@ memory per mesh content and on disk, like the visibility bake.
 
 from __future__ import annotations
 
-import os
-import tempfile
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
+from dermis.geometry import bake_cache
 from dermis.geometry.atlas import content_hash
 from dermis.geometry.visibility import OFFSET_REL
-from dermis.profiles.scene_skin import _cache_folder
 
 BAKE_RAYS = 128
 """Rays per vertex. Unstratified, a vertex seeing lit skin over a fraction F of its cosine-weighted
@@ -85,13 +82,8 @@ class VertexHits:
         return out
 
 
-_MEMORY: dict[str, VertexHits] = {}
+_MEMORY: dict[str, dict] = {}  # content key -> the bake's arrays (dermis.geometry.bake_cache)
 _MEMORY_MAX = 4
-
-
-def _cache_path(key: str) -> Path | None:
-    folder = _cache_folder()
-    return None if folder is None else folder / "interreflection" / (key[:32] + ".npz")
 
 
 def stratified_cosine_directions(normals, rays: int, rng) -> np.ndarray:
@@ -117,19 +109,11 @@ def bake_vertex_hits(positions, normals, indices, *, rays: int | None = None, se
     nrm = np.ascontiguousarray(normals, np.float32).reshape(-1, 3)
     t = np.ascontiguousarray(indices, np.uint32).reshape(-1, 3)
     key = content_hash(p, t, CACHE_VERSION, nrm.tobytes(), rays, int(seed))
-    if cache and key in _MEMORY:
-        h = _MEMORY[key]
-        return VertexHits(h.triangle, h.barycentric, 0.0, True)
-    path = _cache_path(key) if cache else None
-    if path is not None and path.is_file():
-        try:
-            with np.load(path) as z:
-                h = VertexHits(z["triangle"], z["barycentric"], 0.0, True)
-            if h.triangle.shape == (len(p), rays) and h.barycentric.shape == (len(p), rays, 2):
-                _remember(key, h)
-                return h
-        except (OSError, ValueError, KeyError):
-            pass  # a damaged cache file is re-baked and overwritten
+    path = bake_cache.cache_path("interreflection", key) if cache else None
+    got = bake_cache.load(_MEMORY, key, path, {"triangle": (len(p), rays), "barycentric": (len(p), rays, 2)},
+                          _MEMORY_MAX) if cache else None
+    if got is not None:
+        return VertexHits(got["triangle"], got["barycentric"], 0.0, True)
     t0 = time.perf_counter()
     p64 = p.astype(np.float64)
     n64 = nrm.astype(np.float64)
@@ -149,16 +133,9 @@ def bake_vertex_hits(positions, normals, indices, *, rays: int | None = None, se
     bary = np.where((tri >= 0)[..., None], bary.reshape(len(first), rays, 2), 0.0).astype(np.float32)
     h = VertexHits(tri[inverse], bary[inverse], time.perf_counter() - t0, False)
     if cache:
-        _remember(key, h)
-    if path is not None:
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, triangle=h.triangle, barycentric=h.barycentric)
-            os.replace(tmp, path)
-        except OSError:
-            pass  # a read-only cache folder only costs the re-bake
+        arrays = {"triangle": h.triangle, "barycentric": h.barycentric}
+        bake_cache.remember(_MEMORY, key, arrays, _MEMORY_MAX)
+        bake_cache.store(path, arrays)
     return h
 
 
@@ -178,12 +155,6 @@ def _first_front_hits(caster, origins, dirs, tris, normals, near):
     away = hit & (np.einsum("nc,nc->n", hn, dirs) >= 0.0) & (th >= near)
     tri = np.where(away, -1, tri)
     return tri, bary
-
-
-def _remember(key, h):
-    while len(_MEMORY) >= _MEMORY_MAX:
-        _MEMORY.pop(next(iter(_MEMORY)))
-    _MEMORY[key] = h
 
 
 def mesh_hits(mesh, *, cache: bool = True) -> VertexHits:
