@@ -1,4 +1,4 @@
-"""The cache of the per-mesh ray-cast bakes (dermis.geometry.visibility, dermis.geometry.interreflection):
+"""The per-vertex ray-cast bakes' shared parts: the distinct vertices they cast from, and their cache (dermis.geometry.visibility, dermis.geometry.interreflection):
 in memory per content key (a few meshes) and on disk as .npz under the dermis cache folder, written to
 a temporary name and renamed. A damaged or mismatched file is re-baked and overwritten; a read-only
 cache folder only costs the re-bake."""
@@ -12,6 +12,22 @@ from pathlib import Path
 import numpy as np
 
 from dermis.profiles.scene_skin import _cache_folder
+
+
+def distinct_vertices(positions, normals):
+    """What a per-vertex bake of a mesh (float32 ``positions``, ``normals`` (n, 3)) starts from:
+    (unit normals in float64, a zero normal made +z; the index of the first copy of each distinct
+    (position, normal); the inverse map back to every vertex; the bounding diagonal). One bake per
+    distinct vertex: the copies of a vertex split along UV seams get the same rays, so the Monte
+    Carlo noise does not draw the seams."""
+    p = np.asarray(positions)
+    nrm = np.asarray(normals)
+    n64 = nrm.astype(np.float64)
+    ln = np.linalg.norm(n64, axis=1, keepdims=True)
+    n64 = np.where(ln > 0, n64 / np.maximum(ln, 1e-300), [[0.0, 0.0, 1.0]])
+    diag = float(np.linalg.norm(p.max(0) - p.min(0))) if len(p) else 1.0
+    _, first, inverse = np.unique(np.concatenate([p, nrm], axis=1), axis=0, return_index=True, return_inverse=True)
+    return n64, first, inverse.reshape(-1), diag
 
 
 def cache_path(folder: str, key: str) -> Path | None:

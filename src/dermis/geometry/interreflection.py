@@ -115,16 +115,9 @@ def bake_vertex_hits(positions, normals, indices, *, rays: int | None = None, se
     if got is not None:
         return VertexHits(got["triangle"], got["barycentric"], 0.0, True)
     t0 = time.perf_counter()
+    n64, first, inverse, diag = bake_cache.distinct_vertices(p, nrm)  # one bake per distinct vertex
     p64 = p.astype(np.float64)
-    n64 = nrm.astype(np.float64)
-    ln = np.linalg.norm(n64, axis=1, keepdims=True)
-    n64 = np.where(ln > 0, n64 / np.maximum(ln, 1e-300), [[0.0, 0.0, 1.0]])
-    diag = float(np.linalg.norm(p64.max(0) - p64.min(0))) if len(p) else 1.0
     caster = RayCaster(p64, t)
-    # one bake per distinct (position, normal): the copies of a vertex split along UV seams get the
-    # same rays, so the Monte Carlo noise does not draw the seams
-    _, first, inverse = np.unique(np.concatenate([p, nrm], axis=1), axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.reshape(-1)
     po, no = p64[first], n64[first]
     dirs = stratified_cosine_directions(no, rays, np.random.default_rng(seed)).reshape(-1, 3)
     origins = np.repeat(po + no * (OFFSET_REL * diag), rays, axis=0)

@@ -79,16 +79,9 @@ def bake_vertex_visibility(positions, normals, indices, *, rays: int = BAKE_RAYS
     if got is not None:
         return VertexVisibility(got["ao"], got["bent_normal"], 0.0, True)
     t0 = time.perf_counter()
-    n64 = nrm.astype(np.float64)
-    ln = np.linalg.norm(n64, axis=1, keepdims=True)
-    n64 = np.where(ln > 0, n64 / np.maximum(ln, 1e-300), [[0.0, 0.0, 1.0]])
-    diag = float(np.linalg.norm(p.max(0) - p.min(0))) if len(p) else 1.0
+    n64, first, inverse, diag = bake_cache.distinct_vertices(p, nrm)  # one bake per distinct vertex
     caster = RayCaster(p, t)
-    # one bake per distinct (position, normal): the copies of a vertex split along UV seams get the
-    # same rays, so the Monte Carlo noise does not draw the seams
-    _, first, inverse = np.unique(np.concatenate([p, nrm], axis=1), axis=0, return_index=True, return_inverse=True)
     ao, bent = caster.ambient_occlusion(p[first], n64[first], rays, offset=OFFSET_REL * diag, seed=seed)
-    inverse = inverse.reshape(-1)
     v = VertexVisibility(ao[inverse].astype(np.float32), bent[inverse].astype(np.float32), time.perf_counter() - t0,
                          False)
     if cache:
