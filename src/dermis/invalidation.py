@@ -46,8 +46,10 @@ PRODUCTS = {
     "environment_visibility": ("mesh", "environment_occlusion"),
     # the skin material's uniforms (GpuScene.material_uniforms: scalars, map addressing, profile-driven albedo scale)
     "material_uniforms": ("material_maps", "material_scalars", "scale", "profile"),
+    # the first hits of the interreflection rays (geometry/interreflection.py, cached per mesh content)
+    "interreflection_bake": ("mesh",),
     "texture_space": ("mesh", "surfaces", "scale", "lights", "environment", "environment_occlusion", "material_maps",
-                      "material_scalars", "profile", "irradiance_size", "epoch"),
+                      "material_scalars", "profile", "irradiance_size", "epoch", "interreflection"),
 }
 """Every cached product and what it depends on. "epoch" is bumped by Renderer.invalidate()."""
 
@@ -208,6 +210,7 @@ def scene_inputs(scene, *, irradiance_size: int, epoch: int) -> dict:
                     fingerprint(np.asarray(scene.profile.weights, np.float64)), scene.skin_color),
         "irradiance_size": int(irradiance_size),
         "epoch": int(epoch),
+        "interreflection": bool(getattr(scene, "interreflection", True)),
     }
 
 

@@ -356,6 +356,8 @@ def check_scene(scene, full: bool = True):
     _num(m.pore_scale_mm, f"{src}: [material] pore_scale_mm", 0.0, 1e6, lo_open=True)
     if m.double_sided not in (True, False):
         raise DermisError(f"{src}: [material] double_sided must be true or false, got {m.double_sided!r}")
+    if getattr(scene, "interreflection", True) not in (True, False):
+        raise DermisError(f"{src}: [scene] interreflection must be true or false, got {scene.interreflection!r}")
     for i, L in enumerate(scene.lights):
         _check_light(L, f"{src}: [[lights]] #{i + 1}")
     check_camera(scene.camera, f"{src}: [camera]", (lo + hi) / 2, diag / 2)

@@ -7,6 +7,8 @@
                       barycentrics, how many triangles cover it): texture painting, overlap tests.
 * ``thickness``     - the tissue's thickness behind every texel along -N and where it ends (tsd's
                       light through thin parts), by ray casting.
+* ``interreflection`` - the first hits of cosine-weighted rays from every vertex: tsd's one diffuse
+                      bounce between skin surfaces, by ray casting.
 * ``atlas``         - texture-space UV atlases from xatlas (charts, parameterisation, packing with
                       gutters), cached on disk by the mesh's content hash.
 * ``hull``          - the points of a cloud that can hold the maximum of a linear function (its

@@ -126,15 +126,8 @@ class RayCaster:
         nrm = np.asarray(normals, np.float64).reshape(-1, 3)
         k = int(directions_per_point)
         rng = np.random.default_rng(seed)
-        # cosine-weighted directions (Malley's method) in each point's tangent frame
         u1, u2 = rng.random((len(p), k)), rng.random((len(p), k))
-        r, phi = np.sqrt(u1), 2.0 * np.pi * u2
-        local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(1.0 - u1, 0.0))], -1)
-        a = np.where(np.abs(nrm[:, :1]) > 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
-        t1 = np.cross(a, nrm)
-        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-        t2 = np.cross(nrm, t1)
-        dirs = local[..., :1] * t1[:, None] + local[..., 1:2] * t2[:, None] + local[..., 2:] * nrm[:, None]
+        dirs = cosine_directions(nrm, u1, u2)
         o = np.repeat(p + nrm * offset, k, axis=0)
         occ = self.occluded(o, dirs.reshape(-1, 3), 0.0, max_distance).reshape(len(p), k)
         free = ~occ
@@ -146,3 +139,17 @@ class RayCaster:
         ln = np.linalg.norm(bent, axis=1, keepdims=True)
         bent = np.where((ln > 1e-12) & (ao[:, None] > 0), bent / np.maximum(ln, 1e-300), nrm)
         return ao, bent
+
+
+def cosine_directions(normals, u1, u2):
+    """Cosine-weighted directions about each unit normal (Malley's method: a uniform point of the
+    unit disc, (sqrt(u1), 2 pi u2) in polar form, lifted to the hemisphere), in each normal's
+    tangent frame. normals (n, 3); u1, u2 (n, k) in [0, 1); returns (n, k, 3)."""
+    nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+    r, phi = np.sqrt(u1), 2.0 * np.pi * u2
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(1.0 - u1, 0.0))], -1)
+    a = np.where(np.abs(nrm[:, :1]) > 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+    t1 = np.cross(a, nrm)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(nrm, t1)
+    return local[..., :1] * t1[:, None] + local[..., 1:2] * t2[:, None] + local[..., 2:] * nrm[:, None]

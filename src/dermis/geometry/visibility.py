@@ -25,17 +25,14 @@ is cached in memory per mesh content and on disk like the UV atlas (dermis.geome
 
 from __future__ import annotations
 
-import os
-import tempfile
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from dermis.environment import irradiance_sh_eval
+from dermis.geometry import bake_cache
 from dermis.geometry.atlas import content_hash
-from dermis.profiles.scene_skin import _cache_folder
 
 BAKE_RAYS = 256
 """Cosine-weighted rays per vertex: a standard error of at most 0.5/sqrt(256) = 0.031 in A."""
@@ -57,13 +54,8 @@ class VertexVisibility:
         return np.ascontiguousarray(np.concatenate([self.ao[:, None], self.bent_normal], axis=1), np.float32)
 
 
-_MEMORY: dict[str, VertexVisibility] = {}
+_MEMORY: dict[str, dict] = {}  # content key -> the bake's arrays (dermis.geometry.bake_cache)
 _MEMORY_MAX = 8
-
-
-def _cache_path(key: str) -> Path | None:
-    folder = _cache_folder()
-    return None if folder is None else folder / "visibility" / (key[:32] + ".npz")
 
 
 def open_visibility(n_vertices: int, normals) -> np.ndarray:
@@ -81,50 +73,22 @@ def bake_vertex_visibility(positions, normals, indices, *, rays: int = BAKE_RAYS
     nrm = np.ascontiguousarray(normals, np.float32).reshape(-1, 3)
     t = np.ascontiguousarray(indices, np.uint32).reshape(-1, 3)
     key = content_hash(p, t, CACHE_VERSION, nrm.tobytes(), int(rays), int(seed))
-    if cache and key in _MEMORY:
-        v = _MEMORY[key]
-        return VertexVisibility(v.ao, v.bent_normal, 0.0, True)
-    path = _cache_path(key) if cache else None
-    if path is not None and path.is_file():
-        try:
-            with np.load(path) as z:
-                v = VertexVisibility(z["ao"], z["bent_normal"], 0.0, True)
-            if v.ao.shape == (len(p),) and v.bent_normal.shape == (len(p), 3):
-                _remember(key, v)
-                return v
-        except (OSError, ValueError, KeyError):
-            pass  # a damaged cache file is re-baked and overwritten
+    path = bake_cache.cache_path("visibility", key) if cache else None
+    got = bake_cache.load(_MEMORY, key, path, {"ao": (len(p),), "bent_normal": (len(p), 3)}, _MEMORY_MAX) \
+        if cache else None
+    if got is not None:
+        return VertexVisibility(got["ao"], got["bent_normal"], 0.0, True)
     t0 = time.perf_counter()
-    n64 = nrm.astype(np.float64)
-    ln = np.linalg.norm(n64, axis=1, keepdims=True)
-    n64 = np.where(ln > 0, n64 / np.maximum(ln, 1e-300), [[0.0, 0.0, 1.0]])
-    diag = float(np.linalg.norm(p.max(0) - p.min(0))) if len(p) else 1.0
+    n64, first, inverse, diag = bake_cache.distinct_vertices(p, nrm)  # one bake per distinct vertex
     caster = RayCaster(p, t)
-    # one bake per distinct (position, normal): the copies of a vertex split along UV seams get the
-    # same rays, so the Monte Carlo noise does not draw the seams
-    _, first, inverse = np.unique(np.concatenate([p, nrm], axis=1), axis=0, return_index=True, return_inverse=True)
     ao, bent = caster.ambient_occlusion(p[first], n64[first], rays, offset=OFFSET_REL * diag, seed=seed)
-    inverse = inverse.reshape(-1)
     v = VertexVisibility(ao[inverse].astype(np.float32), bent[inverse].astype(np.float32), time.perf_counter() - t0,
                          False)
     if cache:
-        _remember(key, v)
-    if path is not None:
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, ao=v.ao, bent_normal=v.bent_normal)
-            os.replace(tmp, path)
-        except OSError:
-            pass  # a read-only cache folder only costs the re-bake
+        arrays = {"ao": v.ao, "bent_normal": v.bent_normal}
+        bake_cache.remember(_MEMORY, key, arrays, _MEMORY_MAX)
+        bake_cache.store(path, arrays)
     return v
-
-
-def _remember(key, v):
-    while len(_MEMORY) >= _MEMORY_MAX:
-        _MEMORY.pop(next(iter(_MEMORY)))
-    _MEMORY[key] = v
 
 
 def mesh_visibility(mesh, *, cache: bool = True) -> VertexVisibility:

@@ -165,11 +165,14 @@ def validate(scene_files, techniques, size, *, out_dir=None, spp=4, spacing_mm=N
               "notes": ["pore_strength = 0 on both sides (the reference has no procedural pore normals)",
                         "environment light: SH irradiance occluded by AO and bent normals (techniques: per-vertex bake; "
                         "reference: ray cast per sample point), unless [environment] occlusion = false",
-                        "reference shadows are exact ray casts (hard); techniques use PCF shadow maps"],
+                        "reference shadows are exact ray casts (hard); techniques use PCF shadow maps",
+                        "interreflection off on both sides (the reference has none; tsd's one bounce is measured "
+                        "against Cycles: validate --against cycles)"],
               "scenes": {}}
     for f in scene_files:
         scene = dermis.load_scene(f)
         scene.material.pore_strength = 0.0
+        scene.interreflection = False  # the reference has no interreflection: compare like with like
         name = Path(f).stem
         echo(f"[{name}] reference {size[0]}x{size[1]} ...")
         ref = render_reference(scene, size, spp=spp, min_spacing_mm=spacing_mm, seed=seed, progress=progress)
@@ -219,6 +222,7 @@ def validate(scene_files, techniques, size, *, out_dir=None, spp=4, spacing_mm=N
             for key, what, opts, edit in attribution_toggles():
                 sc = dermis.load_scene(f)
                 sc.material.pore_strength = 0.0
+                sc.interreflection = False
                 if edit:
                     edit(sc)
                 img, secs = _render(sc, "tsd", size, **dict(opts))

@@ -255,6 +255,8 @@ class Scene:
     source: str = "<scene>"
     name: str = "scene"
     surfaces: list = field(default_factory=list)  # Surface: the non-skin primitives (glTF metallic-roughness)
+    # one diffuse bounce of light between skin surfaces (tsd only: dermis.geometry.interreflection)
+    interreflection: bool = True
 
     def bounds(self):
         """Bounds of everything drawn: the skin mesh and the non-skin surfaces."""

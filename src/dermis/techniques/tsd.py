@@ -8,6 +8,9 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
   stretch map S_0 (texels per mm)           once per mesh / scale / resolution
   irradiance I_0 = E * albedo^mix           E from all lights with soft shadows, ambient, energy
                                              conservation (1 - rho_s a(N.L, m)/pi)
+  one diffuse bounce between skin surfaces (scene.interreflection): E_b = (1/K) sum_k rho E(y_k) over K
+                 cosine-weighted rays per vertex (baked once per mesh, geometry/interreflection.py), rho E
+                 read from a ~2 mm level of I_0 albedo^(1-mix); E_b albedo^mix added to I_0
   dilate I_0 into the UV gutters
   for k = 1..K:  I_k = I_(k-1) * G(v_k - v_(k-1)) as a U then a V pass (chained: G(a)*G(b) = G(a+b)),
                  tap spacing from S_k, the stretch blurred by the same chain; wide Gaussians run at
@@ -24,7 +27,11 @@ generated with xatlas (dermis.geometry.texture_space) while the material keeps t
 Known failure modes: UV seams (mitigated by coverage-normalised blurs and gutter dilation; light
 does not cross a seam), stretch varying faster than the blur width, translucency sums all lights'
 irradiance at the far face (every light and the ambient) through the thickness along -N only: light
-entering elsewhere (a nose wing lit from its side) is not transmitted.
+entering elsewhere (a nose wing lit from its side) is not transmitted. Interreflection is one
+bounce, per vertex (K rays: Monte Carlo noise of a few % of the bounce, blurred by the diffusion),
+of the skin mesh alone (non-skin surfaces neither block nor reflect), with the light leaving a hit
+read from a ~2 mm box average of rho E instead of the diffused light, and without the Fresnel
+factors (1 - rho_s a / pi) of the bounce's exit and entry.
 Shaders: shaders/tsd/*.glsl; specular in shaders/common/brdf.glsl.
 """
 
@@ -40,6 +47,7 @@ from dermis.errors import DermisError
 from dermis.geometry.texture_space import UV_RANGE_TOLERANCE
 from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
+from dermis.gl.interreflection import InterreflectionHits
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
@@ -81,6 +89,10 @@ LEVEL_MIN_INPUT_SIGMA_TEXELS_LIGHT = 0.35
 NARROW_MAX_SIGMA_TEXELS = 0.75
 NARROW_STRETCH_PERCENTILE = TAP_STRETCH_PERCENTILE
 NARROW_PASS = True
+# interreflection: the gather reads rho E at the level whose texels are about this wide (mm, at the
+# median stretch): a box as wide as the profile's widest Gaussians (d'Eon's red: sigma 2.7 mm), so the
+# light read is close to the diffused light that leaves the skin (tsd/bounce_exitant.frag)
+BOUNCE_TEXEL_MM = 2.0
 
 
 @dataclass(frozen=True)
@@ -129,6 +141,9 @@ class TextureSpaceDiffusion(Technique):
         self._stretch_chain_key = None
         self._chain_passes = None  # ((chain key, dilated irradiance), the irradiance's prepared passes)
         self.thickness = ThicknessTexture(self.ctx)  # the texel thickness bake (light through thin parts)
+        self.hits = InterreflectionHits(self.ctx)  # the interreflection rays' hits (one bounce)
+        self._p_bounce = None  # (exitant, gather, splat) programs, compiled on first use
+        self.bounce_level = None
 
     # ------------------------------------------------------------------ resources
     def _texture(self, key, size, components=4, dtype="f2"):
@@ -171,6 +186,7 @@ class TextureSpaceDiffusion(Technique):
         self._chain_passes = None
         self._narrow_key = None
         self.thickness.release()
+        self.hits.release()
 
     def scene_changed(self):
         self._cache_key = None
@@ -529,6 +545,11 @@ class TextureSpaceDiffusion(Technique):
                 if a.shape != (S, S, 4):
                     raise ValueError(f"irradiance override must be {(S, S, 4)}, got {a.shape}")
                 irr.write(a.astype(np.float16).tobytes())
+        # one bounce between skin surfaces, added to I_0 before the dilation and the blurs (an
+        # override is the whole irradiance: nothing is added to it)
+        if irradiance is None and getattr(scene, "interreflection", True):
+            self._interreflection(frame, irr)
+        with timer("tsd_irradiance"):
             dil = self._texture("irradiance_dilated", (S, S))
             bind_sampler(self.p_dilate, "uSource", irr, 0)
             self._fullscreen(self.p_dilate, dil)
@@ -552,6 +573,60 @@ class TextureSpaceDiffusion(Technique):
             frame.passes_run.append("tsd_translucency")
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)
+
+    def _bounce_level(self, S):
+        """The level of rho E the gather reads: texels of about BOUNCE_TEXEL_MM at the median
+        stretch, and at least 16 texels across."""
+        lvl = math.floor(math.log2(max(BOUNCE_TEXEL_MM * (self.median_stretch or 1.0), 1.0)))
+        return int(max(0, min(lvl, math.log2(max(S, 16) / 16))))
+
+    def _interreflection(self, frame, irr):
+        """Add one diffuse bounce to the irradiance ``irr`` (I_0): rho E in texture space
+        (tsd/bounce_exitant.frag), reduced to _bounce_level, gathered per vertex over the baked rays
+        (tsd/bounce_gather.frag) and splatted into I_0 with additive blending
+        (tsd/bounce_splat.frag). No pass reads the texture it writes."""
+        hits = self.hits.get(frame)  # the bake times itself: before this pass's timer
+        if self._p_bounce is None:
+            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
+            gather = program(self.ctx, "common/fullscreen.vert", "tsd/bounce_gather.frag", defines)
+            self.vaos[gather] = self.ctx.vertex_array(gather, [])
+            self._p_bounce = (program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_exitant.frag", defines), gather,
+                              program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag",
+                                      {**defines, "INTERREFLECTION": 1}))
+        p_exit, p_gather, p_splat = self._p_bounce
+        per_row, rays, n = self.hits.per_row, self.hits.rays, self.hits.vertex_count
+        bounce = self._texture("bounce", (per_row, hits.size[1]), 4, "f4")
+        level = self._bounce_level(irr.size[0])
+        self.bounce_level = level
+        bind_scene(frame, p_exit)
+        bind_scene(frame, p_splat)
+        with frame.timer("tsd_interreflection"):
+            bind_sampler(p_exit, "uIrradiance", irr, Unit.FIRST_FREE)
+            with maps_without_anisotropy(frame.gpu, surfaces=False):
+                self._uv_pass(frame, p_exit, self._texture(("bounce_exitant", 0), irr.size))
+            src = self.tex[("bounce_exitant", 0)]
+            for lvl in range(1, level + 1):
+                src, p = self._down(src, ("bounce_exitant", lvl), lvl)
+                self._draw(p)
+            for name, value in (("uRays", rays), ("uVerticesPerRow", per_row), ("uVertexCount", n)):
+                set_uniform(p_gather, name, int(value))
+            bind_sampler(p_gather, "uHits", hits, 0)
+            bind_sampler(p_gather, "uExitant", src, 1)
+            self._fullscreen(p_gather, bounce)
+            bind_sampler(p_splat, "uBounce", bounce, Unit.FIRST_FREE)
+            set_uniform(p_splat, "uVerticesPerRow", int(per_row))
+            self.ctx.enable(moderngl.BLEND)
+            self.ctx.blend_func = moderngl.ONE, moderngl.ONE
+            with maps_without_anisotropy(frame.gpu, surfaces=False):
+                self._uv_pass(frame, p_splat, irr, clear=False)
+            self.ctx.disable(moderngl.BLEND)
+        frame.passes_run.append("tsd_interreflection")
+
+    def bounce_per_vertex(self) -> np.ndarray:
+        """E_b of the last bounce pass per mesh vertex, (n, 3) (tsd/bounce_gather.frag's target)."""
+        tex = self.tex["bounce"]
+        a = np.frombuffer(tex.read(), np.float32).reshape(tex.size[1], tex.size[0], 4)
+        return a.reshape(-1, 4)[:self.hits.vertex_count, :3].copy()
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         key = (frame.lighting_key, self.options)
@@ -616,5 +691,6 @@ class TextureSpaceDiffusion(Technique):
         for v in self.vaos.values():
             v.release()
         for p in (self.p_stretch, self.p_irradiance, self.p_dilate, self.p_down, self.p_trans, self.p_final,
-                  self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else [])):
+                  self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else []),
+                  *(self._p_bounce or ())):
             p.release()

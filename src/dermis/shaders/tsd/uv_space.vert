@@ -14,7 +14,17 @@ out vec2 v_uv;
 out vec2 v_uv1;
 out vec4 v_tangent;
 out vec4 v_visibility;
+#ifdef INTERREFLECTION
+// tsd/bounce_splat.frag: the bounce irradiance gathered per vertex (tsd/bounce_gather.frag), vertex
+// v at texel (v mod P, v div P); gl_VertexID is the index buffer's value, the vertex's number
+uniform sampler2D uBounce;
+uniform int uVerticesPerRow;
+out vec3 v_bounce;
+#endif
 void main() {
+#ifdef INTERREFLECTION
+    v_bounce = texelFetch(uBounce, ivec2(gl_VertexID % uVerticesPerRow, gl_VertexID / uVerticesPerRow), 0).rgb;
+#endif
     v_world = in_position;
     v_normal = in_normal;
     v_uv = in_uv;

@@ -1,0 +1,30 @@
+// Interreflection, step 2 (dermis/geometry/interreflection.py): one fragment per mesh vertex (vertex
+// v at (v mod P, v div P)) gathers the one-bounce irradiance of its K cosine-weighted rays,
+//   E_b = (pi / K) sum_k L_o(y_k) = (1 / K) sum_k rho E(y_k),
+// reading rho E (tsd/bounce_exitant.frag, premultiplied by coverage, reduced to ~2 mm texels) at
+// each hit's texture-space (u, v). Rays that escape or hit a face turned away hold (-1, -1): they
+// add nothing (the environment's share is the ambient occlusion's).
+uniform sampler2D uHits;     // rg32f, K texels per vertex: the hits' texture-space (u, v)
+uniform sampler2D uExitant;  // rho E, premultiplied (rgb x coverage, coverage)
+uniform int uRays;
+uniform int uVerticesPerRow;
+uniform int uVertexCount;
+out vec4 f_bounce;
+
+// a hit in a texel the layout barely covers at this level: its colour is the coverage's ratio of
+// two small numbers (half floats); below this it is left out (a slight loss, no speck)
+const float MIN_COVERAGE = 1.0 / 64.0;
+
+void main() {
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    vec3 sum = vec3(0.0);
+    if (p.y * uVerticesPerRow + p.x < uVertexCount) {
+        for (int k = 0; k < uRays; ++k) {
+            vec2 uv = texelFetch(uHits, ivec2(p.x * uRays + k, p.y), 0).xy;
+            if (uv.x < 0.0) continue;
+            vec4 c = textureLod(uExitant, uv, 0.0);
+            if (c.a >= MIN_COVERAGE) sum += c.rgb / c.a;
+        }
+    }
+    f_bounce = vec4(sum / float(max(uRays, 1)), 1.0);
+}

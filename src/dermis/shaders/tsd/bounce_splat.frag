@@ -1,0 +1,16 @@
+// Interreflection, step 3: the per-vertex bounce irradiance E_b (tsd/bounce_gather.frag),
+// interpolated over the triangles (tsd/uv_space.vert with INTERREFLECTION), added to the irradiance
+// texture as the lights' is stored there, E_b albedo^mix (tsd/irradiance.frag), with additive
+// blending (alpha 0: the coverage stays), before the dilation and the blur chain: the diffusion
+// spreads the bounce light (and its Monte Carlo noise) as it does every other light.
+#include "common/surface.glsl"
+#include "common/albedo_mix.glsl"
+
+uniform float uMix;
+in vec2 v_uv;
+in vec3 v_bounce;
+out vec4 f_irradiance;
+
+void main() {
+    f_irradiance = vec4(max(v_bounce, vec3(0.0)) * albedo_power(albedo_at(v_uv), uMix), 0.0);
+}

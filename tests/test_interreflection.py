@@ -1,0 +1,172 @@
+"""One diffuse bounce between skin surfaces (dermis.geometry.interreflection; tsd's bounce passes).
+
+Closed form: two unit squares meeting at an edge (an L): the floor A (z = 0, normal +z) lit at
+normal incidence with irradiance E, the wall B (x = 0, normal +x) edge-on to the light. Light
+leaves A with radiance rho E / pi, so a point P of B receives E_b = rho E F(P -> A), F the form
+factor from a differential element to the polygon A, Lambert's contour formula (Howell's catalogue,
+B-2 / B-3 for its rectangle cases):
+    F = |sum_i gamma_i n . (R_i x R_(i+1)) / |R_i x R_(i+1)|| / (2 pi),
+R_i = V_i - P the polygon's corners seen from P, gamma_i the angle between R_i and R_(i+1).
+The bake's K cosine-weighted rays per vertex estimate F with a standard error of at most
+sqrt(F (1 - F) / K) (independent rays; the Latin hypercube does better).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dermis.geometry import interreflection
+from dermis.renderer import Renderer
+from dermis.scene.builtin import grid_mesh, merge
+from dermis.scene.loaders import finish_mesh
+from dermis.scene.model import Camera, Environment, Light, Output, Scene, SkinMaterial
+
+RHO = 0.5
+E = 2.0  # irradiance of A (the light at normal incidence)
+RAYS = 2048
+S = 128  # irradiance texture size
+
+
+def polygon_form_factor(p, n, corners) -> float:
+    """Form factor from a differential element at p (unit normal n) to a planar polygon (Lambert)."""
+    R = np.asarray(corners, np.float64) - p
+    total = 0.0
+    for i in range(len(R)):
+        a, b = R[i], R[(i + 1) % len(R)]
+        c = np.cross(a, b)
+        gamma = np.arccos(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))
+        total += gamma * (n @ c) / np.linalg.norm(c)
+    return abs(total) / (2.0 * np.pi)
+
+
+def test_polygon_form_factor_matches_the_closed_form_of_a_parallel_square():
+    # a differential element under the centre of a parallel square of side 2a at height h:
+    # F = (2 / pi) [ a / sqrt(h^2 + a^2) atan(a / sqrt(h^2 + a^2)) ] * 2 (Howell B-3, by symmetry)
+    a, h = 1.0, 1.0
+    r = np.hypot(h, a)
+    expected = 4.0 / (2.0 * np.pi) * 2.0 * (a / r) * np.arctan(a / r)  # 4 quarters of Howell's corner case
+    got = polygon_form_factor(np.zeros(3), np.array([0.0, 0.0, 1.0]),
+                              [[-a, -a, h], [a, -a, h], [a, a, h], [-a, a, h]])
+    assert got == pytest.approx(expected, rel=1e-12)
+
+
+def _scene(parts, lights, env=(0.0, 0.0, 0.0), occlusion=True) -> Scene:
+    p, n, uv, t = merge(parts)
+    mesh = finish_mesh(p, n, uv, t, "test:interreflection", "v-up")
+    return Scene(mesh=mesh, material=SkinMaterial(albedo_color=(RHO,) * 3, rho_s=0.0), lights=lights,
+                 camera=Camera(position=(2.0, 1.5, 2.5), target=(0.3, 0.5, 0.3), up=(0.0, 1.0, 0.0), fov_deg=40.0),
+                 environment=Environment(color=env, occlusion=occlusion), output=Output(background=(0.0, 0.0, 0.0)),
+                 mm_per_unit=50.0, technique="tsd")
+
+
+def _floor(u, v):
+    return np.stack([u, v, 0 * u], -1), np.broadcast_to([0.0, 0.0, 1.0], u.shape + (3,))
+
+
+def _wall(u, v):
+    return np.stack([0 * u, u, v], -1), np.broadcast_to([1.0, 0.0, 0.0], u.shape + (3,))
+
+
+def l_scene():
+    down = Light(kind="directional", direction=(0.0, 0.0, -1.0), color=(1.0, 1.0, 1.0), intensity=E,
+                 cast_shadows=False)
+    return _scene([grid_mesh(16, 16, _floor, (0.02, 0.02, 0.48, 0.98)),
+                   grid_mesh(16, 16, _wall, (0.52, 0.02, 0.98, 0.98))], [down])
+
+
+@pytest.fixture
+def many_rays(monkeypatch, tmp_path):
+    monkeypatch.setenv("DERMIS_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(interreflection, "BAKE_RAYS", RAYS)
+
+
+def test_l_shape_bounce_equals_rho_e_times_the_form_factor(gl_ctx, many_rays):
+    sc = l_scene()
+    with Renderer(sc, (64, 64), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
+        r.render("tsd")
+        tsd = r.technique("tsd")
+        eb = tsd.bounce_per_vertex()
+        irr = tsd.debug_buffers()["irradiance"]
+    pos = sc.mesh.positions
+    nrm = sc.mesh.normals
+    np.testing.assert_allclose(eb[:, 0], eb[:, 1], atol=1e-6)  # grey albedo, white light
+    on_floor = nrm[:, 2] > 0.5
+    # the floor sees only the wall's light, which is zero: no bounce
+    assert np.abs(eb[on_floor]).max() == 0.0
+    wall = (nrm[:, 0] > 0.5) & (pos[:, 2] > 0.05)  # off the shared edge, where rays graze the floor
+    A = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]
+    F = np.array([polygon_form_factor(p, np.array([1.0, 0.0, 0.0]), A) for p in pos[wall]])
+    got = eb[wall, 0] / (RHO * E)
+    sigma = np.sqrt(F * (1.0 - F) / RAYS)  # independent rays' standard error: an upper bound
+    # half-float irradiance (I_0 is stored in f16): 1e-3 relative
+    assert np.all(np.abs(got - F) <= 4.0 * sigma + 2e-3 * F), np.abs(got - F).max()
+    # no bias: the mean over the wall's vertices within 4 standard errors of the mean
+    assert abs(np.mean(got - F)) <= 4.0 * np.sqrt(np.mean(sigma ** 2) / len(F)) + 2e-3
+    assert F.min() < 0.06 and F.max() > 0.35  # the test spans the wall, near and far from the floor
+    # the splat: I_0 on the wall is E_b albedo^mix, interpolated between vertices (texels near the
+    # middle of the wall, where F is smooth: its linear interpolation is within 0.005)
+    rows = (np.arange(S) + 0.5) / S
+    v = 1.0 - rows  # image row 0 = top (v = 1)
+    col = int(0.75 * S)  # u = 0.75: y = 0.5 on the wall
+    u = (col + 0.5) / S
+    for vi in np.nonzero((v > 0.02 + 0.96 * 0.3) & (v < 0.02 + 0.96 * 0.9))[0]:
+        z = (v[vi] - 0.02) / 0.96
+        y = (u - 0.52) / 0.46
+        f = polygon_form_factor(np.array([0.0, y, z]), np.array([1.0, 0.0, 0.0]), A)
+        assert irr[vi, col, 0] / (RHO ** 0.5 * RHO * E) == pytest.approx(f, abs=0.005 + 4 * np.sqrt(f / RAYS))
+
+
+def test_flat_plane_has_no_bounce_and_camera_moves_do_not_rerun_it(gl_ctx, many_rays):
+    light = Light(kind="directional", direction=(0.3, 0.2, -1.0), color=(1.0, 0.9, 0.8), intensity=E)
+    sc = _scene([grid_mesh(8, 8, _floor, (0.02, 0.02, 0.98, 0.98))], [light], env=(0.1, 0.1, 0.1))
+    with Renderer(sc, (48, 48), ctx=gl_ctx, irradiance_size=64, shadow_size=256) as r:
+        on = r.render("tsd")
+        assert {"interreflection_bake", "tsd_interreflection"} <= set(r.stats["passes_run"])
+        assert np.all(r.technique("tsd").bounce_per_vertex() == 0.0)  # every ray escapes
+        sc.camera.position = (1.5, 1.0, 3.0)
+        r.render("tsd")
+        assert r.stats["passes_run"] == ["tsd_final"]  # a camera-only frame: no texture-space pass
+        sc.camera.position = (2.0, 1.5, 2.5)
+        sc.lights[0].intensity = 2 * E  # the light changed: the bounce runs again, the bake does not
+        r.render("tsd")
+        assert "tsd_interreflection" in r.stats["passes_run"]
+        assert "interreflection_bake" not in r.stats["passes_run"]
+        sc.lights[0].intensity = E
+        sc.interreflection = False
+        off = r.render("tsd")
+        assert "tsd_interreflection" not in r.stats["passes_run"]
+    np.testing.assert_array_equal(on, off)  # adding zero changes no bit
+
+
+def test_white_furnace_inside_a_closed_sphere_is_one_bounce_of_rho_e(gl_ctx, many_rays):
+    # inside a closed sphere (normals inward) under the open sky's constant radiance c: every point
+    # gets E = pi c, every ray hits the sphere, so the one bounce is exactly rho pi c everywhere:
+    # bounded (the next bounces, rho^2 E + ..., are not taken), not amplified
+    def inside(u, v):
+        th, ph = v * np.pi, u * 2 * np.pi
+        d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), -np.cos(th)], -1)
+        return d, -d
+
+    c = 0.2
+    sc = _scene([grid_mesh(32, 16, inside, (0.02, 0.02, 0.98, 0.98))], [], env=(c, c, c), occlusion=False)
+    sc.camera = Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0), fov_deg=60.0)
+    with Renderer(sc, (32, 32), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
+        r.render("tsd")
+        eb = r.technique("tsd").bounce_per_vertex()
+    ring = np.abs(sc.mesh.normals[:, 2]) < 0.95  # away from the poles' slivers of triangles
+    np.testing.assert_allclose(eb[ring], RHO * np.pi * c, rtol=5e-3)
+
+
+def test_scene_key_turns_it_off_and_a_bad_value_is_named(tmp_path):
+    import dermis
+    from dermis.errors import DermisError
+
+    body = '\nmm_per_unit = 1.0\n[mesh]\nbuiltin = "plane"\n'
+    (tmp_path / "on.toml").write_text("[scene]" + body)
+    (tmp_path / "off.toml").write_text("[scene]\ninterreflection = false" + body)
+    (tmp_path / "bad.toml").write_text('[scene]\ninterreflection = "yes"' + body)
+    assert dermis.load_scene(tmp_path / "on.toml").interreflection is True  # the default
+    assert dermis.load_scene(tmp_path / "off.toml").interreflection is False
+    with pytest.raises(DermisError, match=r"\[scene\] interreflection must be a bool"):
+        dermis.load_scene(tmp_path / "bad.toml")
