@@ -1,7 +1,9 @@
 """The texel thickness bake (dermis.geometry.thickness) as a texture in the mesh's texture-space
-layout: rgba32f, (u, v) of the far face, thickness in mm, valid; nearest filtering (a far face's
-(u, v) must not be blended across islands). Built once per product key "thickness"
-(dermis.invalidation: mesh, scale, irradiance size)."""
+layout: rgba32f, (u, v) of the far face, thickness in mm, weight; nearest filtering (a far face's
+(u, v) must not be blended across islands). The ray cast along -N is done once per product key
+"thickness" (dermis.invalidation: mesh, scale, irradiance size); where it finds no far face the
+key light's path completes it, and the two are smoothed (geometry.thickness.translucency_thickness),
+once per "thickness_light" (the same and the lights' geometry)."""
 
 from __future__ import annotations
 
@@ -13,22 +15,30 @@ import numpy as np
 # CPU bakes by (product key "thickness", size): techniques that read the bake at the same size
 # (ssss and preintegrated, at half the irradiance size) share one ray cast instead of one each
 _BAKES: OrderedDict = OrderedDict()
-_MAX_BAKES = 4
+_MAX_BAKES = 6
 
 
-def _bake(frame, size: int) -> np.ndarray:
-    from dermis.geometry.thickness import texel_thickness
-
-    key = (frame.keys["thickness"], int(size))
+def _cached(key, make):
     bake = _BAKES.get(key)
     if bake is None:
-        bake = texel_thickness(frame.scene.mesh, size, frame.scene.mm_per_unit)
+        bake = make()
         _BAKES[key] = bake
         while len(_BAKES) > _MAX_BAKES:
             _BAKES.popitem(last=False)
     else:
         _BAKES.move_to_end(key)
     return bake
+
+
+def _bake(frame, size: int) -> np.ndarray:
+    """The bake along -N (per mesh) completed along the key light and smoothed (per light geometry)."""
+    from dermis.geometry.thickness import texel_thickness, translucency_thickness
+
+    sc = frame.scene
+    normal = _cached(("normal", frame.keys["thickness"], int(size)),
+                     lambda: texel_thickness(sc.mesh, size, sc.mm_per_unit))
+    return _cached(("lit", frame.keys["thickness_light"], int(size)),
+                   lambda: translucency_thickness(sc.mesh, size, sc.mm_per_unit, sc.lights, along_normal=normal))
 
 
 class ThicknessTexture:
@@ -46,7 +56,7 @@ class ThicknessTexture:
 
     def get(self, frame, size: int):
         """The texture for ``frame`` at size x size; appends "thickness" to frame.passes_run when baked."""
-        key = (frame.keys["thickness"], int(size))
+        key = (frame.keys["thickness_light"], int(size))
         if key != self.key or self.tex is None:
             with frame.timer("thickness"):
                 bake = _bake(frame, size)

@@ -8,7 +8,10 @@
 // the slab's Monte Carlo): exact for a uniformly lit slab whatever the light's direction, and
 // shadowed as the far face is.
 //
-// Why not the TSM's distance along the light: an ear nearly edge-on to the light has a path along
+// Where -N finds no far face (concha, antihelix edge-on) the bake takes the far face along the key
+// light (the TSM's distance, by ray casting) where the two faces form a slab, with a weight; the
+// bake is smoothed within UV islands (geometry/thickness.py: translucency_thickness).
+// Why not the TSM's distance along the light everywhere: an ear nearly edge-on to the light has a path along
 // the light many times its thickness, so exp(-t^2 / 2v) left only a faint rim (back-ears); the
 // light spreads through the ear's thickness, not along the light. And a texel just past the
 // terminator of a thick part (nose, jaw) has its own neighbour as the TSM's entry point (t -> 0),
@@ -28,13 +31,13 @@
 uniform float uTranslucencyMinVariance;
 uniform float uTranslucencyStrength;
 uniform sampler2D uStretch;    // texels per mm along u, v (tsd/stretch.frag)
-uniform sampler2D uThickness;  // (u, v) of the far face, thickness in mm, valid (geometry/thickness.py)
+uniform sampler2D uThickness;  // (u, v) of the far face, thickness in mm, weight (geometry/thickness.py)
 out vec4 f_translucency;
 
 void main() {
     vec4 th = texelFetch(uThickness, ivec2(gl_FragCoord.xy), 0);
     vec3 T = vec3(0.0);
-    if (th.w > 0.5) {
+    if (th.w > 0.0) {  // w: the bake's weight (smoothed validity; the light path's slab test)
         vec2 uv = gl_FragCoord.xy / vec2(textureSize(uThickness, 0));  // this texel's texture-space uv
         float d = th.z;
         vec2 stretch = max(texture(uStretch, uv).xy, vec2(1e-6));
@@ -53,5 +56,5 @@ void main() {
             T += excess * uWeights[k] * blurred_irradiance(k, th.xy);
         }
     }
-    f_translucency = vec4(T * uTranslucencyStrength, 1.0);
+    f_translucency = vec4(T * (th.w * uTranslucencyStrength), 1.0);
 }
