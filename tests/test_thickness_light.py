@@ -126,3 +126,22 @@ def test_uv_islands_of_a_box():
     isl = uv_islands(sc.mesh, 96)
     labels = np.unique(isl)
     assert labels[0] == -1 and len(labels) == 7
+
+
+def test_the_bake_follows_the_key_light_direction_not_its_intensity(gl_ctx):
+    """The path along the light is re-baked when the key light turns (and the image is a fresh
+    renderer's), not when only its intensity changes (the bake does not depend on it)."""
+    from dermis.renderer import Renderer
+
+    sc = backlit_slab_scene(2.0, n=8)
+    with Renderer(sc, (32, 32), irradiance_size=128, ctx=gl_ctx, samples=0) as r:
+        r.render("tsd", output_mode=1)
+        sc.lights[0].intensity = 2.0
+        r.render("tsd", output_mode=1)
+        assert "thickness" not in r.stats["passes_run"]
+        sc.lights[0].direction = (0.3, 0.0, 0.95)
+        a = r.render("tsd", output_mode=1)
+        assert "thickness" in r.stats["passes_run"]
+    with Renderer(sc, (32, 32), irradiance_size=128, ctx=gl_ctx, samples=0) as fresh:
+        b = fresh.render("tsd", output_mode=1)
+    np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6)

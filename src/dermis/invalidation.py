@@ -40,8 +40,6 @@ PRODUCTS = {
     "mesh_curvature": ("mesh", "scale"),
     "stretch": ("mesh", "scale", "irradiance_size"),
     "thickness": ("mesh", "scale", "irradiance_size"),  # the texel thickness bake of translucency (gl/thickness.py)
-    # the bake completed along the key light where -N finds no far face, and smoothed (geometry/thickness.py)
-    "thickness_light": ("mesh", "scale", "irradiance_size", "lights"),  # which light is the key
     "profile_tables": ("profile",),
     # ambient occlusion and bent normals (geometry/visibility.py, cached per mesh content), or the
     # open sky's (1, normal) with [environment] occlusion = false, in the vertex buffer

@@ -124,14 +124,17 @@ def key_light(lights):
     return max(casting, key=lambda L: L.intensity * max(L.color)) if casting else None
 
 
-def light_thickness(mesh, size: int, mm_per_unit: float, light) -> np.ndarray:
+def light_thickness(mesh, size: int, mm_per_unit: float, light, where=None) -> np.ndarray:
     """(size, size, 4) float32 as texel_thickness, along the light: (u, v) of E where the ray from
     the texel towards ``light`` leaves the tissue, the slab thickness t max(N_E.L, -N_P.L) in mm,
     and the weight smoothstep(PARALLEL_COS, -N_E.N_P) (0: not a slab, or the texel faces the
-    light, or no exit within MAX_THICKNESS_MM)."""
+    light, or no exit within MAX_THICKNESS_MM). ``where`` (size, size) bool: only those texels."""
     S = int(size)
     uv_ts, idx, pos, nrm, tri, cov, p, n = _texels(mesh, S)
     out = np.zeros((S, S, 4), np.float32)
+    if where is not None:
+        sel = np.asarray(where, bool).reshape(-1)[cov]
+        cov, p, n = cov[sel], p[sel], n[sel]
     if len(cov) == 0 or light is None:
         return out
     L = _light_directions(light, p)
@@ -222,13 +225,13 @@ def smooth_thickness(bake: np.ndarray, islands: np.ndarray) -> np.ndarray:
     return out.astype(np.float32)
 
 
-def translucency_thickness(mesh, size: int, mm_per_unit: float, lights, along_normal=None) -> np.ndarray:
+def translucency_thickness(mesh, size: int, mm_per_unit: float, lights, along_normal=None,
+                           islands=None) -> np.ndarray:
     """What the techniques read (gl/thickness.py): the bake along -N (``along_normal``, else
     texel_thickness), where it has no far face the bake along the key light (light_thickness), the
-    two smoothed within each UV island (smooth_thickness). (size, size, 4) float32: (u, v) of the
-    far face, thickness in mm, weight in [0, 1]."""
+    two smoothed within each UV island (smooth_thickness; ``islands``, else uv_islands). (size, size,
+    4) float32: (u, v) of the far face, thickness in mm, weight in [0, 1]."""
     b = texel_thickness(mesh, size, mm_per_unit) if along_normal is None else along_normal
-    lt = light_thickness(mesh, size, mm_per_unit, key_light(lights))
-    fill = (b[..., 3] <= 0.0) & (lt[..., 3] > 0.0)
-    b = np.where(fill[..., None], lt, b)
-    return smooth_thickness(b, uv_islands(mesh, size))
+    lt = light_thickness(mesh, size, mm_per_unit, key_light(lights), where=b[..., 3] <= 0.0)
+    b = np.where((lt[..., 3] > 0.0)[..., None], lt, b)
+    return smooth_thickness(b, uv_islands(mesh, size) if islands is None else islands)

@@ -3,7 +3,7 @@ layout: rgba32f, (u, v) of the far face, thickness in mm, weight; nearest filter
 (u, v) must not be blended across islands). The ray cast along -N is done once per product key
 "thickness" (dermis.invalidation: mesh, scale, irradiance size); where it finds no far face the
 key light's path completes it, and the two are smoothed (geometry.thickness.translucency_thickness),
-once per "thickness_light" (the same and the lights' geometry)."""
+once per bake_key (the same and the key light's geometry)."""
 
 from __future__ import annotations
 
@@ -30,15 +30,27 @@ def _cached(key, make):
     return bake
 
 
+def bake_key(frame, size: int) -> tuple:
+    """What the bake depends on: the product key "thickness" (mesh, scale, irradiance size), the size,
+    and the key light's geometry (its colour and intensity only matter through which light is key)."""
+    from dermis.geometry.thickness import key_light
+    from dermis.invalidation import light_geometry
+
+    L = key_light(frame.scene.lights)
+    return frame.keys["thickness"], int(size), None if L is None else light_geometry(L)
+
+
 def _bake(frame, size: int) -> np.ndarray:
-    """The bake along -N (per mesh) completed along the key light and smoothed (per light geometry)."""
-    from dermis.geometry.thickness import texel_thickness, translucency_thickness
+    """The bake along -N and the UV islands (per mesh), completed along the key light and smoothed
+    (per key light geometry)."""
+    from dermis.geometry.thickness import texel_thickness, translucency_thickness, uv_islands
 
     sc = frame.scene
-    normal = _cached(("normal", frame.keys["thickness"], int(size)),
-                     lambda: texel_thickness(sc.mesh, size, sc.mm_per_unit))
-    return _cached(("lit", frame.keys["thickness_light"], int(size)),
-                   lambda: translucency_thickness(sc.mesh, size, sc.mm_per_unit, sc.lights, along_normal=normal))
+    normal, islands = _cached(("normal", frame.keys["thickness"], int(size)),
+                              lambda: (texel_thickness(sc.mesh, size, sc.mm_per_unit), uv_islands(sc.mesh, size)))
+    return _cached(("lit",) + bake_key(frame, size),
+                   lambda: translucency_thickness(sc.mesh, size, sc.mm_per_unit, sc.lights, along_normal=normal,
+                                                  islands=islands))
 
 
 class ThicknessTexture:
@@ -56,7 +68,7 @@ class ThicknessTexture:
 
     def get(self, frame, size: int):
         """The texture for ``frame`` at size x size; appends "thickness" to frame.passes_run when baked."""
-        key = (frame.keys["thickness_light"], int(size))
+        key = bake_key(frame, size)
         if key != self.key or self.tex is None:
             with frame.timer("thickness"):
                 bake = _bake(frame, size)
