@@ -48,15 +48,17 @@ def _bake(frame, size: int) -> np.ndarray:
     sc = frame.scene
     normal, islands = _cached(("normal", frame.keys["thickness"], int(size)),
                               lambda: (texel_thickness(sc.mesh, size, sc.mm_per_unit), uv_islands(sc.mesh, size)))
-    return _cached(("lit",) + bake_key(frame, size),
+    bake = _cached(("lit",) + bake_key(frame, size),
                    lambda: translucency_thickness(sc.mesh, size, sc.mm_per_unit, sc.lights, along_normal=normal,
                                                   islands=islands))
+    return bake, islands >= 0
 
 
 class ThicknessTexture:
     """One technique's copy of the bake; ``get`` rebuilds it when the frame's key or the size changes.
 
-    ``filtered=False``: rgba32f, nearest (tsd reads the far face's (u, v)). ``filtered=True``:
+    ``filtered=False``: rgba32f, nearest (tsd reads the far face's (u, v)); weight -1 where no
+    triangle covers the texel. ``filtered=True``:
     rg32f (thickness x valid, valid), bilinear, for techniques that read the thickness alone at a
     screen pixel (thickness = r / g where g > 0): nearest texels showed as blocks on a close-up ear."""
 
@@ -71,14 +73,15 @@ class ThicknessTexture:
         key = bake_key(frame, size)
         if key != self.key or self.tex is None:
             with frame.timer("thickness"):
-                bake = _bake(frame, size)
+                bake, covered = _bake(frame, size)
                 self.release()
                 if self.filtered:
                     data = np.stack([bake[..., 2] * bake[..., 3], bake[..., 3]], -1)
                     self.tex = self.ctx.texture((size, size), 2, dtype="f4")
                     self.tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
-                else:
-                    data = bake
+                else:  # uncovered texels: weight -1 (tsd/translucency.frag blends the covered neighbours)
+                    data = bake.copy()
+                    data[~covered, 3] = -1.0
                     self.tex = self.ctx.texture((size, size), 4, dtype="f4")
                     self.tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
                 self.tex.repeat_x = self.tex.repeat_y = False
