@@ -142,7 +142,9 @@ def slab_theory(cycles: bool = False):
 def against_cycles(npz, techniques):
     """The back-lit-ear region of `dermis validate --against cycles` (its region_masks and _score)
     against stored Cycles accumulations (a validate store, cycles_spec_64x64.npz: two seed streams),
-    per technique; "tsd-off" renders tsd without translucency."""
+    per technique; "tsd-off" renders tsd without translucency, "tsd-x1.5" with translucency_strength
+    1.5 (what Cycles' own random walk transmits through a back-lit slab over the thin-slab law, 1.35-1.53
+    at 0.5-5 mm in red: the medium mismatch, measured, not a setting)."""
     import os
 
     from dermis.blender.validate import _score, region_masks
@@ -162,6 +164,8 @@ def against_cycles(npz, techniques):
     for t in techniques:
         name, _, opt = t.partition("-")
         kw = {"tweak": (lambda r, n=name: r.technique(n, translucency=False))} if opt == "off" else {}
+        if opt.startswith("x"):  # e.g. tsd-x1.5: the light through thin parts scaled (Cycles' slab medium)
+            kw = {"tweak": (lambda r, n=name, f=float(opt[1:]): r.technique(n, translucency_strength=f))}
         img, _ = _render(sc, name, (w, h), **kw)
         m, _ = _score(sc, ref, img, skin, reg)
         e = m["regions"]["back_lit_ear"]

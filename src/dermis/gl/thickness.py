@@ -1,7 +1,9 @@
 """The texel thickness bake (dermis.geometry.thickness) as a texture in the mesh's texture-space
-layout: rgba32f, (u, v) of the far face, thickness in mm, valid; nearest filtering (a far face's
-(u, v) must not be blended across islands). Built once per product key "thickness"
-(dermis.invalidation: mesh, scale, irradiance size)."""
+layout: rgba32f, (u, v) of the far face, thickness in mm, weight; nearest filtering (a far face's
+(u, v) must not be blended across islands). The ray cast along -N is done once per product key
+"thickness" (dermis.invalidation: mesh, scale, irradiance size); where it finds no far face the
+key light's path completes it, and the two are smoothed (geometry.thickness.translucency_thickness),
+once per bake_key (the same and the key light's geometry)."""
 
 from __future__ import annotations
 
@@ -13,16 +15,13 @@ import numpy as np
 # CPU bakes by (product key "thickness", size): techniques that read the bake at the same size
 # (ssss and preintegrated, at half the irradiance size) share one ray cast instead of one each
 _BAKES: OrderedDict = OrderedDict()
-_MAX_BAKES = 4
+_MAX_BAKES = 6
 
 
-def _bake(frame, size: int) -> np.ndarray:
-    from dermis.geometry.thickness import texel_thickness
-
-    key = (frame.keys["thickness"], int(size))
+def _cached(key, make):
     bake = _BAKES.get(key)
     if bake is None:
-        bake = texel_thickness(frame.scene.mesh, size, frame.scene.mm_per_unit)
+        bake = make()
         _BAKES[key] = bake
         while len(_BAKES) > _MAX_BAKES:
             _BAKES.popitem(last=False)
@@ -31,10 +30,35 @@ def _bake(frame, size: int) -> np.ndarray:
     return bake
 
 
+def bake_key(frame, size: int) -> tuple:
+    """What the bake depends on: the product key "thickness" (mesh, scale, irradiance size), the size,
+    and the key light's geometry (its colour and intensity only matter through which light is key)."""
+    from dermis.geometry.thickness import key_light
+    from dermis.invalidation import light_geometry
+
+    L = key_light(frame.scene.lights)
+    return frame.keys["thickness"], int(size), None if L is None else light_geometry(L)
+
+
+def _bake(frame, size: int) -> np.ndarray:
+    """The bake along -N and the UV islands (per mesh), completed along the key light and smoothed
+    (per key light geometry)."""
+    from dermis.geometry.thickness import texel_thickness, translucency_thickness, uv_islands
+
+    sc = frame.scene
+    normal, islands = _cached(("normal", frame.keys["thickness"], int(size)),
+                              lambda: (texel_thickness(sc.mesh, size, sc.mm_per_unit), uv_islands(sc.mesh, size)))
+    bake = _cached(("lit",) + bake_key(frame, size),
+                   lambda: translucency_thickness(sc.mesh, size, sc.mm_per_unit, sc.lights, along_normal=normal,
+                                                  islands=islands))
+    return bake, islands >= 0
+
+
 class ThicknessTexture:
     """One technique's copy of the bake; ``get`` rebuilds it when the frame's key or the size changes.
 
-    ``filtered=False``: rgba32f, nearest (tsd reads the far face's (u, v)). ``filtered=True``:
+    ``filtered=False``: rgba32f, nearest (tsd reads the far face's (u, v)); weight -1 where no
+    triangle covers the texel. ``filtered=True``:
     rg32f (thickness x valid, valid), bilinear, for techniques that read the thickness alone at a
     screen pixel (thickness = r / g where g > 0): nearest texels showed as blocks on a close-up ear."""
 
@@ -46,17 +70,18 @@ class ThicknessTexture:
 
     def get(self, frame, size: int):
         """The texture for ``frame`` at size x size; appends "thickness" to frame.passes_run when baked."""
-        key = (frame.keys["thickness"], int(size))
+        key = bake_key(frame, size)
         if key != self.key or self.tex is None:
             with frame.timer("thickness"):
-                bake = _bake(frame, size)
+                bake, covered = _bake(frame, size)
                 self.release()
                 if self.filtered:
                     data = np.stack([bake[..., 2] * bake[..., 3], bake[..., 3]], -1)
                     self.tex = self.ctx.texture((size, size), 2, dtype="f4")
                     self.tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
-                else:
-                    data = bake
+                else:  # uncovered texels: weight -1 (tsd/translucency.frag blends the covered neighbours)
+                    data = bake.copy()
+                    data[~covered, 3] = -1.0
                     self.tex = self.ctx.texture((size, size), 4, dtype="f4")
                     self.tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
                 self.tex.repeat_x = self.tex.repeat_y = False

@@ -35,6 +35,9 @@ vec3 transmittance_profile(float d_mm) {
 // TSM's texels in the back-lit helix (768 px, preintegrated). Every quantity here is continuous:
 // h and its coverage are bilinear in texture space, the cosine and the PCF shadow are smooth.
 // Near the terminator of a thick part, h is centimetres (T(h) = 0): no lines there either.
+// Where -N finds no far face the bake holds the key light's path through a slab instead
+// (geometry/thickness.py: light_thickness, weighted by how antiparallel its faces are): for a slab
+// its thickness is the same h and A = P - h Ng lies on the same far face.
 // A's shadow is looked up 0.5 mm towards the light (A lies on the surface only within the
 // bake's ray-median accuracy and must not shadow itself); occluders centimetres away (the head
 // behind an ear) still shadow it.

@@ -8,7 +8,10 @@
 // the slab's Monte Carlo): exact for a uniformly lit slab whatever the light's direction, and
 // shadowed as the far face is.
 //
-// Why not the TSM's distance along the light: an ear nearly edge-on to the light has a path along
+// Where -N finds no far face (concha, antihelix edge-on) the bake takes the far face along the key
+// light (the TSM's distance, by ray casting) where the two faces form a slab, with a weight; the
+// bake is smoothed within UV islands (geometry/thickness.py: translucency_thickness).
+// Why not the TSM's distance along the light everywhere: an ear nearly edge-on to the light has a path along
 // the light many times its thickness, so exp(-t^2 / 2v) left only a faint rim (back-ears); the
 // light spreads through the ear's thickness, not along the light. And a texel just past the
 // terminator of a thick part (nose, jaw) has its own neighbour as the TSM's entry point (t -> 0),
@@ -28,30 +31,52 @@
 uniform float uTranslucencyMinVariance;
 uniform float uTranslucencyStrength;
 uniform sampler2D uStretch;    // texels per mm along u, v (tsd/stretch.frag)
-uniform sampler2D uThickness;  // (u, v) of the far face, thickness in mm, valid (geometry/thickness.py)
+uniform sampler2D uThickness;  // (u, v) of the far face, thickness in mm, weight (geometry/thickness.py)
 out vec4 f_translucency;
 
-void main() {
-    vec4 th = texelFetch(uThickness, ivec2(gl_FragCoord.xy), 0);
+// The light through the tissue to this texel (texture-space uv) from the far face that the bake
+// holds in th (its (u, v), thickness, weight), over the bake's weight.
+vec3 through_far_face(vec4 th, vec2 uv, vec3 wide) {
+    vec2 stretch = max(texture(uStretch, uv).xy, vec2(1e-6));
+    vec2 texels = (th.xy - uv) * vec2(textureSize(uStretch, 0));
+    float g = length(texels / stretch);  // mm along the surface from A to B
+    vec3 through = slab_transmittance(th.z) / max(wide, vec3(1e-6));  // per unit of the wide weights
     vec3 T = vec3(0.0);
-    if (th.w > 0.5) {
-        vec2 uv = gl_FragCoord.xy / vec2(textureSize(uThickness, 0));  // this texel's texture-space uv
-        float d = th.z;
-        vec2 stretch = max(texture(uStretch, uv).xy, vec2(1e-6));
-        vec2 texels = (th.xy - uv) * vec2(textureSize(uStretch, 0));
-        float g = length(texels / stretch);  // mm along the surface from A to B
-        vec3 wide = vec3(0.0);
-        for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-            if (k >= uGaussianCount) break;
-            if (uVariances[k] >= uTranslucencyMinVariance) wide += uWeights[k];
-        }
-        vec3 through = slab_transmittance(d) / max(wide, vec3(1e-6));  // per unit of the wide weights
-        for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-            if (k >= uGaussianCount) break;
-            if (uVariances[k] < uTranslucencyMinVariance) continue;
-            vec3 excess = max(through - exp(-g * g / (2.0 * uVariances[k])), vec3(0.0));
-            T += excess * uWeights[k] * blurred_irradiance(k, th.xy);
+    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+        if (k >= uGaussianCount) break;
+        if (uVariances[k] < uTranslucencyMinVariance) continue;
+        vec3 excess = max(through - exp(-g * g / (2.0 * uVariances[k])), vec3(0.0));
+        T += excess * uWeights[k] * blurred_irradiance(k, th.xy);
+    }
+    return T;
+}
+
+// The far faces of the texel and its 8 neighbours, blended with the tent (1 2 1)^2 over the
+// covered ones (w >= 0; gl/thickness.py marks uncovered texels w = -1): where the far face jumps
+// between neighbouring texels (the helix: lit for one, shadowed or centimetres away for the next)
+// the light through them changes over three texels, not one. A uniform region is unchanged.
+void main() {
+    ivec2 c = ivec2(gl_FragCoord.xy);
+    ivec2 last = textureSize(uThickness, 0) - 1;
+    vec2 uv = gl_FragCoord.xy / vec2(textureSize(uThickness, 0));  // this texel's texture-space uv
+    vec3 wide = vec3(0.0);
+    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+        if (k >= uGaussianCount) break;
+        if (uVariances[k] >= uTranslucencyMinVariance) wide += uWeights[k];
+    }
+    vec3 T = vec3(0.0);
+    float covered = 0.0;
+    if (texelFetch(uThickness, c, 0).w >= 0.0) {
+        for (int dy = -1; dy <= 1; ++dy) {
+            for (int dx = -1; dx <= 1; ++dx) {
+                vec4 th = texelFetch(uThickness, clamp(c + ivec2(dx, dy), ivec2(0), last), 0);
+                float tent = float((2 - abs(dx)) * (2 - abs(dy)));
+                if (th.w < 0.0) continue;  // not covered: no weight
+                covered += tent;
+                // w: the bake's weight (smoothed validity; the light path's slab test)
+                if (th.w > 0.0) T += (tent * th.w) * through_far_face(th, uv, wide);
+            }
         }
     }
-    f_translucency = vec4(T * uTranslucencyStrength, 1.0);
+    f_translucency = vec4(T * (uTranslucencyStrength / max(covered, 1.0)), 1.0);
 }
