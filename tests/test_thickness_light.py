@@ -130,10 +130,19 @@ def test_uv_islands_of_a_box():
 
 def test_the_bake_follows_the_key_light_direction_not_its_intensity(gl_ctx):
     """The path along the light is re-baked when the key light turns (and the image is a fresh
-    renderer's), not when only its intensity changes (the bake does not depend on it)."""
+    renderer's), not when only its intensity changes (the bake does not depend on it); without the
+    scene's translucency_light_path (the default) a turn does not re-bake either."""
     from dermis.renderer import Renderer
 
     sc = backlit_slab_scene(2.0, n=8)
+    assert sc.translucency_light_path is False
+    with Renderer(sc, (32, 32), irradiance_size=128, ctx=gl_ctx, samples=0) as r:
+        r.render("tsd", output_mode=1)
+        sc.lights[0].direction = (0.3, 0.0, 0.95)
+        r.render("tsd", output_mode=1)
+        assert "thickness" not in r.stats["passes_run"]
+    sc.lights[0].direction = backlit_slab_scene(2.0, n=8).lights[0].direction
+    sc.translucency_light_path = True
     with Renderer(sc, (32, 32), irradiance_size=128, ctx=gl_ctx, samples=0) as r:
         r.render("tsd", output_mode=1)
         sc.lights[0].intensity = 2.0
@@ -145,3 +154,20 @@ def test_the_bake_follows_the_key_light_direction_not_its_intensity(gl_ctx):
     with Renderer(sc, (32, 32), irradiance_size=128, ctx=gl_ctx, samples=0) as fresh:
         b = fresh.render("tsd", output_mode=1)
     np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6)
+
+
+def test_scene_key_translucency_light_path(tmp_path):
+    """[scene] translucency_light_path: off by default, true turns it on, a non-bool is a one-line
+    error naming the key."""
+    import dermis
+    from dermis.errors import DermisError
+
+    def scene(extra):
+        p = tmp_path / "s.toml"
+        p.write_text(f'[scene]\nmm_per_unit = 48.0\n{extra}\n[mesh]\nbuiltin = "plane"\n')
+        return p
+
+    assert dermis.load_scene(scene("")).translucency_light_path is False
+    assert dermis.load_scene(scene("translucency_light_path = true")).translucency_light_path is True
+    with pytest.raises(DermisError, match=r"\[scene\] translucency_light_path"):
+        dermis.load_scene(scene('translucency_light_path = "yes"'))

@@ -25,6 +25,7 @@ def test_example_head_translucency_has_no_terminator_lines(example_head_toml, gl
     from dermis.techniques.shared import thin_slab_law
 
     sc = dermis.load_scene(example_head_toml)
+    sc.translucency_light_path = True  # the riskier bake: the key light's path completes the -N one
     with Renderer(sc, (256, 256), irradiance_size=1024, ctx=gl_ctx, samples=0) as r:
         r.render("tsd")
         t = r.debug_buffers("tsd")["translucency"][:, :, :3]

@@ -358,6 +358,9 @@ def check_scene(scene, full: bool = True):
         raise DermisError(f"{src}: [material] double_sided must be true or false, got {m.double_sided!r}")
     if getattr(scene, "interreflection", True) not in (True, False):
         raise DermisError(f"{src}: [scene] interreflection must be true or false, got {scene.interreflection!r}")
+    if getattr(scene, "translucency_light_path", False) not in (True, False):
+        raise DermisError(f"{src}: [scene] translucency_light_path must be true or false, "
+                          f"got {scene.translucency_light_path!r}")
     for i, L in enumerate(scene.lights):
         _check_light(L, f"{src}: [[lights]] #{i + 1}")
     check_camera(scene.camera, f"{src}: [camera]", (lo + hi) / 2, diag / 2)

@@ -139,6 +139,10 @@ def light_thickness(mesh, size: int, mm_per_unit: float, light, where=None) -> n
         return out
     L = _light_directions(light, p)
     cos_p = -np.einsum("nc,nc->n", n, L)  # > 0: the texel faces away from the light
+    away = cos_p > 0.0  # only those can be lit through the tissue: the others cast no ray
+    cov, p, n, L, cos_p = cov[away], p[away], n[away], L[away], cos_p[away]
+    if len(cov) == 0:
+        return out
     th, htri, hb = RayCaster(pos, idx).closest_hit(p, L, START_MM / mm_per_unit, MAX_THICKNESS_MM / mm_per_unit)
     hit = htri >= 0
     hw = np.c_[1.0 - hb.sum(1), hb]
@@ -226,12 +230,14 @@ def smooth_thickness(bake: np.ndarray, islands: np.ndarray) -> np.ndarray:
 
 
 def translucency_thickness(mesh, size: int, mm_per_unit: float, lights, along_normal=None,
-                           islands=None) -> np.ndarray:
+                           islands=None, light_path: bool = True) -> np.ndarray:
     """What the techniques read (gl/thickness.py): the bake along -N (``along_normal``, else
     texel_thickness), where it has no far face the bake along the key light (light_thickness), the
     two smoothed within each UV island (smooth_thickness; ``islands``, else uv_islands). (size, size,
-    4) float32: (u, v) of the far face, thickness in mm, weight in [0, 1]."""
+    4) float32: (u, v) of the far face, thickness in mm, weight in [0, 1]. ``light_path=False``
+    (the scene's ``translucency_light_path``): the bake along -N alone, smoothed."""
     b = texel_thickness(mesh, size, mm_per_unit) if along_normal is None else along_normal
-    lt = light_thickness(mesh, size, mm_per_unit, key_light(lights), where=b[..., 3] <= 0.0)
-    b = np.where((lt[..., 3] > 0.0)[..., None], lt, b)
+    if light_path:
+        lt = light_thickness(mesh, size, mm_per_unit, key_light(lights), where=b[..., 3] <= 0.0)
+        b = np.where((lt[..., 3] > 0.0)[..., None], lt, b)
     return smooth_thickness(b, uv_islands(mesh, size) if islands is None else islands)

@@ -32,25 +32,29 @@ def _cached(key, make):
 
 def bake_key(frame, size: int) -> tuple:
     """What the bake depends on: the product key "thickness" (mesh, scale, irradiance size), the size,
-    and the key light's geometry (its colour and intensity only matter through which light is key)."""
+    and, with the scene's ``translucency_light_path``, the key light's geometry (its colour and
+    intensity only matter through which light is key)."""
     from dermis.geometry.thickness import key_light
     from dermis.invalidation import light_geometry
 
+    if not getattr(frame.scene, "translucency_light_path", False):
+        return frame.keys["thickness"], int(size), "along -N"  # no light in it: baked once per mesh
     L = key_light(frame.scene.lights)
     return frame.keys["thickness"], int(size), None if L is None else light_geometry(L)
 
 
 def _bake(frame, size: int) -> np.ndarray:
-    """The bake along -N and the UV islands (per mesh), completed along the key light and smoothed
-    (per key light geometry)."""
+    """The bake along -N and the UV islands (per mesh), completed along the key light where the scene
+    asks for it (per key light geometry), smoothed."""
     from dermis.geometry.thickness import texel_thickness, translucency_thickness, uv_islands
 
     sc = frame.scene
+    light_path = bool(getattr(sc, "translucency_light_path", False))
     normal, islands = _cached(("normal", frame.keys["thickness"], int(size)),
                               lambda: (texel_thickness(sc.mesh, size, sc.mm_per_unit), uv_islands(sc.mesh, size)))
     bake = _cached(("lit",) + bake_key(frame, size),
                    lambda: translucency_thickness(sc.mesh, size, sc.mm_per_unit, sc.lights, along_normal=normal,
-                                                  islands=islands))
+                                                  islands=islands, light_path=light_path))
     return bake, islands >= 0
 
 

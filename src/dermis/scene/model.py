@@ -257,6 +257,10 @@ class Scene:
     surfaces: list = field(default_factory=list)  # Surface: the non-skin primitives (glTF metallic-roughness)
     # one diffuse bounce of light between skin surfaces (tsd only: dermis.geometry.interreflection)
     interreflection: bool = True
+    # the key light's path through thin parts where the bake along -N finds no far face
+    # (dermis.geometry.thickness.light_thickness): a CPU ray cast per key-light turn (about 1-2 s at
+    # irradiance 1024 on 2 llvmpipe cores), so off unless asked for (the viewer's light drag)
+    translucency_light_path: bool = False
 
     def bounds(self):
         """Bounds of everything drawn: the skin mesh and the non-skin surfaces."""

@@ -24,7 +24,8 @@ from dermis.validation import check_exposure, check_scene
 
 # key -> expected python type(s); lists of numbers are checked for length
 _SCHEMA = {
-    "scene": {"name": str, "mm_per_unit": float, "technique": str, "interreflection": bool},
+    "scene": {"name": str, "mm_per_unit": float, "technique": str, "interreflection": bool,
+              "translucency_light_path": bool},
     "mesh": {"file": str, "builtin": str, "uv_convention": str, "texture_space_uv": str},
     "material": {"albedo": str, "albedo_color": "rgb", "normal_map": str, "normal_strength": float,
                  "specular_map": str, "roughness": float, "roughness_map": str, "rho_s": float, "specular_map_bias": float,
@@ -200,7 +201,8 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
     scene = Scene(mesh=mesh, material=mat, lights=lights, camera=cam, environment=env, output=out,
                   mm_per_unit=mm_per_unit, profile=profile, skin_color=skin_color, technique=technique, source=str(path),
                   name=sc.get("name", path.stem), surfaces=list(material_from_file.get("surfaces", [])),
-                  interreflection=sc.get("interreflection", True))
+                  interreflection=sc.get("interreflection", True),
+                  translucency_light_path=sc.get("translucency_light_path", False))
     if not lights_t and not doc.get("camera"):
         from dermis.scene.builtin import frame_scene
 
