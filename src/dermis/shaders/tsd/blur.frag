@@ -22,8 +22,9 @@
 // c = 0.5 (tests/test_shadow_edge_rim.py). So the V pass steps along w = (k, 1) texels,
 // k = -c |P_v| / |P_u|, whose surface vector P_v + k P_u is orthogonal to P_u and |P_v| sqrt(1 - c^2)
 // long: U and V are then orthogonal on the surface and the kernel is sigma^2 I. Taps at fractional
-// u are read linearly between the two texels (texelFetch: no reliance on the sampler's filter); a
-// linear read at fraction t spreads the tap by t (1 - t) texel^2 along u, which the U pass (drawn
+// u are rounded to the nearest texel: one fetch, and a tap moved by d = u - round(u) spreads the
+// kernel by its weighted d^2 along u (at most 1/4 texel^2, 1/12 on average; a linear read between the
+// two texels would cost two fetches and spread t (1 - t), twice that), which the U pass (drawn
 // first, told the V pass's sigma) takes off its own variance.
 //
 // Premultiplied data (rgb = colour x coverage, a = coverage): the normalised convolution over
@@ -59,13 +60,12 @@ float erf_as(float x) {
 #endif
 
 ivec2 imax;
-// the source at ip + j (skew, 1) along V (u read linearly between its two texels), ip + j (1, 0) along U
+// the source at ip + j (skew, 1) along V, u rounded to the nearest texel (one fetch; the rounding's
+// spread along u is taken off by the U pass), ip + j (1, 0) along U
 vec4 tap(ivec2 ip, ivec2 dir, float skew, int j) {
-    if (skew == 0.0) return texelFetch(uSource, clamp(ip + dir * j, ivec2(0), imax), 0);
-    float u = skew * float(j);
-    float f = floor(u);
-    ivec2 a = ip + ivec2(int(f), dir.y * j);
-    return mix(texelFetch(uSource, clamp(a, ivec2(0), imax), 0), texelFetch(uSource, clamp(a + ivec2(1, 0), ivec2(0), imax), 0), u - f);
+    ivec2 o = dir * j;
+    o.x += int(floor(skew * float(j) + 0.5));  // the same rounding as the U pass's account of it
+    return texelFetch(uSource, clamp(ip + o, ivec2(0), imax), 0);
 }
 
 void main() {
@@ -79,18 +79,19 @@ void main() {
     float skew = -c * st.x / max(st.y, 1e-9);  // texels of u per texel of v
     float sigma = uSigmaMm * dot(st.xy, uDirection) * uLevelScale / sqrt(1.0 - c * c);  // texels of this level
     if (uDirection.x > 0.5 && cz != 0.0) {
-        // the V pass's taps (its sampled-Gaussian weights) and the mean t (1 - t) of their linear reads
+        // the V pass's taps (its sampled-Gaussian weights) and the weighted d^2 of their rounding along u
         float sv = uSigmaOtherMm * st.y * uLevelScale / sqrt(1.0 - cz * cz);
         if (sv >= 0.02) {
             float sv_step = max(1.0, ceil(REACH * sv / float(TAPS)));
             float k = -cz * st.x / max(st.y, 1e-9) * sv_step;
             float Wv = 1.0, Ev = 0.0;
+            float gv = exp(-0.5 * sv_step * sv_step / (sv * sv)), gv2 = gv * gv, wv = 1.0, qv = gv;
             for (int j = 1; j <= TAPS; ++j) {
-                float x = float(j) * sv_step;
-                float wv = exp(-0.5 * x * x / (sv * sv));
-                float t = fract(k * float(j));
+                wv *= qv;  // exp(-x_j^2 / 2 sv^2) by recurrence, as below
+                qv *= gv2;
+                float d = k * float(j) - floor(k * float(j) + 0.5);
                 Wv += 2.0 * wv;
-                Ev += 2.0 * wv * t * (1.0 - t);
+                Ev += 2.0 * wv * d * d;
             }
             sigma = sqrt(max(sigma * sigma - Ev / Wv, 0.0));
         }
