@@ -80,7 +80,7 @@ def test_shadow_edge_is_the_profiles_step_response(gl_ctx, shear):
     Sheared layout (shear 0.6: u and v at cos 0.51 on the surface): before round 6 the V pass
     stepped along v itself, the kernel had 1.26x the profile's variance across this edge, red 1 and
     2 mm into the shadow was 1.11x and 1.24x the profile's and the error 1.8 / 1.9 / 1.4% (fails);
-    now V steps orthogonally to u on the surface (tsd/blur.frag): 0.5 / 0.7 / 0.6%, 1.01x and 1.02x."""
+    now V steps orthogonally to u on the surface (tsd/blur.frag): 0.5 / 0.6 / 0.6%, 1.01x and 1.02x."""
     sc, x_edge_mm = _edge_scene(shear)
     with Renderer(sc, (W, H), ctx=gl_ctx, samples=0, irradiance_size=1024, shadow_size=4096) as r:
         lam = r.render("lambert")
