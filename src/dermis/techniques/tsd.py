@@ -402,9 +402,12 @@ class TextureSpaceDiffusion(Technique):
         out = self._texture(out_key, size)
         prog = self._blur_program(max(sigma_u, sigma_v), level, footprint, max_taps)
         common = {"uLevelScale": float(2.0 ** -level)}
-        return out, [self._pass(prog, tmp, {**common, "uSigmaMm": float(sigma_u), "uDirection": (1.0, 0.0)},
+        # the U pass is told the V pass's sigma: V steps orthogonally to u on the surface and its reads
+        # at fractional u add variance along u that U takes off (tsd/blur.frag)
+        return out, [self._pass(prog, tmp, {**common, "uSigmaMm": float(sigma_u), "uSigmaOtherMm": float(sigma_v),
+                                            "uDirection": (1.0, 0.0)},
                                 {"uStretch": (stretch, 1), "uSource": (src, 0)}),
-                     self._pass(prog, out, {**common, "uSigmaMm": float(sigma_v), "uDirection": (0.0, 1.0)},
+                     self._pass(prog, out, {**common, "uSigmaMm": float(sigma_v), "uSigmaOtherMm": 0.0, "uDirection": (0.0, 1.0)},
                                 {"uStretch": (stretch, 1), "uSource": (tmp, 0)})]
 
     def _narrow_ok(self, levels, steps):

@@ -15,15 +15,28 @@
 // the correction gives the 3-tap kernel of exactly that variance. Taps sit on texel centres at a
 // step of >= 1 texel (wider kernels space their taps; point samples need no Sheppard term).
 //
+// Non-orthogonal layouts: with P_u, P_v the surface vectors of one texel along u and v (cos c
+// between them), a U pass of sigma / |P_u| and a V pass of sigma / |P_v| texels give the kernel
+// sigma^2 (e_u e_u^T + e_v e_v^T) on the surface, whose variance across an edge runs from
+// sigma^2 (1 - |c|) to sigma^2 (1 + |c|): a red rim up to 26% too bright 2 mm into a shadow at
+// c = 0.5 (tests/test_shadow_edge_rim.py). So the V pass steps along w = (k, 1) texels,
+// k = -c |P_v| / |P_u|, whose surface vector P_v + k P_u is orthogonal to P_u and |P_v| sqrt(1 - c^2)
+// long: U and V are then orthogonal on the surface and the kernel is sigma^2 I. Taps at fractional
+// u are rounded to the nearest texel: one fetch, and a tap moved by d = u - round(u) spreads the
+// kernel by its weighted d^2 along u (at most 1/4 texel^2, 1/12 on average; a linear read between the
+// two texels would cost two fetches and spread t (1 - t), twice that), which the U pass (drawn
+// first, told the V pass's sigma) takes off its own variance.
+//
 // Premultiplied data (rgb = colour x coverage, a = coverage): the normalised convolution over
 // covered texels that hides seams (colour = sum w a c / sum w a) is then a plain linear filter of
 // (rgb, a), normalised only where it is read (tsd/gaussians.glsl). Gutters hold the nearest
 // island's colour at a small coverage (tsd/dilate.frag): they never darken an island's edge and
 // keep a colour where no island reaches.
 uniform sampler2D uSource;    // premultiplied rgb, a = coverage
-uniform sampler2D uStretch;   // xy = texels per mm along u, v at level 0
+uniform sampler2D uStretch;   // xy = texels per mm along u, v at level 0; z = cos(angle of u, v on the surface)
 uniform vec2 uDirection;      // (1, 0) = U pass, (0, 1) = V pass
 uniform float uSigmaMm;       // this step's standard deviation, mm
+uniform float uSigmaOtherMm;  // U pass: the V pass's sigma (mm), for the variance its skewed reads add along u
 uniform float uLevelScale;    // texels of this level per level-0 texel (2^-level)
 out vec4 f_color;
 
@@ -46,15 +59,47 @@ float erf_as(float x) {
 #define REACH 3.0
 #endif
 
+ivec2 imax;
+// the source at ip + j (skew, 1) along V, u rounded to the nearest texel (one fetch; the rounding's
+// spread along u is taken off by the U pass), ip + j (1, 0) along U
+vec4 tap(ivec2 ip, ivec2 dir, float skew, int j) {
+    ivec2 o = dir * j;
+    o.x += int(floor(skew * float(j) + 0.5));  // the same rounding as the U pass's account of it
+    return texelFetch(uSource, clamp(ip + o, ivec2(0), imax), 0);
+}
+
 void main() {
     ivec2 ip = ivec2(gl_FragCoord.xy);
-    ivec2 imax = textureSize(uSource, 0) - 1;
+    imax = textureSize(uSource, 0) - 1;
     vec4 center = texelFetch(uSource, ip, 0);
-    vec2 st = texelFetch(uStretch, min(ip, textureSize(uStretch, 0) - 1), 0).xy;
-    float sigma = uSigmaMm * dot(st, uDirection) * uLevelScale;  // texels of this level
+    vec3 st = texelFetch(uStretch, min(ip, textureSize(uStretch, 0) - 1), 0).xyz;
+    // V: along the direction orthogonal to u on the surface (see above); |c| <= 0.95 keeps it finite
+    float cz = clamp(st.z, -0.95, 0.95);
+    float c = uDirection.y > 0.5 ? cz : 0.0;
+    float skew = -c * st.x / max(st.y, 1e-9);  // texels of u per texel of v
+    float sigma = uSigmaMm * dot(st.xy, uDirection) * uLevelScale / sqrt(1.0 - c * c);  // texels of this level
+    if (uDirection.x > 0.5 && cz != 0.0) {
+        // the V pass's taps (its sampled-Gaussian weights) and the weighted d^2 of their rounding along u
+        float sv = uSigmaOtherMm * st.y * uLevelScale / sqrt(1.0 - cz * cz);
+        if (sv >= 0.02) {
+            float sv_step = max(1.0, ceil(REACH * sv / float(TAPS)));
+            float k = -cz * st.x / max(st.y, 1e-9) * sv_step;
+            float Wv = 1.0, Ev = 0.0;
+            float gv = exp(-0.5 * sv_step * sv_step / (sv * sv)), gv2 = gv * gv, wv = 1.0, qv = gv;
+            for (int j = 1; j <= TAPS; ++j) {
+                wv *= qv;  // exp(-x_j^2 / 2 sv^2) by recurrence, as below
+                qv *= gv2;
+                float d = k * float(j) - floor(k * float(j) + 0.5);
+                Wv += 2.0 * wv;
+                Ev += 2.0 * wv * d * d;
+            }
+            sigma = sqrt(max(sigma * sigma - Ev / Wv, 0.0));
+        }
+    }
     if (sigma < 0.02) { f_color = center; return; }
     float step_ = max(1.0, ceil(REACH * sigma / float(TAPS)));
     ivec2 dir = ivec2(uDirection) * int(step_);
+    skew *= step_;  // per step of dir
 #ifdef FOOTPRINT
     // bins of `step_` texels, the Gaussian integrated over each (Sheppard: bins of more than one
     // texel integrate sigma^2 - step^2 / 12 ... except the receiving texel's own, which is the point)
@@ -68,8 +113,7 @@ void main() {
         float e = j < TAPS ? erf_as((float(j) + 0.5) * step_ * inv) : 1.0;
         float w = j < n ? 0.5 * (e - edge) : (j == n ? 0.5 * (1.0 - edge) : 0.0);  // the tail folded in
         edge = e;
-        sum += w * (texelFetch(uSource, clamp(ip + dir * j, ivec2(0), imax), 0) +
-                    texelFetch(uSource, clamp(ip - dir * j, ivec2(0), imax), 0));
+        sum += w * (tap(ip, dir, skew, j) + tap(ip, dir, skew, -j));
     }
     f_color = sum;
 #else
@@ -85,8 +129,7 @@ void main() {
     for (int j = 1; j <= TAPS; ++j) {
         w *= q;
         q *= g2;
-        vec4 ab = texelFetch(uSource, clamp(ip + dir * j, ivec2(0), imax), 0) +
-                  texelFetch(uSource, clamp(ip - dir * j, ivec2(0), imax), 0);
+        vec4 ab = tap(ip, dir, skew, j) + tap(ip, dir, skew, -j);
         float x = float(j) * step_;
         sum += w * ab;
         W += 2.0 * w;
