@@ -165,7 +165,7 @@ def main(argv=None):
             res = {}
             for p in progs.values():
                 bind_sampler(p, "uTranslucency", t.tex["translucency"], Unit.FIRST_FREE)
-                t._profile_uniforms(p, sc.profile, Unit.FIRST_FREE + 1)
+                t._profile_uniforms(p, sc.profile, Unit.FIRST_FREE + 1, frame.keys)
                 surface_detail_uniforms(p, sc.material)
             for aniso in (8.0, 1.0):
                 set_anisotropy(r, aniso)

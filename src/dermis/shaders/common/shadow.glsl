@@ -77,28 +77,53 @@ float shadow_sharp(int i, vec3 P, vec3 N) {
     return shadow_tap(i, c.xy, c.z - length(dz) * uShadowParams[i].w);
 }
 
-// Soft shadow: percentage-closer filtering over a disc of uShadowParams.x texels (Reeves 1987),
-// 16 Poisson taps, each a hardware 2x2 compare, each against the receiver plane's depth. The
-// points reach |p| = 1.23 (mean |p|^2 0.854): the kernel is a uniform disc of about 1.31 x the
-// radius (tests/test_shadow_pcf.py: the penumbra across an edge within 0.02 of that disc's).
-// No early out: on llvmpipe a branch runs both sides under a mask whenever one lane of a SIMD
-// block takes it, and 9 probe taps before the 16 (skipped only where all 9 agree) measured 1459
-// ms against 1059 without (tsd irradiance 512^2, load 9; benchmarks/shadow_pcf_cost.py).
-const int PCF_TAPS = 16;
-const vec2 POISSON16[16] = vec2[](
-    vec2(-0.94201624, -0.39906216), vec2(0.94558609, -0.76890725), vec2(-0.09418410, -0.92938870),
-    vec2(0.34495938, 0.29387760), vec2(-0.91588581, 0.45771432), vec2(-0.81544232, -0.87912464),
-    vec2(-0.38277543, 0.27676845), vec2(0.97484398, 0.75648379), vec2(0.44323325, -0.97511554),
-    vec2(0.53742981, -0.47373420), vec2(-0.26496911, -0.41893023), vec2(0.79197514, 0.19090188),
-    vec2(-0.24188840, 0.99706507), vec2(-0.81409955, 0.91437590), vec2(0.19984126, 0.78641367),
-    vec2(0.14383161, -0.14100790));
+// Soft shadow: percentage-closer filtering (Reeves 1987) with a disc of PCF_DISC_SCALE x
+// uShadowParams.x texels, each point of it a bilinear compare: the penumbra across a straight edge
+// is that disc's (tests/test_shadow_pcf.py, closed form). Rounds 1-5 took 16 Poisson taps (reaching
+// |p| = 1.23, mean |p|^2 0.854: a disc of 1.307 x the radius). Here the taps are exact on the map's
+// texel grid instead (Castano 2013, "Shadow mapping summary, part 1": "optimized PCF"): the filter
+// is a weighted sum over the texels it covers with a SEPARABLE weight w(tx) w(ty), so two adjacent
+// texels of each axis are one hardware bilinear-compare tap placed between them by their weights:
+// n x n taps cover 2n x 2n texels. The 1-D weight is the disc's own marginal, a semicircle of
+// radius r, integrated over each texel's cell (r^2 = R^2 + 1/3: the cell's variance 1/12 where the
+// bilinear tap's is 1/6); where a box of the same variance needs fewer taps (R >= ~2.7 texels) the
+// box. Against the disc filter (numpy, tests/test_shadow_pcf.py): max error 0.005-0.026 over edge
+// angles 0-45 degrees and R 1-3 texels, where the 16 Poisson taps were 0.014-0.072; 9 taps at the
+// default softness 1.5 (r = 2.04 texels), 16 at 3. The weights are the same for every fragment of
+// a light (uniform): no divergent branch (llvmpipe runs both sides of one whenever any lane takes
+// it: 9 early-out probes before 16 taps cost 1459 ms against 1059 without, benchmarks/shadow_pcf_cost.py).
+const float PCF_DISC_SCALE = 1.307;  // the Poisson set's disc: penumbrae as wide as rounds 1-5's
+const int PCF_MAX_AXIS_TAPS = 6;     // 36 taps at most: a box of up to 5.5 texels half-width (softness ~4.8)
+
+// antiderivative of the 1-D weight: a semicircle of radius r (kind 0) or a box of half-width r
+float pcf_weight_cdf(float x, float r, bool box) {
+    x = clamp(x, -r, r);
+    return box ? x : 0.5 * (x * sqrt(max(r * r - x * x, 0.0)) + r * r * asin(x / r));
+}
+
+// One axis: the bilinear taps' positions (texel units relative to the filter's centre, whose
+// texel-centre coordinate is pc) and weights for texels t0 .. t0 + 2 nt - 1.
+void pcf_axis(float pc, float r, bool box, int nt, out float pos[PCF_MAX_AXIS_TAPS], out float wt[PCF_MAX_AXIS_TAPS]) {
+    float t0 = floor(pc - r + 0.5);  // the texel whose cell [t - 0.5, t + 0.5) holds pc - r
+    float lo = pcf_weight_cdf(t0 - 0.5 - pc, r, box);
+    for (int k = 0; k < PCF_MAX_AXIS_TAPS; ++k) {
+        if (k >= nt) break;
+        float ta = t0 + float(2 * k);
+        float mid = pcf_weight_cdf(ta + 0.5 - pc, r, box);
+        float hi = pcf_weight_cdf(ta + 1.5 - pc, r, box);
+        float wa = mid - lo, wb = hi - mid;
+        wt[k] = wa + wb;
+        pos[k] = ta + wb / max(wa + wb, 1e-12) - pc;  // where bilinear filtering weighs ta, ta+1 as wa : wb
+        lo = hi;
+    }
+}
 
 // The soft shadow and, when want_width, the width (mm, on the surface) of the penumbra it lies in,
 // from the PCF taps themselves rather than from screen derivatives of s (which differ between
 // GPUs: coarse or fine, quad by quad; preintegrated on an H100 vs llvmpipe: back-ears red 3%
-// apart). The taps' values s_k at the map offsets delta_k give the least-squares gradient g of s
-// in map uv,
-//   g = C^-1 sum_k (s_k - mean s) delta_k,  C = sum_k (delta_k - mean delta)(delta_k - mean delta)^T,
+// apart). The taps' values s_k at the map offsets delta_k, weights W_k, give the weighted
+// least-squares gradient g of s in map uv,
+//   g = C^-1 sum_k W_k (s_k - mean s) delta_k,  C = sum_k W_k (delta_k - mean delta)(delta_k - mean delta)^T,
 // so s ramps across 1 / |g| of uv along g; the receiver's tangent plane (T of shadow_receiver)
 // maps that uv step back to the surface. width_mm = 1e30 where the taps agree (no ramp).
 float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
@@ -110,28 +135,42 @@ float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
     if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
     float texel = uShadowParams[i].w;
     float z = c.z - 2.0 * length(dz) * texel;  // the bilinear 2x2 footprint of each tap, and curvature
-    float radius = uShadowParams[i].x * texel;
-    if (radius <= 0.0) return shadow_tap(i, c.xy, z);
-    float sum = 0.0;
-    vec2 sd = vec2(0.0);
-    for (int k = 0; k < PCF_TAPS; ++k) {
-        vec2 delta = POISSON16[k] * radius;
-        float s = shadow_tap(i, c.xy + delta, z + dot(dz, delta));
-        sum += s;
-        sd += s * delta;
-    }
-    float s_mean = sum / float(PCF_TAPS);
-    if (!want_width) return s_mean;
-    vec2 d_mean = vec2(0.0);
+    float R = PCF_DISC_SCALE * uShadowParams[i].x;  // the disc's radius, texels
+    if (R <= 0.0) return shadow_tap(i, c.xy, z);
+    // per light (uniform): the semicircle, or the box of the same variance where it needs fewer taps
+    float r_semi = sqrt(R * R + 1.0 / 3.0);
+    float r_box = 0.5 * sqrt(3.0 * R * R + 1.0);
+    bool box = floor(r_box + 0.5) < floor(r_semi + 0.5);
+    float r = min(box ? r_box : r_semi, float(PCF_MAX_AXIS_TAPS) - 0.51);  // beyond: a narrower box
+    int nt = int(floor(r + 0.5)) + 1;  // 2 nt texels hold any interval of 2 r + 1 cells
+    vec2 pc = c.xy / texel - 0.5;  // texel-centre coordinates in the tile
+    float px[PCF_MAX_AXIS_TAPS], wx[PCF_MAX_AXIS_TAPS], py[PCF_MAX_AXIS_TAPS], wy[PCF_MAX_AXIS_TAPS];
+    pcf_axis(pc.x, r, box, nt, px, wx);
+    pcf_axis(pc.y, r, box, nt, py, wy);
+    float sum = 0.0, wsum = 0.0;
+    vec2 sd = vec2(0.0), dsum = vec2(0.0);
     mat2 C = mat2(0.0);
-    for (int k = 0; k < PCF_TAPS; ++k) {
-        vec2 delta = POISSON16[k] * radius;
-        d_mean += delta;
-        C += outerProduct(delta, delta);
+    for (int ky = 0; ky < PCF_MAX_AXIS_TAPS; ++ky) {
+        if (ky >= nt) break;
+        for (int kx = 0; kx < PCF_MAX_AXIS_TAPS; ++kx) {
+            if (kx >= nt) break;
+            vec2 delta = vec2(px[kx], py[ky]) * texel;
+            float w = wx[kx] * wy[ky];
+            float s = shadow_tap(i, c.xy + delta, z + dot(dz, delta));
+            sum += w * s;
+            wsum += w;
+            if (want_width) {
+                sd += w * s * delta;
+                dsum += w * delta;
+                C += w * outerProduct(delta, delta);
+            }
+        }
     }
-    d_mean /= float(PCF_TAPS);
-    C -= float(PCF_TAPS) * outerProduct(d_mean, d_mean);
-    vec2 g = inverse(C) * (sd - float(PCF_TAPS) * s_mean * d_mean);  // ds per map uv
+    float s_mean = sum / wsum;
+    if (!want_width) return s_mean;
+    vec2 d_mean = dsum / wsum;
+    C -= wsum * outerProduct(d_mean, d_mean);
+    vec2 g = inverse(C) * (sd - wsum * s_mean * d_mean);  // ds per map uv
     float gl = length(g);
     if (gl <= 1e-6) return s_mean;
     // the tangent-plane step a whose map projection is (1 / |g|) along g: T a = step
