@@ -75,7 +75,7 @@ def _disc_step_profile(p, c0, radius, n=400):
     return np.clip(np.asarray(p)[:, None] + d[None, :] - c0, 0.0, 1.0).mean(axis=1)
 
 
-@pytest.mark.parametrize("R", [1.5, 3.0])  # 3.0: the box weights (shadow.glsl picks them from ~2.7 texels)
+@pytest.mark.parametrize("R", [1.5, 2.0])  # 2.0: the box weights (shadow.glsl picks them from ~1.7 texels)
 def test_penumbra_across_a_straight_edge_matches_the_disc_filter(gl_ctx, R):
     """A half-plane occluder (x < 0, height g) over a receiver plane under a directional light
     tilted 35 degrees: the shadow edge lies at x = g tan(35 deg); its penumbra, read along the map
@@ -140,27 +140,33 @@ def test_penumbra_across_a_straight_edge_matches_the_disc_filter(gl_ctx, R):
 
 # --- the separable texel-grid weights of common/shadow.glsl, in numpy (no GL) ---
 
-def _pcf_weight_cdf(x, r, box):
-    x = np.clip(x, -r, r)
-    return x if box else 0.5 * (x * np.sqrt(np.maximum(r * r - x * x, 0.0)) + r * r * np.arcsin(x / r))
+def _pcf_weight_cdf(x, a, box):
+    x = np.clip(x, -a, a)
+    return x if box else x - x ** 3 / (3.0 * a * a)
+
+
+PCF_GRID = 3  # shadow.glsl: taps per axis
 
 
 def _pcf_kernel(R):
-    """shadow.glsl's choice for a softness of R texels: (r, box, taps per axis)."""
+    """shadow.glsl's choice for a softness of R texels: (half-width in cells, box, stride in texels)."""
     Rd = PCF_DISC_SCALE * R
-    r_semi, r_box = np.sqrt(Rd * Rd + 1.0 / 3.0), 0.5 * np.sqrt(3.0 * Rd * Rd + 1.0)
-    box = np.floor(r_box + 0.5) < np.floor(r_semi + 0.5)
-    r = min(r_box if box else r_semi, 6 - 0.51)
-    return r, box, int(np.floor(r + 0.5)) + 1
+    a_par, a_box = np.sqrt(5.0 * (0.25 * Rd * Rd + 1.0 / 12.0)), 0.5 * np.sqrt(3.0 * Rd * Rd + 1.0)
+    fit = PCF_GRID - 0.51
+    box = a_par >= fit
+    a = a_box if box else a_par
+    stride = max(a / fit, 1.0)
+    return a / stride, box, stride
 
 
-def _pcf_axis(pc, r, box, nt):
-    """pcf_axis of shadow.glsl: bilinear tap positions (texels from pc) and weights."""
-    t0 = np.floor(pc - r + 0.5)
-    ta = t0 + 2.0 * np.arange(nt)
-    lo, mid, hi = (_pcf_weight_cdf(ta + o - pc, r, box) for o in (-0.5, 0.5, 1.5))
-    wa, wb = mid - lo, hi - mid
-    return ta + wb / np.maximum(wa + wb, 1e-12) - pc, wa + wb
+def _pcf_axis(pc, a, box, stride=1.0):
+    """pcf_grid's axis in shadow.glsl: bilinear tap positions (texels from pc, pc in texel-centre
+    coordinates) and weights."""
+    v = pc / stride
+    t0 = np.floor(v - a + 0.5)
+    ta = t0 + 2.0 * np.arange(PCF_GRID)
+    lo, mid, hi = (_pcf_weight_cdf(ta + o - v, a, box) for o in (-0.5, 0.5, 1.5))
+    return (ta + (hi - mid) / np.maximum(hi - lo, 1e-12) - v) * stride, hi - lo
 
 
 def _bilinear_compare(q, lit):
@@ -175,31 +181,32 @@ def _bilinear_compare(q, lit):
 
 
 def _pcf(p, R, lit):
-    r, box, nt = _pcf_kernel(R)
-    px, wx = _pcf_axis(p[0], r, box, nt)
-    py, wy = _pcf_axis(p[1], r, box, nt)
+    a, box, stride = _pcf_kernel(R)
+    px, wx = _pcf_axis(p[0], a, box, stride)
+    py, wy = _pcf_axis(p[1], a, box, stride)
     X, Y = np.meshgrid(px, py)
     W = np.outer(wy, wx)
     return float((W.ravel() * _bilinear_compare(p + np.c_[X.ravel(), Y.ravel()], lit)).sum() / W.sum())
 
 
-@pytest.mark.parametrize("R", [1.0, 1.5, 3.0])
+@pytest.mark.parametrize("R", [1.0, 1.5, 2.0])
 def test_pcf_taps_reproduce_their_texel_weights(R):
-    """Each bilinear tap between two texels weighs them as the separable weight does (Castano's
-    optimized PCF is exact), the taps cover every texel the weight reaches, and the weights sum to
-    the semicircle's (or box's) whole area at any sub-texel position."""
-    r, box, nt = _pcf_kernel(R)
-    total = _pcf_weight_cdf(r, r, box) - _pcf_weight_cdf(-r, r, box)
+    """Up to a softness of 2.1 texels (the default 1.5 included) the 3 x 3 taps are exact: each
+    bilinear tap between two texels weighs them as the separable weight does (Castano's optimized
+    PCF), the taps cover every texel the weight reaches, and the weights sum to the whole
+    parabola's (or box's) area at any sub-texel position."""
+    a, box, stride = _pcf_kernel(R)
+    assert stride == 1.0
+    total = _pcf_weight_cdf(a, a, box) - _pcf_weight_cdf(-a, a, box)
     for pc in np.linspace(0.0, 1.0, 17):
-        pos, w = _pcf_axis(pc, r, box, nt)
+        pos, w = _pcf_axis(pc, a, box)
         assert abs(w.sum() - total) < 1e-9 * total
-        t0 = np.floor(pc - r + 0.5)
-        # texels outside the 2 nt cells the taps cover carry no weight
-        assert t0 - 0.5 <= pc - r and t0 + 2 * nt - 0.5 >= pc + r
-        # one tap at pos: bilinear weights of its two texels = the cell integrals
-        for k in range(nt):
+        t0 = np.floor(pc - a + 0.5)
+        # texels outside the 2 x PCF_GRID cells the taps cover carry no weight
+        assert t0 - 0.5 <= pc - a and t0 + 2 * PCF_GRID - 0.5 >= pc + a
+        for k in range(PCF_GRID):
             ta = t0 + 2 * k
-            wa = _pcf_weight_cdf(ta + 0.5 - pc, r, box) - _pcf_weight_cdf(ta - 0.5 - pc, r, box)
+            wa = _pcf_weight_cdf(ta + 0.5 - pc, a, box) - _pcf_weight_cdf(ta - 0.5 - pc, a, box)
             frac = pos[k] + pc - ta
             assert -1e-9 <= frac <= 1 + 1e-9
             assert abs(w[k] * (1 - frac) - wa) < 1e-9 * total
@@ -214,12 +221,14 @@ def _disc_filter_2d(p, Rd, lit, n=120):
     return float(_bilinear_compare(p + Rd * np.c_[dx[inside], dy[inside]], lit).mean())
 
 
-@pytest.mark.parametrize("R", [1.0, 1.5, 3.0])
+@pytest.mark.parametrize("R, bound", [(1.0, 0.03), (1.5, 0.03), (2.0, 0.03), (3.0, 0.1)])
 @pytest.mark.parametrize("angle_deg", [0.0, 20.0, 45.0])
-def test_pcf_penumbra_at_any_edge_angle_matches_the_disc(R, angle_deg):
+def test_pcf_penumbra_at_any_edge_angle_matches_the_disc(R, bound, angle_deg):
     """Across a rasterised straight edge at any angle to the map's axes, the separable weights
-    give the disc filter's penumbra within 0.03 (the 16 Poisson taps of rounds 1-5: 0.014-0.072
-    on the same edges): the filter is a disc's, not a square's."""
+    give the disc filter's penumbra within 0.03 up to softness 2 (the 16 Poisson taps of rounds
+    1-5: 0.014-0.055 at softness 1-1.5): the filter is a disc's, not a square's. At softness 3 the
+    grid strides 1.4 texels per cell and is no longer exact: 0.1 (measured 0.046-0.086; Poisson
+    0.054-0.072)."""
     n = np.array([np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))])
     c = 0.37
     lit = lambda tx, ty: (tx * n[0] + ty * n[1] >= c).astype(float)  # noqa: E731
@@ -228,4 +237,4 @@ def test_pcf_penumbra_at_any_edge_angle_matches_the_disc(R, angle_deg):
     for x in np.linspace(-6.0, 6.0, 49):
         p = c * n + x * n + side
         errs.append(abs(_pcf(p, R, lit) - _disc_filter_2d(p, PCF_DISC_SCALE * R, lit)))
-    assert max(errs) < 0.03, max(errs)
+    assert max(errs) < bound, max(errs)

@@ -84,38 +84,68 @@ float shadow_sharp(int i, vec3 P, vec3 N) {
 // texel grid instead (Castano 2013, "Shadow mapping summary, part 1": "optimized PCF"): the filter
 // is a weighted sum over the texels it covers with a SEPARABLE weight w(tx) w(ty), so two adjacent
 // texels of each axis are one hardware bilinear-compare tap placed between them by their weights:
-// n x n taps cover 2n x 2n texels. The 1-D weight is the disc's own marginal, a semicircle of
-// radius r, integrated over each texel's cell (r^2 = R^2 + 1/3: the cell's variance 1/12 where the
-// bilinear tap's is 1/6); where a box of the same variance needs fewer taps (R >= ~2.7 texels) the
-// box. Against the disc filter (numpy, tests/test_shadow_pcf.py): max error 0.005-0.026 over edge
-// angles 0-45 degrees and R 1-3 texels, where the 16 Poisson taps were 0.014-0.072; 9 taps at the
-// default softness 1.5 (r = 2.04 texels), 16 at 3. The weights are the same for every fragment of
-// a light (uniform): no divergent branch (llvmpipe runs both sides of one whenever any lane takes
-// it: 9 early-out probes before 16 taps cost 1459 ms against 1059 without, benchmarks/shadow_pcf_cost.py).
+// n x n taps cover 2n x 2n texels. The 1-D weight is a parabola (Epanechnikov) integrated over
+// each texel's cell, of the variance of the disc's marginal convolved with the bilinear tap's
+// (R^2 / 4 + 1/6 = a^2 / 5 + 1/12); where the parabola does not fit the grid, a box of the same
+// variance (Castano's uniform kernel). Against the disc filter (numpy, tests/test_shadow_pcf.py)
+// the penumbra is within 0.004-0.026 over edge angles 0-45 degrees and softness 1-2 texels, where
+// the 16 Poisson taps were 0.014-0.055 (softness 1-1.5): closer, with 9 taps instead of 16. The grid is 3 x 3 taps
+// for every light, a compile-time count (unrolled, its arrays in registers: a per-light trip count
+// measured slower than the 16 Poisson taps on llvmpipe, which runs every side of every branch under
+// a mask: a 3 x 3 / 4 x 4 choice per light cost both, and 9 early-out probe taps before 16 cost
+// 1459 ms against 1059, benchmarks/shadow_pcf_cost.py). It holds the default softness 1.5
+// (parabola) and up to 2.1 texels exactly (box); a softer light's grid steps PCF_STRIDE > 1 texel
+// per cell, no longer exact: at softness 3, 0.046-0.086 off the disc and 2-5% narrower (the Poisson
+// taps: 0.054-0.072).
 const float PCF_DISC_SCALE = 1.307;  // the Poisson set's disc: penumbrae as wide as rounds 1-5's
-const int PCF_MAX_AXIS_TAPS = 6;     // 36 taps at most: a box of up to 5.5 texels half-width (softness ~4.8)
 
-// antiderivative of the 1-D weight: a semicircle of radius r (kind 0) or a box of half-width r
-float pcf_weight_cdf(float x, float r, bool box) {
-    x = clamp(x, -r, r);
-    return box ? x : 0.5 * (x * sqrt(max(r * r - x * x, 0.0)) + r * r * asin(x / r));
+// antiderivative of the 1-D weight (unnormalised): a parabola 1 - x^2 / a^2, or a box, on [-a, a]
+float pcf_weight_cdf(float x, float a, bool box) {
+    x = clamp(x, -a, a);
+    return box ? x : x - x * x * x / (3.0 * a * a);
 }
 
-// One axis: the bilinear taps' positions (texel units relative to the filter's centre, whose
-// texel-centre coordinate is pc) and weights for texels t0 .. t0 + 2 nt - 1.
-void pcf_axis(float pc, float r, bool box, int nt, out float pos[PCF_MAX_AXIS_TAPS], out float wt[PCF_MAX_AXIS_TAPS]) {
-    float t0 = floor(pc - r + 0.5);  // the texel whose cell [t - 0.5, t + 0.5) holds pc - r
-    float lo = pcf_weight_cdf(t0 - 0.5 - pc, r, box);
-    for (int k = 0; k < PCF_MAX_AXIS_TAPS; ++k) {
-        if (k >= nt) break;
-        float ta = t0 + float(2 * k);
-        float mid = pcf_weight_cdf(ta + 0.5 - pc, r, box);
-        float hi = pcf_weight_cdf(ta + 1.5 - pc, r, box);
-        float wa = mid - lo, wb = hi - mid;
-        wt[k] = wa + wb;
-        pos[k] = ta + wb / max(wa + wb, 1e-12) - pc;  // where bilinear filtering weighs ta, ta+1 as wa : wb
+const int PCF_GRID = 3;  // taps per axis: 2 x PCF_GRID cells hold any weight of half-width a < PCF_GRID - 0.5
+
+// PCF over the 2n x 2n cells (of ``stride`` texels, 1 where exact) from the one whose cell
+// [t - 0.5, t + 0.5) holds pc - a on each axis (pc: the filter's centre in cell-centre
+// coordinates). Returns the weighted mean; with want_width also the sums of the least-squares
+// gradient below.
+float pcf_grid(int i, vec2 c, float z, vec2 dz, float a, bool box, float stride, bool want_width,
+               out float wsum, out vec2 sd, out vec2 dsum, out mat2 C) {
+    const int n = PCF_GRID;
+    float texel = uShadowParams[i].w;
+    vec2 pc = (c / texel - 0.5) / stride;
+    vec2 t0 = floor(pc - a + 0.5);
+    vec2 pos[n], w[n];
+    vec2 lo = vec2(pcf_weight_cdf(t0.x - 0.5 - pc.x, a, box), pcf_weight_cdf(t0.y - 0.5 - pc.y, a, box));
+    for (int k = 0; k < n; ++k) {
+        vec2 ta = t0 + float(2 * k);
+        vec2 mid = vec2(pcf_weight_cdf(ta.x + 0.5 - pc.x, a, box), pcf_weight_cdf(ta.y + 0.5 - pc.y, a, box));
+        vec2 hi = vec2(pcf_weight_cdf(ta.x + 1.5 - pc.x, a, box), pcf_weight_cdf(ta.y + 1.5 - pc.y, a, box));
+        w[k] = hi - lo;
+        pos[k] = (ta + (hi - mid) / max(w[k], vec2(1e-12)) - pc) * (stride * texel);  // bilinear weighs ta, ta+1 as (mid-lo) : (hi-mid)
         lo = hi;
     }
+    float sum = 0.0;
+    wsum = 0.0;
+    sd = dsum = vec2(0.0);
+    C = mat2(0.0);
+    for (int ky = 0; ky < n; ++ky) {
+        for (int kx = 0; kx < n; ++kx) {
+            vec2 delta = vec2(pos[kx].x, pos[ky].y);
+            float wk = w[kx].x * w[ky].y;
+            float s = shadow_tap(i, c + delta, z + dot(dz, delta));
+            sum += wk * s;
+            wsum += wk;
+            if (want_width) {
+                sd += wk * s * delta;
+                dsum += wk * delta;
+                C += wk * outerProduct(delta, delta);
+            }
+        }
+    }
+    return sum / wsum;
 }
 
 // The soft shadow and, when want_width, the width (mm, on the surface) of the penumbra it lies in,
@@ -133,40 +163,21 @@ float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
     vec2 dz;
     mat2 T;
     if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
-    float texel = uShadowParams[i].w;
-    float z = c.z - 2.0 * length(dz) * texel;  // the bilinear 2x2 footprint of each tap, and curvature
+    float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint of each tap, and curvature
     float R = PCF_DISC_SCALE * uShadowParams[i].x;  // the disc's radius, texels
     if (R <= 0.0) return shadow_tap(i, c.xy, z);
-    // per light (uniform): the semicircle, or the box of the same variance where it needs fewer taps
-    float r_semi = sqrt(R * R + 1.0 / 3.0);
-    float r_box = 0.5 * sqrt(3.0 * R * R + 1.0);
-    bool box = floor(r_box + 0.5) < floor(r_semi + 0.5);
-    float r = min(box ? r_box : r_semi, float(PCF_MAX_AXIS_TAPS) - 0.51);  // beyond: a narrower box
-    int nt = int(floor(r + 0.5)) + 1;  // 2 nt texels hold any interval of 2 r + 1 cells
-    vec2 pc = c.xy / texel - 0.5;  // texel-centre coordinates in the tile
-    float px[PCF_MAX_AXIS_TAPS], wx[PCF_MAX_AXIS_TAPS], py[PCF_MAX_AXIS_TAPS], wy[PCF_MAX_AXIS_TAPS];
-    pcf_axis(pc.x, r, box, nt, px, wx);
-    pcf_axis(pc.y, r, box, nt, py, wy);
-    float sum = 0.0, wsum = 0.0;
-    vec2 sd = vec2(0.0), dsum = vec2(0.0);
-    mat2 C = mat2(0.0);
-    for (int ky = 0; ky < PCF_MAX_AXIS_TAPS; ++ky) {
-        if (ky >= nt) break;
-        for (int kx = 0; kx < PCF_MAX_AXIS_TAPS; ++kx) {
-            if (kx >= nt) break;
-            vec2 delta = vec2(px[kx], py[ky]) * texel;
-            float w = wx[kx] * wy[ky];
-            float s = shadow_tap(i, c.xy + delta, z + dot(dz, delta));
-            sum += w * s;
-            wsum += w;
-            if (want_width) {
-                sd += w * s * delta;
-                dsum += w * delta;
-                C += w * outerProduct(delta, delta);
-            }
-        }
-    }
-    float s_mean = sum / wsum;
+    // per light (uniform): the half-widths (texels) of the same variance; the parabola where the
+    // grid holds it, else the box; a box wider than the grid strides its cells over the texels
+    float a_par = sqrt(5.0 * (0.25 * R * R + 1.0 / 12.0));
+    float a_box = 0.5 * sqrt(3.0 * R * R + 1.0);
+    const float fit = float(PCF_GRID) - 0.51;
+    bool box = a_par >= fit;
+    float a = box ? a_box : a_par;
+    float stride = max(a / fit, 1.0);
+    float wsum;
+    vec2 sd, dsum;
+    mat2 C;
+    float s_mean = pcf_grid(i, c.xy, z, dz, a / stride, box, stride, want_width, wsum, sd, dsum, C);
     if (!want_width) return s_mean;
     vec2 d_mean = dsum / wsum;
     C -= wsum * outerProduct(d_mean, d_mean);
@@ -175,8 +186,8 @@ float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
     if (gl <= 1e-6) return s_mean;
     // the tangent-plane step a whose map projection is (1 / |g|) along g: T a = step
     if (abs(determinant(T)) < 1e-20) return s_mean;  // the light grazes the surface: the caller bounds it
-    vec2 a = inverse(T) * (g / (gl * gl));
-    width_mm = length(a) * uMmPerUnit;
+    vec2 step_t = inverse(T) * (g / (gl * gl));
+    width_mm = length(step_t) * uMmPerUnit;
     return s_mean;
 }
 
