@@ -14,6 +14,7 @@ import argparse
 import os
 import statistics
 import time
+from pathlib import Path
 
 import moderngl
 
@@ -72,6 +73,29 @@ def lambert_variants(fs0: str) -> dict:
         "no env specular": fs0.replace("color += albedo_bp * environment_specular(", "color += 0.0 * environment_specular("),
         "const": fs0.replace("f_color = vec4(color, 1.0);", "f_color = vec4(1.0);"),
     }
+
+
+def shadow_from(fs: str, rev: str) -> str:
+    """``fs`` with common/shadow.glsl's body (after its include line) replaced by revision ``rev``'s:
+    the same pass with another tree's soft shadow, timed beside this tree's in one process."""
+    import subprocess
+
+    def body(text):
+        lines = text.splitlines()
+        k = next(i for i, ln in enumerate(lines) if ln.startswith('#include "common/lights.glsl"'))
+        return "\n".join(lines[k + 1:])
+    mine = body((Path(dermis.__file__).parent / "shaders" / "common" / "shadow.glsl").read_text())
+    theirs = body(subprocess.run(["git", "show", f"{rev}:src/dermis/shaders/common/shadow.glsl"], check=True,
+                                 capture_output=True, text=True, cwd=Path(__file__).resolve().parent).stdout)
+    assert mine in fs, "shadow.glsl is not in this shader"
+    return fs.replace(mine, theirs)
+
+
+def with_shadow_from(variants: dict, rev) -> dict:
+    """Adds "full, shadow.glsl @rev" to ``variants`` when ``rev`` is given."""
+    if rev:
+        variants[f"full, shadow.glsl @{rev}"] = shadow_from(variants["full"], rev)
+    return variants
 
 
 def compile_variants(ctx, vs, variants):
@@ -133,6 +157,7 @@ def main(argv=None):
     ap.add_argument("--scene", default=str(HEAD_TOML))
     ap.add_argument("--only", default="irradiance,final,lambert")
     ap.add_argument("--samples", type=int, default=4, help="MSAA samples of the frame (dermis render: 4)")
+    ap.add_argument("--shadow-from", default=None, help="also time each pass with this git revision's common/shadow.glsl")
     a = ap.parse_args(argv)
     only = a.only.split(",")
     sc = dermis.load_scene(a.scene)
@@ -147,13 +172,13 @@ def main(argv=None):
         print(f"dermis {dermis.__file__}; {a.size}^2 output, samples {r.samples}, irradiance {S}^2")
         if "irradiance" in only:
             vs = load_shader_source("tsd/uv_space.vert", defines)
-            progs = compile_variants(ctx, vs, irradiance_variants(load_shader_source("tsd/irradiance.frag", defines)))
+            progs = compile_variants(ctx, vs, with_shadow_from(irradiance_variants(load_shader_source("tsd/irradiance.frag", defines)), a.shadow_from))
             out = t._texture("irradiance", (S, S))
             res = {}
             for aniso in (8.0, 1.0):
                 set_anisotropy(r, aniso)
                 for k, p in progs.items():
-                    if aniso == 1.0 and k not in ("full", "no shadow", "const"):
+                    if aniso == 1.0 and k not in ("full", "no shadow", "const") and not k.startswith("full, shadow"):
                         continue
                     bind_scene(frame, p)
                     res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: t._uv_pass(frame, p, out), a.repeats)
@@ -161,11 +186,11 @@ def main(argv=None):
             table(f"tsd irradiance pass at {S}^2 (no dilation)", res)
         if "final" in only:
             vs = load_shader_source("common/mesh.vert", defines)
-            progs = compile_variants(ctx, vs, final_variants(load_shader_source("tsd/final.frag", defines)))
+            progs = compile_variants(ctx, vs, with_shadow_from(final_variants(load_shader_source("tsd/final.frag", defines)), a.shadow_from))
             res = {}
             for p in progs.values():
                 bind_sampler(p, "uTranslucency", t.tex["translucency"], Unit.FIRST_FREE)
-                t._profile_uniforms(p, sc.profile, Unit.FIRST_FREE + 1)
+                t._profile_uniforms(p, sc.profile, Unit.FIRST_FREE + 1, frame.keys)
                 surface_detail_uniforms(p, sc.material)
             for aniso in (8.0, 1.0):
                 set_anisotropy(r, aniso)
@@ -177,12 +202,12 @@ def main(argv=None):
             table(f"tsd final pass at {a.size}^2", res)
         if "lambert" in only:
             vs = load_shader_source("common/mesh.vert", {})
-            progs = compile_variants(ctx, vs, lambert_variants(load_shader_source("lambert/lambert.frag", {})))
+            progs = compile_variants(ctx, vs, with_shadow_from(lambert_variants(load_shader_source("lambert/lambert.frag", {})), a.shadow_from))
             res = {}
             for aniso in (8.0, 1.0):
                 set_anisotropy(r, aniso)
                 for k, p in progs.items():
-                    if aniso == 1.0 and k not in ("full", "const"):
+                    if aniso == 1.0 and k not in ("full", "const") and not k.startswith("full, shadow"):
                         continue
                     res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: screen_pass(frame, p), a.repeats)
             set_anisotropy(r, 8.0)

@@ -77,28 +77,83 @@ float shadow_sharp(int i, vec3 P, vec3 N) {
     return shadow_tap(i, c.xy, c.z - length(dz) * uShadowParams[i].w);
 }
 
-// Soft shadow: percentage-closer filtering over a disc of uShadowParams.x texels (Reeves 1987),
-// 16 Poisson taps, each a hardware 2x2 compare, each against the receiver plane's depth. The
-// points reach |p| = 1.23 (mean |p|^2 0.854): the kernel is a uniform disc of about 1.31 x the
-// radius (tests/test_shadow_pcf.py: the penumbra across an edge within 0.02 of that disc's).
-// No early out: on llvmpipe a branch runs both sides under a mask whenever one lane of a SIMD
-// block takes it, and 9 probe taps before the 16 (skipped only where all 9 agree) measured 1459
-// ms against 1059 without (tsd irradiance 512^2, load 9; benchmarks/shadow_pcf_cost.py).
-const int PCF_TAPS = 16;
-const vec2 POISSON16[16] = vec2[](
-    vec2(-0.94201624, -0.39906216), vec2(0.94558609, -0.76890725), vec2(-0.09418410, -0.92938870),
-    vec2(0.34495938, 0.29387760), vec2(-0.91588581, 0.45771432), vec2(-0.81544232, -0.87912464),
-    vec2(-0.38277543, 0.27676845), vec2(0.97484398, 0.75648379), vec2(0.44323325, -0.97511554),
-    vec2(0.53742981, -0.47373420), vec2(-0.26496911, -0.41893023), vec2(0.79197514, 0.19090188),
-    vec2(-0.24188840, 0.99706507), vec2(-0.81409955, 0.91437590), vec2(0.19984126, 0.78641367),
-    vec2(0.14383161, -0.14100790));
+// Soft shadow: percentage-closer filtering (Reeves 1987) with a disc of PCF_DISC_SCALE x
+// uShadowParams.x texels, each point of it a bilinear compare: the penumbra across a straight edge
+// is that disc's (tests/test_shadow_pcf.py, closed form). Rounds 1-5 took 16 Poisson taps (reaching
+// |p| = 1.23, mean |p|^2 0.854: a disc of 1.307 x the radius). Here the taps are exact on the map's
+// texel grid instead (Castano 2013, "Shadow mapping summary, part 1": "optimized PCF"): the filter
+// is a weighted sum over the texels it covers with a SEPARABLE weight w(tx) w(ty), so two adjacent
+// texels of each axis are one hardware bilinear-compare tap placed between them by their weights:
+// n x n taps cover 2n x 2n texels. The 1-D weight is a parabola (Epanechnikov) integrated over
+// each texel's cell, of the variance of the disc's marginal convolved with the bilinear tap's
+// (R^2 / 4 + 1/6 = a^2 / 5 + 1/12); where the parabola does not fit the grid, a box of the same
+// variance (Castano's uniform kernel). Against the disc filter (numpy, tests/test_shadow_pcf.py)
+// the penumbra is within 0.004-0.026 over edge angles 0-45 degrees and softness 1-2 texels, where
+// the 16 Poisson taps were 0.014-0.055 (softness 1-1.5): closer, with 9 taps instead of 16. The grid is 3 x 3 taps
+// for every light, a compile-time count (unrolled, its arrays in registers: a per-light trip count
+// measured slower than the 16 Poisson taps on llvmpipe, which runs every side of every branch under
+// a mask: a 3 x 3 / 4 x 4 choice per light cost both, and 9 early-out probe taps before 16 cost
+// 1459 ms against 1059, benchmarks/shadow_pcf_cost.py). It holds the default softness 1.5
+// (parabola) and up to 2.1 texels exactly (box); a softer light's grid steps PCF_STRIDE > 1 texel
+// per cell, no longer exact: at softness 3, 0.046-0.086 off the disc and 2-5% narrower (the Poisson
+// taps: 0.054-0.072).
+const float PCF_DISC_SCALE = 1.307;  // the Poisson set's disc: penumbrae as wide as rounds 1-5's
+
+// antiderivative of the 1-D weight (unnormalised): a parabola 1 - x^2 / a^2, or a box, on [-a, a]
+float pcf_weight_cdf(float x, float a, bool box) {
+    x = clamp(x, -a, a);
+    return box ? x : x - x * x * x / (3.0 * a * a);
+}
+
+const int PCF_GRID = 3;  // taps per axis: 2 x PCF_GRID cells hold any weight of half-width a < PCF_GRID - 0.5
+
+// PCF over the 2n x 2n cells (of ``stride`` texels, 1 where exact) from the one whose cell
+// [t - 0.5, t + 0.5) holds pc - a on each axis (pc: the filter's centre in cell-centre
+// coordinates). Returns the weighted mean; with want_width also the sums of the least-squares
+// gradient below.
+float pcf_grid(int i, vec2 c, float z, vec2 dz, float a, bool box, float stride, bool want_width,
+               out float wsum, out vec2 sd, out vec2 dsum, out mat2 C) {
+    const int n = PCF_GRID;
+    float texel = uShadowParams[i].w;
+    vec2 pc = (c / texel - 0.5) / stride;
+    vec2 t0 = floor(pc - a + 0.5);
+    vec2 pos[n], w[n];
+    vec2 lo = vec2(pcf_weight_cdf(t0.x - 0.5 - pc.x, a, box), pcf_weight_cdf(t0.y - 0.5 - pc.y, a, box));
+    for (int k = 0; k < n; ++k) {
+        vec2 ta = t0 + float(2 * k);
+        vec2 mid = vec2(pcf_weight_cdf(ta.x + 0.5 - pc.x, a, box), pcf_weight_cdf(ta.y + 0.5 - pc.y, a, box));
+        vec2 hi = vec2(pcf_weight_cdf(ta.x + 1.5 - pc.x, a, box), pcf_weight_cdf(ta.y + 1.5 - pc.y, a, box));
+        w[k] = hi - lo;
+        pos[k] = (ta + (hi - mid) / max(w[k], vec2(1e-12)) - pc) * (stride * texel);  // bilinear weighs ta, ta+1 as (mid-lo) : (hi-mid)
+        lo = hi;
+    }
+    float sum = 0.0;
+    wsum = 0.0;
+    sd = dsum = vec2(0.0);
+    C = mat2(0.0);
+    for (int ky = 0; ky < n; ++ky) {
+        for (int kx = 0; kx < n; ++kx) {
+            vec2 delta = vec2(pos[kx].x, pos[ky].y);
+            float wk = w[kx].x * w[ky].y;
+            float s = shadow_tap(i, c + delta, z + dot(dz, delta));
+            sum += wk * s;
+            wsum += wk;
+            if (want_width) {
+                sd += wk * s * delta;
+                dsum += wk * delta;
+                C += wk * outerProduct(delta, delta);
+            }
+        }
+    }
+    return sum / wsum;
+}
 
 // The soft shadow and, when want_width, the width (mm, on the surface) of the penumbra it lies in,
 // from the PCF taps themselves rather than from screen derivatives of s (which differ between
 // GPUs: coarse or fine, quad by quad; preintegrated on an H100 vs llvmpipe: back-ears red 3%
-// apart). The taps' values s_k at the map offsets delta_k give the least-squares gradient g of s
-// in map uv,
-//   g = C^-1 sum_k (s_k - mean s) delta_k,  C = sum_k (delta_k - mean delta)(delta_k - mean delta)^T,
+// apart). The taps' values s_k at the map offsets delta_k, weights W_k, give the weighted
+// least-squares gradient g of s in map uv,
+//   g = C^-1 sum_k W_k (s_k - mean s) delta_k,  C = sum_k W_k (delta_k - mean delta)(delta_k - mean delta)^T,
 // so s ramps across 1 / |g| of uv along g; the receiver's tangent plane (T of shadow_receiver)
 // maps that uv step back to the surface. width_mm = 1e30 where the taps agree (no ramp).
 float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
@@ -108,36 +163,31 @@ float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
     vec2 dz;
     mat2 T;
     if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
-    float texel = uShadowParams[i].w;
-    float z = c.z - 2.0 * length(dz) * texel;  // the bilinear 2x2 footprint of each tap, and curvature
-    float radius = uShadowParams[i].x * texel;
-    if (radius <= 0.0) return shadow_tap(i, c.xy, z);
-    float sum = 0.0;
-    vec2 sd = vec2(0.0);
-    for (int k = 0; k < PCF_TAPS; ++k) {
-        vec2 delta = POISSON16[k] * radius;
-        float s = shadow_tap(i, c.xy + delta, z + dot(dz, delta));
-        sum += s;
-        sd += s * delta;
-    }
-    float s_mean = sum / float(PCF_TAPS);
+    float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint of each tap, and curvature
+    float R = PCF_DISC_SCALE * uShadowParams[i].x;  // the disc's radius, texels
+    if (R <= 0.0) return shadow_tap(i, c.xy, z);
+    // per light (uniform): the half-widths (texels) of the same variance; the parabola where the
+    // grid holds it, else the box; a box wider than the grid strides its cells over the texels
+    float a_par = sqrt(5.0 * (0.25 * R * R + 1.0 / 12.0));
+    float a_box = 0.5 * sqrt(3.0 * R * R + 1.0);
+    const float fit = float(PCF_GRID) - 0.51;
+    bool box = a_par >= fit;
+    float a = box ? a_box : a_par;
+    float stride = max(a / fit, 1.0);
+    float wsum;
+    vec2 sd, dsum;
+    mat2 C;
+    float s_mean = pcf_grid(i, c.xy, z, dz, a / stride, box, stride, want_width, wsum, sd, dsum, C);
     if (!want_width) return s_mean;
-    vec2 d_mean = vec2(0.0);
-    mat2 C = mat2(0.0);
-    for (int k = 0; k < PCF_TAPS; ++k) {
-        vec2 delta = POISSON16[k] * radius;
-        d_mean += delta;
-        C += outerProduct(delta, delta);
-    }
-    d_mean /= float(PCF_TAPS);
-    C -= float(PCF_TAPS) * outerProduct(d_mean, d_mean);
-    vec2 g = inverse(C) * (sd - float(PCF_TAPS) * s_mean * d_mean);  // ds per map uv
+    vec2 d_mean = dsum / wsum;
+    C -= wsum * outerProduct(d_mean, d_mean);
+    vec2 g = inverse(C) * (sd - wsum * s_mean * d_mean);  // ds per map uv
     float gl = length(g);
     if (gl <= 1e-6) return s_mean;
     // the tangent-plane step a whose map projection is (1 / |g|) along g: T a = step
     if (abs(determinant(T)) < 1e-20) return s_mean;  // the light grazes the surface: the caller bounds it
-    vec2 a = inverse(T) * (g / (gl * gl));
-    width_mm = length(a) * uMmPerUnit;
+    vec2 step_t = inverse(T) * (g / (gl * gl));
+    width_mm = length(step_t) * uMmPerUnit;
     return s_mean;
 }
 
