@@ -123,9 +123,11 @@ class TextureSpaceDiffusion(Technique):
         # mesh's layout (its vertex work and thin triangles) bought nothing; uncovered texels have
         # no far face in the bake and write T = 0, as the cleared target held
         self.p_trans = program(ctx, "common/fullscreen.vert", "tsd/translucency.frag", defines)
+        self.p_trans_tent = program(ctx, "common/fullscreen.vert", "tsd/translucency_tent.frag", defines)
         self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag", defines)
         self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)
-        self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine, self.p_trans)}
+        self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine, self.p_trans,
+                                                         self.p_trans_tent)}
         self._blur_programs = {}  # (taps per side, footprint) -> program (blur.frag with TAPS unrolled)
         self._p_narrow = None  # tsd/blur_narrow.frag, compiled on first use
         self._narrow_key = None
@@ -572,7 +574,10 @@ class TextureSpaceDiffusion(Technique):
                 # surface distance to the far face (uv distance / stretch); past the blurs' units
                 bind_sampler(prog, "uStretch", self.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
                 bind_sampler(prog, "uThickness", thickness, Unit.FIRST_FREE + MAX_GAUSSIANS + 1)
-                self._fullscreen(prog, trans)
+                own = self._texture("translucency_own", trans.size)
+                self._fullscreen(prog, own)
+                bind_sampler(self.p_trans_tent, "uSource", own, 0)
+                self._fullscreen(self.p_trans_tent, trans)
             frame.passes_run.append("tsd_translucency")
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)
@@ -693,7 +698,8 @@ class TextureSpaceDiffusion(Technique):
         self.release_textures()
         for v in self.vaos.values():
             v.release()
-        for p in (self.p_stretch, self.p_irradiance, self.p_dilate, self.p_down, self.p_trans, self.p_final,
+        for p in (self.p_stretch, self.p_irradiance, self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
+                  self.p_final,
                   self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else []),
                   *(self._p_bounce or ())):
             p.release()

@@ -51,32 +51,21 @@ vec3 through_far_face(vec4 th, vec2 uv, vec3 wide) {
     return T;
 }
 
-// The far faces of the texel and its 8 neighbours, blended with the tent (1 2 1)^2 over the
-// covered ones (w >= 0; gl/thickness.py marks uncovered texels w = -1): where the far face jumps
-// between neighbouring texels (the helix: lit for one, shadowed or centimetres away for the next)
-// the light through them changes over three texels, not one. A uniform region is unchanged.
+// This texel's own far face: (T w, coverage), the light through the tissue times the bake's weight
+// (smoothed validity; the light path's slab test), and 1 where a triangle covers the texel (the bake
+// marks uncovered texels w = -1). tsd/translucency_tent.frag blends the 3 x 3 neighbourhood.
 void main() {
     ivec2 c = ivec2(gl_FragCoord.xy);
-    ivec2 last = textureSize(uThickness, 0) - 1;
     vec2 uv = gl_FragCoord.xy / vec2(textureSize(uThickness, 0));  // this texel's texture-space uv
-    vec3 wide = vec3(0.0);
-    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-        if (k >= uGaussianCount) break;
-        if (uVariances[k] >= uTranslucencyMinVariance) wide += uWeights[k];
-    }
+    vec4 th = texelFetch(uThickness, c, 0);
     vec3 T = vec3(0.0);
-    float covered = 0.0;
-    if (texelFetch(uThickness, c, 0).w >= 0.0) {
-        for (int dy = -1; dy <= 1; ++dy) {
-            for (int dx = -1; dx <= 1; ++dx) {
-                vec4 th = texelFetch(uThickness, clamp(c + ivec2(dx, dy), ivec2(0), last), 0);
-                float tent = float((2 - abs(dx)) * (2 - abs(dy)));
-                if (th.w < 0.0) continue;  // not covered: no weight
-                covered += tent;
-                // w: the bake's weight (smoothed validity; the light path's slab test)
-                if (th.w > 0.0) T += (tent * th.w) * through_far_face(th, uv, wide);
-            }
+    if (th.w > 0.0) {
+        vec3 wide = vec3(0.0);
+        for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+            if (k >= uGaussianCount) break;
+            if (uVariances[k] >= uTranslucencyMinVariance) wide += uWeights[k];
         }
+        T = th.w * through_far_face(th, uv, wide);
     }
-    f_translucency = vec4(T * (uTranslucencyStrength / max(covered, 1.0)), 1.0);
+    f_translucency = vec4(T * uTranslucencyStrength, th.w >= 0.0 ? 1.0 : 0.0);
 }
