@@ -158,6 +158,8 @@ def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
         return floors["screen_raster"]
     if pass_name == "tsd_translucency":
         return floors["uv_raster_half"]
+    if pass_name == "tsd_interreflection":  # two UV-space rasters of the mesh (the exitant light, the splat)
+        return 2 * floors["uv_raster"]
     if pass_name == "tsd_blur":
         return 2 * gaussians * floors["copy"]
     if pass_name == "ssss_blur":
