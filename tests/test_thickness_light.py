@@ -156,6 +156,24 @@ def test_the_bake_follows_the_key_light_direction_not_its_intensity(gl_ctx):
     np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6)
 
 
+def test_turning_the_light_path_on_in_a_live_renderer_reruns_translucency(gl_ctx):
+    """scene.translucency_light_path is an input of the texture-space product: turned on between
+    two frames of one Renderer, the frame is the fresh renderer's (the bake and tsd's translucency
+    rerun), not the cached one from before."""
+    from dermis.renderer import Renderer
+
+    sc = backlit_slab_scene(2.0, n=8)
+    sc.lights[0].direction = (0.3, 0.0, 0.95)
+    with Renderer(sc, (32, 32), irradiance_size=128, ctx=gl_ctx, samples=0) as r:
+        r.render("tsd", output_mode=1)
+        sc.translucency_light_path = True
+        a = r.render("tsd", output_mode=1)
+        assert "thickness" in r.stats["passes_run"] and "tsd_translucency" in r.stats["passes_run"]
+    with Renderer(sc, (32, 32), irradiance_size=128, ctx=gl_ctx, samples=0) as fresh:
+        b = fresh.render("tsd", output_mode=1)
+    np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6)
+
+
 def test_scene_key_translucency_light_path(tmp_path):
     """[scene] translucency_light_path: off by default, true turns it on, a non-bool is a one-line
     error naming the key."""

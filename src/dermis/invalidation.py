@@ -49,7 +49,8 @@ PRODUCTS = {
     # the first hits of the interreflection rays (geometry/interreflection.py, cached per mesh content)
     "interreflection_bake": ("mesh",),
     "texture_space": ("mesh", "surfaces", "scale", "lights", "environment", "environment_occlusion", "material_maps",
-                      "material_scalars", "profile", "irradiance_size", "epoch", "interreflection"),
+                      "material_scalars", "profile", "irradiance_size", "epoch", "interreflection",
+                      "translucency_light_path"),
 }
 """Every cached product and what it depends on. "epoch" is bumped by Renderer.invalidate()."""
 
@@ -211,6 +212,7 @@ def scene_inputs(scene, *, irradiance_size: int, epoch: int) -> dict:
         "irradiance_size": int(irradiance_size),
         "epoch": int(epoch),
         "interreflection": bool(getattr(scene, "interreflection", True)),
+        "translucency_light_path": bool(getattr(scene, "translucency_light_path", False)),
     }
 
 
