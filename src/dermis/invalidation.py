@@ -41,9 +41,10 @@ PRODUCTS = {
     "stretch": ("mesh", "scale", "irradiance_size"),
     "thickness": ("mesh", "scale", "irradiance_size"),  # the texel thickness bake of translucency (gl/thickness.py)
     "profile_tables": ("profile",),
-    # ambient occlusion and bent normals (geometry/visibility.py, cached per mesh content), or the
-    # open sky's (1, normal) with [environment] occlusion = false, in the vertex buffer
-    "environment_visibility": ("mesh", "environment_occlusion"),
+    # ambient occlusion and the visible fraction of the environment's irradiance (geometry/visibility.py:
+    # the ray bake cached per mesh content, the fraction per environment), or the open sky's
+    # (1, 1, 1, 1) with [environment] occlusion = false, in the vertex buffer
+    "environment_visibility": ("mesh", "environment_occlusion", "environment"),
     # the skin material's uniforms (GpuScene.material_uniforms: scalars, map addressing, profile-driven albedo scale)
     "material_uniforms": ("material_maps", "material_scalars", "scale", "profile"),
     # the first hits of the interreflection rays (geometry/interreflection.py, cached per mesh content)

@@ -289,15 +289,17 @@ class Renderer:
         return lights, material
 
     def _upload_visibility(self, passes: list):
-        """in_visibility: the mesh's baked ambient occlusion and bent normals (cached per mesh
-        content, in memory and on disk), or (1, normal) with [environment] occlusion = false."""
+        """in_visibility: the mesh's baked ambient occlusion and the visible fraction of the
+        environment's irradiance (the bake cached per mesh content, in memory and on disk), or
+        (1, 1, 1, 1) with [environment] occlusion = false."""
         from dermis.geometry.visibility import mesh_visibility, open_visibility
 
         m = self.scene.mesh
         if self.scene.environment.occlusion:
             with self.timer("visibility"):
                 vis = mesh_visibility(m)
-                self.gpu.set_visibility(vis.attribute())
+                # the visible fraction of this environment's irradiance: a lookup per occluded ray
+                self.gpu.set_visibility(vis.attribute(self.scene.environment))
             self.visibility = vis
             passes.append("visibility")
         else:

@@ -122,12 +122,17 @@ class RayCaster:
         Landis 2002): the fraction of cosine-weighted hemisphere directions that escape within
         ``max_distance`` (1 = open), and the normalised mean escaping direction. Batched:
         points (n, 3), normals (n, 3) unit; ``offset`` lifts ray origins off the surface."""
+        ao, bent, _, _ = self.ambient_rays(points, normals, directions_per_point, max_distance, offset, seed)
+        return ao, bent
+
+    def ambient_rays(self, points, normals, directions_per_point: int = 64, max_distance=np.inf, offset=1e-4,
+                     seed: int = 0):
+        """ambient_occlusion() with its rays: (A (n,), bent normal (n, 3), the directions (n, k, 3)
+        (ambient_directions(normals, k, seed)), occluded (n, k) bool)."""
         p = np.asarray(points, np.float64).reshape(-1, 3)
         nrm = np.asarray(normals, np.float64).reshape(-1, 3)
         k = int(directions_per_point)
-        rng = np.random.default_rng(seed)
-        u1, u2 = rng.random((len(p), k)), rng.random((len(p), k))
-        dirs = cosine_directions(nrm, u1, u2)
+        dirs = ambient_directions(nrm, k, seed)
         o = np.repeat(p + nrm * offset, k, axis=0)
         occ = self.occluded(o, dirs.reshape(-1, 3), 0.0, max_distance).reshape(len(p), k)
         free = ~occ
@@ -138,7 +143,16 @@ class RayCaster:
         bent = (2.0 / 3.0) * nrm - (dirs * occ[..., None]).mean(1)
         ln = np.linalg.norm(bent, axis=1, keepdims=True)
         bent = np.where((ln > 1e-12) & (ao[:, None] > 0), bent / np.maximum(ln, 1e-300), nrm)
-        return ao, bent
+        return ao, bent, dirs, occ
+
+
+def ambient_directions(normals, k: int, seed: int = 0):
+    """The k cosine-weighted directions per normal that ambient_occlusion casts for ``seed``
+    (n, k, 3): a bake that kept only which rays were occluded can regenerate them."""
+    nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+    rng = np.random.default_rng(seed)
+    u1, u2 = rng.random((len(nrm), k)), rng.random((len(nrm), k))
+    return cosine_directions(nrm, u1, u2)
 
 
 def cosine_directions(normals, u1, u2):

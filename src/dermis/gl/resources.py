@@ -23,7 +23,8 @@ from dermis.techniques.shared import LIGHT_TYPES, MAX_LIGHTS, SHARED_SAMPLERS
 
 VERTEX_FORMAT = "3f 3f 2f 4f 2f 4f 2f"
 # in_uv: the asset's UVs (material maps); in_uv_ts: the texture-space set (geometry/texture_space.py);
-# in_visibility: (ambient occlusion, bent normal) of geometry/visibility.py, location 6;
+# in_visibility: (ambient occlusion, visible fraction of the environment irradiance RGB) of
+# geometry/visibility.py, location 6;
 # in_uv1: the asset's second UV set (TEXCOORD_1; zeros without one), location 7
 VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent", "in_uv_ts", "in_visibility", "in_uv1")
 
@@ -249,7 +250,7 @@ class GpuScene:
         return interleave(self._attributes, visibility)
 
     def set_visibility(self, visibility):
-        """Replace in_visibility ((n, 4): ambient occlusion, bent normal) in place: VAOs stay valid."""
+        """Replace in_visibility ((n, 4): ambient occlusion, visible fraction RGB) in place: VAOs stay valid."""
         self.vbo.write(self._interleave(visibility))
         self.visibility_uploaded = True
 

@@ -10,8 +10,8 @@ standard 4x MSAA pattern the real-time renderer resolves) find the visible point
 
 where y runs over area-weighted surface samples (sampling.surface_cells: the surface cut into
 lattice cells, A_y their area in mm^2), E'(y) is the irradiance that scatters (shading.scattered_irradiance: exact ray-cast
-shadows, energy left by the specular, SH ambient occluded by ray-cast ambient occlusion and bent
-normals, times albedo^mix), |x - y| is the
+shadows, energy left by the specular, SH ambient occluded by the ray-cast visible fraction of the environment
+irradiance (geometry/visibility.py), times albedo^mix), |x - y| is the
 true 3-D distance in mm (integrate.py: KD-tree, per-Gaussian cutoff at 1e-4 of its peak, so light
 through ears and nostrils is part of the same integral), w_k the profile's weights normalised
 per channel (as tsd's), and the specular is KS_Skin_Specular with the same hard shadow, plus the environment's specular as the Monte Carlo integral of the same

@@ -8,8 +8,8 @@ real-time techniques look up PCF-filtered shadow maps; the specular uses the sam
 from a light (Ng . L <= 0) is in its own shadow, as the real-time shadow maps make it.
 
 Environment light: the diffuse is the same spherical-harmonic irradiance the real-time techniques
-use (common/environment.glsl), occluded the same way (dermis.geometry.visibility: A * E_sh(bent
-normal)), but with A and the bent normal ray cast at every sample point (AMBIENT_RAYS
+use (common/environment.glsl), occluded the same way (dermis.geometry.visibility: r E_sh(N), r the
+visible fraction of the irradiance), but with A and r ray cast at every sample point (AMBIENT_RAYS
 cosine-weighted rays from the point, no distance limit) instead of baked per vertex and
 interpolated: validate measures what the per-vertex bake loses. [environment] occlusion = false
 turns it off in both. The environment's SPECULAR is not the real-time split-sum approximation
@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dermis.geometry.visibility import OFFSET_REL, occluded_irradiance, specular_occlusion
+from dermis.geometry.visibility import (OFFSET_REL, environment_radiance, occluded_fraction, occluded_irradiance,
+                                        specular_occlusion)
 from dermis.specular import ksk_specular
 from dermis.techniques.shared import INV_PI, MAX_LIGHTS
 SHADOW_EPSILON_REL = 1e-6
@@ -71,27 +72,37 @@ class LightRig:
         self.epsilon_mm = SHADOW_EPSILON_REL * float(np.linalg.norm((hi - lo) * mm)) + 1e-9
         self.ambient_offset_mm = OFFSET_REL * float(np.linalg.norm((hi - lo) * mm))
         self.occlusion = bool(scene.environment.occlusion)
+        env = scene.environment
+        self.env_radiance = environment_radiance(env) if (self.occlusion and env.image is not None) else None
         self._ambient_batches = 0  # seeds successive ambient-occlusion batches differently, deterministically
 
     def ambient_visibility(self, attrs):
-        """(A (n,), bent normal (n, 3)) at the points ``attrs``: cosine-weighted rays about the
-        interpolated normal from the shadow-ray origin (RayCaster.ambient_occlusion), or (1, Ng)
-        with environment occlusion off. Cached in ``attrs``."""
+        """(A (n,), the visible fraction r (n, 3) of the SH irradiance) at the points ``attrs``:
+        cosine-weighted rays about the interpolated normal from the shadow-ray origin
+        (RayCaster.ambient_rays), the light they block integrated against the environment image
+        (dermis.geometry.visibility.occluded_fraction), or (1, 1) with environment occlusion off.
+        Cached in ``attrs``."""
         if "ambient_occlusion" not in attrs:
             ng = attrs["normal_geo"]
             if not self.occlusion:
-                ao, bent = np.ones(len(ng)), ng
+                ao, frac = np.ones(len(ng)), np.ones((len(ng), 3))
             else:
                 o = self.surface.shadow_origin(attrs)
-                ao, bent = np.empty(len(ng)), np.empty_like(ng)
+                ao, frac = np.empty(len(ng)), np.empty((len(ng), 3))
                 for c0 in range(0, len(ng), AMBIENT_CHUNK):
                     c1 = min(len(ng), c0 + AMBIENT_CHUNK)
                     self._ambient_batches += 1
-                    ao[c0:c1], bent[c0:c1] = self.ambient_bvh.ambient_occlusion(o[c0:c1], ng[c0:c1], AMBIENT_RAYS,
-                                                                        offset=self.ambient_offset_mm,
-                                                                        seed=self._ambient_batches)
-            attrs["ambient_occlusion"], attrs["bent_normal"] = ao, bent
-        return attrs["ambient_occlusion"], attrs["bent_normal"]
+                    ao[c0:c1], _, dirs, occ = self.ambient_bvh.ambient_rays(o[c0:c1], ng[c0:c1], AMBIENT_RAYS,
+                                                                            offset=self.ambient_offset_mm,
+                                                                            seed=self._ambient_batches)
+                    if self.env_radiance is None:  # a constant environment: r = A exactly
+                        frac[c0:c1] = ao[c0:c1, None]
+                    else:
+                        n = ng[c0:c1] / np.maximum(np.linalg.norm(ng[c0:c1], axis=1, keepdims=True), 1e-300)
+                        frac[c0:c1] = occluded_fraction(self.surface.env_sh, self.env_radiance, n, ao[c0:c1],
+                                                        dirs, occ)
+            attrs["ambient_occlusion"], attrs["visible_fraction"] = ao, frac
+        return attrs["ambient_occlusion"], attrs["visible_fraction"]
 
     def incident(self, i, p_mm):
         """light_incident() of common/lights.glsl: (L (n, 3) unit, E (n, 3) irradiance at normal
@@ -134,7 +145,7 @@ class LightRig:
 
 def scattered_irradiance(surface, rig, attrs):
     """tsd/irradiance.frag with exact shadows: the light that enters the skin and scatters,
-    sum_i E_i max(N.L, 0) V_i (1 - rho_s a(N.L, m)/pi) + A E_env(N bent) (1 - rho_s a(0.5, m)/pi),
+    sum_i E_i max(N.L, 0) V_i (1 - rho_s a(N.L, m)/pi) + r E_env(N) (1 - rho_s a(0.5, m)/pi),
     times albedo^mix. Returns (n, 3)."""
     n_map = surface.shading_normal(attrs)
     rho_s = surface.rho_s(attrs)
@@ -152,8 +163,8 @@ def scattered_irradiance(surface, rig, attrs):
         vis = rig.visibility(i, attrs, L, dist, origins)
         f = np.where(lit, ndl, 0.0) * vis * surface.energy_transmitted(rho_s, np.clip(ndl, 0.0, 1.0))
         E += Ei * f[:, None]
-    ao, bent = rig.ambient_visibility(attrs)
-    E += occluded_irradiance(surface.env_sh, n_map, attrs["normal_geo"], ao, bent) \
+    _, frac = rig.ambient_visibility(attrs)
+    E += occluded_irradiance(surface.env_sh, n_map, frac) \
         * surface.energy_transmitted(rho_s, np.full(len(rho_s), 0.5))[:, None]
     mix = float(surface.material.mix)
     return E * surface.albedo(attrs) ** mix

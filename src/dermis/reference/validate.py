@@ -17,7 +17,7 @@ metric after toggling one part of the pipeline at a time (irradiance texture res
 shadow-map resolution, PCF softness, multi-resolution blurs, translucency), and FLIP
 split between pixels near the UV seams and the rest.
 Both sides render the same material with ``pore_strength = 0`` (the reference has no procedural
-pore normals) and the same SH environment light, occluded by ambient occlusion and bent normals
+pore normals) and the same SH environment light, occluded by the visible fraction of its irradiance
 (baked per vertex in the techniques, ray cast per sample point in the reference) unless the
 scene sets [environment] occlusion = false.
 """
@@ -163,7 +163,7 @@ def validate(scene_files, techniques, size, *, out_dir=None, spp=4, spacing_mm=N
                           "ssim": "mean SSIM of the display images (skimage, 7x7), higher is better",
                           "rel_rmse": "sqrt(sum (t - r)^2 / sum r^2) of linear radiance, lower is better"},
               "notes": ["pore_strength = 0 on both sides (the reference has no procedural pore normals)",
-                        "environment light: SH irradiance occluded by AO and bent normals (techniques: per-vertex bake; "
+                        "environment light: SH irradiance times its visible fraction (techniques: per-vertex bake; "
                         "reference: ray cast per sample point), unless [environment] occlusion = false",
                         "reference shadows are exact ray casts (hard); techniques use PCF shadow maps",
                         "interreflection off on both sides (the reference has none; tsd's one bounce is measured "

@@ -15,20 +15,14 @@ vec3 environment_irradiance(vec3 n) {
 }
 
 // Occluded environment light (dermis/geometry/visibility.py, whose numpy twins these are).
-// vis: the interpolated per-vertex visibility attribute, (A, B): A the cosine-weighted ambient
-// occlusion, B the bent normal (Zhukov et al. 1998; Landis 2002). With environment occlusion off
-// vis = (1, vertex normal) and these reduce to the unoccluded terms.
-
-// The shading normal N (normal-mapped) bent as the geometric normal Ng is: N + (B - Ng).
-vec3 bent_shading_normal(vec3 N, vec3 Ng, vec4 vis) {
-    float lb = length(vis.yzw);
-    if (lb < 1e-6) return N;
-    return normalize(N + (vis.yzw / lb - normalize(Ng)));
-}
-
-// Landis 2002, sec. 4: E_env = A * E_sh(bent normal); exact for a constant environment.
+// vis: the interpolated per-vertex visibility attribute, (A, r): A the cosine-weighted ambient
+// occlusion (Zhukov et al. 1998; Landis 2002), r (per channel) the fraction of the SH irradiance
+// at the vertex normal that the environment still sends past the mesh, E_occluded / E_sh, with the
+// blocked light integrated over the bake's rays against the full-resolution image (r = A for a
+// constant environment). With environment occlusion off vis = (1, 1, 1, 1): the unoccluded terms.
+// Ng is unused (the visible fraction was baked about the vertex normal); kept for the callers.
 vec3 environment_irradiance_occluded(vec3 N, vec3 Ng, vec4 vis) {
-    return vis.x * environment_irradiance(bent_shading_normal(N, Ng, vis));
+    return vis.yzw * environment_irradiance(N);
 }
 
 // Specular occlusion from ambient occlusion (Lagarde & de Rousiers 2014, "Moving Frostbite to

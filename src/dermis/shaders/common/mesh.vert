@@ -4,7 +4,7 @@ layout(location = 1) in vec3 in_normal;
 layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec4 in_tangent;
 layout(location = 5) in vec2 in_uv_ts;  // texture-space UV set (tsd's textures); in_uv: material maps
-layout(location = 6) in vec4 in_visibility;  // (ambient occlusion, bent normal): geometry/visibility.py
+layout(location = 6) in vec4 in_visibility;  // (ambient occlusion, visible fraction RGB): geometry/visibility.py
 layout(location = 7) in vec2 in_uv1;  // TEXCOORD_1 (maps whose texCoord is 1; zeros when absent)
 #ifdef DERMIS_VERTEX_CURVATURE
 layout(location = 4) in float in_curvature;  // a technique's own per-vertex scalar (preintegrated: 1/mm)

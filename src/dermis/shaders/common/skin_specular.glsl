@@ -12,7 +12,7 @@
 // times the specular albedo rho_s a(N.V, m) / pi (Karis 2013's split sum).
 // The environment's term is scaled by the specular occlusion of common/environment.glsl.
 // P: world position; Ng: geometric normal (shadow lookups, back-facing lights); V: to the eye;
-// vis: the ambient visibility (ambient occlusion, bent normal).
+// vis: the ambient visibility (ambient occlusion, visible fraction of the irradiance).
 vec3 skin_specular_radiance(vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho_s, sampler2D beckmannTex, vec4 vis) {
     vec3 spec = vec3(0.0);
     for (int i = 0; i < uLightCount; ++i) {

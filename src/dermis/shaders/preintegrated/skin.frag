@@ -31,7 +31,7 @@ in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
-in vec4 v_visibility;  // (ambient occlusion, bent normal)
+in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
 in vec2 v_uv_ts;  // texture-space UVs: the thickness bake
 in float v_curvature;
 out vec4 f_color;

@@ -17,7 +17,7 @@ in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
-in vec4 v_visibility;  // (ambient occlusion, bent normal)
+in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
 in vec2 v_uv_ts;  // texture-space UVs: the thickness bake
 layout(location = 0) out vec4 f_irradiance;
 layout(location = 1) out vec4 f_view_normal;  // the blurs' tissue-path test (ssss/kernel.glsl)

@@ -23,7 +23,7 @@ in vec3 v_normal;
 in vec2 v_uv;
 in vec2 v_uv_ts;  // texture-space UVs: tsd's own textures; v_uv: the material maps
 in vec4 v_tangent;
-in vec4 v_visibility;  // (ambient occlusion, bent normal)
+in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
 out vec4 f_color;
 
 

@@ -6,7 +6,7 @@ layout(location = 1) in vec3 in_normal;
 layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec4 in_tangent;
 layout(location = 5) in vec2 in_uv_ts;  // the texture-space UV set (the mesh's own when unique)
-layout(location = 6) in vec4 in_visibility;  // (ambient occlusion, bent normal): geometry/visibility.py
+layout(location = 6) in vec4 in_visibility;  // (ambient occlusion, visible fraction RGB): geometry/visibility.py
 layout(location = 7) in vec2 in_uv1;  // TEXCOORD_1 (maps whose texCoord is 1)
 out vec3 v_world;
 out vec3 v_normal;
