@@ -148,11 +148,25 @@ class RayCaster:
 
 def ambient_directions(normals, k: int, seed: int = 0):
     """The k cosine-weighted directions per normal that ambient_occlusion casts for ``seed``
-    (n, k, 3): a bake that kept only which rays were occluded can regenerate them."""
+    (n, k, 3): a bake that kept only which rays were occluded can regenerate them.
+
+    Stratified (each point's own random strata, so still unbiased): k = s^2 a jittered s x s grid
+    of (u1, u2), otherwise Latin-hypercube (one sample per row and column of a k x k grid). Malley's
+    map keeps cosine-weighted measure, so each stratum is an equal share of the cosine lobe: a
+    bright lamp behind an occluder is hit by its share of rays, not a Poisson number of them
+    (Pharr, Jakob & Humphreys, PBRT 3rd ed., sec. 7.3)."""
     nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+    n = len(nrm)
     rng = np.random.default_rng(seed)
-    u1, u2 = rng.random((len(nrm), k)), rng.random((len(nrm), k))
-    return cosine_directions(nrm, u1, u2)
+    j1, j2 = rng.random((n, k)), rng.random((n, k))
+    s = int(round(np.sqrt(k)))
+    if s * s == k:
+        cell = np.arange(k)
+        u1, u2 = (cell // s + j1) / s, (cell % s + j2) / s
+    else:
+        perm = np.argsort(rng.random((n, k)), axis=1)
+        u1, u2 = (np.arange(k) + j1) / k, (perm + j2) / k
+    return cosine_directions(nrm, np.broadcast_to(u1, (n, k)), np.broadcast_to(u2, (n, k)))
 
 
 def cosine_directions(normals, u1, u2):

@@ -48,7 +48,8 @@ from dermis.geometry.atlas import content_hash
 
 BAKE_RAYS = 256
 """Cosine-weighted rays per vertex: a standard error of at most 0.5/sqrt(256) = 0.031 in A."""
-CACHE_VERSION = 3  # bump when the bake changes meaning (2: control-variate bent normals; 3: occluded rays kept)
+CACHE_VERSION = 4  # bump when the bake changes meaning (2: control-variate bent normals; 3: occluded rays kept;
+# 4: stratified rays)
 OFFSET_REL = 1e-5
 """Ray-origin offset along the vertex normal, relative to the mesh's bounding diagonal (float32
 hits of the triangles around the vertex are not counted as occluders)."""
