@@ -38,7 +38,7 @@ new environment costs a table lookup per occluded ray, not a new ray cast.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -66,6 +66,8 @@ class VertexVisibility:
     inverse: np.ndarray | None = None  # (n,) int: each vertex's distinct vertex
     rays: int = BAKE_RAYS
     seed: int = 0
+    key: str = ""  # the bake's content key
+    _blocked: tuple | None = field(default=None, repr=False)
 
     def environment_fraction(self, env) -> np.ndarray:
         """(n, 3) float32: the visible fraction r of the environment's SH irradiance per vertex and
@@ -73,11 +75,22 @@ class VertexVisibility:
         ao_d = self.ao[np.unique(self.inverse, return_index=True)[1]] if self.inverse is not None else self.ao
         if env.image is None or self.occluded is None:
             return np.repeat(self.ao[:, None], 3, axis=1).astype(np.float32)
-        from dermis.geometry.raycast import ambient_directions
+        if self._blocked is None and self.key in _BLOCKED:
+            self._blocked = _BLOCKED[self.key]
+        if self._blocked is None:  # the occluded rays' (vertex, u, v): once per bake, any environment
+            from dermis.geometry.raycast import ambient_directions
+            from dermis.prefiltered_environment import direction_to_equirect
 
-        occ = np.unpackbits(self.occluded, axis=1, count=self.rays).astype(bool)
-        dirs = ambient_directions(self.normals, self.rays, self.seed)
-        r = occluded_fraction(environment_sh(env), environment_radiance(env), self.normals, ao_d, dirs, occ)
+            occ = np.unpackbits(self.occluded, axis=1, count=self.rays).astype(bool)
+            owner, ray = np.nonzero(occ)
+            u, v = direction_to_equirect(ambient_directions(self.normals, self.rays, self.seed)[owner, ray])
+            self._blocked = (owner, u, v)
+            if self.key:
+                while len(_BLOCKED) >= _MEMORY_MAX:
+                    _BLOCKED.pop(next(iter(_BLOCKED)))
+                _BLOCKED[self.key] = self._blocked
+        r = occluded_fraction(environment_sh(env), environment_radiance(env), self.normals, ao_d, None, None,
+                              blocked=self._blocked, rays=self.rays)
         return r[self.inverse].astype(np.float32)
 
     def attribute(self, env=None) -> np.ndarray:
@@ -94,18 +107,23 @@ def environment_radiance(env) -> np.ndarray:
     return as_rgb(np.asarray(equirect_radiance(env))).astype(np.float64) * float(env.intensity)
 
 
-def occluded_fraction(sh, radiance, normals, ao, dirs, occ) -> np.ndarray:
+def occluded_fraction(sh, radiance, normals, ao, dirs, occ, *, blocked=None, rays=None) -> np.ndarray:
     """(n, 3) r = clamp(1 - O / E_sh(n), 0, 1) with O = (pi / K) sum_k occ_k L(w_k): the fraction of
     the SH irradiance E_sh(n) that the environment image ``radiance`` (equirect) still sends
     through the unoccluded rays. normals (n, 3) unit; ao (n,) (used where E_sh(n) is ~0); dirs
-    (n, K, 3) the cosine-weighted rays; occ (n, K) bool."""
+    (n, K, 3) the cosine-weighted rays; occ (n, K) bool. Or, instead of dirs and occ, ``blocked``
+    = (point index, u, v) of each occluded ray and ``rays`` = K."""
     from dermis.prefiltered_environment import bilinear_equirect, direction_to_equirect
 
-    n, k = occ.shape
-    owner, ray = np.nonzero(occ)
+    n = len(normals)
+    if blocked is None:
+        k = occ.shape[1]
+        owner, ray = np.nonzero(occ)
+        u, v = direction_to_equirect(dirs[owner, ray])
+    else:
+        (owner, u, v), k = blocked, int(rays)
     O = np.zeros((n, 3))
     if len(owner):
-        u, v = direction_to_equirect(dirs[owner, ray])
         Lk = bilinear_equirect(radiance, u, v)
         for c in range(3):
             O[:, c] = np.bincount(owner, weights=Lk[:, c], minlength=n)
@@ -119,6 +137,7 @@ def occluded_fraction(sh, radiance, normals, ao, dirs, occ) -> np.ndarray:
 
 
 _MEMORY: dict[str, dict] = {}  # content key -> the bake's arrays (dermis.geometry.bake_cache)
+_BLOCKED: dict[str, tuple] = {}  # content key -> its occluded rays' (vertex, u, v) (environment_fraction)
 _MEMORY_MAX = 8
 
 
@@ -142,12 +161,12 @@ def bake_vertex_visibility(positions, normals, indices, *, rays: int = BAKE_RAYS
     got = bake_cache.load(_MEMORY, key, path, shapes, _MEMORY_MAX) if cache else None
     if got is not None:
         return VertexVisibility(got["ao"], got["bent_normal"], 0.0, True, got["occluded"], n64[first], inverse,
-                                int(rays), int(seed))
+                                int(rays), int(seed), key)
     t0 = time.perf_counter()
     caster = RayCaster(p, t)
     ao, bent, _, occ = caster.ambient_rays(p[first], n64[first], rays, offset=OFFSET_REL * diag, seed=seed)
     v = VertexVisibility(ao[inverse].astype(np.float32), bent[inverse].astype(np.float32), time.perf_counter() - t0,
-                         False, np.packbits(occ, axis=1), n64[first], inverse, int(rays), int(seed))
+                         False, np.packbits(occ, axis=1), n64[first], inverse, int(rays), int(seed), key)
     if cache:
         arrays = {"ao": v.ao, "bent_normal": v.bent_normal, "occluded": v.occluded}
         bake_cache.remember(_MEMORY, key, arrays, _MEMORY_MAX)

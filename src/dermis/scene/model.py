@@ -198,7 +198,7 @@ class Environment:
     color: tuple = (0.03, 0.03, 0.035)
     image: Texture | None = None  # linear equirect; projected to 9 SH coefficients
     intensity: float = 1.0
-    occlusion: bool = True  # ambient occlusion and bent normals of the mesh (geometry/visibility.py)
+    occlusion: bool = True  # the mesh occludes its environment light (geometry/visibility.py)
     rotation_deg: float = 0.0  # the image turned about +y (dermis.environment.rotate_equirect); TOML "rotation"
 
 
