@@ -19,9 +19,10 @@ so r = A exactly. The earlier A * E_sh(B) (Landis 2002, sec. 4) is exact only th
 same fraction of every direction's light, so in a studio a crease that faces a lamp and is shaded
 from a dark wall loses as much of the lamp as one whose lamp the nose blocks. On the environment
 scene's visible points, against a 4096-ray integral of V L cos with the full image, A * E_sh(B)
-errs by 45 % (A < 0.6), 27 % (0.6 <= A < 0.8) and 5.0 % (A >= 0.8) on average; r E_sh(n) by 20 %,
-8.5 % and 3.3 % (benchmarks/RESULTS.md, "Environment against Cycles (round 7, branch env7)").
-The rest is the SH's truncation of the open part and the bake's 256 rays.
+errs by 45 % (A < 0.6), 27 % (0.6 <= A < 0.8) and 4.1 % (A >= 0.8) on average; r E_sh(n) with
+the 256 stratified rays by 7.4 %, 4.7 % and 2.2 % (benchmarks/environment_bands.py; RESULTS.md,
+"Environment against Cycles (round 7, branch env7)"). The rest is the SH's truncation of the open
+part and the rays' noise.
 
 The environment's specular is multiplied by the specular occlusion of Lagarde & de Rousiers 2014
 ("Moving Frostbite to Physically Based Rendering 3.0", sec. 4.10.2, listing 26):
