@@ -90,9 +90,15 @@ class VertexVisibility:
                 while len(_BLOCKED) >= _MEMORY_MAX:
                     _BLOCKED.pop(next(iter(_BLOCKED)))
                 _BLOCKED[self.key] = self._blocked
-        r = occluded_fraction(environment_sh(env), environment_radiance(env), self.normals, ao_d, None, None,
-                              blocked=self._blocked, rays=self.rays)
-        return r[self.inverse].astype(np.float32)
+        from dermis.invalidation import memo_by_content, read_only
+
+        # r does not depend on the intensity (O and E_sh scale alike): an intensity change is free
+        blocked = self._blocked
+        return memo_by_content(
+            "environment_fraction", (env.image.data,), (self.key, float(env.rotation_deg)),
+            lambda: read_only(occluded_fraction(environment_sh(env), environment_radiance(env), self.normals, ao_d,
+                                                None, None, blocked=blocked, rays=self.rays)[self.inverse]
+                              .astype(np.float32)))
 
     def attribute(self, env=None) -> np.ndarray:
         """(n, 4) float32 vertex attribute (location 6, in_visibility): (A, r) with r the visible
