@@ -9,7 +9,7 @@ the environment. One bounce of it, at a point x with normal n, is the irradiance
 with K cosine-weighted directions w_k (pdf cos(theta) / pi) and y_k the first surface point along
 each (Kajiya 1986; the one-bounce gather of Ritschel, Dachsbacher, Grosch & Kautz 2012, "The State
 of the Art in Interactive Global Illumination", sec. 3). A ray that escapes brings the environment,
-which the ambient occlusion and bent normal already count (dermis.geometry.visibility): it adds
+which the occluded environment light already counts (dermis.geometry.visibility): it adds
 nothing here. With the diffuse radiance L_o(y) = rho(y) E(y) / pi leaving y,
 
     E_b(x) = (1 / K) sum_k rho(y_k) E(y_k).
