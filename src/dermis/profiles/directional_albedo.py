@@ -132,3 +132,67 @@ def exit_factor(total_reflectance: float, mus, *, n: float = 1.4, exit_fresnel: 
                                    photons=bisection_photons, seed=seed)
     return np.array([walk_directional_albedo(alpha, float(m), n=n, exit_fresnel=exit_fresnel, photons=photons,
                                              seed=seed + 101 + i)[0] for i, m in enumerate(mus)]) / total_reflectance
+
+
+# ------------------------------------------------------------------ the exit factor's table (tsd)
+
+TABLE = __import__("pathlib").Path(__file__).resolve().parents[1] / "data" / "directional_albedo.json"
+TABLE_ALPHAS = (0.2, 0.4, 0.6, 0.7, 0.8, 0.87, 0.92, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998)
+"""Single-scattering albedos of the table's rows: hemispherical albedo 0.015 to about 0.8."""
+TABLE_MUS = (1.0, 0.9, 0.75, 0.6, 0.45, 0.3, 0.15, 0.05)
+
+
+def linear_coefficient(mus, k) -> float:
+    """Least-squares c of k(mu) = 1 + c (2/3 - mu): the one-parameter form that keeps the
+    hemispherical normalisation exactly (int_0^1 2 mu (2/3 - mu) dmu = 0), so a renderer can
+    apply it at entry (mu = N.L) and exit (mu = N.V) without changing the total reflectance."""
+    b = 2.0 / 3.0 - np.asarray(mus, np.float64)
+    return float(((np.asarray(k, np.float64) - 1.0) * b).sum() / (b * b).sum())
+
+
+def compute_table(photons: int = 40_000, seed: int = 11, n: float = 1.4) -> dict:
+    """Rows (alpha, hemispherical albedo A, k at TABLE_MUS, c) of the physical interface: index
+    ``n`` with refraction at entry and Fresnel reflection at exit (MCML's boundary)."""
+    x, w = np.polynomial.legendre.leggauss(HEMISPHERE_NODES)
+    nodes, wts = 0.5 * (x + 1.0), 0.5 * w
+    rows = []
+    for i, a in enumerate(TABLE_ALPHAS):
+        # common random numbers within a row (one seed for every angle): the angular shape k is
+        # then far less noisy than each R; 4x the photons where walks are short (cheap)
+        ph = photons * (4 if a <= 0.92 else 1)
+
+        def R(m):
+            return walk_directional_albedo(a, float(m), n=n, exit_fresnel=True, photons=ph, seed=seed + i)[0]
+
+        A = float((2.0 * wts * nodes * np.array([R(m) for m in nodes])).sum())
+        r = np.array([R(m) for m in TABLE_MUS])
+        k = r / A
+        rows.append({"alpha": a, "A": round(A, 5), "k": [round(float(v), 4) for v in k],
+                     "c": round(linear_coefficient(TABLE_MUS, k), 4)})
+    return {"what": "directional albedo R(mu)/A of an isotropic random-walk half-space (index 1.4, refraction at "
+                    "entry, Fresnel at exit) and the least-squares c of k = 1 + c (2/3 - mu); "
+                    "python -m dermis.profiles.directional_albedo --table",
+            "n": n, "photons": photons, "seed": seed, "mus": list(TABLE_MUS), "rows": rows}
+
+
+def main(argv=None):
+    import argparse
+    import json
+
+    ap = argparse.ArgumentParser(description="Tabulate the directional albedo of the skin's half-space.")
+    ap.add_argument("--table", action="store_true")
+    ap.add_argument("--photons", type=int, default=40_000)
+    ap.add_argument("--out", default=str(TABLE))
+    a = ap.parse_args(argv)
+    if not a.table:
+        ap.print_help()
+        return
+    d = compute_table(a.photons)
+    with open(a.out, "w") as f:
+        json.dump(d, f, indent=1)
+    for r in d["rows"]:
+        print(f"alpha {r['alpha']:.3f}  A {r['A']:.4f}  c {r['c']:.4f}  k {r['k']}")
+
+
+if __name__ == "__main__":
+    main()

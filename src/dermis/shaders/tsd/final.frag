@@ -1,5 +1,6 @@
 // Final pass of texture-space diffusion (d'Eon & Luebke 2007, 14.4.4 and 14.5), in screen space:
-// diffuse = (sum_k w_k I_k(uv) + translucency) * albedo^(1 - mix) / pi * (1 - rho_s a(N.V, m) / pi)
+// diffuse = (sum_k w_k I_k(uv) + translucency) * albedo^(1 - mix) / pi * (1 - rho_s a(N.V, m) / pi) * k(N.V)
+// (k: the skin's directional albedo, common/directional_albedo.glsl; k(N.L) weighted the irradiance).
 // specular = sum_lights E_i * sharp shadow * KS_Skin_Specular / pi, on pore-detailed normals.
 // Radiance is physical (d'Eon's BRDFs carry no 1/pi; dermis divides both terms by pi).
 #include "common/shadow.glsl"
@@ -9,11 +10,13 @@
 #include "common/brdf.glsl"
 #include "common/noise.glsl"
 #include "common/energy.glsl"
+#include "common/directional_albedo.glsl"
 #include "common/skin_specular.glsl"
 #include "tsd/gaussians.glsl"
 
 uniform sampler2D uTranslucency;
 uniform float uMix;
+uniform float uDirectionalAlbedo;  // 1: the skin's directional albedo at exit (scene.directional_albedo), 0: Lambertian
 uniform float uPoreScaleMm;
 uniform float uPoreStrength;
 uniform vec3 uCameraPos;
@@ -38,7 +41,8 @@ void main() {
 
     vec3 E = diffuse_irradiance(v_uv_ts) + texture(uTranslucency, v_uv_ts).rgb;
     vec3 albedo = albedo_at(v_uv);
-    vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
+    vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m)
+                 * directional_factor(uDirectionalAlbedo * directional_c(albedo), ndv);
 
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility);
 
