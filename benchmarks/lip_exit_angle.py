@@ -10,8 +10,12 @@ forward-scattering one (0.8; Cycles re-inverts the albedo for it), and for a sla
 the lower lip in front of the mouth cavity (10 mm) against a semi-infinite one.
 
     PYTHONPATH=src /path/to/bpy-venv/python benchmarks/lip_exit_angle.py [--spp 128] [--json OUT]
+    PYTHONPATH=src python benchmarks/lip_exit_angle.py --head STORES --slab OUT.json
 
-Needs bpy (the [cycles] extra). 8 x 8 px per render, about 1 s each.
+Needs bpy (the [cycles] extra). 8 x 8 px per render, about 1 s each. ``--head``: the converged
+stores of side and front-key (STORES/<scene>/cycles_{mode}[_nosss]_64x64.npz, read only): per
+pixel, Cycles' control / Cycles with SSS binned by the view cosine, against the flat slab's
+control / random walk at that pixel's albedo and view angle (no bpy).
 """
 
 from __future__ import annotations
@@ -55,11 +59,80 @@ ALBEDOS = {"skin mean": (0.617, 0.348, 0.288), "lips": (0.531, 0.238, 0.211), "l
 the lips' darkest band (front-key/side 64 x 64 pixels, Map-COL.jpg)."""
 
 
+def slab_ratio(slab, albedo, cos_view):
+    """(n, 3) the flat slab's control / random walk (anisotropy 0) at each pixel's albedo (n, 3) and
+    view cosine (n,): linear in the view angle between the measured ones, then linear in albedo."""
+    rows = [r for r in slab["rows"] if r["anisotropy"] == 0.0 and r["depth_mm"] == "inf"]
+    names = list(ALBEDOS)
+    angles = sorted({r["theta_v"] for r in rows})
+    th = np.degrees(np.arccos(np.clip(cos_view, 0.0, 1.0)))
+    out = np.zeros((len(th), 3))
+    for c in range(3):
+        a_s = np.array([ALBEDOS[nm][c] for nm in names])
+        order = np.argsort(a_s)
+        table = np.array([[next(r for r in rows if r["albedo"] == nm and r["theta_v"] == t)["control_over_sss"][c]
+                           for t in angles] for nm in names])
+        by_angle = np.array([np.interp(th, angles, table[i]) for i in order])  # (albedos, n)
+        out[:, c] = [np.interp(albedo[k, c], a_s[order], by_angle[:, k]) for k in range(len(th))]
+    return out
+
+
+def head_by_view_angle(stores, slab):
+    """Per scene and mode: Cycles' control / Cycles with SSS on the lit skin (N.L > 0.3) binned by
+    N.V, on the lips and on the eyelids, measured and as the flat slab predicts it."""
+    import dermis
+    from dermis.blender import sss as S
+    from dermis.blender.validate import _albedo_at, region_masks
+    from dermis.framing import framed_camera
+    from dermis.geometry.raycast import RayCaster
+    from dermis.reference.render import camera_rays
+
+    for name in ("side", "front-key"):
+        for mode in ("nospec", "spec"):
+            sc = dermis.load_scene(f"examples/reference/{name}.toml")
+            sc.material.pore_strength = 0.0
+            with np.load(f"{stores}/{name}/cycles_{mode}_64x64.npz") as z:
+                s = z["sums"] / z["spp"]
+            with np.load(f"{stores}/{name}/cycles_{mode}_nosss_64x64.npz") as z:
+                ctl = (z["sums"][0] / z["spp"])[..., :3].reshape(-1, 3)
+            ref = (0.5 * (s[0] + s[1]))[..., :3].reshape(-1, 3)
+            skin = (s[0][..., 3] >= 0.999) & (s[1][..., 3] >= 0.999)
+            reg = region_masks(sc, (64, 64), skin)
+            m = sc.mesh
+            pos, idx = np.asarray(m.positions, np.float64), np.asarray(m.indices, np.int64).reshape(-1, 3)
+            o, d, tmax, _ = camera_rays(sc, (64, 64), 1, camera=framed_camera(sc.camera, m, 1.0))
+            t, tri, bc = RayCaster(pos, idx).closest_hit(o, d, 0.0, tmax)
+            alb = _albedo_at(sc, tri, bc) * S.albedo_scale(sc)
+            nrm, tt = np.asarray(m.normals, np.float64), np.where(tri >= 0, tri, 0)
+            b1, b2 = bc[:, 0], bc[:, 1]
+            N = nrm[idx[tt, 0]] * (1 - b1 - b2)[:, None] + nrm[idx[tt, 1]] * b1[:, None] + nrm[idx[tt, 2]] * b2[:, None]
+            N /= np.linalg.norm(N, axis=1, keepdims=True)
+            L = -np.asarray(sc.lights[0].direction, np.float64)
+            cl, cv = N @ (L / np.linalg.norm(L)), -(N * d).sum(axis=1)
+            lit = skin.ravel() & (cl > 0.3) & (cv > 0.35)
+            pred = slab_ratio(slab, alb, cv)
+            print(f"{name}/{mode}: control / Cycles with SSS, measured | flat slab (sum over the pixels)")
+            groups = [(f"lit skin N.V [{lo:.2f}, {hi:.2f})", lit & (cv >= lo) & (cv < hi))
+                      for lo, hi in ((0.35, 0.7), (0.7, 0.85), (0.85, 0.95), (0.95, 1.01))]
+            groups += [("lips", lit & reg["lips"].ravel()), ("eyelids", lit & reg["eyelids"].ravel())]
+            for label, k in groups:
+                meas = ctl[k].sum(0) / ref[k].sum(0)
+                prd = ctl[k].sum(0) / (ctl[k] / pred[k]).sum(0)
+                print(f"  {label:28s} n={k.sum():4d}  {' '.join(f'{x:.3f}' for x in meas)} | "
+                      f"{' '.join(f'{x:.3f}' for x in prd)}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--spp", type=int, default=128)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--head", default=None, help="folder of the converged Cycles stores (read only)")
+    ap.add_argument("--slab", default=None, help="this script's --json output, for --head")
     a = ap.parse_args(argv)
+    if a.head:
+        with open(a.slab) as f:
+            head_by_view_angle(a.head, json.load(f))
+        return
     t0 = time.time()
     rows = []
     theta_l = 35.0  # front-key's light on the lips: cos 0.82

@@ -175,6 +175,23 @@ def compute_table(photons: int = 40_000, seed: int = 11, n: float = 1.4) -> dict
             "n": n, "photons": photons, "seed": seed, "mus": list(TABLE_MUS), "rows": rows}
 
 
+def coefficient(total_reflectance) -> np.ndarray:
+    """c(A) of the shipped table, linear in A between its rows, c(0) = the lowest row's and
+    c(1) = 0 (a medium that absorbs nothing returns all light at every angle): the numpy twin of
+    common/directional_albedo.glsl's directional_c."""
+    import json
+
+    rows = json.loads(TABLE.read_text())["rows"]
+    a = [0.0] + [r["A"] for r in rows] + [1.0]
+    c = [rows[0]["c"]] + [r["c"] for r in rows] + [0.0]
+    return np.interp(np.clip(np.asarray(total_reflectance, np.float64), 0.0, 1.0), a, c)
+
+
+def factor(total_reflectance, mu) -> np.ndarray:
+    """k(mu) = 1 + c(A) (2/3 - mu), mu clamped to [0, 1] (common/directional_albedo.glsl)."""
+    return 1.0 + coefficient(total_reflectance) * (2.0 / 3.0 - np.clip(mu, 0.0, 1.0))
+
+
 def main(argv=None):
     import argparse
     import json
