@@ -83,6 +83,7 @@ def many_rays(monkeypatch, tmp_path):
 
 def test_l_shape_bounce_equals_rho_e_times_the_form_factor(gl_ctx, many_rays):
     sc = l_scene()
+    sc.directional_albedo = False  # the form factor alone (the floor's k(N.L): test_directional_albedo)
     with Renderer(sc, (64, 64), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
         r.render("tsd")
         tsd = r.technique("tsd")

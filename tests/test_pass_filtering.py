@@ -31,6 +31,7 @@ def _albedo_quad(n: int):
 def test_irradiance_pass_reads_the_albedo_trilinearly(gl_ctx):
     S = 64
     sc, albedo = _albedo_quad(2 * S)  # map texels per irradiance texel: 2, so level of detail 1
+    sc.directional_albedo = False  # E = pi exactly (k(N.L) is tests/test_directional_albedo.py's)
     with Renderer(sc, (32, 32), irradiance_size=S, ctx=gl_ctx, samples=0) as r:
         r.render("tsd")
         assert r.gpu.textures["albedo"].anisotropy == 8.0  # the screen-space passes keep theirs

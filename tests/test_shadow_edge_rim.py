@@ -91,7 +91,13 @@ def test_shadow_edge_is_the_profiles_step_response(gl_ctx, shear):
     assert np.allclose(lam_row[-5:], lit, rtol=0.01), (lam_row[-5:], lit)
     assert np.all(lam_row[:5] < 1e-6)
     x_half = np.interp(0.5, lam_row[:, 1] / lit[1], x_mm)  # where the (sharp) shadow edge is
-    expect = _line_spread_convolution(x_mm, lam_row, sc.profile)
+    # tsd's directional albedo (dermis.profiles.directional_albedo): k(N.L) at 45 deg on the way in,
+    # k(N.V) ~ k(1) on the way out (the camera looks straight down), the same at every pixel here
+    from dermis.profiles.directional_albedo import factor
+
+    K = factor(np.asarray(ALBEDO), np.cos(np.radians(45.0))) * factor(np.asarray(ALBEDO), 1.0)
+    expect = _line_spread_convolution(x_mm, lam_row, sc.profile) * K
+    lit = lit * K
     err = np.abs(tsd_row - expect) / lit  # per channel, relative to the lit radiance
     near = np.abs(x_mm - x_half) <= 0.3
     assert err[~near].max() < 0.015, (err[~near].max(axis=0), x_mm[~near][np.argmax(err[~near], axis=0)])

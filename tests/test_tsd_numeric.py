@@ -199,7 +199,9 @@ def _specular_albedo(cos, m):
 
 def test_energy_uniform_irradiance(gl_ctx):
     """Uniform light on a large quad: the diffuse output equals irradiance x albedo / pi x the
-    energy left by the specular on the way in (N.L) and out (N.V), within 0.5%."""
+    energy left by the specular on the way in (N.L) and out (N.V) x the directional albedo's
+    k(N.L) k(N.V) (dermis.profiles.directional_albedo), within 0.5%."""
+    from dermis.profiles.directional_albedo import factor
     sc = quad_scene(200.0, 200.0)
     albedo = np.array([0.6, 0.4, 0.3])
     sc.material.albedo_color = tuple(albedo)
@@ -215,7 +217,8 @@ def test_energy_uniform_irradiance(gl_ctx):
     # per pixel N.V differs slightly: use the centre pixel's view ray direction ~ along the normal
     a_in = _specular_albedo(1.0, 0.35)
     a_out = _specular_albedo(np.cos(np.radians(1.0)), 0.35)
-    expected = E * albedo / np.pi * (1 - 0.3 * a_in / np.pi) * (1 - 0.3 * a_out / np.pi)
+    expected = (E * albedo / np.pi * (1 - 0.3 * a_in / np.pi) * (1 - 0.3 * a_out / np.pi)
+                * factor(albedo, 1.0) * factor(albedo, np.cos(np.radians(1.0))))
     rel = np.abs(px.mean(axis=0) / expected - 1)
     assert np.all(rel < 0.005), f"energy: {px.mean(axis=0)} vs {expected} ({rel})"
     # the factors matter: without them the value would be off by more than the tolerance

@@ -51,7 +51,7 @@ PRODUCTS = {
     "interreflection_bake": ("mesh",),
     "texture_space": ("mesh", "surfaces", "scale", "lights", "environment", "environment_occlusion", "material_maps",
                       "material_scalars", "profile", "irradiance_size", "epoch", "interreflection",
-                      "translucency_light_path"),
+                      "translucency_light_path", "directional_albedo"),
 }
 """Every cached product and what it depends on. "epoch" is bumped by Renderer.invalidate()."""
 
@@ -214,6 +214,7 @@ def scene_inputs(scene, *, irradiance_size: int, epoch: int) -> dict:
         "epoch": int(epoch),
         "interreflection": bool(getattr(scene, "interreflection", True)),
         "translucency_light_path": bool(getattr(scene, "translucency_light_path", False)),
+        "directional_albedo": bool(getattr(scene, "directional_albedo", True)),
     }
 
 

@@ -361,6 +361,8 @@ def check_scene(scene, full: bool = True):
     if getattr(scene, "translucency_light_path", False) not in (True, False):
         raise DermisError(f"{src}: [scene] translucency_light_path must be true or false, "
                           f"got {scene.translucency_light_path!r}")
+    if getattr(scene, "directional_albedo", True) not in (True, False):
+        raise DermisError(f"{src}: [scene] directional_albedo must be true or false, got {scene.directional_albedo!r}")
     for i, L in enumerate(scene.lights):
         _check_light(L, f"{src}: [[lights]] #{i + 1}")
     check_camera(scene.camera, f"{src}: [camera]", (lo + hi) / 2, diag / 2)

@@ -167,12 +167,14 @@ def validate(scene_files, techniques, size, *, out_dir=None, spp=4, spacing_mm=N
                         "reference: ray cast per sample point), unless [environment] occlusion = false",
                         "reference shadows are exact ray casts (hard); techniques use PCF shadow maps",
                         "interreflection off on both sides (the reference has none; tsd's one bounce is measured "
-                        "against Cycles: validate --against cycles)"],
+                        "against Cycles: validate --against cycles)",
+                        "directional albedo off in tsd (the reference's exit is Lambertian)"],
               "scenes": {}}
     for f in scene_files:
         scene = dermis.load_scene(f)
         scene.material.pore_strength = 0.0
         scene.interreflection = False  # the reference has no interreflection: compare like with like
+        scene.directional_albedo = False  # its exit is Lambertian (a diffusion profile): like with like
         name = Path(f).stem
         echo(f"[{name}] reference {size[0]}x{size[1]} ...")
         ref = render_reference(scene, size, spp=spp, min_spacing_mm=spacing_mm, seed=seed, progress=progress)
@@ -223,6 +225,7 @@ def validate(scene_files, techniques, size, *, out_dir=None, spp=4, spacing_mm=N
                 sc = dermis.load_scene(f)
                 sc.material.pore_strength = 0.0
                 sc.interreflection = False
+                sc.directional_albedo = False
                 if edit:
                     edit(sc)
                 img, secs = _render(sc, "tsd", size, **dict(opts))

@@ -25,7 +25,7 @@ from dermis.validation import check_exposure, check_scene
 # key -> expected python type(s); lists of numbers are checked for length
 _SCHEMA = {
     "scene": {"name": str, "mm_per_unit": float, "technique": str, "interreflection": bool,
-              "translucency_light_path": bool},
+              "translucency_light_path": bool, "directional_albedo": bool},
     "mesh": {"file": str, "builtin": str, "uv_convention": str, "texture_space_uv": str},
     "material": {"albedo": str, "albedo_color": "rgb", "normal_map": str, "normal_strength": float,
                  "specular_map": str, "roughness": float, "roughness_map": str, "rho_s": float, "specular_map_bias": float,
@@ -202,7 +202,8 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
                   mm_per_unit=mm_per_unit, profile=profile, skin_color=skin_color, technique=technique, source=str(path),
                   name=sc.get("name", path.stem), surfaces=list(material_from_file.get("surfaces", [])),
                   interreflection=sc.get("interreflection", True),
-                  translucency_light_path=sc.get("translucency_light_path", False))
+                  translucency_light_path=sc.get("translucency_light_path", False),
+                  directional_albedo=sc.get("directional_albedo", True))
     if not lights_t and not doc.get("camera"):
         from dermis.scene.builtin import frame_scene
 

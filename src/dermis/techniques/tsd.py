@@ -540,6 +540,7 @@ class TextureSpaceDiffusion(Technique):
         irr = self._texture("irradiance", (S, S))
         prog = self.p_irradiance
         bind_scene(frame, prog)
+        set_uniform(prog, "uDirectionalAlbedo", float(bool(getattr(scene, "directional_albedo", True))))
         with timer("tsd_irradiance"):
             if irradiance is None:
                 # a texture-space raster: the maps' footprint is square, anisotropy only costs
@@ -649,6 +650,7 @@ class TextureSpaceDiffusion(Technique):
             bind_sampler(prog, "uTranslucency", self.tex["translucency"], Unit.FIRST_FREE)
             self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE + 1, frame.keys)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
+            set_uniform(prog, "uDirectionalAlbedo", float(bool(getattr(frame.scene, "directional_albedo", True))))
             draw_mesh(frame, prog)
         frame.passes_run.append("tsd_final")
         draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing

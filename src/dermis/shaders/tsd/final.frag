@@ -1,5 +1,6 @@
 // Final pass of texture-space diffusion (d'Eon & Luebke 2007, 14.4.4 and 14.5), in screen space:
-// diffuse = (sum_k w_k I_k(uv) + translucency) * albedo^(1 - mix) / pi * (1 - rho_s a(N.V, m) / pi)
+// diffuse = (sum_k w_k I_k(uv) k(N.V) + translucency) * albedo^(1 - mix) / pi * (1 - rho_s a(N.V, m) / pi)
+// (k: the skin's directional albedo, common/directional_albedo.glsl; k(N.L) weighted the irradiance).
 // specular = sum_lights E_i * sharp shadow * KS_Skin_Specular / pi, on pore-detailed normals.
 // Radiance is physical (d'Eon's BRDFs carry no 1/pi; dermis divides both terms by pi).
 #include "common/shadow.glsl"
@@ -9,11 +10,13 @@
 #include "common/brdf.glsl"
 #include "common/noise.glsl"
 #include "common/energy.glsl"
+#include "common/directional_albedo.glsl"
 #include "common/skin_specular.glsl"
 #include "tsd/gaussians.glsl"
 
 uniform sampler2D uTranslucency;
 uniform float uMix;
+uniform float uDirectionalAlbedo;  // 1: the skin's directional albedo at exit (scene.directional_albedo), 0: Lambertian
 uniform float uPoreScaleMm;
 uniform float uPoreStrength;
 uniform vec3 uCameraPos;
@@ -36,8 +39,11 @@ void main() {
     vec3 Ns = pore_normal(N, v_world * uMmPerUnit, uPoreScaleMm, uPoreStrength);
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
 
-    vec3 E = diffuse_irradiance(v_uv_ts) + texture(uTranslucency, v_uv_ts).rgb;
     vec3 albedo = albedo_at(v_uv);
+    // k(N.V) is the half-space's REFLECTION (dermis.profiles.directional_albedo): the light that
+    // entered on this side; the light through a thin part (translucency) is left Lambertian
+    vec3 E = diffuse_irradiance(v_uv_ts) * directional_factor(uDirectionalAlbedo * directional_c(albedo), ndv)
+           + texture(uTranslucency, v_uv_ts).rgb;
     vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility);

@@ -1,5 +1,6 @@
 // Irradiance texture (d'Eon & Luebke 2007, 14.4.1 and 14.5.2), in UV space, linear float:
-// E = sum_lights E_i max(N.L, 0) shadow_soft (1 - rho_s a(N.L, m) / pi) + ambient, times albedo^mix.
+// E = sum_lights E_i max(N.L, 0) shadow_soft (1 - rho_s a(N.L, m) / pi) k(N.L) + ambient, times albedo^mix
+// (k: the skin's directional albedo, common/directional_albedo.glsl).
 // Alpha is coverage (1 on the mesh), for the normalised blurs that hide seams.
 #include "common/shadow.glsl"
 #include "common/surface.glsl"
@@ -8,8 +9,10 @@
 #include "common/brdf.glsl"
 #include "common/energy.glsl"
 #include "common/skin_irradiance.glsl"
+#include "common/directional_albedo.glsl"
 
 uniform float uMix;
+uniform float uDirectionalAlbedo;  // 1: the skin's directional albedo at entry (scene.directional_albedo), 0: Lambertian
 in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -22,7 +25,9 @@ void main() {
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     float rho_s = specular_intensity(v_uv);
     float m = roughness_at(v_uv);
-    vec3 E = skin_irradiance(v_world, Ng, N, rho_s, m, v_visibility);  // lights, soft shadows, ambient, energy
     vec3 albedo = albedo_at(v_uv);
+    vec3 c = uDirectionalAlbedo * directional_c(albedo);
+    // lights (each by the directional albedo's k(N.L)), soft shadows, ambient, energy
+    vec3 E = skin_irradiance_directional(v_world, Ng, N, rho_s, m, v_visibility, c);
     f_irradiance = vec4(E * albedo_power(albedo, uMix), 1.0);
 }
