@@ -32,6 +32,9 @@ def irradiance_variants(fs0: str) -> dict:
     return {
         "full": fs0,
         "no shadow": fs0.replace(SHADOW_SOFT, "1.0"),
+        "shadow: receiver plane + 1 tap (no PCF grid)": fs0.replace("if (R <= 0.0) return shadow_tap(i, c.xy, z);",
+                                                                    "return shadow_tap(i, c.xy, z);"),
+        "shadow: 1 tap, no receiver plane": fs0.replace(SHADOW_SOFT, "shadow_tap(i, (uLightViewProj[i] * vec4(P, 1.0)).xy * 0.5 + 0.5, (uLightViewProj[i] * vec4(P, 1.0)).z * 0.5 + 0.5)"),
         "no energy table (per light)": fs0.replace("E += Ei * ndl * shadow_soft(i, P, Ng) * energy_transmitted(rho_s, ndl, m);",
                                                    "E += Ei * ndl * shadow_soft(i, P, Ng);"),
         "no shadow, no energy table": fs0.replace("E += Ei * ndl * shadow_soft(i, P, Ng) * energy_transmitted(rho_s, ndl, m);",
@@ -158,6 +161,8 @@ def main(argv=None):
     ap.add_argument("--only", default="irradiance,final,lambert")
     ap.add_argument("--samples", type=int, default=4, help="MSAA samples of the frame (dermis render: 4)")
     ap.add_argument("--shadow-from", default=None, help="also time each pass with this git revision's common/shadow.glsl")
+    ap.add_argument("--irradiance-aniso-1x-only", action="store_true",
+                    help="time the irradiance variants only as render() draws the pass (maps without anisotropy)")
     a = ap.parse_args(argv)
     only = a.only.split(",")
     sc = dermis.load_scene(a.scene)
@@ -178,7 +183,10 @@ def main(argv=None):
             for aniso in (8.0, 1.0):
                 set_anisotropy(r, aniso)
                 for k, p in progs.items():
-                    if aniso == 1.0 and k not in ("full", "no shadow", "const") and not k.startswith("full, shadow"):
+                    if aniso == 8.0 and a.irradiance_aniso_1x_only:
+                        continue
+                    if aniso == 1.0 and k not in ("full", "no shadow", "const") and not k.startswith(("full, shadow", "shadow:")) \
+                            and not a.irradiance_aniso_1x_only:
                         continue
                     bind_scene(frame, p)
                     res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: t._uv_pass(frame, p, out), a.repeats)

@@ -50,7 +50,7 @@ from dermis.gl.shaders import program
 from dermis.gl.interreflection import InterreflectionHits
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
-from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
+from dermis.techniques.shared import (MAX_GAUSSIANS, MAX_LIGHTS, OutputMode, Unit, bind_sampler, bind_sampler_array,
                                       set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
 
@@ -106,6 +106,15 @@ class TsdOptions(TranslucentOptions):
         check_int(f"{technique}: max_taps", self.max_taps, 1, 64)
 
 
+SHARP_SHADOW_TARGETS = (MAX_LIGHTS + 1 + 3) // 4  # tsd/sharp_shadow.glsl's: coverage + MAX_LIGHTS channels
+
+
+def sharp_shadow_targets(light_count: int) -> int:
+    """RGBA8 targets the irradiance pass writes the sharp shadows of ``light_count`` lights into
+    (tsd/sharp_shadow.glsl: channel 0 coverage, 1 + i light i)."""
+    return (int(light_count) + 1 + 3) // 4
+
+
 class TextureSpaceDiffusion(Technique):
     name = "tsd"
     description = "texture-space diffusion (d'Eon, Luebke & Enderton 2007): chained UV-space Gaussian blurs"
@@ -146,6 +155,7 @@ class TextureSpaceDiffusion(Technique):
         self.hits = InterreflectionHits(self.ctx)  # the interreflection rays' hits (one bounce)
         self._p_bounce = None  # (exitant, gather, splat) programs, compiled on first use
         self.bounce_level = None
+        self._sharp = ()  # the sharp-shadow targets of the last irradiance pass
 
     # ------------------------------------------------------------------ resources
     def _texture(self, key, size, components=4, dtype="f2"):
@@ -183,6 +193,7 @@ class TextureSpaceDiffusion(Technique):
             if not (isinstance(k, tuple) and k[0] == "fbo"):
                 o.release()
         self.tex = {}
+        self._sharp = ()
         self.scene_changed()
         self._stretch_chain_key = None
         self._chain_passes = None
@@ -234,9 +245,10 @@ class TextureSpaceDiffusion(Technique):
             vao.render(moderngl.TRIANGLES, vertices=3)
 
     def _uv_pass(self, frame, prog, target_tex, clear=True):
-        fbo = self._fbo(target_tex)
+        targets = target_tex if isinstance(target_tex, tuple) else (target_tex,)
+        fbo = self._fbo(*targets)
         fbo.use()
-        fbo.viewport = (0, 0, *target_tex.size)
+        fbo.viewport = (0, 0, *targets[0].size)
         if clear:
             fbo.clear(0.0, 0.0, 0.0, 0.0)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
@@ -538,17 +550,22 @@ class TextureSpaceDiffusion(Technique):
         self.levels = levels
         # irradiance (the uniforms and bindings set before the timed region: Python, no GPU work)
         irr = self._texture("irradiance", (S, S))
+        # the lights' sharp shadows, for the final pass's specular (tsd/sharp_shadow.glsl): coverage
+        # and one channel per light, four per RGBA8 target, only the targets the lights need
+        sharp = tuple(self._texture(("sharp_shadow", t), (S, S), 4, "f1")
+                      for t in range(sharp_shadow_targets(frame.lights.count)))
+        self._sharp = sharp
         prog = self.p_irradiance
         bind_scene(frame, prog)
+        if irradiance is not None:
+            a = np.ascontiguousarray(np.asarray(irradiance, np.float32)[::-1])
+            if a.shape != (S, S, 4):
+                raise ValueError(f"irradiance override must be {(S, S, 4)}, got {a.shape}")
         with timer("tsd_irradiance"):
-            if irradiance is None:
-                # a texture-space raster: the maps' footprint is square, anisotropy only costs
-                with maps_without_anisotropy(frame.gpu, surfaces=False):
-                    self._uv_pass(frame, prog, irr)
-            else:
-                a = np.ascontiguousarray(np.asarray(irradiance, np.float32)[::-1])
-                if a.shape != (S, S, 4):
-                    raise ValueError(f"irradiance override must be {(S, S, 4)}, got {a.shape}")
+            # a texture-space raster: the maps' footprint is square, anisotropy only costs
+            with maps_without_anisotropy(frame.gpu, surfaces=False):
+                self._uv_pass(frame, prog, (irr, *sharp))
+            if irradiance is not None:  # the override replaces the irradiance; the shadows stay the raster's
                 irr.write(a.astype(np.float16).tobytes())
         # one bounce between skin surfaces, added to I_0 before the dilation and the blurs (an
         # override is the whole irradiance: nothing is added to it)
@@ -648,6 +665,9 @@ class TextureSpaceDiffusion(Technique):
             prog = self.p_final
             bind_sampler(prog, "uTranslucency", self.tex["translucency"], Unit.FIRST_FREE)
             self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE + 1, frame.keys)
+            # targets past the lights' are not read: their units hold the first target
+            bind_sampler_array(prog, "uSharpShadow", (*self._sharp, *(self._sharp[:1] * SHARP_SHADOW_TARGETS)),
+                               Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
             draw_mesh(frame, prog)
         frame.passes_run.append("tsd_final")

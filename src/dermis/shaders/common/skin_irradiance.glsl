@@ -9,14 +9,33 @@
 #include "common/environment.glsl"
 #include "common/energy.glsl"
 
+#ifdef SKIN_SHARP_SHADOWS
+// With SKIN_SHARP_SHADOWS defined (tsd's texture-space pass), skin_irradiance also leaves each
+// light's SHARP shadow (shadow_sharp, the specular's) here, from the same receiver solve as the
+// soft one, for the final pass to read instead of a receiver solve and a tap per light per screen
+// sample (d'Eon & Luebke 2007, 14.5.2, compute the shadow once in texture space). 1 where unlit.
+float skin_sharp_shadow[MAX_LIGHTS];
+#endif
+
 vec3 skin_irradiance(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis) {
     vec3 E = vec3(0.0);
+#ifdef SKIN_SHARP_SHADOWS
+    for (int i = 0; i < MAX_LIGHTS; ++i) skin_sharp_shadow[i] = 1.0;
+#endif
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
         vec3 Ei = light_incident(i, P, L);
         float ndl = dot(N, L);
+#ifdef SKIN_SHARP_SHADOWS
+        float sharp;
+        float s = shadow_soft_and_sharp(i, P, Ng, ndl > 0.0, sharp);
+        skin_sharp_shadow[i] = sharp;
         if (ndl <= 0.0) continue;
-        E += Ei * ndl * shadow_soft(i, P, Ng) * energy_transmitted(rho_s, ndl, m);
+#else
+        if (ndl <= 0.0) continue;
+        float s = shadow_soft(i, P, Ng);
+#endif
+        E += Ei * ndl * s * energy_transmitted(rho_s, ndl, m);
     }
     E += environment_irradiance_occluded(N, Ng, vis) * energy_transmitted(rho_s, 0.5, m);
     return E;
