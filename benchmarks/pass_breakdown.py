@@ -23,7 +23,8 @@ from dermis.bench import HEAD_TOML
 from dermis.gl.shaders import load_shader_source
 from dermis.renderer import Renderer
 from dermis.techniques.base import bind_scene, draw_mesh
-from dermis.techniques.shared import MAX_GAUSSIANS, Unit, bind_sampler, bind_sampler_array, surface_detail_uniforms
+from dermis.techniques.tsd import STORED_SHARP_SHADOWS
+from dermis.techniques.shared import MAX_GAUSSIANS, Unit, bind_sampler, surface_detail_uniforms
 
 
 
@@ -45,7 +46,8 @@ def irradiance_variants(fs0: str) -> dict:
         "no spec/rough maps": fs0.replace("float rho_s = specular_intensity(v_uv);", "float rho_s = uRhoS;")
                                  .replace("float m = roughness_at(v_uv);", "float m = uRoughness;"),
         "const": fs0.replace("f_irradiance = vec4(E * albedo_power(albedo, uMix), 1.0);", "f_irradiance = vec4(1.0);")
-                    .replace("f_sharp[t] = o;", "f_sharp[t] = vec4(1.0);"),
+                    .replace("f_sharp = vec4(1.0, skin_sharp_shadow[0], skin_sharp_shadow[1], skin_sharp_shadow[2]);",
+                             "f_sharp = vec4(1.0);"),
     }
 
 
@@ -213,9 +215,11 @@ def main(argv=None):
         print(f"dermis {dermis.__file__}; {a.size}^2 output, samples {r.samples}, irradiance {S}^2")
         if "irradiance" in only:
             vs = load_shader_source("tsd/uv_space.vert", defines)
-            v = with_shadow_from(irradiance_variants(load_shader_source("tsd/irradiance.frag", defines)), a.shadow_from)
+            # as TextureSpaceDiffusion compiles it for a scene of at most STORED_SHARP_SHADOWS lights
+            irr_defines = {**defines, "SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS}
+            v = with_shadow_from(irradiance_variants(load_shader_source("tsd/irradiance.frag", irr_defines)), a.shadow_from)
             if a.against:
-                v[f"full @{a.against}"] = source_at(a.against, "tsd/irradiance.frag", defines)
+                v[f"full @{a.against}"] = source_at(a.against, "tsd/irradiance.frag", irr_defines)
             progs = compile_variants(ctx, vs, v)
             out = t._texture("irradiance", (S, S))
             res = {}
@@ -232,22 +236,23 @@ def main(argv=None):
                     def fn(p=p):
                         bind_scene(frame, p)
                         # into the irradiance and the sharp-shadow targets, as texture_space draws it
-                        t._uv_pass(frame, p, (out, *t._sharp))
+                        t._uv_pass(frame, p, (out, t.tex["sharp_shadow"]))
                     fns[k + ("" if aniso == 8.0 else ", aniso 1x")] = fn
                 res.update(timed_all(ctx, fns, a.repeats))
             set_anisotropy(r, 8.0)
             table(f"tsd irradiance pass at {S}^2 (no dilation)", res)
         if "final" in only:
             vs = load_shader_source("common/mesh.vert", defines)
-            v = with_shadow_from(final_variants(load_shader_source("tsd/final.frag", defines)), a.shadow_from)
+            final_defines = {**defines, "SHARP_SHADOW_READ": None}
+            v = with_shadow_from(final_variants(load_shader_source("tsd/final.frag", final_defines)), a.shadow_from)
             if a.against:
-                v[f"full @{a.against}"] = source_at(a.against, "tsd/final.frag", defines)
+                v[f"full @{a.against}"] = source_at(a.against, "tsd/final.frag", final_defines)
             progs = compile_variants(ctx, vs, v)
             res = {}
             for p in progs.values():
                 bind_sampler(p, "uTranslucency", t.tex["translucency"], Unit.FIRST_FREE)
                 t._profile_uniforms(p, sc.profile, Unit.FIRST_FREE + 1, frame.keys)
-                bind_sampler_array(p, "uSharpShadow", (*t._sharp, *(t._sharp[:1] * 4)), Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)
+                bind_sampler(p, "uSharpShadow", t.tex["sharp_shadow"], Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)
                 surface_detail_uniforms(p, sc.material)
             for aniso in (8.0, 1.0):
                 set_anisotropy(r, aniso)

@@ -10,17 +10,18 @@
 #include "common/energy.glsl"
 
 #ifdef SKIN_SHARP_SHADOWS
-// With SKIN_SHARP_SHADOWS defined (tsd's texture-space pass), skin_irradiance also leaves each
+// With SKIN_SHARP_SHADOWS = n defined (tsd's texture-space pass), skin_irradiance also leaves each
 // light's SHARP shadow (shadow_sharp, the specular's) here, from the same receiver solve as the
 // soft one, for the final pass to read instead of a receiver solve and a tap per light per screen
 // sample (d'Eon & Luebke 2007, 14.5.2, compute the shadow once in texture space). 1 where unlit.
-float skin_sharp_shadow[MAX_LIGHTS];
+// for lights 0..n-1 (the caller defines it only for scenes of at most n lights).
+float skin_sharp_shadow[SKIN_SHARP_SHADOWS];
 #endif
 
 vec3 skin_irradiance(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis) {
     vec3 E = vec3(0.0);
 #ifdef SKIN_SHARP_SHADOWS
-    for (int i = 0; i < MAX_LIGHTS; ++i) skin_sharp_shadow[i] = 1.0;
+    for (int i = 0; i < SKIN_SHARP_SHADOWS; ++i) skin_sharp_shadow[i] = 1.0;
 #endif
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
@@ -29,7 +30,7 @@ vec3 skin_irradiance(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis) {
 #ifdef SKIN_SHARP_SHADOWS
         float sharp;
         float s = shadow_soft_and_sharp(i, P, Ng, ndl > 0.0, sharp);
-        skin_sharp_shadow[i] = sharp;
+        skin_sharp_shadow[min(i, SKIN_SHARP_SHADOWS - 1)] = sharp;  // i < n wherever it is read
         if (ndl <= 0.0) continue;
 #else
         if (ndl <= 0.0) continue;

@@ -9,9 +9,10 @@
 #include "common/brdf.glsl"
 #include "common/noise.glsl"
 #include "common/energy.glsl"
-#define SHARP_SHADOW_READ
+#ifdef SHARP_SHADOW_READ  // at most STORED_SHARP_SHADOWS lights: their shadows from the irradiance pass
 #include "tsd/sharp_shadow.glsl"
-#define SPECULAR_SHADOW(i, P, Ng) stored_sharp_shadow(i)  // from the irradiance pass, not a shadow-map tap here
+#define SPECULAR_SHADOW(i, P, Ng) stored_sharp_shadow(i)
+#endif
 #include "common/skin_specular.glsl"
 #include "tsd/gaussians.glsl"
 
@@ -43,7 +44,9 @@ void main() {
     vec3 albedo = albedo_at(v_uv);
     vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
-    load_sharp_shadows(v_uv_ts, uLightCount);
+#ifdef SHARP_SHADOW_READ
+    load_sharp_shadows(v_uv_ts);
+#endif
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility);
 
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec : diffuse + spec;
