@@ -46,7 +46,7 @@ def irradiance_variants(fs0: str) -> dict:
         "no spec/rough maps": fs0.replace("float rho_s = specular_intensity(v_uv);", "float rho_s = uRhoS;")
                                  .replace("float m = roughness_at(v_uv);", "float m = uRoughness;"),
         "const": fs0.replace("f_irradiance = vec4(E * albedo_power(albedo, uMix), 1.0);", "f_irradiance = vec4(1.0);")
-                    .replace("f_sharp = vec4(1.0, skin_sharp_shadow[0], skin_sharp_shadow[1], skin_sharp_shadow[2]);",
+                    .replace("f_sharp = vec4(1.0, skin_sharp_shadow.xyz);",
                              "f_sharp = vec4(1.0);"),
     }
 
@@ -196,13 +196,14 @@ def main(argv=None):
     ap.add_argument("--variants", default=None, help="comma-separated variant names to time (default: all)")
     ap.add_argument("--samples", type=int, default=4, help="MSAA samples of the frame (dermis render: 4)")
     ap.add_argument("--shadow-from", default=None, help="also time each pass with this git revision's common/shadow.glsl")
-    ap.add_argument("--against", default=None, help="also time each pass with this git revision's whole shader (\"full @REV\")")
+    ap.add_argument("--against", default=None, help="also time each pass with these git revisions' whole shaders (comma-separated; \"full @REV\")")
     ap.add_argument("--irradiance-aniso-1x-only", action="store_true",
                     help="time the irradiance variants only as render() draws the pass (maps without anisotropy)")
     a = ap.parse_args(argv)
     only = a.only.split(",")
     global KEEP
-    KEEP = None if a.variants is None else set(a.variants.split(",")) | ({f"full @{a.against}"} if a.against else set())
+    against = a.against.split(",") if a.against else []
+    KEEP = None if a.variants is None else set(a.variants.split(",")) | {f"full @{rev}" for rev in against}
     sc = dermis.load_scene(a.scene)
     S = a.irradiance_size
     defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
@@ -218,8 +219,8 @@ def main(argv=None):
             # as TextureSpaceDiffusion compiles it for a scene of at most STORED_SHARP_SHADOWS lights
             irr_defines = {**defines, "SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS}
             v = with_shadow_from(irradiance_variants(load_shader_source("tsd/irradiance.frag", irr_defines)), a.shadow_from)
-            if a.against:
-                v[f"full @{a.against}"] = source_at(a.against, "tsd/irradiance.frag", irr_defines)
+            for rev in against:
+                v[f"full @{rev}"] = source_at(rev, "tsd/irradiance.frag", irr_defines)
             progs = compile_variants(ctx, vs, v)
             out = t._texture("irradiance", (S, S))
             res = {}
@@ -245,8 +246,8 @@ def main(argv=None):
             vs = load_shader_source("common/mesh.vert", defines)
             final_defines = {**defines, "SHARP_SHADOW_READ": None}
             v = with_shadow_from(final_variants(load_shader_source("tsd/final.frag", final_defines)), a.shadow_from)
-            if a.against:
-                v[f"full @{a.against}"] = source_at(a.against, "tsd/final.frag", final_defines)
+            for rev in against:
+                v[f"full @{rev}"] = source_at(rev, "tsd/final.frag", final_defines)
             progs = compile_variants(ctx, vs, v)
             res = {}
             for p in progs.values():
@@ -265,8 +266,8 @@ def main(argv=None):
         if "lambert" in only:
             vs = load_shader_source("common/mesh.vert", {})
             v = with_shadow_from(lambert_variants(load_shader_source("lambert/lambert.frag", {})), a.shadow_from)
-            if a.against:
-                v[f"full @{a.against}"] = source_at(a.against, "lambert/lambert.frag", {})
+            for rev in against:
+                v[f"full @{rev}"] = source_at(rev, "lambert/lambert.frag", {})
             progs = compile_variants(ctx, vs, v)
             res = {}
             for aniso in (8.0, 1.0):

@@ -14,14 +14,16 @@
 // light's SHARP shadow (shadow_sharp, the specular's) here, from the same receiver solve as the
 // soft one, for the final pass to read instead of a receiver solve and a tap per light per screen
 // sample (d'Eon & Luebke 2007, 14.5.2, compute the shadow once in texture space). 1 where unlit.
-// for lights 0..n-1 (the caller defines it only for scenes of at most n lights).
-float skin_sharp_shadow[SKIN_SHARP_SHADOWS];
+// for lights 0..n-1, n <= 4 (the caller defines it only for scenes of at most n lights). A vector
+// written by a select, not an array indexed by the loop's (uniform, not constant) counter: llvmpipe
+// keeps such an array in memory and scatters to it lane by lane.
+vec4 skin_sharp_shadow;
 #endif
 
 vec3 skin_irradiance(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis) {
     vec3 E = vec3(0.0);
 #ifdef SKIN_SHARP_SHADOWS
-    for (int i = 0; i < SKIN_SHARP_SHADOWS; ++i) skin_sharp_shadow[i] = 1.0;
+    skin_sharp_shadow = vec4(1.0);
 #endif
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
@@ -30,7 +32,7 @@ vec3 skin_irradiance(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis) {
 #ifdef SKIN_SHARP_SHADOWS
         float sharp;
         float s = shadow_soft_and_sharp(i, P, Ng, ndl > 0.0, sharp);
-        skin_sharp_shadow[min(i, SKIN_SHARP_SHADOWS - 1)] = sharp;  // i < n wherever it is read
+        skin_sharp_shadow = mix(skin_sharp_shadow, vec4(sharp), equal(ivec4(0, 1, 2, 3), ivec4(i)));
         if (ndl <= 0.0) continue;
 #else
         if (ndl <= 0.0) continue;

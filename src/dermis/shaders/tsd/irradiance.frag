@@ -32,6 +32,6 @@ void main() {
     vec3 albedo = albedo_at(v_uv);
     f_irradiance = vec4(E * albedo_power(albedo, uMix), 1.0);
 #ifdef SKIN_SHARP_SHADOWS
-    f_sharp = vec4(1.0, skin_sharp_shadow[0], skin_sharp_shadow[1], skin_sharp_shadow[2]);
+    f_sharp = vec4(1.0, skin_sharp_shadow.xyz);
 #endif
 }
