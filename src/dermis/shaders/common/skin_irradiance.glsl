@@ -30,6 +30,10 @@ vec3 skin_irradiance(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis) {
         vec3 Ei = light_incident(i, P, L);
         float ndl = dot(N, L);
 #ifdef SKIN_SHARP_SHADOWS
+        // neither the diffuse (N.L) nor the specular (its own test, Ng.L: common/skin_specular.glsl)
+        // uses light i here: skipped before the receiver solve, as the soft shadow alone was (a
+        // block of texels all facing away skips the loop's body, on llvmpipe too); stored as 1
+        if (ndl <= 0.0 && dot(Ng, L) <= 0.0) continue;
         float sharp;
         float s = shadow_soft_and_sharp(i, P, Ng, ndl > 0.0, sharp);
         skin_sharp_shadow = mix(skin_sharp_shadow, vec4(sharp), equal(ivec4(0, 1, 2, 3), ivec4(i)));
