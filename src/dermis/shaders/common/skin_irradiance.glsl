@@ -13,7 +13,7 @@
 // With SKIN_SHARP_SHADOWS = n defined (tsd's texture-space pass), skin_irradiance also leaves each
 // light's SHARP shadow (shadow_sharp, the specular's) here, from the same receiver solve as the
 // soft one, for the final pass to read instead of a receiver solve and a tap per light per screen
-// sample (d'Eon & Luebke 2007, 14.5.2, compute the shadow once in texture space). 1 where unlit.
+// sample (d'Eon & Luebke 2007, 14.5.2, compute the shadow once in texture space).
 // for lights 0..n-1, n <= 4 (the caller defines it only for scenes of at most n lights). A vector
 // written by a select, not an array indexed by the loop's (uniform, not constant) counter: llvmpipe
 // keeps such an array in memory and scatters to it lane by lane.
@@ -23,7 +23,7 @@ vec4 skin_sharp_shadow;
 vec3 skin_irradiance(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis) {
     vec3 E = vec3(0.0);
 #ifdef SKIN_SHARP_SHADOWS
-    skin_sharp_shadow = vec4(1.0);
+    skin_sharp_shadow = vec4(0.0);
 #endif
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
@@ -32,7 +32,9 @@ vec3 skin_irradiance(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis) {
 #ifdef SKIN_SHARP_SHADOWS
         // neither the diffuse (N.L) nor the specular (its own test, Ng.L: common/skin_specular.glsl)
         // uses light i here: skipped before the receiver solve, as the soft shadow alone was (a
-        // block of texels all facing away skips the loop's body, on llvmpipe too); stored as 1
+        // block of texels all facing away skips the loop's body, on llvmpipe too). Stored as 0,
+        // unlit: a final-pass sample just on the lit side of the terminator reads it bilinearly
+        // (1 there put a lit speck into the back-lit ear's shadowed side, where the map says 0)
         if (ndl <= 0.0 && dot(Ng, L) <= 0.0) continue;
         float sharp;
         float s = shadow_soft_and_sharp(i, P, Ng, ndl > 0.0, sharp);
