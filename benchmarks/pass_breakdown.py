@@ -23,26 +23,31 @@ from dermis.bench import HEAD_TOML
 from dermis.gl.shaders import load_shader_source
 from dermis.renderer import Renderer
 from dermis.techniques.base import bind_scene, draw_mesh
+from dermis.techniques.tsd import STORED_SHARP_SHADOWS
 from dermis.techniques.shared import MAX_GAUSSIANS, Unit, bind_sampler, surface_detail_uniforms
 
-SHADOW_SOFT = "shadow_soft(i, P, Ng)"
 
 
 def irradiance_variants(fs0: str) -> dict:
+    soft = "float s = shadow_soft_and_sharp(i, P, Ng, ndl > 0.0, sharp);"
+    light = "E += Ei * ndl * s * energy_transmitted(rho_s, ndl, m);"
     return {
         "full": fs0,
-        "no shadow": fs0.replace(SHADOW_SOFT, "1.0"),
-        "no energy table (per light)": fs0.replace("E += Ei * ndl * shadow_soft(i, P, Ng) * energy_transmitted(rho_s, ndl, m);",
-                                                   "E += Ei * ndl * shadow_soft(i, P, Ng);"),
-        "no shadow, no energy table": fs0.replace("E += Ei * ndl * shadow_soft(i, P, Ng) * energy_transmitted(rho_s, ndl, m);",
-                                                  "E += Ei * ndl;"),
+        "no shadow": fs0.replace(soft, "float s = 1.0; sharp = 1.0;"),
+        "shadow: sharp only (no PCF grid)": fs0.replace("return want_soft ? shadow_pcf_at(i, c, dz, T, false, unused) : 1.0;",
+                                                       "return sharp;"),
+        "shadow: no sharp tap": fs0.replace("sharp = shadow_sharp_at(i, c, dz);", "sharp = 1.0;"),
+        "no energy table (per light)": fs0.replace(light, "E += Ei * ndl * s;"),
+        "no shadow, no energy table": fs0.replace(soft, "float s = 1.0; sharp = 1.0;").replace(light, "E += Ei * ndl;"),
         "no normal map": fs0.replace("vec3 N = perturb_normal(v_normal, v_tangent, v_uv);", "vec3 N = Ng;"),
         "no env": fs0.replace("E += environment_irradiance_occluded(N, Ng, vis) * energy_transmitted(rho_s, 0.5, m);", ""),
         "no albedo power": fs0.replace("E * albedo_power(albedo, uMix)", "E * albedo"),
         "no albedo map": fs0.replace("vec3 albedo = albedo_at(v_uv);", "vec3 albedo = vec3(0.5);"),
         "no spec/rough maps": fs0.replace("float rho_s = specular_intensity(v_uv);", "float rho_s = uRhoS;")
                                  .replace("float m = roughness_at(v_uv);", "float m = uRoughness;"),
-        "const": fs0.replace("f_irradiance = vec4(E * albedo_power(albedo, uMix), 1.0);", "f_irradiance = vec4(1.0);"),
+        "const": fs0.replace("f_irradiance = vec4(E * albedo_power(albedo, uMix), 1.0);", "f_irradiance = vec4(1.0);")
+                    .replace("f_sharp = vec4(1.0, skin_sharp_shadow.xyz);",
+                             "f_sharp = vec4(1.0);"),
     }
 
 
@@ -52,7 +57,7 @@ def final_variants(fs0: str) -> dict:
         "full": fs0,
         "no pores": fs0.replace("vec3 Ns = pore_normal(N, v_world * uMmPerUnit, uPoreScaleMm, uPoreStrength);", "vec3 Ns = N;"),
         "no specular": fs0.replace(spec_call, "vec3 spec = vec3(0.0);"),
-        "no sharp shadow": fs0.replace("Ei * shadow_sharp(i, P, Ng) * ks_skin_specular", "Ei * ks_skin_specular"),
+        "no sharp shadow": fs0.replace("Ei * SPECULAR_SHADOW(i, P, Ng) * ks_skin_specular", "Ei * ks_skin_specular"),
         "no env specular": fs0.replace("spec += skin_environment_specular(Ns, V, m) * rho_s", "spec += vec3(0.0) * rho_s"),
         "no blurs": fs0.replace("vec3 E = diffuse_irradiance(v_uv_ts) +", "vec3 E = vec3(0.5) +"),
         "no translucency": fs0.replace("+ texture(uTranslucency, v_uv_ts).rgb;", ";"),
@@ -91,6 +96,25 @@ def shadow_from(fs: str, rev: str) -> str:
     return fs.replace(mine, theirs)
 
 
+def source_at(rev: str, name: str, defines: dict) -> str:
+    """Shader ``name`` expanded from git revision ``rev``'s shaders folder (this tree's loader)."""
+    import subprocess
+    import tempfile
+
+    import dermis.gl.shaders as shaders
+
+    root = Path(__file__).resolve().parent.parent
+    tmp = Path(tempfile.mkdtemp(prefix="shaders-"))
+    tar = subprocess.run(["git", "-C", str(root), "archive", rev, "src/dermis/shaders"], check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(tmp)], input=tar, check=True)
+    saved = shaders.SHADER_DIR
+    shaders.SHADER_DIR = tmp / "src" / "dermis" / "shaders"
+    try:
+        return shaders.load_shader_source(name, defines)
+    finally:
+        shaders.SHADER_DIR = saved
+
+
 def with_shadow_from(variants: dict, rev) -> dict:
     """Adds "full, shadow.glsl @rev" to ``variants`` when ``rev`` is given."""
     if rev:
@@ -98,8 +122,14 @@ def with_shadow_from(variants: dict, rev) -> dict:
     return variants
 
 
+CLOCK = time.process_time  # --wall: time.perf_counter
+KEEP = None  # --variants: the names to time (None: all)
+
+
 def compile_variants(ctx, vs, variants):
     progs = {}
+    if KEEP is not None:
+        variants = {k: v for k, v in variants.items() if k in KEEP or k == "full"}
     fs0 = variants["full"]
     for k, fs in variants.items():
         if k != "full" and fs == fs0:
@@ -113,14 +143,22 @@ def timed(ctx, fn, repeats):
     """Min over ``repeats`` of the CPU time of the whole process (llvmpipe's rasteriser threads
     are in it) around fn + finish: under load from other processes this moves far less than wall
     time, which counts the time the threads wait for a core."""
-    out = []
-    fn(); ctx.finish()  # warm: first use compiles the variant's JIT code
+    return timed_all(ctx, {"": fn}, repeats)[""]
+
+
+def timed_all(ctx, fns: dict, repeats):
+    """:func:`timed` of every fn in ``fns``, interleaved (round r times each variant once), so that
+    a burst of load from other processes falls on every variant alike instead of on one."""
+    out = {k: [] for k in fns}
+    for fn in fns.values():
+        fn(); ctx.finish()  # warm: first use compiles the variant's JIT code
     for _ in range(repeats):
-        ctx.finish()
-        t0 = time.process_time()
-        fn(); ctx.finish()
-        out.append((time.process_time() - t0) * 1e3)
-    return min(out)
+        for k, fn in fns.items():
+            ctx.finish()
+            t0 = CLOCK()
+            fn(); ctx.finish()
+            out[k].append((CLOCK() - t0) * 1e3)
+    return {k: min(v) for k, v in out.items()}
 
 
 def screen_pass(frame, p):
@@ -142,10 +180,11 @@ def set_anisotropy(renderer, a):
 
 
 def table(title, res):
-    const = res.get("const")
+    """Each row's ms and its multiple of the constant-output variant at the same anisotropy."""
     print(f"\n{title} (load {os.getloadavg()[0]:.1f})")
     print("| variant | ms | x const |\n|---|---|---|")
     for k, v in res.items():
+        const = res.get("const, aniso 1x" if k.endswith(", aniso 1x") else "const")
         print(f"| {k} | {v:.1f} | {v / const:.1f} |" if const else f"| {k} | {v:.1f} | |")
 
 
@@ -156,10 +195,20 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--scene", default=str(HEAD_TOML))
     ap.add_argument("--only", default="irradiance,final,lambert")
+    ap.add_argument("--variants", default=None, help="comma-separated variant names to time (default: all)")
     ap.add_argument("--samples", type=int, default=4, help="MSAA samples of the frame (dermis render: 4)")
     ap.add_argument("--shadow-from", default=None, help="also time each pass with this git revision's common/shadow.glsl")
+    ap.add_argument("--against", default=None, help="also time each pass with these git revisions' whole shaders (comma-separated; \"full @REV\")")
+    ap.add_argument("--wall", action="store_true", help="wall-clock time instead of the process's CPU time")
+    ap.add_argument("--irradiance-aniso-1x-only", action="store_true",
+                    help="time the irradiance variants only as render() draws the pass (maps without anisotropy)")
     a = ap.parse_args(argv)
     only = a.only.split(",")
+    global KEEP, CLOCK
+    if a.wall:
+        CLOCK = time.perf_counter
+    against = a.against.split(",") if a.against else []
+    KEEP = None if a.variants is None else set(a.variants.split(",")) | {f"full @{rev}" for rev in against}
     sc = dermis.load_scene(a.scene)
     S = a.irradiance_size
     defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
@@ -172,44 +221,65 @@ def main(argv=None):
         print(f"dermis {dermis.__file__}; {a.size}^2 output, samples {r.samples}, irradiance {S}^2")
         if "irradiance" in only:
             vs = load_shader_source("tsd/uv_space.vert", defines)
-            progs = compile_variants(ctx, vs, with_shadow_from(irradiance_variants(load_shader_source("tsd/irradiance.frag", defines)), a.shadow_from))
+            # as TextureSpaceDiffusion compiles it for a scene of at most STORED_SHARP_SHADOWS lights
+            irr_defines = {**defines, "SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS}
+            v = with_shadow_from(irradiance_variants(load_shader_source("tsd/irradiance.frag", irr_defines)), a.shadow_from)
+            for rev in against:
+                v[f"full @{rev}"] = source_at(rev, "tsd/irradiance.frag", irr_defines)
+            progs = compile_variants(ctx, vs, v)
             out = t._texture("irradiance", (S, S))
             res = {}
             for aniso in (8.0, 1.0):
                 set_anisotropy(r, aniso)
+                fns = {}
                 for k, p in progs.items():
-                    if aniso == 1.0 and k not in ("full", "no shadow", "const") and not k.startswith("full, shadow"):
+                    if aniso == 8.0 and a.irradiance_aniso_1x_only:
                         continue
-                    bind_scene(frame, p)
-                    res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: t._uv_pass(frame, p, out), a.repeats)
+                    if aniso == 1.0 and k not in ("full", "no shadow", "const") and not k.startswith(("full", "shadow:")) \
+                            and not a.irradiance_aniso_1x_only:
+                        continue
+
+                    def fn(p=p):
+                        bind_scene(frame, p)
+                        # into the irradiance and the sharp-shadow targets, as texture_space draws it
+                        t._uv_pass(frame, p, (out, t.tex["sharp_shadow"]))
+                    fns[k + ("" if aniso == 8.0 else ", aniso 1x")] = fn
+                res.update(timed_all(ctx, fns, a.repeats))
             set_anisotropy(r, 8.0)
             table(f"tsd irradiance pass at {S}^2 (no dilation)", res)
         if "final" in only:
             vs = load_shader_source("common/mesh.vert", defines)
-            progs = compile_variants(ctx, vs, with_shadow_from(final_variants(load_shader_source("tsd/final.frag", defines)), a.shadow_from))
+            final_defines = {**defines, "SHARP_SHADOW_READ": None}
+            v = with_shadow_from(final_variants(load_shader_source("tsd/final.frag", final_defines)), a.shadow_from)
+            for rev in against:
+                v[f"full @{rev}"] = source_at(rev, "tsd/final.frag", final_defines)
+            progs = compile_variants(ctx, vs, v)
             res = {}
             for p in progs.values():
                 bind_sampler(p, "uTranslucency", t.tex["translucency"], Unit.FIRST_FREE)
                 t._profile_uniforms(p, sc.profile, Unit.FIRST_FREE + 1, frame.keys)
+                bind_sampler(p, "uSharpShadow", t.tex["sharp_shadow"], Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)
                 surface_detail_uniforms(p, sc.material)
             for aniso in (8.0, 1.0):
                 set_anisotropy(r, aniso)
-                for k, p in progs.items():
-                    if aniso == 1.0 and k not in ("full", "no specular", "const"):
-                        continue
-                    res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: screen_pass(frame, p), a.repeats)
+                res.update(timed_all(ctx, {k + ("" if aniso == 8.0 else ", aniso 1x"): (lambda p=p: screen_pass(frame, p))
+                                           for k, p in progs.items()
+                                           if aniso == 8.0 or k in ("full", "no specular", "const") or k.startswith("full")},
+                                     a.repeats))
             set_anisotropy(r, 8.0)
             table(f"tsd final pass at {a.size}^2", res)
         if "lambert" in only:
             vs = load_shader_source("common/mesh.vert", {})
-            progs = compile_variants(ctx, vs, with_shadow_from(lambert_variants(load_shader_source("lambert/lambert.frag", {})), a.shadow_from))
+            v = with_shadow_from(lambert_variants(load_shader_source("lambert/lambert.frag", {})), a.shadow_from)
+            for rev in against:
+                v[f"full @{rev}"] = source_at(rev, "lambert/lambert.frag", {})
+            progs = compile_variants(ctx, vs, v)
             res = {}
             for aniso in (8.0, 1.0):
                 set_anisotropy(r, aniso)
-                for k, p in progs.items():
-                    if aniso == 1.0 and k not in ("full", "const") and not k.startswith("full, shadow"):
-                        continue
-                    res[k + ("" if aniso == 8.0 else ", aniso 1x")] = timed(ctx, lambda p=p: screen_pass(frame, p), a.repeats)
+                res.update(timed_all(ctx, {k + ("" if aniso == 8.0 else ", aniso 1x"): (lambda p=p: screen_pass(frame, p))
+                                           for k, p in progs.items() if aniso == 8.0 or k in ("full", "const") or k.startswith("full")},
+                                     a.repeats))
             set_anisotropy(r, 8.0)
             table(f"lambert pass at {a.size}^2", res)
 

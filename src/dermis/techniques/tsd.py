@@ -106,6 +106,18 @@ class TsdOptions(TranslucentOptions):
         check_int(f"{technique}: max_taps", self.max_taps, 1, 64)
 
 
+# The lights whose sharp shadows (the specular's) the irradiance pass stores for the final pass
+# (tsd/sharp_shadow.glsl: one RGBA8 target, coverage and three lights). A scene with more lights
+# draws the per-sample programs (a shadow-map tap per light per screen sample): a second target
+# would take the final pass to 17 samplers, past the 16 every GL 4.5 guarantees.
+STORED_SHARP_SHADOWS = 3
+
+
+def stores_sharp_shadows(light_count: int) -> bool:
+    """Whether tsd reads the lights' sharp shadows from its texture-space pass (else per sample)."""
+    return int(light_count) <= STORED_SHARP_SHADOWS
+
+
 class TextureSpaceDiffusion(Technique):
     name = "tsd"
     description = "texture-space diffusion (d'Eon, Luebke & Enderton 2007): chained UV-space Gaussian blurs"
@@ -116,7 +128,10 @@ class TextureSpaceDiffusion(Technique):
         ctx = self.ctx
         defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
         self.p_stretch = program(ctx, "tsd/uv_space.vert", "tsd/stretch.frag", defines)
-        self.p_irradiance = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines)
+        # the irradiance and final passes storing / reading the sharp shadows (at most
+        # STORED_SHARP_SHADOWS lights); the per-sample pair compiled on a scene with more lights
+        self.p_irradiance = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag",
+                                    {**defines, "SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS})
         self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
         self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
         # a full-screen triangle: the pass reads only gl_FragCoord and textures, so rasterising the
@@ -124,7 +139,8 @@ class TextureSpaceDiffusion(Technique):
         # no far face in the bake and write T = 0, as the cleared target held
         self.p_trans = program(ctx, "common/fullscreen.vert", "tsd/translucency.frag", defines)
         self.p_trans_tent = program(ctx, "common/fullscreen.vert", "tsd/translucency_tent.frag", defines)
-        self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag", defines)
+        self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag", {**defines, "SHARP_SHADOW_READ": None})
+        self._programs = {}  # "per_sample" -> (irradiance, final) without the stored shadows
         self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)
         self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine, self.p_trans,
                                                          self.p_trans_tent)}
@@ -234,9 +250,10 @@ class TextureSpaceDiffusion(Technique):
             vao.render(moderngl.TRIANGLES, vertices=3)
 
     def _uv_pass(self, frame, prog, target_tex, clear=True):
-        fbo = self._fbo(target_tex)
+        targets = target_tex if isinstance(target_tex, tuple) else (target_tex,)
+        fbo = self._fbo(*targets)
         fbo.use()
-        fbo.viewport = (0, 0, *target_tex.size)
+        fbo.viewport = (0, 0, *targets[0].size)
         if clear:
             fbo.clear(0.0, 0.0, 0.0, 0.0)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
@@ -538,18 +555,20 @@ class TextureSpaceDiffusion(Technique):
         self.levels = levels
         # irradiance (the uniforms and bindings set before the timed region: Python, no GPU work)
         irr = self._texture("irradiance", (S, S))
-        prog = self.p_irradiance
+        # the lights' sharp shadows, for the final pass's specular (tsd/sharp_shadow.glsl)
+        prog, _ = self._shading_programs(frame)
+        targets = (irr, self._texture("sharp_shadow", (S, S), 4, "f1")) if prog is self.p_irradiance else (irr,)
         bind_scene(frame, prog)
         set_uniform(prog, "uDirectionalAlbedo", float(bool(getattr(scene, "directional_albedo", True))))
+        if irradiance is not None:
+            a = np.ascontiguousarray(np.asarray(irradiance, np.float32)[::-1])
+            if a.shape != (S, S, 4):
+                raise ValueError(f"irradiance override must be {(S, S, 4)}, got {a.shape}")
         with timer("tsd_irradiance"):
-            if irradiance is None:
-                # a texture-space raster: the maps' footprint is square, anisotropy only costs
-                with maps_without_anisotropy(frame.gpu, surfaces=False):
-                    self._uv_pass(frame, prog, irr)
-            else:
-                a = np.ascontiguousarray(np.asarray(irradiance, np.float32)[::-1])
-                if a.shape != (S, S, 4):
-                    raise ValueError(f"irradiance override must be {(S, S, 4)}, got {a.shape}")
+            # a texture-space raster: the maps' footprint is square, anisotropy only costs
+            with maps_without_anisotropy(frame.gpu, surfaces=False):
+                self._uv_pass(frame, prog, targets)
+            if irradiance is not None:  # the override replaces the irradiance; the shadows stay the raster's
                 irr.write(a.astype(np.float16).tobytes())
         # one bounce between skin surfaces, added to I_0 before the dilation and the blurs (an
         # override is the whole irradiance: nothing is added to it)
@@ -582,6 +601,17 @@ class TextureSpaceDiffusion(Technique):
             frame.passes_run.append("tsd_translucency")
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)
+
+    def _shading_programs(self, frame):
+        """(irradiance, final) programs for the frame's lights: storing and reading the sharp
+        shadows where there are at most STORED_SHARP_SHADOWS lights, else per sample."""
+        if stores_sharp_shadows(frame.lights.count):
+            return self.p_irradiance, self.p_final
+        if "per_sample" not in self._programs:
+            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
+            self._programs["per_sample"] = (program(self.ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines),
+                                            program(self.ctx, "common/mesh.vert", "tsd/final.frag", defines))
+        return self._programs["per_sample"]
 
     def _bounce_level(self, S):
         """The level of rho E the gather reads: texels of about BOUNCE_TEXEL_MM at the median
@@ -646,9 +676,11 @@ class TextureSpaceDiffusion(Technique):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            prog = self.p_final
+            _, prog = self._shading_programs(frame)
             bind_sampler(prog, "uTranslucency", self.tex["translucency"], Unit.FIRST_FREE)
             self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE + 1, frame.keys)
+            if prog is self.p_final:
+                bind_sampler(prog, "uSharpShadow", self.tex["sharp_shadow"], Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
             set_uniform(prog, "uDirectionalAlbedo", float(bool(getattr(frame.scene, "directional_albedo", True))))
             draw_mesh(frame, prog)
@@ -703,5 +735,5 @@ class TextureSpaceDiffusion(Technique):
         for p in (self.p_stretch, self.p_irradiance, self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
                   self.p_final,
                   self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else []),
-                  *(self._p_bounce or ())):
+                  *(self._p_bounce or ()), *(p for ps in self._programs.values() for p in ps)):
             p.release()

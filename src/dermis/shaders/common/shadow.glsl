@@ -66,15 +66,19 @@ bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat2 T)
     return true;
 }
 
-// Sharp shadow (one bilinear-compare tap): for specular, d'Eon 2007 sec. 14.3.
+// Sharp shadow (one bilinear-compare tap): for specular, d'Eon 2007 sec. 14.3. c, dz: shadow_receiver's.
+float shadow_sharp_at(int i, vec3 c, vec2 dz) {
+    // the bilinear 2x2 reaches one texel: bias by the receiver's slope over it
+    return shadow_tap(i, c.xy, c.z - length(dz) * uShadowParams[i].w);
+}
+
 float shadow_sharp(int i, vec3 P, vec3 N) {
     if (uLightRadiance[i].w < 0.5) return 1.0;
     vec3 c;
     vec2 dz;
     mat2 T;
     if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
-    // the bilinear 2x2 reaches one texel: bias by the receiver's slope over it
-    return shadow_tap(i, c.xy, c.z - length(dz) * uShadowParams[i].w);
+    return shadow_sharp_at(i, c, dz);
 }
 
 // Soft shadow: percentage-closer filtering (Reeves 1987) with a disc of PCF_DISC_SCALE x
@@ -156,13 +160,9 @@ float pcf_grid(int i, vec2 c, float z, vec2 dz, float a, bool box, float stride,
 //   g = C^-1 sum_k W_k (s_k - mean s) delta_k,  C = sum_k W_k (delta_k - mean delta)(delta_k - mean delta)^T,
 // so s ramps across 1 / |g| of uv along g; the receiver's tangent plane (T of shadow_receiver)
 // maps that uv step back to the surface. width_mm = 1e30 where the taps agree (no ramp).
-float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
+// c, dz, T: shadow_receiver's, for a light that casts shadows and a receiver inside its map.
+float shadow_pcf_at(int i, vec3 c, vec2 dz, mat2 T, bool want_width, out float width_mm) {
     width_mm = 1e30;
-    if (uLightRadiance[i].w < 0.5) return 1.0;
-    vec3 c;
-    vec2 dz;
-    mat2 T;
-    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
     float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint of each tap, and curvature
     float R = PCF_DISC_SCALE * uShadowParams[i].x;  // the disc's radius, texels
     if (R <= 0.0) return shadow_tap(i, c.xy, z);
@@ -191,6 +191,16 @@ float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
     return s_mean;
 }
 
+float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
+    width_mm = 1e30;
+    if (uLightRadiance[i].w < 0.5) return 1.0;
+    vec3 c;
+    vec2 dz;
+    mat2 T;
+    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
+    return shadow_pcf_at(i, c, dz, T, want_width, width_mm);
+}
+
 float shadow_soft(int i, vec3 P, vec3 N) {
     float unused;
     return shadow_pcf(i, P, N, false, unused);
@@ -198,4 +208,20 @@ float shadow_soft(int i, vec3 P, vec3 N) {
 
 float shadow_soft_penumbra(int i, vec3 P, vec3 N, out float width_mm) {
     return shadow_pcf(i, P, N, true, width_mm);
+}
+
+// The soft shadow (shadow_soft) and the sharp one (shadow_sharp) of light i from ONE receiver
+// solve; the soft one only where want_soft (the caller's N.L > 0). For tsd's texture-space
+// irradiance pass, which stores the sharp shadow for the final pass's specular (d'Eon & Luebke
+// 2007, 14.5.2: the shadow computed once in texture space and reused).
+float shadow_soft_and_sharp(int i, vec3 P, vec3 N, bool want_soft, out float sharp) {
+    sharp = 1.0;
+    if (uLightRadiance[i].w < 0.5) return 1.0;
+    vec3 c;
+    vec2 dz;
+    mat2 T;
+    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
+    sharp = shadow_sharp_at(i, c, dz);
+    float unused;
+    return want_soft ? shadow_pcf_at(i, c, dz, T, false, unused) : 1.0;
 }

@@ -9,17 +9,45 @@
 #include "common/environment.glsl"
 #include "common/energy.glsl"
 
+#ifdef SKIN_SHARP_SHADOWS
+// With SKIN_SHARP_SHADOWS = n defined (tsd's texture-space pass), skin_irradiance also leaves each
+// light's SHARP shadow (shadow_sharp, the specular's) here, from the same receiver solve as the
+// soft one, for the final pass to read instead of a receiver solve and a tap per light per screen
+// sample (d'Eon & Luebke 2007, 14.5.2, compute the shadow once in texture space).
+// for lights 0..n-1, n <= 4 (the caller defines it only for scenes of at most n lights). A vector
+// written by a select, not an array indexed by the loop's (uniform, not constant) counter: llvmpipe
+// keeps such an array in memory and scatters to it lane by lane.
+vec4 skin_sharp_shadow;
+#endif
+
 // c: the directional albedo's coefficients per channel (common/directional_albedo.glsl), weighting
 // each light by k(N.L) = 1 + c (2/3 - N.L); vec3(0) is the Lambertian entry. The ambient is left at
 // k = 1: its average over a uniform hemisphere.
 vec3 skin_irradiance_directional(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis, vec3 c) {
     vec3 E = vec3(0.0);
+#ifdef SKIN_SHARP_SHADOWS
+    skin_sharp_shadow = vec4(0.0);
+#endif
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
         vec3 Ei = light_incident(i, P, L);
         float ndl = dot(N, L);
+#ifdef SKIN_SHARP_SHADOWS
+        // neither the diffuse (N.L) nor the specular (its own test, Ng.L: common/skin_specular.glsl)
+        // uses light i here: skipped before the receiver solve, as the soft shadow alone was (a
+        // block of texels all facing away skips the loop's body, on llvmpipe too). Stored as 0,
+        // unlit: a final-pass sample just on the lit side of the terminator reads it bilinearly
+        // (1 there put a lit speck into the back-lit ear's shadowed side, where the map says 0)
+        if (ndl <= 0.0 && dot(Ng, L) <= 0.0) continue;
+        float sharp;
+        float s = shadow_soft_and_sharp(i, P, Ng, ndl > 0.0, sharp);
+        skin_sharp_shadow = mix(skin_sharp_shadow, vec4(sharp), equal(ivec4(0, 1, 2, 3), ivec4(i)));
         if (ndl <= 0.0) continue;
-        E += Ei * ndl * shadow_soft(i, P, Ng) * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
+#else
+        if (ndl <= 0.0) continue;
+        float s = shadow_soft(i, P, Ng);
+#endif
+        E += Ei * ndl * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
     }
     E += environment_irradiance_occluded(N, Ng, vis) * energy_transmitted(rho_s, 0.5, m);
     return E;

@@ -13,13 +13,18 @@
 // The environment's term is scaled by the specular occlusion of common/environment.glsl.
 // P: world position; Ng: geometric normal (shadow lookups, back-facing lights); V: to the eye;
 // vis: the ambient visibility (ambient occlusion, visible fraction of the irradiance).
+// The sharp shadow of light i at P: shadow_sharp unless the including shader gives its own
+// (tsd/final.frag: the shadow stored in texture space, tsd/sharp_shadow.glsl).
+#ifndef SPECULAR_SHADOW
+#define SPECULAR_SHADOW(i, P, Ng) shadow_sharp(i, P, Ng)
+#endif
 vec3 skin_specular_radiance(vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho_s, sampler2D beckmannTex, vec4 vis) {
     vec3 spec = vec3(0.0);
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
         vec3 Ei = light_incident(i, P, L);
         if (dot(Ng, L) <= 0.0) continue;
-        spec += Ei * shadow_sharp(i, P, Ng) * ks_skin_specular(Ns, L, V, m, rho_s, beckmannTex) * INV_PI;
+        spec += Ei * SPECULAR_SHADOW(i, P, Ng) * ks_skin_specular(Ns, L, V, m, rho_s, beckmannTex) * INV_PI;
     }
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
     spec += skin_environment_specular(Ns, V, m) * rho_s * rho_dt_lookup(uSpecularTables, ndv, m) * INV_PI

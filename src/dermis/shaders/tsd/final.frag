@@ -11,6 +11,10 @@
 #include "common/noise.glsl"
 #include "common/energy.glsl"
 #include "common/directional_albedo.glsl"
+#ifdef SHARP_SHADOW_READ  // at most STORED_SHARP_SHADOWS lights: their shadows from the irradiance pass
+#include "tsd/sharp_shadow.glsl"
+#define SPECULAR_SHADOW(i, P, Ng) stored_sharp_shadow(i)
+#endif
 #include "common/skin_specular.glsl"
 #include "tsd/gaussians.glsl"
 
@@ -46,6 +50,9 @@ void main() {
            + texture(uTranslucency, v_uv_ts).rgb;
     vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
+#ifdef SHARP_SHADOW_READ
+    load_sharp_shadows(v_uv_ts);
+#endif
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility);
 
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec : diffuse + spec;

@@ -2,6 +2,9 @@
 // E = sum_lights E_i max(N.L, 0) shadow_soft (1 - rho_s a(N.L, m) / pi) k(N.L) + ambient, times albedo^mix
 // (k: the skin's directional albedo, common/directional_albedo.glsl).
 // Alpha is coverage (1 on the mesh), for the normalised blurs that hide seams.
+// With SKIN_SHARP_SHADOWS = 3 (scenes of at most 3 lights: dermis.techniques.tsd), f_sharp: coverage
+// and the lights' sharp shadows (the specular's, common/skin_irradiance.glsl) for tsd/final.frag
+// (tsd/sharp_shadow.glsl).
 #include "common/shadow.glsl"
 #include "common/surface.glsl"
 #include "common/albedo_mix.glsl"
@@ -18,7 +21,10 @@ in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
 in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
-out vec4 f_irradiance;
+layout(location = 0) out vec4 f_irradiance;
+#ifdef SKIN_SHARP_SHADOWS
+layout(location = 1) out vec4 f_sharp;
+#endif
 
 void main() {
     vec3 Ng = normalize(v_normal);
@@ -30,4 +36,7 @@ void main() {
     // lights (each by the directional albedo's k(N.L)), soft shadows, ambient, energy
     vec3 E = skin_irradiance_directional(v_world, Ng, N, rho_s, m, v_visibility, c);
     f_irradiance = vec4(E * albedo_power(albedo, uMix), 1.0);
+#ifdef SKIN_SHARP_SHADOWS
+    f_sharp = vec4(1.0, skin_sharp_shadow.xyz);
+#endif
 }
