@@ -17,6 +17,15 @@ and the techniques at N x N and prints the ear's mean radiance of each against i
 the back-lit-ear region's FLIP and mean ratio R/G/B per technique (as `dermis validate --against
 cycles`) against a stored Cycles accumulation (validate's cycles_spec_WxH.npz), without bpy.
 
+    PYTHONPATH=src python benchmarks/ear_translucency.py --boundary
+what a thin slab does that the semi-infinite profile and the thin-slab law do not (issue 12, round 7),
+red and green, MCML of the profile's medium (index 1.4, the skin walk) pencil-lit at the centre:
+the lit face's reflectance and its radial spread, the far face's transmittance and its radial spread
+(per-axis variance, mm^2) against the law's T(d) and the wide Gaussians' variance that tsd spreads
+the far face's light with; then the same for an index-matched walk (index 1.0: a walk that ends at
+its first surface hit, as Cycles' random walk does) with the same total reflectance and the same
+mean exit radius, i.e. the same semi-infinite profile to first order. About 2 min on 2 cores.
+
     PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
 the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
 d = 0.5..5 mm thick, the renderers' thin-slab law (dermis.profiles.thin_slab) and d'Eon's
@@ -139,6 +148,58 @@ def slab_theory(cycles: bool = False):
                   f"d'Eon exp(-d^2/2v) {tg:.4f}{extra}")
 
 
+BOUNDARY_EDGES_MM = np.concatenate([np.linspace(0.0, 30.0, 301), [60.0, 1000.0]])
+
+
+def _spread(result, per_mm2):
+    """(per-axis variance mm^2, mean radius mm) of a radially binned MCML result (1/mm^2 per annulus)."""
+    e = result.bin_edges_mm
+    rc, area = 0.5 * (e[1:] + e[:-1]), np.pi * (e[1:] ** 2 - e[:-1] ** 2)
+    p = per_mm2 * area
+    return float((p * rc * rc).sum() / p.sum() / 2.0), float((p * rc).sum() / p.sum())
+
+
+def boundary_study(channels=(0, 1), thicknesses=(0.5, 1.0, 2.0, 3.0, 4.0, 5.0), photons=100_000):
+    from dermis.profiles.thin_slab import slab_law
+    from dermis.scene.model import mean_skin_albedo
+    from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
+    from dermis.verification import random_walk_slab
+
+    sc = dermis.load_scene(SCENE)
+    albedo = mean_skin_albedo(sc.material)
+    prof = sc.profile.normalized()
+    w, v = np.asarray(prof.weights), np.asarray(prof.variances_mm2)
+    wide = v >= TRANSLUCENCY_MIN_VARIANCE_MM2
+    law = slab_law(prof, albedo)
+    edges = BOUNDARY_EDGES_MM
+    for c in channels:
+        A, mfp = float(albedo[c]), float(1.0 / law.reduced_sigma_t_per_mm[c])
+        tsd_var = float((w[wide, c] * v[wide]).sum() / w[wide, c].sum())
+        alpha, semi = random_walk_slab(A, mfp, np.inf, photons=photons, index=1.4, bin_edges_mm=edges)
+        var_semi, r_semi = _spread(semi, semi.reflectance_per_mm2)
+        # the index-matched walk: same total reflectance; the medium is scale invariant, so the mean
+        # free path that gives the same mean exit radius is the trial's scaled by the radii's ratio
+        _, trial = random_walk_slab(A, mfp, np.inf, photons=photons, index=1.0, bin_edges_mm=edges)
+        mfp1 = mfp * r_semi / _spread(trial, trial.reflectance_per_mm2)[1]
+        alpha1, semi1 = random_walk_slab(A, mfp1, np.inf, photons=photons, index=1.0, bin_edges_mm=edges)
+        print(f"{'RGB'[c]}: albedo {A:.4f}; skin walk (index 1.4): mean free path {mfp:.3f} mm, single-scattering "
+              f"albedo {alpha:.5f}, R {semi.total_reflectance:.4f}, mean exit radius {r_semi:.3f} mm, per-axis "
+              f"variance {var_semi:.3f} mm^2 (the profile's {float((w[:, c] * v).sum() / w[:, c].sum()):.3f}); "
+              f"index-matched walk: mean free path {mfp1:.3f} mm, albedo {alpha1:.5f}, R {semi1.total_reflectance:.4f}, "
+              f"mean exit radius {_spread(semi1, semi1.reflectance_per_mm2)[1]:.3f} mm; tsd's far-face spread "
+              f"(wide Gaussians) {tsd_var:.3f} mm^2")
+        for d in thicknesses:
+            res = random_walk_slab(A, mfp, d, photons=photons, index=1.4, bin_edges_mm=edges)[1]
+            res1 = random_walk_slab(A, mfp1, d, photons=photons, index=1.0, bin_edges_mm=edges)[1]
+            vr, _ = _spread(res, res.reflectance_per_mm2)
+            vt, _ = _spread(res, res.transmittance_per_mm2) if res.total_transmittance > 0 else (float("nan"), 0)
+            tl = float(law.transmittance(d)[c])
+            print(f"  d {d} mm: index 1.4: R {res.total_reflectance:.4f} (law {float(law.reflectance(d)[c]):.4f}) "
+                  f"spread {vr:.3f}; T {res.total_transmittance:.4f} (law {tl:.4f}) spread {vt:.3f} | index 1.0: "
+                  f"T {res1.total_transmittance:.4f}, / index 1.4 {res1.total_transmittance / max(res.total_transmittance, 1e-30):.3f}, "
+                  f"/ law {res1.total_transmittance / max(tl, 1e-30):.3f}", flush=True)
+
+
 def against_cycles(npz, techniques):
     """The back-lit-ear region of `dermis validate --against cycles` (its region_masks and _score)
     against stored Cycles accumulations (a validate store, cycles_spec_64x64.npz: two seed streams),
@@ -177,6 +238,8 @@ def against_cycles(npz, techniques):
 if __name__ == "__main__":
     if sys.argv[1] == "--slab":
         slab_theory(cycles="--cycles" in sys.argv[2:])
+    elif sys.argv[1] == "--boundary":
+        boundary_study()
     elif sys.argv[1] == "--cycles-store":
         against_cycles(sys.argv[2], sys.argv[3:] or ["tsd", "tsd-off", "ssss", "preintegrated", "lambert"])
     elif sys.argv[1] == "--reference":
