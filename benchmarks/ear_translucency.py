@@ -22,9 +22,10 @@ what a thin slab does that the semi-infinite profile and the thin-slab law do no
 red and green, MCML of the profile's medium (index 1.4, the skin walk) pencil-lit at the centre:
 the lit face's reflectance and its radial spread, the far face's transmittance and its radial spread
 (per-axis variance, mm^2) against the law's T(d) and the wide Gaussians' variance that tsd spreads
-the far face's light with; then the same for an index-matched walk (index 1.0: a walk that ends at
-its first surface hit, as Cycles' random walk does) with the same total reflectance and the same
-mean exit radius, i.e. the same semi-infinite profile to first order. About 2 min on 2 cores.
+the far face's light with; the skin walk's reflectance for an oblique beam; then, with the same total
+reflectance and the same mean exit radius (the same semi-infinite profile to first order), an
+index-matched walk (index 1.0) entered along the normal, and Cycles' own walk (index-matched, entered
+along a cosine-distributed direction: _cycles_walk). About 5 min on 2 cores.
 
     PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
 the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
@@ -159,7 +160,29 @@ def _spread(result, per_mm2):
     return float((p * rc * rc).sum() / p.sum() / 2.0), float((p * rc).sum() / p.sum())
 
 
+def _cycles_walk(alpha, mfp_mm, d_mm, photons, seed=1):
+    """Cycles' random walk (intern/cycles/kernel/integrator/subsurface_random_walk.h): it starts at
+    the shaded point along a COSINE-distributed direction into the surface and ends at its first
+    surface hit (an index-matched boundary), where a Lambertian closure gathers the light; by
+    reciprocity that is MCML with index 1.0 and a cosine-weighted launch, here a 4-point
+    Gauss-Legendre rule in mu^2. Returns (R, T, reflectance per mm^2 over BOUNDARY_EDGES_MM)."""
+    from dermis.profiles.medium import Layer, Medium
+    from dermis.profiles.monte_carlo import monte_carlo_reflectance
+
+    x, w = np.polynomial.legendre.leggauss(4)
+    st = 1.0 / mfp_mm
+    m = Medium(np.array([st * (1.0 - alpha)]), np.array([st * alpha]), 0.0, 1.0)
+    R = T = 0.0
+    prof = np.zeros(BOUNDARY_EDGES_MM.size - 1)
+    for u, wu in zip(0.5 * (x + 1.0), 0.5 * w):
+        r = monte_carlo_reflectance([Layer(m, d_mm)], photons, BOUNDARY_EDGES_MM, seed=seed, incidence_cos=float(np.sqrt(u)))
+        R, T, prof = R + wu * r.total_reflectance, T + wu * r.total_transmittance, prof + wu * r.reflectance_per_mm2
+    return R, T, prof
+
+
 def boundary_study(channels=(0, 1), thicknesses=(0.5, 1.0, 2.0, 3.0, 4.0, 5.0), photons=100_000):
+    from dermis.profiles.medium import Layer, Medium
+    from dermis.profiles.monte_carlo import monte_carlo_reflectance
     from dermis.profiles.thin_slab import slab_law
     from dermis.scene.model import mean_skin_albedo
     from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
@@ -172,32 +195,46 @@ def boundary_study(channels=(0, 1), thicknesses=(0.5, 1.0, 2.0, 3.0, 4.0, 5.0), 
     wide = v >= TRANSLUCENCY_MIN_VARIANCE_MM2
     law = slab_law(prof, albedo)
     edges = BOUNDARY_EDGES_MM
+    rc, area = 0.5 * (edges[1:] + edges[:-1]), np.pi * (edges[1:] ** 2 - edges[:-1] ** 2)
     for c in channels:
         A, mfp = float(albedo[c]), float(1.0 / law.reduced_sigma_t_per_mm[c])
         tsd_var = float((w[wide, c] * v[wide]).sum() / w[wide, c].sum())
         alpha, semi = random_walk_slab(A, mfp, np.inf, photons=photons, index=1.4, bin_edges_mm=edges)
         var_semi, r_semi = _spread(semi, semi.reflectance_per_mm2)
-        # the index-matched walk: same total reflectance; the medium is scale invariant, so the mean
-        # free path that gives the same mean exit radius is the trial's scaled by the radii's ratio
-        _, trial = random_walk_slab(A, mfp, np.inf, photons=photons, index=1.0, bin_edges_mm=edges)
-        mfp1 = mfp * r_semi / _spread(trial, trial.reflectance_per_mm2)[1]
+        # index-matched walks with the same total reflectance and mean exit radius: the medium is
+        # scale invariant, so the albedo is bisected at mean free path 1 and the path then scaled
+        _, trial = random_walk_slab(A, 1.0, np.inf, photons=photons, index=1.0, bin_edges_mm=edges)
+        mfp1 = r_semi / _spread(trial, trial.reflectance_per_mm2)[1]
         alpha1, semi1 = random_walk_slab(A, mfp1, np.inf, photons=photons, index=1.0, bin_edges_mm=edges)
+        lo, hi = 0.0, 1.0 - 1e-7
+        for _ in range(16):  # Cycles' walk: its albedo, bisected with common random numbers
+            a = 0.5 * (lo + hi)
+            lo, hi = (a, hi) if _cycles_walk(a, 1.0, np.inf, photons // 20)[0] < A else (lo, a)
+        alpha_c = 0.5 * (lo + hi)
+        Rc, _, pc = _cycles_walk(alpha_c, 1.0, np.inf, photons // 4)
+        mfp_c = r_semi / float((pc * area * rc).sum() / (pc * area).sum())
         print(f"{'RGB'[c]}: albedo {A:.4f}; skin walk (index 1.4): mean free path {mfp:.3f} mm, single-scattering "
               f"albedo {alpha:.5f}, R {semi.total_reflectance:.4f}, mean exit radius {r_semi:.3f} mm, per-axis "
               f"variance {var_semi:.3f} mm^2 (the profile's {float((w[:, c] * v).sum() / w[:, c].sum()):.3f}); "
-              f"index-matched walk: mean free path {mfp1:.3f} mm, albedo {alpha1:.5f}, R {semi1.total_reflectance:.4f}, "
-              f"mean exit radius {_spread(semi1, semi1.reflectance_per_mm2)[1]:.3f} mm; tsd's far-face spread "
-              f"(wide Gaussians) {tsd_var:.3f} mm^2")
+              f"index-matched walk, normal entry: mean free path {mfp1:.3f} mm, albedo {alpha1:.5f}, R "
+              f"{semi1.total_reflectance:.4f}; Cycles' walk (index-matched, cosine entry): mean free path "
+              f"{mfp_c:.3f} mm, albedo {alpha_c:.5f}, R {Rc:.4f}; tsd's far-face spread (wide Gaussians) {tsd_var:.3f} mm^2")
+        skin = [Layer(Medium(np.array([(1.0 - alpha) / mfp]), np.array([alpha / mfp]), 0.0, 1.4), np.inf)]
+        grazing = [monte_carlo_reflectance(skin, photons // 2, [0.0, 1e3], seed=5, incidence_cos=mu).total_reflectance
+                   for mu in (1.0, 0.5, 0.15)]
+        print(f"  skin walk, oblique beam: R at cos 1 / 0.5 / 0.15: {' / '.join('%.4f' % g for g in grazing)}")
         for d in thicknesses:
             res = random_walk_slab(A, mfp, d, photons=photons, index=1.4, bin_edges_mm=edges)[1]
             res1 = random_walk_slab(A, mfp1, d, photons=photons, index=1.0, bin_edges_mm=edges)[1]
+            tc = _cycles_walk(alpha_c, mfp_c, d, photons // 4, seed=2)[1]
             vr, _ = _spread(res, res.reflectance_per_mm2)
             vt, _ = _spread(res, res.transmittance_per_mm2) if res.total_transmittance > 0 else (float("nan"), 0)
             tl = float(law.transmittance(d)[c])
+            t14 = max(res.total_transmittance, 1e-30)
             print(f"  d {d} mm: index 1.4: R {res.total_reflectance:.4f} (law {float(law.reflectance(d)[c]):.4f}) "
-                  f"spread {vr:.3f}; T {res.total_transmittance:.4f} (law {tl:.4f}) spread {vt:.3f} | index 1.0: "
-                  f"T {res1.total_transmittance:.4f}, / index 1.4 {res1.total_transmittance / max(res.total_transmittance, 1e-30):.3f}, "
-                  f"/ law {res1.total_transmittance / max(tl, 1e-30):.3f}", flush=True)
+                  f"spread {vr:.3f}; T {res.total_transmittance:.4f} (law {tl:.4f}) spread {vt:.3f} | index 1.0, normal "
+                  f"entry: T / index 1.4 {res1.total_transmittance / t14:.3f} | Cycles' walk: T {tc:.4f}, / index 1.4 "
+                  f"{tc / t14:.3f}, / law {tc / max(tl, 1e-30):.3f}", flush=True)
 
 
 def against_cycles(npz, techniques):

@@ -121,3 +121,19 @@ def test_monte_carlo_slab_transmission_tally_sums_to_the_total_and_spreads_with_
         assert tallied.sum() == pytest.approx(res.total_transmittance, rel=1e-9)
         radii.append(float((tallied * rc)[:-1].sum() / tallied[:-1].sum()))
     assert radii[1] > 1.5 * radii[0], radii
+
+
+@pytest.mark.parametrize("mu0", [0.3, 0.7])
+def test_monte_carlo_oblique_incidence_matches_chandrasekhar(mu0):
+    """``incidence_cos``: a beam at cos(theta) = mu0 (index-matched, so it enters unrefracted) is
+    reflected 1 - H(mu0) sqrt(1 - albedo) (Chandrasekhar's H-function, exact): more at grazing
+    incidence, where the first scattering is shallower. (With skin's index 1.4 the beam refracts to
+    within 46 deg of the normal and the rise is small: ear_translucency.py --boundary.)"""
+    albedo = 0.9
+    medium = Medium(1.0 - albedo, albedo, 0.0, 1.0)
+    result = monte_carlo_reflectance([Layer(medium, np.inf)], 100_000, [0.0, 10.0], seed=7, incidence_cos=mu0)
+    reference = chandrasekhar_plane_albedo(albedo, mu0)
+    assert abs(result.total_reflectance - reference) < 4.0 * result.total_reflectance_standard_error
+    assert reference > chandrasekhar_plane_albedo(albedo, 1.0) + 0.05  # the test can tell oblique from normal
+    with pytest.raises(DermisError, match="incidence cosine"):
+        monte_carlo_reflectance([Layer(medium, np.inf)], 10, [0.0, 1.0], incidence_cos=0.0)
