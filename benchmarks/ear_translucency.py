@@ -25,7 +25,8 @@ the lit face's reflectance and its radial spread, the far face's transmittance a
 the far face's light with; the skin walk's reflectance for an oblique beam; then, with the same total
 reflectance and the same mean exit radius (the same semi-infinite profile to first order), an
 index-matched walk (index 1.0) entered along the normal, and Cycles' own walk (index-matched, entered
-along a cosine-distributed direction: _cycles_walk). About 5 min on 2 cores.
+along a cosine-distributed direction, and along the normal as a head-on view sees it: _cycles_walk).
+About 6 min on 2 cores.
 
     PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
 the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
@@ -160,18 +161,22 @@ def _spread(result, per_mm2):
     return float((p * rc * rc).sum() / p.sum() / 2.0), float((p * rc).sum() / p.sum())
 
 
-def _cycles_walk(alpha, mfp_mm, d_mm, photons, seed=1):
-    """Cycles' random walk (intern/cycles/kernel/integrator/subsurface_random_walk.h): it starts at
-    the shaded point along a COSINE-distributed direction into the surface and ends at its first
-    surface hit (an index-matched boundary), where a Lambertian closure gathers the light; by
-    reciprocity that is MCML with index 1.0 and a cosine-weighted launch, here a 4-point
-    Gauss-Legendre rule in mu^2. Returns (R, T, reflectance per mm^2 over BOUNDARY_EDGES_MM)."""
+def _cycles_walk(alpha, mfp_mm, d_mm, photons, seed=1, entry="cosine"):
+    """Cycles' random walk (intern/cycles/kernel/integrator/subsurface.h, subsurface_random_walk.h):
+    it starts at the shaded point along a direction into the surface (a cosine-distributed one, or the
+    view ray refracted) and ends at its first surface hit (an index-matched boundary), where a
+    Lambertian closure gathers the light; by reciprocity that is MCML with index 1.0 launched along
+    that direction: ``entry`` "cosine" (a 4-point Gauss-Legendre rule in mu^2) or "normal" (a head-on
+    view). Returns (R, T, reflectance per mm^2 over BOUNDARY_EDGES_MM)."""
     from dermis.profiles.medium import Layer, Medium
     from dermis.profiles.monte_carlo import monte_carlo_reflectance
 
-    x, w = np.polynomial.legendre.leggauss(4)
     st = 1.0 / mfp_mm
     m = Medium(np.array([st * (1.0 - alpha)]), np.array([st * alpha]), 0.0, 1.0)
+    if entry == "normal":
+        r = monte_carlo_reflectance([Layer(m, d_mm)], photons, BOUNDARY_EDGES_MM, seed=seed)
+        return r.total_reflectance, r.total_transmittance, r.reflectance_per_mm2
+    x, w = np.polynomial.legendre.leggauss(4)
     R = T = 0.0
     prof = np.zeros(BOUNDARY_EDGES_MM.size - 1)
     for u, wu in zip(0.5 * (x + 1.0), 0.5 * w):
@@ -212,13 +217,14 @@ def boundary_study(channels=(0, 1), thicknesses=(0.5, 1.0, 2.0, 3.0, 4.0, 5.0), 
             lo, hi = (a, hi) if _cycles_walk(a, 1.0, np.inf, photons // 20)[0] < A else (lo, a)
         alpha_c = 0.5 * (lo + hi)
         Rc, _, pc = _cycles_walk(alpha_c, 1.0, np.inf, photons // 4)
+        Rn = _cycles_walk(alpha_c, 1.0, np.inf, photons, entry="normal")[0]
         mfp_c = r_semi / float((pc * area * rc).sum() / (pc * area).sum())
         print(f"{'RGB'[c]}: albedo {A:.4f}; skin walk (index 1.4): mean free path {mfp:.3f} mm, single-scattering "
               f"albedo {alpha:.5f}, R {semi.total_reflectance:.4f}, mean exit radius {r_semi:.3f} mm, per-axis "
               f"variance {var_semi:.3f} mm^2 (the profile's {float((w[:, c] * v).sum() / w[:, c].sum()):.3f}); "
               f"index-matched walk, normal entry: mean free path {mfp1:.3f} mm, albedo {alpha1:.5f}, R "
               f"{semi1.total_reflectance:.4f}; Cycles' walk (index-matched, cosine entry): mean free path "
-              f"{mfp_c:.3f} mm, albedo {alpha_c:.5f}, R {Rc:.4f}; tsd's far-face spread (wide Gaussians) {tsd_var:.3f} mm^2")
+              f"{mfp_c:.3f} mm, albedo {alpha_c:.5f}, R {Rc:.4f} (seen head-on: {Rn:.4f}); tsd's far-face spread (wide Gaussians) {tsd_var:.3f} mm^2")
         skin = [Layer(Medium(np.array([(1.0 - alpha) / mfp]), np.array([alpha / mfp]), 0.0, 1.4), np.inf)]
         grazing = [monte_carlo_reflectance(skin, photons // 2, [0.0, 1e3], seed=5, incidence_cos=mu).total_reflectance
                    for mu in (1.0, 0.5, 0.15)]
@@ -227,6 +233,7 @@ def boundary_study(channels=(0, 1), thicknesses=(0.5, 1.0, 2.0, 3.0, 4.0, 5.0), 
             res = random_walk_slab(A, mfp, d, photons=photons, index=1.4, bin_edges_mm=edges)[1]
             res1 = random_walk_slab(A, mfp1, d, photons=photons, index=1.0, bin_edges_mm=edges)[1]
             tc = _cycles_walk(alpha_c, mfp_c, d, photons // 4, seed=2)[1]
+            tn = _cycles_walk(alpha_c, mfp_c, d, photons, seed=2, entry="normal")[1]
             vr, _ = _spread(res, res.reflectance_per_mm2)
             vt, _ = _spread(res, res.transmittance_per_mm2) if res.total_transmittance > 0 else (float("nan"), 0)
             tl = float(law.transmittance(d)[c])
@@ -234,7 +241,8 @@ def boundary_study(channels=(0, 1), thicknesses=(0.5, 1.0, 2.0, 3.0, 4.0, 5.0), 
             print(f"  d {d} mm: index 1.4: R {res.total_reflectance:.4f} (law {float(law.reflectance(d)[c]):.4f}) "
                   f"spread {vr:.3f}; T {res.total_transmittance:.4f} (law {tl:.4f}) spread {vt:.3f} | index 1.0, normal "
                   f"entry: T / index 1.4 {res1.total_transmittance / t14:.3f} | Cycles' walk: T {tc:.4f}, / index 1.4 "
-                  f"{tc / t14:.3f}, / law {tc / max(tl, 1e-30):.3f}", flush=True)
+                  f"{tc / t14:.3f}, / law {tc / max(tl, 1e-30):.3f}; seen head-on (normal entry): T {tn:.4f}, "
+                  f"/ index 1.4 {tn / t14:.3f}, / law {tn / max(tl, 1e-30):.3f}", flush=True)
 
 
 def against_cycles(npz, techniques):
