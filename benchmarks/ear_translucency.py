@@ -28,6 +28,9 @@ index-matched walk (index 1.0) entered along the normal, and Cycles' own walk (i
 along a cosine-distributed direction, and along the normal as a head-on view sees it: _cycles_walk).
 About 6 min on 2 cores.
 
+    PYTHONPATH=src python benchmarks/ear_translucency.py --cycles-view
+Cycles' walk's dependence on the view angle (it starts along the refracted view ray), red. About 1 min.
+
     PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
 the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
 d = 0.5..5 mm thick, the renderers' thin-slab law (dermis.profiles.thin_slab) and d'Eon's
@@ -245,6 +248,22 @@ def boundary_study(channels=(0, 1), thicknesses=(0.5, 1.0, 2.0, 3.0, 4.0, 5.0), 
                   f"/ index 1.4 {tn / t14:.3f}, / law {tn / max(tl, 1e-30):.3f}", flush=True)
 
 
+def cycles_view_dependence(mfp_mm=0.702, alpha=0.92728, views_deg=(0, 30, 60, 80, 89), photons=40_000):
+    """Cycles' walk starts along the view ray refracted into the surface, so its BSSRDF depends on
+    the view angle. MCML of the fitted Cycles walk (red, from --boundary: index 1.0, the given path and
+    albedo) launched along the view refracted through a smooth interface of IOR 1.4 (Cycles refracts
+    through a rough one, GGX roughness 1): the semi-infinite reflectance and the transmittance of 2 mm."""
+    from dermis.profiles.medium import Layer, Medium
+    from dermis.profiles.monte_carlo import monte_carlo_reflectance
+
+    m = Medium(np.array([(1.0 - alpha) / mfp_mm]), np.array([alpha / mfp_mm]), 0.0, 1.0)
+    for view in views_deg:
+        mu = float(np.sqrt(1.0 - (np.sin(np.radians(view)) / 1.4) ** 2))
+        R = monte_carlo_reflectance([Layer(m, np.inf)], photons, [0.0, 1e3], seed=4, incidence_cos=mu).total_reflectance
+        T = monte_carlo_reflectance([Layer(m, 2.0)], photons, [0.0, 1e3], seed=4, incidence_cos=mu).total_transmittance
+        print(f"view {view:2d} deg (entry cos {mu:.3f}): R {R:.4f}, T(2 mm) {T:.4f}", flush=True)
+
+
 def against_cycles(npz, techniques):
     """The back-lit-ear region of `dermis validate --against cycles` (its region_masks and _score)
     against stored Cycles accumulations (a validate store, cycles_spec_64x64.npz: two seed streams),
@@ -285,6 +304,8 @@ if __name__ == "__main__":
         slab_theory(cycles="--cycles" in sys.argv[2:])
     elif sys.argv[1] == "--boundary":
         boundary_study()
+    elif sys.argv[1] == "--cycles-view":
+        cycles_view_dependence()
     elif sys.argv[1] == "--cycles-store":
         against_cycles(sys.argv[2], sys.argv[3:] or ["tsd", "tsd-off", "ssss", "preintegrated", "lambert"])
     elif sys.argv[1] == "--reference":
