@@ -183,7 +183,8 @@ def _cycles_walk(alpha, mfp_mm, d_mm, photons, seed=1, entry="cosine"):
     R = T = 0.0
     prof = np.zeros(BOUNDARY_EDGES_MM.size - 1)
     for u, wu in zip(0.5 * (x + 1.0), 0.5 * w):
-        r = monte_carlo_reflectance([Layer(m, d_mm)], photons, BOUNDARY_EDGES_MM, seed=seed, incidence_cos=float(np.sqrt(u)))
+        r = monte_carlo_reflectance([Layer(m, d_mm)], photons, BOUNDARY_EDGES_MM, seed=seed,
+                                    incidence_cos=float(np.sqrt(u)))
         R, T, prof = R + wu * r.total_reflectance, T + wu * r.total_transmittance, prof + wu * r.reflectance_per_mm2
     return R, T, prof
 
@@ -227,7 +228,8 @@ def boundary_study(channels=(0, 1), thicknesses=(0.5, 1.0, 2.0, 3.0, 4.0, 5.0), 
               f"variance {var_semi:.3f} mm^2 (the profile's {float((w[:, c] * v).sum() / w[:, c].sum()):.3f}); "
               f"index-matched walk, normal entry: mean free path {mfp1:.3f} mm, albedo {alpha1:.5f}, R "
               f"{semi1.total_reflectance:.4f}; Cycles' walk (index-matched, cosine entry): mean free path "
-              f"{mfp_c:.3f} mm, albedo {alpha_c:.5f}, R {Rc:.4f} (seen head-on: {Rn:.4f}); tsd's far-face spread (wide Gaussians) {tsd_var:.3f} mm^2")
+              f"{mfp_c:.3f} mm, albedo {alpha_c:.5f}, R {Rc:.4f} (seen head-on: {Rn:.4f}); tsd's far-face spread "
+              f"(wide Gaussians) {tsd_var:.3f} mm^2")
         skin = [Layer(Medium(np.array([(1.0 - alpha) / mfp]), np.array([alpha / mfp]), 0.0, 1.4), np.inf)]
         grazing = [monte_carlo_reflectance(skin, photons // 2, [0.0, 1e3], seed=5, incidence_cos=mu).total_reflectance
                    for mu in (1.0, 0.5, 0.15)]
@@ -242,7 +244,8 @@ def boundary_study(channels=(0, 1), thicknesses=(0.5, 1.0, 2.0, 3.0, 4.0, 5.0), 
             tl = float(law.transmittance(d)[c])
             t14 = max(res.total_transmittance, 1e-30)
             print(f"  d {d} mm: index 1.4: R {res.total_reflectance:.4f} (law {float(law.reflectance(d)[c]):.4f}) "
-                  f"spread {vr:.3f}; T {res.total_transmittance:.4f} (law {tl:.4f}) spread {vt:.3f} | index 1.0, normal "
+                  f"spread {vr:.3f}; T {res.total_transmittance:.4f} (law {tl:.4f}) spread {vt:.3f} | "
+                  f"index 1.0, normal "
                   f"entry: T / index 1.4 {res1.total_transmittance / t14:.3f} | Cycles' walk: T {tc:.4f}, / index 1.4 "
                   f"{tc / t14:.3f}, / law {tc / max(tl, 1e-30):.3f}; seen head-on (normal entry): T {tn:.4f}, "
                   f"/ index 1.4 {tn / t14:.3f}, / law {tn / max(tl, 1e-30):.3f}", flush=True)

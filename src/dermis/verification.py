@@ -344,13 +344,13 @@ def random_walk_albedo(total_reflectance: float, mean_free_path_mm: float, photo
 def random_walk_slab(total_reflectance: float, mean_free_path_mm: float, thickness_mm: float,
                      photons: int = 100_000, bisection_photons: int = 20_000, steps: int = 22, seed: int = 1,
                      index: float = 1.4, bin_edges_mm=(0.0, 1e3)):
-    """Light through a back-lit slab of the homogeneous random walk (isotropic, ``index`` inside: 1.4
-    for skin, 1.0 for an index-matched walk as Cycles'; air outside) that reflects ``total_reflectance`` when semi-infinite: MCML
-    (dermis.profiles.monte_carlo) at ``thickness_mm``, the single-scattering albedo from
-    random_walk_albedo (bisected once per medium, cached). Returns (single-scattering albedo,
-    MonteCarloResult); its total_transmittance is per unit power entering the far face (``bin_edges_mm``:
-    the radial bins of both faces' tallies). The theory the techniques' transmittance through thin
-    parts is held against (issue 12)."""
+    """Light through a back-lit slab of the homogeneous random walk (isotropic, ``index`` inside:
+    1.4 for skin, 1.0 for an index-matched walk as Cycles'; air outside) that reflects
+    ``total_reflectance`` when semi-infinite: MCML (dermis.profiles.monte_carlo) at ``thickness_mm``,
+    the single-scattering albedo from random_walk_albedo (bisected once per medium, cached). Returns
+    (single-scattering albedo, MonteCarloResult); its total_transmittance is per unit power entering
+    the far face (``bin_edges_mm``: the radial bins of both faces' tallies). The theory the
+    techniques' transmittance through thin parts is held against (issue 12)."""
     alpha = random_walk_albedo(float(total_reflectance), float(mean_free_path_mm), int(bisection_photons),
                                int(steps), int(seed), float(index))
     return alpha, _random_walk(alpha, mean_free_path_mm, thickness_mm, photons, seed, index, bin_edges_mm)
