@@ -249,10 +249,10 @@ def test_blurred_normals_keep_each_channels_profile_of_the_bumps(gl_ctx):
     of its amplitude (the profile's transfer function; numpy from the profile, independent of the
     shader). A flat quad with a sinusoidal normal map (lambda = 4 mm, tilt 0.2) lit at N.L = 0.5
     (curvature 0: D is N.L, linear): the relative modulation of red over green must be
-    H_r / H_g = 0.545 (d'Eon), within 30% (mip boxes stand for the Gaussians; measured 0.514). One mip level at the
-    channel's rms radius (rounds 1-6; red's 1.18 mm from its wide tail) gave 0 (1e-16): red lost the third
-    of its weight within 0.25 mm and kept no bumps while green kept them all, the red/green grain
-    along the terminator of the back-lit head (issue 12)."""
+    H_r / H_g = 0.545 (d'Eon), within 30% (mip boxes stand for the Gaussians; measured 0.514). One
+    mip level at the channel's rms radius (rounds 1-6; red's 1.18 mm from its wide tail) gave 0
+    (1e-16): red lost the third of its weight within 0.25 mm and kept no bumps while green kept
+    them all, the red/green grain along the terminator of the back-lit head (issue 12)."""
     from dermis.scene.model import Texture
 
     lam, tilt, size_mm, S = 4.0, 0.2, 16.0, 512
@@ -260,9 +260,9 @@ def test_blurred_normals_keep_each_channels_profile_of_the_bumps(gl_ctx):
     x = (np.arange(S) + 0.5) / S * size_mm  # mm across the quad, u = 0..1
     nx = tilt * np.sin(2.0 * np.pi * x / lam)
     n = np.stack([nx, np.zeros_like(nx), np.ones_like(nx)], -1) / np.sqrt(1.0 + nx ** 2)[:, None]
+    normals = np.ascontiguousarray(np.broadcast_to(0.5 * n + 0.5, (S, S, 3)), np.float32)
     sc.material = SkinMaterial(albedo_color=(1.0, 1.0, 1.0), rho_s=0.0, pore_strength=0.0,
-                               normal_map=Texture(np.ascontiguousarray(np.broadcast_to(0.5 * n + 0.5, (S, S, 3)), np.float32),
-                                                  "test:sine normals"))
+                               normal_map=Texture(normals, "test:sine normals"))
     th = np.radians(60.0)
     sc.lights = [Light(direction=(-float(np.sin(th)), 0.0, -float(np.cos(th))), intensity=np.pi, cast_shadows=False)]
     sc.camera = Camera(position=(0.0, 0.0, 40.0), fov_deg=25.0)

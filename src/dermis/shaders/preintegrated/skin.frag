@@ -98,7 +98,8 @@ void main() {
     float footprint_lod = 0.5 * log2(max(max(dot(duvx, duvx), dot(duvy, duvy)), 1e-12));
     mat3 n_profile = mat3(0.0);  // columns: red, green, blue; tangent-space sums
     for (int k = 0; k < uGaussianCount; ++k) {
-        float lod_k = max(log2(max(sqrt(uVariances[k]) * texels_per_mm * 3.4641016, 1.0)) * uBlurredNormals, footprint_lod);
+        float box_texels = sqrt(uVariances[k]) * texels_per_mm * 3.4641016;  // sqrt(12) sigma_k
+        float lod_k = max(log2(max(box_texels, 1.0)) * uBlurredNormals, footprint_lod);
         vec3 m_k = textureLod(uNormalMap, nuv, lod_k).xyz * 2.0 - 1.0;
         n_profile += mat3(m_k * uWeights[k].r, m_k * uWeights[k].g, m_k * uWeights[k].b);
     }
