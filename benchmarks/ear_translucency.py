@@ -17,6 +17,20 @@ and the techniques at N x N and prints the ear's mean radiance of each against i
 the back-lit-ear region's FLIP and mean ratio R/G/B per technique (as `dermis validate --against
 cycles`) against a stored Cycles accumulation (validate's cycles_spec_WxH.npz), without bpy.
 
+    PYTHONPATH=src python benchmarks/ear_translucency.py --boundary
+what a thin slab does that the semi-infinite profile and the thin-slab law do not (issue 12, round 7),
+red and green, MCML of the profile's medium (index 1.4, the skin walk) pencil-lit at the centre:
+the lit face's reflectance and its radial spread, the far face's transmittance and its radial spread
+(per-axis variance, mm^2) against the law's T(d) and the wide Gaussians' variance that tsd spreads
+the far face's light with; the skin walk's reflectance for an oblique beam; then, with the same total
+reflectance and the same mean exit radius (the same semi-infinite profile to first order), an
+index-matched walk (index 1.0) entered along the normal, and Cycles' own walk (index-matched, entered
+along a cosine-distributed direction, and along the normal as a head-on view sees it: _cycles_walk).
+About 6 min on 2 cores.
+
+    PYTHONPATH=src python benchmarks/ear_translucency.py --cycles-view
+Cycles' walk's dependence on the view angle (it starts along the refracted view ray), red. About 1 min.
+
     PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
 the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
 d = 0.5..5 mm thick, the renderers' thin-slab law (dermis.profiles.thin_slab) and d'Eon's
@@ -139,6 +153,120 @@ def slab_theory(cycles: bool = False):
                   f"d'Eon exp(-d^2/2v) {tg:.4f}{extra}")
 
 
+BOUNDARY_EDGES_MM = np.concatenate([np.linspace(0.0, 30.0, 301), [60.0, 1000.0]])
+
+
+def _spread(result, per_mm2):
+    """(per-axis variance mm^2, mean radius mm) of a radially binned MCML result (1/mm^2 per annulus)."""
+    e = result.bin_edges_mm
+    rc, area = 0.5 * (e[1:] + e[:-1]), np.pi * (e[1:] ** 2 - e[:-1] ** 2)
+    p = per_mm2 * area
+    return float((p * rc * rc).sum() / p.sum() / 2.0), float((p * rc).sum() / p.sum())
+
+
+def _cycles_walk(alpha, mfp_mm, d_mm, photons, seed=1, entry="cosine"):
+    """Cycles' random walk (intern/cycles/kernel/integrator/subsurface.h, subsurface_random_walk.h):
+    it starts at the shaded point along a direction into the surface (a cosine-distributed one, or the
+    view ray refracted) and ends at its first surface hit (an index-matched boundary), where a
+    Lambertian closure gathers the light; by reciprocity that is MCML with index 1.0 launched along
+    that direction: ``entry`` "cosine" (a 4-point Gauss-Legendre rule in mu^2) or "normal" (a head-on
+    view). Returns (R, T, reflectance per mm^2 over BOUNDARY_EDGES_MM)."""
+    from dermis.profiles.medium import Layer, Medium
+    from dermis.profiles.monte_carlo import monte_carlo_reflectance
+
+    st = 1.0 / mfp_mm
+    m = Medium(np.array([st * (1.0 - alpha)]), np.array([st * alpha]), 0.0, 1.0)
+    if entry == "normal":
+        r = monte_carlo_reflectance([Layer(m, d_mm)], photons, BOUNDARY_EDGES_MM, seed=seed)
+        return r.total_reflectance, r.total_transmittance, r.reflectance_per_mm2
+    x, w = np.polynomial.legendre.leggauss(4)
+    R = T = 0.0
+    prof = np.zeros(BOUNDARY_EDGES_MM.size - 1)
+    for u, wu in zip(0.5 * (x + 1.0), 0.5 * w):
+        r = monte_carlo_reflectance([Layer(m, d_mm)], photons, BOUNDARY_EDGES_MM, seed=seed,
+                                    incidence_cos=float(np.sqrt(u)))
+        R, T, prof = R + wu * r.total_reflectance, T + wu * r.total_transmittance, prof + wu * r.reflectance_per_mm2
+    return R, T, prof
+
+
+def boundary_study(channels=(0, 1), thicknesses=(0.5, 1.0, 2.0, 3.0, 4.0, 5.0), photons=100_000):
+    from dermis.profiles.medium import Layer, Medium
+    from dermis.profiles.monte_carlo import monte_carlo_reflectance
+    from dermis.profiles.thin_slab import slab_law
+    from dermis.scene.model import mean_skin_albedo
+    from dermis.techniques.shared import TRANSLUCENCY_MIN_VARIANCE_MM2
+    from dermis.verification import random_walk_slab
+
+    sc = dermis.load_scene(SCENE)
+    albedo = mean_skin_albedo(sc.material)
+    prof = sc.profile.normalized()
+    w, v = np.asarray(prof.weights), np.asarray(prof.variances_mm2)
+    wide = v >= TRANSLUCENCY_MIN_VARIANCE_MM2
+    law = slab_law(prof, albedo)
+    edges = BOUNDARY_EDGES_MM
+    rc, area = 0.5 * (edges[1:] + edges[:-1]), np.pi * (edges[1:] ** 2 - edges[:-1] ** 2)
+    for c in channels:
+        A, mfp = float(albedo[c]), float(1.0 / law.reduced_sigma_t_per_mm[c])
+        tsd_var = float((w[wide, c] * v[wide]).sum() / w[wide, c].sum())
+        alpha, semi = random_walk_slab(A, mfp, np.inf, photons=photons, index=1.4, bin_edges_mm=edges)
+        var_semi, r_semi = _spread(semi, semi.reflectance_per_mm2)
+        # index-matched walks with the same total reflectance and mean exit radius: the medium is
+        # scale invariant, so the albedo is bisected at mean free path 1 and the path then scaled
+        _, trial = random_walk_slab(A, 1.0, np.inf, photons=photons, index=1.0, bin_edges_mm=edges)
+        mfp1 = r_semi / _spread(trial, trial.reflectance_per_mm2)[1]
+        alpha1, semi1 = random_walk_slab(A, mfp1, np.inf, photons=photons, index=1.0, bin_edges_mm=edges)
+        lo, hi = 0.0, 1.0 - 1e-7
+        for _ in range(16):  # Cycles' walk: its albedo, bisected with common random numbers
+            a = 0.5 * (lo + hi)
+            lo, hi = (a, hi) if _cycles_walk(a, 1.0, np.inf, photons // 20)[0] < A else (lo, a)
+        alpha_c = 0.5 * (lo + hi)
+        Rc, _, pc = _cycles_walk(alpha_c, 1.0, np.inf, photons // 4)
+        Rn = _cycles_walk(alpha_c, 1.0, np.inf, photons, entry="normal")[0]
+        mfp_c = r_semi / float((pc * area * rc).sum() / (pc * area).sum())
+        print(f"{'RGB'[c]}: albedo {A:.4f}; skin walk (index 1.4): mean free path {mfp:.3f} mm, single-scattering "
+              f"albedo {alpha:.5f}, R {semi.total_reflectance:.4f}, mean exit radius {r_semi:.3f} mm, per-axis "
+              f"variance {var_semi:.3f} mm^2 (the profile's {float((w[:, c] * v).sum() / w[:, c].sum()):.3f}); "
+              f"index-matched walk, normal entry: mean free path {mfp1:.3f} mm, albedo {alpha1:.5f}, R "
+              f"{semi1.total_reflectance:.4f}; Cycles' walk (index-matched, cosine entry): mean free path "
+              f"{mfp_c:.3f} mm, albedo {alpha_c:.5f}, R {Rc:.4f} (seen head-on: {Rn:.4f}); tsd's far-face spread "
+              f"(wide Gaussians) {tsd_var:.3f} mm^2")
+        skin = [Layer(Medium(np.array([(1.0 - alpha) / mfp]), np.array([alpha / mfp]), 0.0, 1.4), np.inf)]
+        grazing = [monte_carlo_reflectance(skin, photons // 2, [0.0, 1e3], seed=5, incidence_cos=mu).total_reflectance
+                   for mu in (1.0, 0.5, 0.15)]
+        print(f"  skin walk, oblique beam: R at cos 1 / 0.5 / 0.15: {' / '.join('%.4f' % g for g in grazing)}")
+        for d in thicknesses:
+            res = random_walk_slab(A, mfp, d, photons=photons, index=1.4, bin_edges_mm=edges)[1]
+            res1 = random_walk_slab(A, mfp1, d, photons=photons, index=1.0, bin_edges_mm=edges)[1]
+            tc = _cycles_walk(alpha_c, mfp_c, d, photons // 4, seed=2)[1]
+            tn = _cycles_walk(alpha_c, mfp_c, d, photons, seed=2, entry="normal")[1]
+            vr, _ = _spread(res, res.reflectance_per_mm2)
+            vt, _ = _spread(res, res.transmittance_per_mm2) if res.total_transmittance > 0 else (float("nan"), 0)
+            tl = float(law.transmittance(d)[c])
+            t14 = max(res.total_transmittance, 1e-30)
+            print(f"  d {d} mm: index 1.4: R {res.total_reflectance:.4f} (law {float(law.reflectance(d)[c]):.4f}) "
+                  f"spread {vr:.3f}; T {res.total_transmittance:.4f} (law {tl:.4f}) spread {vt:.3f} | "
+                  f"index 1.0, normal "
+                  f"entry: T / index 1.4 {res1.total_transmittance / t14:.3f} | Cycles' walk: T {tc:.4f}, / index 1.4 "
+                  f"{tc / t14:.3f}, / law {tc / max(tl, 1e-30):.3f}; seen head-on (normal entry): T {tn:.4f}, "
+                  f"/ index 1.4 {tn / t14:.3f}, / law {tn / max(tl, 1e-30):.3f}", flush=True)
+
+
+def cycles_view_dependence(mfp_mm=0.702, alpha=0.92728, views_deg=(0, 30, 60, 80, 89), photons=40_000):
+    """Cycles' walk starts along the view ray refracted into the surface, so its BSSRDF depends on
+    the view angle. MCML of the fitted Cycles walk (red, from --boundary: index 1.0, the given path and
+    albedo) launched along the view refracted through a smooth interface of IOR 1.4 (Cycles refracts
+    through a rough one, GGX roughness 1): the semi-infinite reflectance and the transmittance of 2 mm."""
+    from dermis.profiles.medium import Layer, Medium
+    from dermis.profiles.monte_carlo import monte_carlo_reflectance
+
+    m = Medium(np.array([(1.0 - alpha) / mfp_mm]), np.array([alpha / mfp_mm]), 0.0, 1.0)
+    for view in views_deg:
+        mu = float(np.sqrt(1.0 - (np.sin(np.radians(view)) / 1.4) ** 2))
+        R = monte_carlo_reflectance([Layer(m, np.inf)], photons, [0.0, 1e3], seed=4, incidence_cos=mu).total_reflectance
+        T = monte_carlo_reflectance([Layer(m, 2.0)], photons, [0.0, 1e3], seed=4, incidence_cos=mu).total_transmittance
+        print(f"view {view:2d} deg (entry cos {mu:.3f}): R {R:.4f}, T(2 mm) {T:.4f}", flush=True)
+
+
 def against_cycles(npz, techniques):
     """The back-lit-ear region of `dermis validate --against cycles` (its region_masks and _score)
     against stored Cycles accumulations (a validate store, cycles_spec_64x64.npz: two seed streams),
@@ -177,6 +305,10 @@ def against_cycles(npz, techniques):
 if __name__ == "__main__":
     if sys.argv[1] == "--slab":
         slab_theory(cycles="--cycles" in sys.argv[2:])
+    elif sys.argv[1] == "--boundary":
+        boundary_study()
+    elif sys.argv[1] == "--cycles-view":
+        cycles_view_dependence()
     elif sys.argv[1] == "--cycles-store":
         against_cycles(sys.argv[2], sys.argv[3:] or ["tsd", "tsd-off", "ssss", "preintegrated", "lambert"])
     elif sys.argv[1] == "--reference":

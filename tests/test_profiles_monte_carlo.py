@@ -83,3 +83,57 @@ def test_monte_carlo_bad_input_is_refused():
         monte_carlo_reflectance([Layer(medium, np.inf)], 100, [1.0, 0.5])
     with pytest.raises(DermisError, match="last layer"):
         monte_carlo_reflectance([Layer(medium, np.inf), Layer(medium, 1.0)], 100, [0.0, 1.0])
+
+
+def test_monte_carlo_slab_transmission_of_a_pure_absorber_is_closed_form_and_on_axis():
+    """The far face's radial tally (issue 12, round 7: the transmitted light's spread). A pencil beam
+    in a non-scattering slab (index 1.4 in air) runs straight down: it crosses the slab with chance
+    e^(-mu_a d), the far face lets out 1 - F (normal incidence) and turns F back, so
+    T = (1 - F) e / (1 - F^2 e^2), R = F (1 - F) e^2 / (1 - F^2 e^2), e = e^(-mu_a d); and all of T
+    leaves on the axis (the first annulus)."""
+    mu_a, d, n = 0.7, 1.3, 1.4
+    edges = np.array([0.0, 0.01, 1.0, 10.0])
+    photons = 100_000
+    res = monte_carlo_reflectance([Layer(Medium(mu_a, 0.0, 0.0, n), d)], photons, edges, seed=4)
+    f, e = ((n - 1.0) / (n + 1.0)) ** 2, np.exp(-mu_a * d)
+    t_exact = (1 - f) * e / (1 - f * f * e * e)
+    r_exact = f * (1 - f) * e * e / (1 - f * f * e * e)
+    # each photon's score is 0 or 1: binomial standard errors
+    assert abs(res.total_transmittance - t_exact) < 4.0 * np.sqrt(t_exact * (1 - t_exact) / photons)
+    assert abs(res.total_reflectance - r_exact) < 4.0 * np.sqrt(r_exact * (1 - r_exact) / photons) + 1e-12
+    area = np.pi * (edges[1:] ** 2 - edges[:-1] ** 2)
+    tallied = res.transmittance_per_mm2 * area
+    assert tallied[0] == pytest.approx(res.total_transmittance, rel=1e-12)
+    assert tallied[1:].sum() == 0.0
+
+
+def test_monte_carlo_slab_transmission_tally_sums_to_the_total_and_spreads_with_thickness():
+    """A scattering slab: the far face's annuli add up to total_transmittance (bins out to 1 m), and
+    the transmitted light's mean radius grows with the thickness (it has wandered further)."""
+    medium = Medium(0.05, 3.0, 0.0, 1.4)
+    edges = np.concatenate([np.linspace(0.0, 10.0, 101), [1000.0]])
+    area = np.pi * (edges[1:] ** 2 - edges[:-1] ** 2)
+    rc = 0.5 * (edges[1:] + edges[:-1])
+    radii = []
+    for d in (1.0, 3.0):
+        res = monte_carlo_reflectance([Layer(medium, d)], 20_000, edges, seed=2)
+        tallied = res.transmittance_per_mm2 * area
+        assert tallied.sum() == pytest.approx(res.total_transmittance, rel=1e-9)
+        radii.append(float((tallied * rc)[:-1].sum() / tallied[:-1].sum()))
+    assert radii[1] > 1.5 * radii[0], radii
+
+
+@pytest.mark.parametrize("mu0", [0.3, 0.7])
+def test_monte_carlo_oblique_incidence_matches_chandrasekhar(mu0):
+    """``incidence_cos``: a beam at cos(theta) = mu0 (index-matched, so it enters unrefracted) is
+    reflected 1 - H(mu0) sqrt(1 - albedo) (Chandrasekhar's H-function, exact): more at grazing
+    incidence, where the first scattering is shallower. (With skin's index 1.4 the beam refracts to
+    within 46 deg of the normal and the rise is small: ear_translucency.py --boundary.)"""
+    albedo = 0.9
+    medium = Medium(1.0 - albedo, albedo, 0.0, 1.0)
+    result = monte_carlo_reflectance([Layer(medium, np.inf)], 100_000, [0.0, 10.0], seed=7, incidence_cos=mu0)
+    reference = chandrasekhar_plane_albedo(albedo, mu0)
+    assert abs(result.total_reflectance - reference) < 4.0 * result.total_reflectance_standard_error
+    assert reference > chandrasekhar_plane_albedo(albedo, 1.0) + 0.05  # the test can tell oblique from normal
+    with pytest.raises(DermisError, match="incidence cosine"):
+        monte_carlo_reflectance([Layer(medium, np.inf)], 10, [0.0, 1.0], incidence_cos=0.0)

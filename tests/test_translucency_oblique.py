@@ -34,3 +34,47 @@ def test_translucency_of_a_slab_lit_obliquely(gl_ctx, technique, angle_deg):
     front = img[20:28, 20:28].reshape(-1, 3).mean(axis=0)
     expected = np.cos(th) * law.transmittance(d)
     assert np.all(np.abs(front - expected) <= 0.05 * expected + 1e-4), (front, expected)
+
+
+def _stepped_slab_scene(thin_mm: float, thick_mm: float, size_mm: float = 30.0, n: int = 32):
+    """backlit_slab_scene's slab (front face z = thin/2, one UV island) whose back face steps from
+    thin_mm (x < 0) to thick_mm (x > 0): every vertex is pushed back in proportion to its depth."""
+    from dermis.scene.builtin import slab
+    from dermis.scene.loaders import finish_mesh, vertex_normals
+
+    sc = backlit_slab_scene(thin_mm, size_mm=size_mm, n=n, albedo=SKIN_ALBEDO)
+    p, nn, uv, t = slab(size=size_mm, thickness=thin_mm, n=n)
+    p = np.array(p, np.float64)
+    depth = (thin_mm / 2 - p[:, 2]) / thin_mm  # 0 on the front face, 1 on the back
+    p[:, 2] -= np.where(p[:, 0] > 0.0, (thick_mm - thin_mm) * depth, 0.0)
+    sc.mesh = finish_mesh(p, vertex_normals(p, np.asarray(t).reshape(-1, 3)), uv, t,
+                          f"test:stepped slab {thin_mm}-{thick_mm}", "v-up")
+    return sc
+
+
+@pytest.mark.parametrize("technique", ["preintegrated", "ssss"])
+def test_far_face_of_a_thickness_step_is_not_self_shadowed(gl_ctx, technique):
+    """A slab 2 mm thick for x < 0 and 4 mm for x > 0 lit from behind at 78 degrees (cos 0.2 on the
+    far faces, as the back-lit helix). The bake's thickness is smoothed by a soft minimum over its
+    neighbours (geometry/thickness.py), so beside the step the thick side's h is up to ~1 mm short
+    and A = P - h N lies inside the tissue. Its shadow must still see the far face lit: the front's
+    transmitted light across the thick side near the step never falls below the thick side's own
+    level far from the step (where T(4 mm) cos holds). Lifting A 0.5 mm along the light (rounds
+    4-6) moved it 0.1 mm off the face: it shadowed itself and drew a dark band along the step
+    (the dark wedge at the top of the back-lit helix, issue 12): measured before the fix,
+    preintegrated 0 over 0.5-1.6 mm from the step, ssss down to 0.60 of the thick side's level."""
+    th = np.radians(78.0)
+    sc = _stepped_slab_scene(2.0, 4.0)
+    sc.lights = [dataclasses.replace(sc.lights[0], direction=(0.0, float(np.sin(th)), float(np.cos(th))))]
+    with Renderer(sc, (96, 96), irradiance_size=256, ctx=gl_ctx, samples=0) as r:
+        img = r.render(technique, output_mode=1)[..., :3].astype(np.float64)
+    W = img.shape[1]
+    ppm = W / (2.0 * 120.0 * np.tan(np.radians(5.0)))  # pixels per mm on the front face (fov 10)
+    xs = (np.arange(W) + 0.5 - W / 2) / ppm
+    red = img[W // 2 - 8:W // 2 + 8, :, 0].mean(axis=0)
+    far = red[(xs > 6.0) & (xs < 10.0)].mean()  # the thick side, 6-10 mm from the step
+    near = red[(xs > 0.3) & (xs < 3.0)]
+    law = slab_law(dermis.profiles.deon_skin(), np.array(SKIN_ALBEDO))
+    expected_far = np.cos(th) * law.transmittance(4.0)[0]
+    assert abs(far - expected_far) <= 0.1 * expected_far, (far, expected_far)  # the thick side: a 4 mm slab
+    assert near.min() >= 0.9 * far, (near, far)

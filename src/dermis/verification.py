@@ -311,27 +311,30 @@ def ssss_plane_impulse(gl_ctx=None, profile=None):
             "energy": out.sum(axis=(0, 1)) / 4.0}
 
 
-def _random_walk(alpha: float, mean_free_path_mm: float, thickness_mm: float, photons: int, seed: int):
-    """MCML of the isotropic homogeneous random walk (index 1.4 inside, air outside) back-lit
-    through ``thickness_mm`` (np.inf: semi-infinite)."""
+def _random_walk(alpha: float, mean_free_path_mm: float, thickness_mm: float, photons: int, seed: int,
+                 index: float = 1.4, bin_edges_mm=(0.0, 1e3)):
+    """MCML of the isotropic homogeneous random walk (refractive ``index`` inside, air outside)
+    back-lit through ``thickness_mm`` (np.inf: semi-infinite)."""
     from dermis.profiles.medium import Layer, Medium
     from dermis.profiles.monte_carlo import monte_carlo_reflectance
 
     st = 1.0 / mean_free_path_mm
-    m = Medium(np.array([st * (1.0 - alpha)]), np.array([st * alpha]), 0.0, 1.4)
-    return monte_carlo_reflectance([Layer(m, thickness_mm)], photons, np.array([0.0, 1e3]), seed=seed)
+    m = Medium(np.array([st * (1.0 - alpha)]), np.array([st * alpha]), 0.0, index)
+    return monte_carlo_reflectance([Layer(m, thickness_mm)], photons, np.asarray(bin_edges_mm, np.float64), seed=seed)
 
 
 @functools.lru_cache(maxsize=64)
 def random_walk_albedo(total_reflectance: float, mean_free_path_mm: float, photons: int = 20_000,
-                       steps: int = 22, seed: int = 1) -> float:
+                       steps: int = 22, seed: int = 1, index: float = 1.4) -> float:
     """The single-scattering albedo whose semi-infinite random walk reflects ``total_reflectance``:
     bisection with common random numbers (the same seed every step), so it is deterministic and is
-    solved once per (reflectance, mean free path, photons, steps, seed), not once per thickness."""
+    solved once per (reflectance, mean free path, photons, steps, seed, index), not once per thickness.
+    ``index``: the medium's refractive index against air (1.4: skin; 1.0: an index-matched boundary,
+    a walk that ends at its first surface hit, as Cycles' random walk does)."""
     lo, hi = 0.0, 1.0 - 1e-7
     for _ in range(steps):
         a = 0.5 * (lo + hi)
-        if _random_walk(a, mean_free_path_mm, np.inf, photons, seed).total_reflectance < total_reflectance:
+        if _random_walk(a, mean_free_path_mm, np.inf, photons, seed, index).total_reflectance < total_reflectance:
             lo = a
         else:
             hi = a
@@ -339,13 +342,15 @@ def random_walk_albedo(total_reflectance: float, mean_free_path_mm: float, photo
 
 
 def random_walk_slab(total_reflectance: float, mean_free_path_mm: float, thickness_mm: float,
-                     photons: int = 100_000, bisection_photons: int = 20_000, steps: int = 22, seed: int = 1):
-    """Light through a back-lit slab of the homogeneous random walk (isotropic, index 1.4 inside,
-    air outside) that reflects ``total_reflectance`` when semi-infinite: MCML
-    (dermis.profiles.monte_carlo) at ``thickness_mm``, the single-scattering albedo from
-    random_walk_albedo (bisected once per medium, cached). Returns (single-scattering albedo,
-    MonteCarloResult); its total_transmittance is per unit power entering the far face. The theory
-    the techniques' transmittance through thin parts is held against (issue 12)."""
+                     photons: int = 100_000, bisection_photons: int = 20_000, steps: int = 22, seed: int = 1,
+                     index: float = 1.4, bin_edges_mm=(0.0, 1e3)):
+    """Light through a back-lit slab of the homogeneous random walk (isotropic, ``index`` inside:
+    1.4 for skin, 1.0 for an index-matched walk as Cycles'; air outside) that reflects
+    ``total_reflectance`` when semi-infinite: MCML (dermis.profiles.monte_carlo) at ``thickness_mm``,
+    the single-scattering albedo from random_walk_albedo (bisected once per medium, cached). Returns
+    (single-scattering albedo, MonteCarloResult); its total_transmittance is per unit power entering
+    the far face (``bin_edges_mm``: the radial bins of both faces' tallies). The theory the
+    techniques' transmittance through thin parts is held against (issue 12)."""
     alpha = random_walk_albedo(float(total_reflectance), float(mean_free_path_mm), int(bisection_photons),
-                               int(steps), int(seed))
-    return alpha, _random_walk(alpha, mean_free_path_mm, thickness_mm, photons, seed)
+                               int(steps), int(seed), float(index))
+    return alpha, _random_walk(alpha, mean_free_path_mm, thickness_mm, photons, seed, index, bin_edges_mm)

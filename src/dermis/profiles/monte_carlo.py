@@ -80,18 +80,18 @@ def _fresnel(n_incident, n_transmitted, cos_incident):
 
 @njit(cache=True)
 def _run_stream(state, photons, mu_a, mu_s, g, n_layer, z_top, z_bottom, n_above, n_below, edges,
-                sums, sums_sq, totals):
-    """Trace ``photons`` photons; accumulate per-bin sums (and squares) and totals
-    [R_d, R_d^2, T_d, absorbed] for one stream."""
+                sums, sums_sq, t_sums, totals, launch_cos):
+    """Trace ``photons`` photons; accumulate per-bin sums (and squares) of the top face's escapes,
+    per-bin sums of the bottom face's (t_sums), and totals [R_d, R_d^2, T_d, absorbed] for one stream."""
     layers = mu_a.size
     bins = edges.size - 1
     for _ in range(photons):
         x = 0.0
         y = 0.0
         z = 0.0
-        ux = 0.0
+        ux = math.sqrt(1.0 - launch_cos * launch_cos)
         uy = 0.0
-        uz = 1.0
+        uz = launch_cos
         weight = 1.0
         layer = 0
         step_left = 0.0  # dimensionless (optical) step still to travel
@@ -136,6 +136,11 @@ def _run_stream(state, photons, mu_a, mu_s, g, n_layer, z_top, z_bottom, n_above
                     totals[1] += weight * weight
                     break
                 elif next_layer >= layers:
+                    # Escaped through the bottom face (a slab): score it at its radius too
+                    radius = math.sqrt(x * x + y * y)
+                    b = np.searchsorted(edges, radius, side="right") - 1
+                    if 0 <= b < bins:
+                        t_sums[b] += weight
                     totals[2] += weight
                     break
                 else:
@@ -187,19 +192,20 @@ def _run_stream(state, photons, mu_a, mu_s, g, n_layer, z_top, z_bottom, n_above
 
 @njit(cache=True, parallel=True)
 def _run_streams(seed, first_stream, photon_counts, mu_a, mu_s, g, n_layer, z_top, z_bottom, n_above, n_below,
-                 edges):
+                 edges, launch_cos):
     streams = photon_counts.size
     bins = edges.size - 1
     sums = np.zeros((streams, bins))
     sums_sq = np.zeros((streams, bins))
+    t_sums = np.zeros((streams, bins))
     totals = np.zeros((streams, 4))
     for i in prange(streams):
         state = np.empty(1, dtype=np.uint64)
         # Each stream starts at a hashed point of the 2^64 cycle: hash(seed, stream index)
         state[0] = _mix64(_mix64(np.uint64(seed) + _GOLDEN) ^ _mix64(np.uint64(first_stream + i + 1)))
         _run_stream(state, photon_counts[i], mu_a, mu_s, g, n_layer, z_top, z_bottom, n_above, n_below, edges,
-                    sums[i], sums_sq[i], totals[i])
-    return sums.sum(axis=0), sums_sq.sum(axis=0), totals.sum(axis=0)
+                    sums[i], sums_sq[i], t_sums[i], totals[i], launch_cos)
+    return sums.sum(axis=0), sums_sq.sum(axis=0), t_sums.sum(axis=0), totals.sum(axis=0)
 
 
 @dataclass(frozen=True)
@@ -216,6 +222,9 @@ class MonteCarloResult:
     photons: int
     seed: int
     specular_reflectance: float  # normal-incidence Fresnel at the top, not part of the above
+    # the light that left through the bottom face (a slab), mean over each annulus (1/mm^2) around
+    # the beam's axis: the transmitted profile
+    transmittance_per_mm2: np.ndarray | None = None
 
     @property
     def bin_centers_mm(self) -> np.ndarray:
@@ -244,11 +253,15 @@ def _layer_arrays(layers: Sequence[Layer]):
 
 
 def monte_carlo_reflectance(layers: Sequence[Layer], photons: int, bin_edges_mm, seed: int = 0,
-                            n_above: float = 1.0, n_below: float = 1.0, progress=False) -> MonteCarloResult:
+                            n_above: float = 1.0, n_below: float = 1.0, progress=False,
+                            incidence_cos: float = 1.0) -> MonteCarloResult:
     """Run MCML for a stack of ``layers`` (top first; scalar media; the last may be semi-infinite).
 
     ``bin_edges_mm``: increasing radial bin edges; ``progress``: False, True (a tqdm bar on
     stderr) or an open tqdm bar to advance. The first call compiles the kernel (cached on disk).
+    ``incidence_cos``: the beam's cosine to the normal OUTSIDE (1: MCML's normal incidence); it is
+    launched along the direction Snell's law refracts it to in the top layer (still per unit
+    power entering: the entry's Fresnel loss is not part of the result).
     """
     photons = int(photons)
     if photons < 2:
@@ -257,6 +270,10 @@ def monte_carlo_reflectance(layers: Sequence[Layer], photons: int, bin_edges_mm,
     if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0) or edges[0] < 0:
         raise DermisError("radial bin edges must be increasing and >= 0 mm")
     mu_a, mu_s, g, n, top, bottom = _layer_arrays(layers)
+    if not 0.0 < float(incidence_cos) <= 1.0:
+        raise DermisError(f"the incidence cosine must be in (0, 1], got {incidence_cos!r}")
+    sin_inside = n_above / n[0] * math.sqrt(max(0.0, 1.0 - float(incidence_cos) ** 2))
+    launch_cos = math.sqrt(max(0.0, 1.0 - sin_inside * sin_inside)) if sin_inside < 1.0 else 1e-6
     stream_count = -(-photons // STREAM_PHOTONS)
     counts = np.full(stream_count, STREAM_PHOTONS, dtype=np.int64)
     counts[-1] = photons - STREAM_PHOTONS * (stream_count - 1)
@@ -268,14 +285,16 @@ def monte_carlo_reflectance(layers: Sequence[Layer], photons: int, bin_edges_mm,
         bar, own_bar = tqdm(total=photons, unit="photon", unit_scale=True, desc="Monte Carlo", leave=False), True
     sums = np.zeros(edges.size - 1)
     sums_sq = np.zeros(edges.size - 1)
+    t_sums = np.zeros(edges.size - 1)
     totals = np.zeros(4)
     try:
         for first in range(0, stream_count, CHUNK_STREAMS):
             chunk = counts[first:first + CHUNK_STREAMS]
-            s, s2, t = _run_streams(np.uint64(seed % 2**64), first, chunk, mu_a, mu_s, g, n, top, bottom,
-                                    float(n_above), float(n_below), edges)
+            s, s2, ts, t = _run_streams(np.uint64(seed % 2**64), first, chunk, mu_a, mu_s, g, n, top, bottom,
+                                        float(n_above), float(n_below), edges, launch_cos)
             sums += s
             sums_sq += s2
+            t_sums += ts
             totals += t
             if bar:
                 bar.update(int(chunk.sum()))
@@ -300,6 +319,7 @@ def monte_carlo_reflectance(layers: Sequence[Layer], photons: int, bin_edges_mm,
         photons=photons,
         seed=int(seed),
         specular_reflectance=float(specular),
+        transmittance_per_mm2=t_sums / photons / area,
     )
 
 

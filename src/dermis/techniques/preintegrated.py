@@ -25,9 +25,11 @@ from three local quantities looked up in tables computed at start-up from the ac
   the edge, sharpened by the width the scattering adds (at most to PENUMBRA_SHARPEN_MIN w),
   convolved with the profile across it (its 1-D marginal: the same Gaussians in 1-D) and rescaled
   to [0, 1] over the penumbra, per channel: red reaches further into the shadow than green and blue.
-* surface detail: the normal map is read per channel at the mip level whose texel footprint
-  matches that channel's scattering radius (Penner's "blurred normals": red uses the blurriest),
-  and never finer than the pixel's own footprint.
+* surface detail: each channel's normal is the normal map filtered by that channel's profile,
+  sum_k w_k (the map at the mip level whose box has Gaussian k's standard deviation, never finer
+  than the pixel's own footprint): Penner's "blurred normals", red the blurriest. One level at the
+  channel's rms radius (rounds 1-6) took red's from its wide tail and lost the third of red's
+  weight within 0.25 mm: red/green grain along a terminator (tests/test_preintegrated.py).
 
 Everything else is shared with the other techniques: lights, shadows, environment, specular
 (common/skin_specular.glsl), energy conservation (N.L in, N.V out) and the translucency of thin
@@ -353,7 +355,6 @@ class PreintegratedSkin(Technique):
             set_uniform(prog, "uCurvatureMaxPerMm", float(CURVATURE_MAX_PER_MM))
             set_uniform(prog, "uPenumbraWidthRangeMm", tuple(float(x) for x in PENUMBRA_WIDTH_RANGE_MM))
             set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.options.curvature_source == "mesh" else 0.0)
-            set_uniform(prog, "uScatterRadiusMm", tuple(float(x) for x in channel_scatter_radius_mm(profile)))
             set_uniform(prog, "uBlurredNormals", 1.0 if self.options.blurred_normals else 0.0)
             set_uniform(prog, "uPenumbraScattering", 1.0 if self.options.penumbra_scattering else 0.0)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
@@ -380,9 +381,3 @@ class PreintegratedSkin(Technique):
             t.release()
         self.prog.release()
 
-
-def channel_scatter_radius_mm(profile) -> np.ndarray:
-    """Per channel, the rms radius along one axis of the profile, sqrt(sum_k w_k v_k) (mm): how far
-    each channel blurs the normal map's detail (d'Eon's: red 1.18, green 0.26, blue 0.16 mm)."""
-    prof = profile.normalized()
-    return np.sqrt(prof.weights.T @ prof.variances_mm2)

@@ -4,7 +4,7 @@
 //             * [ sum_lights E_i D(N_c.L, curvature)_c P(shadow_soft, penumbra width)_c (1 - rho_s a(N.L, m) / pi)
 //                 + ambient(N_c) + transmitted ]                                   per channel c
 //   specular = common/skin_specular.glsl (shared by every skin technique)
-// N_c: the normal map read at the mip level of channel c's scattering radius (Penner's blurred
+// N_c: the normal map filtered by channel c's profile, a mip level per Gaussian (Penner's blurred
 // normals, red blurriest); D: light wrapped around a ring of the local curvature; P: the soft
 // shadow's penumbra scattered with the profile (red reaches furthest into the shadow).
 #include "common/surface.glsl"
@@ -20,7 +20,6 @@ uniform sampler2D uPenumbraTable;  // P(shadow, width): s = shadow in [0, 1], t 
 uniform float uCurvatureMaxPerMm;
 uniform vec2 uPenumbraWidthRangeMm;
 uniform float uCurvatureFromMesh;   // 1: the mesh's per-vertex curvature, 0: screen derivatives
-uniform vec3 uScatterRadiusMm;      // rms radius along one axis of each channel's profile
 uniform float uBlurredNormals;      // 1: per-channel blurred normals, 0: the detailed normal
 uniform float uPenumbraScattering;  // 1: scatter the penumbra through its table, 0: plain PCF
 uniform vec3 uCameraPos;
@@ -87,16 +86,26 @@ void main() {
     float texels_per_mm = sqrt(area_uv / max(area_mm, 1e-12));
 
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
-    // blurred normals: mip level L averages 2^L texels, a box of standard deviation 2^L / sqrt(12);
-    // never finer than the pixel's own footprint: the level of the OpenGL 4.5 spec's (8.14) isotropic
-    // formula, log2 of the longer of the two texel-space derivatives (textureQueryLod is allowed to
-    // approximate it, and GPUs do)
+    // blurred normals: channel c's normal is the normal map filtered by channel c's own profile,
+    // sum_k w_ck (the map filtered by Gaussian k), each Gaussian the mip level whose box has its
+    // standard deviation (level L averages 2^L texels, a box of standard deviation 2^L / sqrt(12)),
+    // never finer than the pixel's own footprint: the level of the OpenGL 4.5 spec's (8.14)
+    // isotropic formula, log2 of the longer of the two texel-space derivatives (textureQueryLod is
+    // allowed to approximate it, and GPUs do). Not one level at the profile's rms radius: that is
+    // set by the wide tail (red 1.18 mm) and wiped out the third of red's weight within 0.25 mm,
+    // so red lost all the bumps that green and blue kept; at a terminator, where N.L magnifies the
+    // bumps, that drew red/green grain (issue 12, the back-lit head behind the ear).
     float footprint_lod = 0.5 * log2(max(max(dot(duvx, duvx), dot(duvy, duvy)), 1e-12));
-    vec3 lod = max(log2(max(uScatterRadiusMm * texels_per_mm * 3.4641016, vec3(1.0))) * uBlurredNormals,
-                   vec3(footprint_lod));
-    vec3 N_red = perturb_normal_lod(v_normal, v_tangent, v_uv, lod.r);
-    vec3 N_green = perturb_normal_lod(v_normal, v_tangent, v_uv, lod.g);
-    vec3 N_blue = perturb_normal_lod(v_normal, v_tangent, v_uv, lod.b);
+    mat3 n_profile = mat3(0.0);  // columns: red, green, blue; tangent-space sums
+    for (int k = 0; k < uGaussianCount; ++k) {
+        float box_texels = sqrt(uVariances[k]) * texels_per_mm * 3.4641016;  // sqrt(12) sigma_k
+        float lod_k = max(log2(max(box_texels, 1.0)) * uBlurredNormals, footprint_lod);
+        vec3 m_k = textureLod(uNormalMap, nuv, lod_k).xyz * 2.0 - 1.0;
+        n_profile += mat3(m_k * uWeights[k].r, m_k * uWeights[k].g, m_k * uWeights[k].b);
+    }
+    vec3 N_red = tangent_to_world(v_normal, v_tangent, n_profile[0]);
+    vec3 N_green = tangent_to_world(v_normal, v_tangent, n_profile[1]);
+    vec3 N_blue = tangent_to_world(v_normal, v_tangent, n_profile[2]);
 
     vec3 V = normalize(uCameraPos - v_world);
     float m = roughness_at(v_uv);
