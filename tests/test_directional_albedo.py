@@ -98,6 +98,47 @@ def test_tsd_on_a_flat_plane_is_k_at_entry_times_k_at_exit(gl_ctx):
     assert np.all(np.abs(got - 1.0) > 0.003)  # the test sees the factor (not 1 within the tolerance)
 
 
+@pytest.mark.parametrize("technique", ["ssss", "preintegrated"])
+def test_ssss_and_preintegrated_on_a_flat_plane_are_k_at_entry_times_k_at_exit(gl_ctx, technique):
+    """The same directional albedo as tsd's (the shared common/directional_albedo.glsl), through the
+    public API: a flat quad under a directional light at two angles, seen at two angles, the image
+    with ``directional_albedo`` on over the one with it off = k(N.L) k(N.V) of the numpy table, pixel
+    by pixel (N.V from the camera's own rays: dermis.reference.render.camera_rays). The option is
+    toggled in one live Renderer, and the last image is checked against a fresh Renderer's."""
+    from dermis.reference.render import camera_rays
+    from dermis.renderer import Renderer
+    from dermis.verification import quad_scene
+
+    albedo = np.array([0.6, 0.25, 0.08])
+    size = (32, 32)
+    sc = quad_scene(40.0, 40.0)
+    sc.material.albedo_color = tuple(albedo)
+    dist = float(np.linalg.norm(sc.camera.position))
+    crop = (slice(12, 20), slice(12, 20))
+    with Renderer(sc, size, ctx=gl_ctx, irradiance_size=128, shadow_size=256) as r:
+        for theta_v in (0.0, 50.0):
+            sc.camera.position = (dist * math.sin(math.radians(theta_v)), 0.0, dist * math.cos(math.radians(theta_v)))
+            o, d, _, eye = camera_rays(sc, size)
+            P = o - d * (o[:, 2:3] / d[:, 2:3])  # the rays' points on the plane z = 0 (normal +z)
+            V = eye[None, :] - P
+            mu_v = (V[:, 2] / np.linalg.norm(V, axis=1)).reshape(size[1], size[0])[crop]
+            for theta_l in (20.0, 60.0):
+                sc.lights[0].direction = (0.0, -math.sin(math.radians(theta_l)), -math.cos(math.radians(theta_l)))
+                out = {}
+                for on in (True, False):
+                    sc.directional_albedo = on
+                    out[on] = r.render(technique)[crop][..., :3].astype(np.float64)
+                want = da.factor(albedo, math.cos(math.radians(theta_l)))[None, None, :] * np.stack(
+                    [da.factor(albedo, m) for m in mu_v.ravel()]).reshape(mu_v.shape + (3,))
+                got = out[True] / out[False]
+                np.testing.assert_allclose(got.mean(axis=(0, 1)), want.mean(axis=(0, 1)), rtol=2e-3,
+                                           err_msg=f"{technique} light {theta_l} view {theta_v}")
+                np.testing.assert_allclose(got, want, rtol=5e-3, err_msg=f"{technique} light {theta_l} view {theta_v}")
+                assert np.all(np.abs(got.mean(axis=(0, 1)) - 1.0) > 0.003)  # the factor is seen (not 1)
+    with Renderer(sc, size, ctx=gl_ctx, irradiance_size=128, shadow_size=256) as fresh:
+        np.testing.assert_allclose(out[False], fresh.render(technique)[crop][..., :3], rtol=1e-5, atol=1e-7)
+
+
 def test_scene_key_and_invalidation(tmp_path, gl_ctx):
     import dermis
     from dermis.errors import DermisError

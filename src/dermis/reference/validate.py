@@ -168,7 +168,7 @@ def validate(scene_files, techniques, size, *, out_dir=None, spp=4, spacing_mm=N
                         "reference shadows are exact ray casts (hard); techniques use PCF shadow maps",
                         "interreflection off on both sides (the reference has none; tsd's one bounce is measured "
                         "against Cycles: validate --against cycles)",
-                        "directional albedo off in tsd (the reference's exit is Lambertian)"],
+                        "directional albedo off in tsd, ssss and preintegrated (the reference's exit is Lambertian)"],
               "scenes": {}}
     for f in scene_files:
         scene = dermis.load_scene(f)

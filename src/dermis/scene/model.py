@@ -261,7 +261,7 @@ class Scene:
     # (dermis.geometry.thickness.light_thickness): a CPU ray cast per key-light turn (about 1-2 s at
     # irradiance 1024 on 2 llvmpipe cores), so off unless asked for (the viewer's light drag)
     translucency_light_path: bool = False
-    # the skin's directional albedo (tsd only: dermis.profiles.directional_albedo): light entering or
+    # the skin's directional albedo (tsd, ssss, preintegrated: dermis.profiles.directional_albedo): light entering or
     # leaving at a shallow angle is absorbed less than head-on, k(mu) = 1 + c(A) (2/3 - mu) at N.L and N.V
     directional_albedo: bool = True
 

@@ -54,7 +54,7 @@ from dermis.gl.resources import set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh, draw_surfaces
-from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, casts_translucency,
+from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, casts_translucency, directional_albedo_uniforms,
                                       set_profile_uniforms, surface_detail_uniforms, translucency_uniforms)
 
 # The diffuse table: N.L along s (odd, so N.L = 0 is a texel centre and max(N.L, 0) interpolates
@@ -357,6 +357,7 @@ class PreintegratedSkin(Technique):
             set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.options.curvature_source == "mesh" else 0.0)
             set_uniform(prog, "uBlurredNormals", 1.0 if self.options.blurred_normals else 0.0)
             set_uniform(prog, "uPenumbraScattering", 1.0 if self.options.penumbra_scattering else 0.0)
+            directional_albedo_uniforms(prog, frame.scene)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
             draw_mesh(frame, prog, vao=self._vao)
         frame.passes_run.append("preintegrated")

@@ -13,6 +13,10 @@ leaves radiance a E / pi. d'Eon & Luebke's specular formulas (GPU Gems 3, ch. 14
 and the specular albedo a(cos, m) of :func:`dermis.specular.rho_dt_table`, by pi:
     diffuse  = albedo * E / pi * (1 - rho_s a(N.V, m) / pi)
     specular = sum_lights E_i * KS_Skin_Specular / pi,    energy left: 1 - rho_s a(cos, m) / pi.
+The skin techniques (tsd, ssss, preintegrated) weight each light by the skin's directional albedo
+k(N.L) and the reflected scattered light by k(N.V) (dermis.profiles.directional_albedo,
+shaders/common/directional_albedo.glsl; the ambient enters at k = 1, the light through thin parts
+leaves Lambertian), switched by ``[scene] directional_albedo`` (:func:`directional_albedo_uniforms`).
 
 No technique imports another: what two of them share lives here or in shaders/common/.
 GL objects are imported inside the helpers, so dermis.gl may import these constants.
@@ -218,6 +222,15 @@ def surface_detail_uniforms(prog, material, output_mode: int = OutputMode.FULL) 
     for name, value in (("uPoreScaleMm", float(material.pore_scale_mm)), ("uPoreStrength", float(material.pore_strength)),
                         ("uOutputMode", int(OutputMode(output_mode)))):
         set_uniform(prog, name, value)
+
+
+def directional_albedo_uniforms(prog, scene) -> None:
+    """``uDirectionalAlbedo``: 1 where the scene asks for the skin's directional albedo (the
+    default), 0 for a Lambertian entry and exit (scene.directional_albedo; the offline reference
+    comparison turns it off, dermis.reference.validate)."""
+    from dermis.gl.resources import set_uniform
+
+    set_uniform(prog, "uDirectionalAlbedo", float(bool(getattr(scene, "directional_albedo", True))))
 
 
 def casts_translucency(scene) -> bool:

@@ -48,7 +48,7 @@ from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
-                                      TISSUE_TAU, casts_translucency, set_profile_uniforms, surface_detail_uniforms,
+                                      TISSUE_TAU, casts_translucency, directional_albedo_uniforms, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
 
 DEPTH_CUTOFF_MM = 5.0  # a tap this much nearer or further than the pixel is another surface
@@ -174,6 +174,7 @@ class ScreenSpaceSSS(Technique):
             set_uniform(prog, "uViewRotation",  # mat3, column-major
                         np.ascontiguousarray(np.asarray(frame.view, np.float32)[:3, :3].T).tobytes())
             set_profile_uniforms(prog, profile, profile.k)
+            directional_albedo_uniforms(prog, scene)
             translucency_uniforms(prog, self.options.translucency and casts_translucency(scene), self.options.translucency_strength,
                                   scene)
             bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),

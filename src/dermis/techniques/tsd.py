@@ -51,7 +51,7 @@ from dermis.gl.interreflection import InterreflectionHits
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
-                                      set_profile_uniforms, surface_detail_uniforms,
+                                      directional_albedo_uniforms, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
 
 def unpremultiply(a: np.ndarray) -> np.ndarray:
@@ -559,7 +559,7 @@ class TextureSpaceDiffusion(Technique):
         prog, _ = self._shading_programs(frame)
         targets = (irr, self._texture("sharp_shadow", (S, S), 4, "f1")) if prog is self.p_irradiance else (irr,)
         bind_scene(frame, prog)
-        set_uniform(prog, "uDirectionalAlbedo", float(bool(getattr(scene, "directional_albedo", True))))
+        directional_albedo_uniforms(prog, scene)
         if irradiance is not None:
             a = np.ascontiguousarray(np.asarray(irradiance, np.float32)[::-1])
             if a.shape != (S, S, 4):
@@ -682,7 +682,7 @@ class TextureSpaceDiffusion(Technique):
             if prog is self.p_final:
                 bind_sampler(prog, "uSharpShadow", self.tex["sharp_shadow"], Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
-            set_uniform(prog, "uDirectionalAlbedo", float(bool(getattr(frame.scene, "directional_albedo", True))))
+            directional_albedo_uniforms(prog, frame.scene)
             draw_mesh(frame, prog)
         frame.passes_run.append("tsd_final")
         draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing

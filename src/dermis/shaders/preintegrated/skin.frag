@@ -1,12 +1,16 @@
 // Pre-integrated skin (Penner & Borshukov 2011, GPU Pro 2 ch. II.1), in one mesh pass: the
 // profile's scattering comes from lookup tables built at start-up (dermis/techniques/preintegrated.py),
 //   diffuse = albedo / pi * (1 - rho_s a(N.V, m) / pi)
-//             * [ sum_lights E_i D(N_c.L, curvature)_c P(shadow_soft, penumbra width)_c (1 - rho_s a(N.L, m) / pi)
-//                 + ambient(N_c) + transmitted ]                                   per channel c
+//             * [ k(N.V) ( sum_lights E_i D(N_c.L, curvature)_c P(shadow_soft, penumbra width)_c k(N.L)
+//                                         (1 - rho_s a(N.L, m) / pi)
+//                          + ambient(N_c) )
+//                 + transmitted ]                                                  per channel c
 //   specular = common/skin_specular.glsl (shared by every skin technique)
 // N_c: the normal map filtered by channel c's profile, a mip level per Gaussian (Penner's blurred
 // normals, red blurriest); D: light wrapped around a ring of the local curvature; P: the soft
-// shadow's penumbra scattered with the profile (red reaches furthest into the shadow).
+// shadow's penumbra scattered with the profile (red reaches furthest into the shadow); k: the
+// skin's directional albedo (common/directional_albedo.glsl; the ambient enters at k = 1, the light
+// through thin parts leaves Lambertian, as in tsd).
 #include "common/surface.glsl"
 #include "common/noise.glsl"
 #include "common/shadow.glsl"
@@ -14,6 +18,7 @@
 #include "common/energy.glsl"
 #include "common/skin_specular.glsl"
 #include "common/transmittance.glsl"
+#include "common/directional_albedo.glsl"
 
 uniform sampler2D uDiffuseTable;   // D(N.L, curvature): s = N.L in [-1, 1], t = sqrt(curvature / max)
 uniform sampler2D uPenumbraTable;  // P(shadow, width): s = shadow in [0, 1], t = log-spaced width
@@ -22,6 +27,7 @@ uniform vec2 uPenumbraWidthRangeMm;
 uniform float uCurvatureFromMesh;   // 1: the mesh's per-vertex curvature, 0: screen derivatives
 uniform float uBlurredNormals;      // 1: per-channel blurred normals, 0: the detailed normal
 uniform float uPenumbraScattering;  // 1: scatter the penumbra through its table, 0: plain PCF
+uniform float uDirectionalAlbedo;   // 1: the skin's directional albedo (scene.directional_albedo), 0: Lambertian
 uniform vec3 uCameraPos;
 uniform float uPoreScaleMm;
 uniform float uPoreStrength;
@@ -113,6 +119,8 @@ void main() {
     vec3 Ns = pore_normal(N, P_mm, uPoreScaleMm, uPoreStrength);
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
 
+    vec3 albedo = albedo_at(v_uv);
+    vec3 c = uDirectionalAlbedo * directional_c(albedo);
     vec3 E = vec3(0.0);
     for (int i = 0; i < uLightCount; ++i) {
         vec3 L;
@@ -125,15 +133,24 @@ void main() {
         vec3 S = vec3(s);
         if (uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0)
             S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm));
-        E += Ei * D * S * energy_transmitted(rho_s, clamp(dot(N, L), 0.0, 1.0), m);
+        // k(N.L) outside the table, on each light's contribution: D integrates the profile over the
+        // ring of the local curvature, where the entry cosine runs around N.L; k could go inside
+        // that integral only with the albedo as a third axis (c depends on it, per texel). k is linear
+        // in mu with |c| <= 0.18, so taking it at the centre's N.L is exact on a flat surface and
+        // off by c times the ring's profile-weighted spread of the cosine on a curved one. N.L is
+        // the detailed normal's (the energy term's, tsd's); where the ring wraps light past the
+        // terminator (N.L <= 0) k is the grazing one, k(0), which is where that light entered.
+        float ndl = clamp(dot(N, L), 0.0, 1.0);
+        E += Ei * D * S * energy_transmitted(rho_s, ndl, m) * directional_factor(c, ndl);
     }
     vec3 ambient = vec3(environment_irradiance_occluded(N_red, Ngeo, v_visibility).r,
                         environment_irradiance_occluded(N_green, Ngeo, v_visibility).g,
                         environment_irradiance_occluded(N_blue, Ngeo, v_visibility).b);
     E += ambient * energy_transmitted(rho_s, 0.5, m);
-    E += transmitted_irradiance(v_world, Ngeo, v_uv_ts);
+    // the exit's k(N.V) on the reflected light; the light through a thin part leaves Lambertian
+    E = E * directional_factor(c, ndv) + transmitted_irradiance(v_world, Ngeo, v_uv_ts);
 
-    vec3 diffuse = E * albedo_at(v_uv) * INV_PI * energy_transmitted(rho_s, ndv, m);
+    vec3 diffuse = E * albedo * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uSpecularTables, v_visibility);
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec
                 : uOutputMode == OUTPUT_CURVATURE ? vec3(curvature) : diffuse + spec;
