@@ -207,6 +207,7 @@ def test_flat_regions_conserve_energy_and_use_clamped_ndotl(gl_ctx):
     albedo = np.array([0.6, 0.4, 0.3])
     sc.material.albedo_color = tuple(albedo)
     sc.material.rho_s, sc.material.roughness = 0.3, 0.35
+    sc.directional_albedo = False  # Lambertian entry and exit (k(N.L) k(N.V): test_directional_albedo)
     E = 2.5
     with Renderer(sc, (64, 64), ctx=gl_ctx, samples=0) as r:
         for source in ("mesh", "derivatives"):

@@ -74,6 +74,24 @@ def test_no_technique_imports_another():
         assert not imported & others, (mod, imported & others)
 
 
+def test_skin_techniques_share_one_directional_albedo():
+    """tsd, ssss and preintegrated weight the light by the skin's directional albedo through the one
+    common/directional_albedo.glsl (its table, directional_c, directional_factor: no copy) and set
+    its switch through the one helper, shared.directional_albedo_uniforms (scene.directional_albedo)."""
+    own = "common/directional_albedo.glsl"
+    for path in SHADER_DIR.rglob("*"):
+        if path.suffix in (".glsl", ".frag", ".vert") and path.relative_to(SHADER_DIR).as_posix() != own:
+            text = path.read_text()
+            assert not re.search(r"DA_C\[|vec3 directional_factor\(|float directional_c\(", text), path
+    for shader in ("tsd/irradiance.frag", "tsd/final.frag", "ssss/irradiance.frag", "preintegrated/skin.frag"):
+        src = load_shader_source(shader)
+        assert src.count("vec3 directional_factor(vec3 c, float mu)") == 1, shader
+        assert re.search(r"uDirectionalAlbedo \* directional_c\(", src), shader
+    for mod in ("tsd", "ssss", "preintegrated"):
+        text = (TECHNIQUES_DIR / f"{mod}.py").read_text()
+        assert "directional_albedo_uniforms(" in text and '"uDirectionalAlbedo"' not in text, mod
+
+
 def test_set_profile_uniforms_pads_with_unit_variances(gl_ctx):
     from dermis.profiles import deon_skin
 
