@@ -139,20 +139,11 @@ def test_ssss_and_preintegrated_on_a_flat_plane_are_k_at_entry_times_k_at_exit(g
         np.testing.assert_allclose(out[False], fresh.render(technique)[crop][..., :3], rtol=1e-5, atol=1e-7)
 
 
-def test_scene_key_and_invalidation(tmp_path, gl_ctx):
-    import dermis
-    from dermis.errors import DermisError
+def test_invalidation(gl_ctx):
+    # the scene key itself (default, off, a bad value): tests/test_tsd_scenes.py
     from dermis.renderer import Renderer
     from dermis.verification import quad_scene
 
-    body = '\nmm_per_unit = 1.0\n[mesh]\nbuiltin = "plane"\n'
-    (tmp_path / "on.toml").write_text("[scene]" + body)
-    (tmp_path / "off.toml").write_text("[scene]\ndirectional_albedo = false" + body)
-    (tmp_path / "bad.toml").write_text('[scene]\ndirectional_albedo = 1' + body)
-    assert dermis.load_scene(tmp_path / "on.toml").directional_albedo is True  # the default
-    assert dermis.load_scene(tmp_path / "off.toml").directional_albedo is False
-    with pytest.raises(DermisError, match=r"\[scene\] directional_albedo must be a bool"):
-        dermis.load_scene(tmp_path / "bad.toml")
     sc = quad_scene(40.0, 40.0)
     sc.material.albedo_color = (0.3, 0.3, 0.3)  # (a white medium has c = 0: no angular dependence)
     with Renderer(sc, (16, 16), ctx=gl_ctx, irradiance_size=64, shadow_size=256) as r:

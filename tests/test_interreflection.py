@@ -159,15 +159,4 @@ def test_white_furnace_inside_a_closed_sphere_is_one_bounce_of_rho_e(gl_ctx, man
     np.testing.assert_allclose(eb[ring], RHO * np.pi * c, rtol=5e-3)
 
 
-def test_scene_key_turns_it_off_and_a_bad_value_is_named(tmp_path):
-    import dermis
-    from dermis.errors import DermisError
-
-    body = '\nmm_per_unit = 1.0\n[mesh]\nbuiltin = "plane"\n'
-    (tmp_path / "on.toml").write_text("[scene]" + body)
-    (tmp_path / "off.toml").write_text("[scene]\ninterreflection = false" + body)
-    (tmp_path / "bad.toml").write_text('[scene]\ninterreflection = "yes"' + body)
-    assert dermis.load_scene(tmp_path / "on.toml").interreflection is True  # the default
-    assert dermis.load_scene(tmp_path / "off.toml").interreflection is False
-    with pytest.raises(DermisError, match=r"\[scene\] interreflection must be a bool"):
-        dermis.load_scene(tmp_path / "bad.toml")
+# the scene key itself (default, off, a bad value): tests/test_tsd_scenes.py

@@ -85,3 +85,20 @@ def test_head_backlit_ears_transmit_red(head_scene, gl_ctx):
     assert glow.sum() > 20, f"only {glow.sum()} pixels receive transmitted light"
     r_, g_, b_ = diff[glow].sum(axis=0)
     assert r_ > 3 * g_ and r_ > 3 * b_, (r_, g_, b_)
+
+
+@pytest.mark.parametrize("key, bad", [("interreflection", '"yes"'), ("directional_albedo", "1"),
+                                      ("translucency_light_path", '"on"')])
+def test_scene_bool_key_default_off_and_a_bad_value_is_named(tmp_path, key, bad):
+    """A [scene] switch: on by default where the code says so, off when the file says false, and a
+    value that is not a bool named in one DermisError."""
+    from dermis.errors import DermisError
+
+    body = '\nmm_per_unit = 1.0\n[mesh]\nbuiltin = "plane"\n'
+    (tmp_path / "default.toml").write_text("[scene]" + body)
+    (tmp_path / "off.toml").write_text(f"[scene]\n{key} = false" + body)
+    (tmp_path / "bad.toml").write_text(f"[scene]\n{key} = {bad}" + body)
+    assert getattr(dermis.load_scene(tmp_path / "default.toml"), key) is Scene.__dataclass_fields__[key].default
+    assert getattr(dermis.load_scene(tmp_path / "off.toml"), key) is False
+    with pytest.raises(DermisError, match=rf"\[scene\] {key} must be a bool"):
+        dermis.load_scene(tmp_path / "bad.toml")
