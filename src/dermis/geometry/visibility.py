@@ -73,7 +73,6 @@ class VertexVisibility:
     def environment_fraction(self, env) -> np.ndarray:
         """(n, 3) float32: the visible fraction r of the environment's SH irradiance per vertex and
         channel (the module docstring); A for a constant environment."""
-        ao_d = self.ao[np.unique(self.inverse, return_index=True)[1]] if self.inverse is not None else self.ao
         if env.image is None or self.occluded is None:
             return np.repeat(self.ao[:, None], 3, axis=1).astype(np.float32)
         if self._blocked is None and self.key in _BLOCKED:
@@ -94,11 +93,16 @@ class VertexVisibility:
 
         # r does not depend on the intensity (O and E_sh scale alike): an intensity change is free
         blocked = self._blocked
+
+        def fraction():  # the per-vertex AO of the distinct points, only where the memo misses
+            ao_d = self.ao[np.unique(self.inverse, return_index=True)[1]] if self.inverse is not None else self.ao
+            return read_only(occluded_fraction(environment_sh(env), environment_radiance(env), self.normals, ao_d,
+                                               None, None, blocked=blocked, rays=self.rays)[self.inverse]
+                             .astype(np.float32))
+
         return memo_by_content(
             "environment_fraction", (env.image.data,), (self.key, float(env.rotation_deg)),
-            lambda: read_only(occluded_fraction(environment_sh(env), environment_radiance(env), self.normals, ao_d,
-                                                None, None, blocked=blocked, rays=self.rays)[self.inverse]
-                              .astype(np.float32)))
+            fraction)
 
     def attribute(self, env=None) -> np.ndarray:
         """(n, 4) float32 vertex attribute (location 6, in_visibility): (A, r) with r the visible
