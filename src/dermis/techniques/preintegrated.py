@@ -68,6 +68,7 @@ PENUMBRA_SHARPEN_MIN = 0.5  # the sharpened edge keeps at least this fraction of
 RING_PROFILE = "line"  # the ring's kernel: "line" (profile integrated across the ring) or "radial" (Penner)
 
 UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE, UNIT_THICKNESS = Unit.FIRST_FREE, Unit.FIRST_FREE + 1, Unit.FIRST_FREE + 2
+UNIT_SHADOW_DEPTH = Unit.FIRST_FREE + 3  # the shadow atlas again, its depths read without comparison (fold_scattering)
 
 _TABLE_CACHE: dict = {}
 
@@ -269,12 +270,14 @@ class PreintegratedOptions(TranslucentOptions):
     curvature_source: str = "mesh"  # "mesh": per-vertex curvature; "derivatives": Penner's fwidth
     blurred_normals: bool = True  # per-channel normal-map mip levels
     penumbra_scattering: bool = True  # the penumbra table (else plain PCF)
+    fold_scattering: bool = True  # light scattered across concave folds, gathered from the shadow map (skin.frag)
 
     def validate(self, technique: str) -> None:
         super().validate(technique)
         check_choice(f"{technique}: curvature_source", self.curvature_source, ("mesh", "derivatives"))
         check_bool(f"{technique}: blurred_normals", self.blurred_normals)
         check_bool(f"{technique}: penumbra_scattering", self.penumbra_scattering)
+        check_bool(f"{technique}: fold_scattering", self.fold_scattering)
 
 
 class PreintegratedSkin(Technique):
@@ -293,6 +296,10 @@ class PreintegratedSkin(Technique):
         self._vao = None
         self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
         self._mesh_key = None
+        # the shadow atlas's depths as plain values (skin.frag's fold gather): a sampler object, whose
+        # state overrides the texture's comparison mode on its own unit only (OpenGL 4.5, 8.2)
+        self.depth_sampler = self.ctx.sampler(filter=(moderngl.NEAREST, moderngl.NEAREST), compare_func="",
+                                              repeat_x=False, repeat_y=False)
 
     # ------------------------------------------------------------------ resources
     def _ensure_profile_tables(self, frame: Frame):
@@ -357,9 +364,19 @@ class PreintegratedSkin(Technique):
             set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.options.curvature_source == "mesh" else 0.0)
             set_uniform(prog, "uBlurredNormals", 1.0 if self.options.blurred_normals else 0.0)
             set_uniform(prog, "uPenumbraScattering", 1.0 if self.options.penumbra_scattering else 0.0)
+            fold = self.options.fold_scattering and frame.shadows.depth is not None
+            set_uniform(prog, "uFoldScattering", 1.0 if fold else 0.0)
+            # the sampler always on its own unit: a sampler2D and the atlas's sampler2DShadow on one
+            # unit is an error at draw time even where the branch that reads it is not taken
+            set_uniform(prog, "uShadowDepth", int(UNIT_SHADOW_DEPTH))
+            if fold:
+                bind_sampler(prog, "uShadowDepth", frame.shadows.depth, UNIT_SHADOW_DEPTH)
+                self.depth_sampler.use(UNIT_SHADOW_DEPTH)
             directional_albedo_uniforms(prog, frame.scene)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
             draw_mesh(frame, prog, vao=self._vao)
+            if fold:
+                self.depth_sampler.clear(UNIT_SHADOW_DEPTH)  # the unit's own state again for whoever binds it next
         frame.passes_run.append("preintegrated")
         draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing
 
@@ -378,6 +395,7 @@ class PreintegratedSkin(Technique):
     def release(self):
         self._release_mesh()
         self.thickness.release()
+        self.depth_sampler.release()
         for t in self.profile_tables.values():
             t.release()
         self.prog.release()

@@ -66,13 +66,137 @@ vec3 penumbra_lookup(float shadow, float width_mm) {
 // diameter, 2 (softness + 1) texels (the Poisson disc and each tap's bilinear 2x2), in world units
 // from the light's projection (uv per world unit = |row 0| / 2w), projected on the surface: from
 // that (an edge along the light's projected direction) to that / N.L (across it).
-float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
+// One shadow-map texel of light i at P, in scene units across the light (uv per world unit = |row 0| / 2w).
+float shadow_texel_world(int i, vec3 P) {
     mat4 M = uLightViewProj[i];
     float w = (M * vec4(P, 1.0)).w;
     float row0 = length(vec3(M[0][0], M[1][0], M[2][0]));
-    float texel_world = uShadowParams[i].w * 2.0 * abs(w) / max(row0, 1e-12);
-    float pcf_mm = 2.0 * (uShadowParams[i].x + 1.0) * texel_world * uMmPerUnit;
+    return uShadowParams[i].w * 2.0 * abs(w) / max(row0, 1e-12);
+}
+
+float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
+    float pcf_mm = 2.0 * (uShadowParams[i].x + 1.0) * shadow_texel_world(i, P) * uMmPerUnit;
     return clamp(measured_mm, pcf_mm, pcf_mm / max(ndl_geometric, 0.2));
+}
+
+// ---------------------------------------------------------------- light across concave folds
+// Penner's two tables see only P's own curvature ring and P's own shadow value, so no light crosses
+// a concave fold: at an eyelid crease or in a nostril every point is either the wall facing away
+// from the light (D = 0) or the lit wall inside the fold's own cast shadow (s = 0), where tsd's
+// texture-space blur, ssss's screen blur and the surface-integral reference (dermis.reference)
+// bring light from the lit wall a millimetre away (benchmarks/RESULTS.md, round 7 "Preintegrated
+// eyelid crease"). The reference's scattered irradiance at P is
+//     E_s(P) = E_i sum_k w_k int_lit g_k(|P - Q|) cos(theta_Q) dA_Q,   g_k the 2-D Gaussian of variance v_k,
+// and cos(theta_Q) dA_Q is area across the light: the shadow map's own texel area, the map holding
+// exactly the lit points Q (the gather of translucent shadow maps, Dachsbacher & Stamminger 2003,
+// here with the profile at the true 3-D distance). Parameterise the map by a plane through P with
+// normal n (map area = n.L x plane area) and sample that plane with Gaussian k's own density,
+// g_k(|y|) (a 7-point rule: the centre with weight 1/2 and six points at radius 2 sigma_k, 1/12
+// each: exact for the Gaussian's moments to degree 5); the estimate is
+//     G_k = n.L sum_j q_j exp(-(|P - Q_j|^2 - |y_j|^2) / 2 v_k),   Q_j the lit point on y_j's light ray.
+// n = N (the geometric normal) where N.L >= FOLD_MIN_COS: on a lit plane then Q_j = P + y_j, every
+// ratio is 1 and G_k = N.L exactly. Below, n is N turned towards L until n.L = FOLD_MIN_COS, so that
+// a wall facing away from the light still spans the map around it. Each Q_j is classed by its height
+// h = (Q_j - P).N over P's tangent plane (mm), against FOLD_PLANE_TEXELS map texels:
+//   behind (h < -delta): reached through the tissue behind P's surface: the convex ring's wrap (D)
+//     and the light through thin parts (common/transmittance.glsl) count it already: left out;
+//   in P's plane (|h| <= delta): P's own surface, its lit part around P's shadow: scaled by
+//     N.L / (n.L sum_j q_j r_j), r_j the ratio the tap would have on P's tangent plane, so that a
+//     lit plane gives N.L at any tilt, and 0 where N.L <= 0 (a plane facing away holds no lit points);
+//   above (h > delta): other surface facing P, the opposite wall of a fold or an overhang: as is.
+// Only Gaussians of sigma_k >= FOLD_MIN_SIGMA_TEXELS map texels: narrower ones are not resolved by
+// the map (their share stays with D and the PCF shadow). The light is then max(D S, G) per channel:
+// both estimate the same integral, each missing what it cannot see (D S: any geometry beyond P's
+// ring and P's own shadow value; G: the unresolved Gaussians and the tissue behind P), so a flat or
+// convex lit surface keeps D S (G <= N.L there) and a fold gets what crosses it.
+uniform sampler2D uShadowDepth;  // the shadow atlas's depths, read without comparison (a sampler object)
+uniform float uFoldScattering;  // 1: light across concave folds (G above), 0: Penner's D S alone
+const float FOLD_MIN_COS = 0.5;
+const float FOLD_PLANE_TEXELS = 1.0;
+const float FOLD_MIN_SIGMA_TEXELS = 2.0;
+const float FOLD_MAX_EXPONENT = 4.0;
+const float SIXTH_TURN = 1.0471976;  // pi / 3: the hexagon's step (radians)  // the rule's radius 2 sigma gives 2; the texel snap adds < 1
+
+// The lit point Q the map of light i holds at the map position of P + y (scene units), on the centre
+// of its texel, and y' = the point of n's plane on Q's light ray (so that on a plane Q = P + y'
+// exactly). Out, in mm^2 / mm: dq2 = |Q - P|^2, dy2 = |y'|^2, h = (Q - P).N, dflat2 = |Qf - P|^2 with
+// Qf the point of P's tangent plane on the same ray. False where y leaves the tile or the map
+// holds nothing there.
+bool fold_tap(int i, mat4 Minv, vec3 c, mat3 J, vec3 P, vec3 n, vec3 N, vec3 y,
+              out float dq2, out float dy2, out float h, out float dflat2) {
+    dq2 = dy2 = h = dflat2 = 0.0;
+    float tile = 1.0 / uShadowParams[i].w;
+    vec2 t = floor((c.xy + (J * y).xy) * tile);
+    if (any(lessThan(t, vec2(0.0))) || any(greaterThanEqual(t, vec2(tile)))) return false;
+    ivec2 texel = ivec2(uShadowTile[i].xy * vec2(textureSize(uShadowDepth, 0)) + 0.5) + ivec2(t);
+    float d = texelFetch(uShadowDepth, texel, 0).r;
+    if (d >= 1.0) return false;  // cleared: nothing there
+    vec4 q = Minv * vec4(vec3((t + 0.5) / tile, d) * 2.0 - 1.0, 1.0);
+    vec3 Q = q.xyz / q.w;
+    vec3 Lq;
+    light_incident(i, Q, Lq);
+    float ln = dot(Lq, n), lN = dot(Lq, N);
+    if (abs(ln) < 1e-3) return false;
+    vec3 X = Q - (dot(Q - P, n) / ln) * Lq;
+    vec3 Xf = lN > 1e-3 ? X - (dot(X - P, N) / lN) * Lq : X;
+    float s = uMmPerUnit;
+    dq2 = dot(Q - P, Q - P) * s * s;
+    dy2 = dot(X - P, X - P) * s * s;
+    dflat2 = dot(Xf - P, Xf - P) * s * s;
+    h = dot(Q - P, N) * s;
+    return true;
+}
+
+// G of the comment above, per channel, as a fraction of light i's irradiance E_i.
+vec3 fold_scattered_light(int i, vec3 P, vec3 N, vec3 L) {
+    if (uLightRadiance[i].w < 0.5) return vec3(0.0);  // no shadow map: nothing to gather
+    vec3 c;
+    mat3 J;
+    if (!shadow_coords_jacobian(i, P, c, J)) return vec3(0.0);
+    mat4 Minv = inverse(uLightViewProj[i]);
+    float texel_mm = shadow_texel_world(i, P) * uMmPerUnit;
+    float delta = FOLD_PLANE_TEXELS * texel_mm;
+    float nl = dot(N, L);
+    vec3 n = N;
+    if (nl < FOLD_MIN_COS) {  // N turned towards L in their plane until n.L = FOLD_MIN_COS
+        vec3 b = N - nl * L;
+        float bl = length(b);
+        b = bl > 1e-6 ? b / bl : normalize(cross(L, abs(L.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
+        n = FOLD_MIN_COS * L + sqrt(1.0 - FOLD_MIN_COS * FOLD_MIN_COS) * b;
+    }
+    float nsl = dot(n, L);
+    vec3 e1 = normalize(cross(n, abs(n.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
+    vec3 e2 = cross(n, e1);
+    float dq0, dy0, h0, df0;
+    bool ok0 = fold_tap(i, Minv, c, J, P, n, N, vec3(0.0), dq0, dy0, h0, df0);
+    vec3 G = vec3(0.0);
+    for (int k = 0; k < uGaussianCount; ++k) {
+        float v = uVariances[k];
+        float sigma = sqrt(v);
+        vec3 wk = uWeights[k];
+        if (sigma < FOLD_MIN_SIGMA_TEXELS * texel_mm || max(wk.r, max(wk.g, wk.b)) <= 0.0) continue;
+        float above = 0.0, inplane = 0.0, rflat = 0.0;
+        for (int j = 0; j < 7; ++j) {
+            float q = j == 0 ? 0.5 : 1.0 / 12.0;
+            float dq2 = dq0, dy2 = dy0, h = h0, df2 = df0;
+            bool ok = ok0;
+            if (j > 0) {
+                float a = SIXTH_TURN * (float(j - 1) + float(k) / float(uGaussianCount));  // each Gaussian's hexagon turned
+                vec3 y = (2.0 * sigma / uMmPerUnit) * (cos(a) * e1 + sin(a) * e2);
+                ok = fold_tap(i, Minv, c, J, P, n, N, y, dq2, dy2, h, df2);
+            }
+            if (!ok) continue;
+            float r = exp(min(-(dq2 - dy2) / (2.0 * v), FOLD_MAX_EXPONENT));
+            float keep = clamp(h / delta + 1.0, 0.0, 1.0);  // 0 behind P's plane
+            float up = clamp(h / delta - 1.0, 0.0, 1.0);  // 1 above it
+            above += q * up * r;
+            inplane += q * (keep - up) * r;
+            rflat += q * exp(min(-(df2 - dy2) / (2.0 * v), FOLD_MAX_EXPONENT));
+        }
+        float kappa = nl > 0.0 ? nl / max(nsl * rflat, 1e-6) : 0.0;
+        G += wk * (nsl * (above + kappa * inplane));
+    }
+    return G;
 }
 
 void main() {
@@ -126,13 +250,17 @@ void main() {
         vec3 L;
         vec3 Ei = light_incident(i, v_world, L);
         vec3 D = diffuse_lookup(vec3(dot(N_red, L), dot(N_green, L), dot(N_blue, L)), curvature);
-        bool lit = max(D.r, max(D.g, D.b)) > 0.0;
-        if (!lit) continue;
-        float width_mm;
-        float s = shadow_soft_penumbra(i, v_world, Ngeo, width_mm);
-        vec3 S = vec3(s);
-        if (uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0)
-            S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm));
+        vec3 light = vec3(0.0);  // Penner's D S, then at least what crosses a fold (G)
+        if (max(D.r, max(D.g, D.b)) > 0.0) {
+            float width_mm;
+            float s = shadow_soft_penumbra(i, v_world, Ngeo, width_mm);
+            vec3 S = vec3(s);
+            if (uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0)
+                S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm));
+            light = D * S;
+        }
+        if (uFoldScattering > 0.5) light = max(light, fold_scattered_light(i, v_world, Ngeo, L));
+        if (max(light.r, max(light.g, light.b)) <= 0.0) continue;
         // k(N.L) outside the table, on each light's contribution: D integrates the profile over the
         // ring of the local curvature, where the entry cosine runs around N.L; k could go inside
         // that integral only with the albedo as a third axis (c depends on it, per texel). k is linear
@@ -141,7 +269,7 @@ void main() {
         // the detailed normal's (the energy term's, tsd's); where the ring wraps light past the
         // terminator (N.L <= 0) k is the grazing one, k(0), which is where that light entered.
         float ndl = clamp(dot(N, L), 0.0, 1.0);
-        E += Ei * D * S * energy_transmitted(rho_s, ndl, m) * directional_factor(c, ndl);
+        E += Ei * light * energy_transmitted(rho_s, ndl, m) * directional_factor(c, ndl);
     }
     vec3 ambient = vec3(environment_irradiance_occluded(N_red, Ngeo, v_visibility).r,
                         environment_irradiance_occluded(N_green, Ngeo, v_visibility).g,
