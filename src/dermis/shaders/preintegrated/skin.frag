@@ -100,9 +100,10 @@ float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
 // h = (Q_j - P).N over P's tangent plane (mm), against FOLD_PLANE_TEXELS map texels:
 //   behind (h < -delta): reached through the tissue behind P's surface: the convex ring's wrap (D)
 //     and the light through thin parts (common/transmittance.glsl) count it already: left out;
-//   in P's plane (|h| <= delta): P's own surface, its lit part around P's shadow: scaled by
-//     N.L / (n.L sum_j q_j r_j), r_j the ratio the tap would have on P's tangent plane, so that a
-//     lit plane gives N.L at any tilt, and 0 where N.L <= 0 (a plane facing away holds no lit points);
+//   in P's plane (|h| <= delta): P's own surface, its lit part around P's shadow: N.L times
+//     min(sum_j q_j r_j(actual) / sum_j q_j r_j(P's tangent plane), 1), the second sum the ratios
+//     the taps would have on P's tangent plane, so that a lit plane gives N.L at any tilt, and 0
+//     where N.L <= 0 (a plane facing away holds no lit points);
 //   above (h > delta): other surface facing P, the opposite wall of a fold or an overhang: as is.
 // Only Gaussians of sigma_k >= FOLD_MIN_SIGMA_TEXELS map texels: narrower ones are not resolved by
 // the map (their share stays with D and the PCF shadow). The light is then max(D S, G) per channel:
@@ -193,8 +194,10 @@ vec3 fold_scattered_light(int i, vec3 P, vec3 N, vec3 L) {
             inplane += q * (keep - up) * r;
             rflat += q * exp(min(-(df2 - dy2) / (2.0 * v), FOLD_MAX_EXPONENT));
         }
-        float kappa = nl > 0.0 ? nl / max(nsl * rflat, 1e-6) : 0.0;
-        G += wk * (nsl * (above + kappa * inplane));
+        // P's own plane: N.L times its lit fraction, at most 1 (the snap to texel centres can leave
+        // the rule's flat sum near 0 at grazing light, where the ratio would then be noise)
+        float own = nl > 0.0 ? nl * min(inplane / max(rflat, 1e-6), 1.0) : 0.0;
+        G += wk * (nsl * above + own);
     }
     return G;
 }
