@@ -31,11 +31,25 @@ from three local quantities looked up in tables computed at start-up from the ac
   channel's rms radius (rounds 1-6) took red's from its wide tail and lost the third of red's
   weight within 0.25 mm: red/green grain along a terminator (tests/test_preintegrated.py).
 
+* folds (``fold_scattering``, issue 12): the tables above see only the point's own ring and its
+  own shadow value, so no light crosses a concave fold (an eyelid crease, a nostril: the wall facing
+  away has D = 0, the facing wall lies in the fold's shadow, s = 0). skin.frag gathers the light
+  the shadow map's lit points scatter to the point at their true 3-D distance (the reference's
+  surface integral: cos(theta_Q) dA_Q is the map's own area across the light; translucent shadow
+  maps, Dachsbacher & Stamminger 2003), Gaussian by Gaussian with a 7-point rule on a plane
+  through the point, for the Gaussians the map resolves, counting only lit points on or above the
+  point's tangent plane (below is the ring's wrap and the thin parts' transmittance), and takes
+  per channel the larger of that and Penner's D S: a lit plane and a convex surface keep D S
+  exactly (tests/test_preintegrated_folds.py).
+
 Everything else is shared with the other techniques: lights, shadows, environment, specular
 (common/skin_specular.glsl), energy conservation (N.L in, N.V out) and the translucency of thin
 parts from the shadow map's thickness (common/transmittance.glsl, Jimenez et al. 2010).
-Known failure modes: light crosses no geometry (nothing bleeds around a nostril's edge or into
-a crease's shadow beyond the penumbra; the shadow table only reshapes the PCF penumbra), the
+Known failure modes: light crosses folds only from what the light's shadow map sees (points
+hidden from the light, e.g. behind a nostril's rim, send nothing; lights without shadows gather
+nothing), along straight lines (across the air of a fold: the reference's "straight" paths, an
+upper bound of the tissue path), only through the Gaussians wider than two shadow texels (a
+crease's green and blue, narrower, stay dark: its light is red), the
 ring model assumes one curvature at a scale of the profile's width (mesh curvature finer than
 that is meaningless, a coarse mesh blurs it), the penumbra width from derivatives is noisy on
 2x2 pixel quads (bounded by the projected filter size), and the table sharpens narrow penumbras.

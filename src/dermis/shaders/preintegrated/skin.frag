@@ -10,7 +10,8 @@
 // normals, red blurriest); D: light wrapped around a ring of the local curvature; P: the soft
 // shadow's penumbra scattered with the profile (red reaches furthest into the shadow); k: the
 // skin's directional albedo (common/directional_albedo.glsl; the ambient enters at k = 1, the light
-// through thin parts leaves Lambertian, as in tsd).
+// through thin parts leaves Lambertian, as in tsd). Per channel, D P is raised to at least the light
+// the shadow map's lit points scatter across a concave fold (fold_scattered_light, below).
 #include "common/surface.glsl"
 #include "common/noise.glsl"
 #include "common/shadow.glsl"
