@@ -37,41 +37,33 @@ bool shadow_coords_jacobian(int i, vec3 P, out vec3 c, out mat3 J) {
 // the receiver has THERE. A normal offset (King 2004) avoids acne by moving the lookup along N,
 // which on a receiver grazed by the light shifts it sideways by up to the offset: where that
 // crossed an occluder's silhouette in the map (the side view's eye socket behind the nose bridge,
-// the nose wing) a lit blob several mm wide appeared inside the shadow.
-// The gradient in closed form: J maps the tangent plane (normal N) to the light-space plane whose
-// normal is n = cof(J) N (cof(J) = det(J) J^-T: columns J1 x J2, J2 x J0, J0 x J1; a normal
-// transforms by the inverse transpose), on which z = c.z - (n.x du + n.y dv) / n.z. Rounds 5-7
-// mapped two tangents t1, t2 (a normalize, two crosses, three transforms) and solved the 2 x 2
-// system [J t1, J t2] for the same plane's gradient; shared by the soft and the sharp lookup.
-// The gradient is clamped where the light meets the receiver at a slope tan(N, L) above
-// MAX_RECEIVER_SLOPE (about 84 degrees, N.L ~0.1: lit by little, and by nothing once the caller's
-// N.L is 0): |dz| is that slope times the map's depth per uv, so it scales by MAX / tan. Rounds 5-7
-// clamped it at the same slope for a receiver facing the light, a little higher for others.
-// Returns false (no shadow: 1) for a light that casts none and outside the map.
+// the nose wing) a lit blob several mm wide appeared inside the shadow. The gradient is clamped at
+// a slope of MAX_RECEIVER_SLOPE (about 84 degrees), where N.L is ~0 anyway. T: the map uv that a
+// unit step (scene units) along the tangent-plane axes t1, t2 moves (columns), for the penumbra
+// width below.
 const float MAX_RECEIVER_SLOPE = 10.0;
-bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat3 J) {
+bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat2 T) {
+    mat3 J;
     dz = vec2(0.0);
-    c = vec3(0.0);
-    J = mat3(0.0);
-    if (uLightRadiance[i].w < 0.5) return false;
+    T = mat2(0.0);
     if (!shadow_coords_jacobian(i, P, c, J)) return false;
-    vec3 n = cross(J[1], J[2]) * N.x + cross(J[2], J[0]) * N.y + cross(J[0], J[1]) * N.z;
-    if (abs(n.z) <= 1e-9 * length(n.xy)) return true;  // the light lies in the plane: no usable gradient
-    dz = -n.xy / n.z;
-    vec3 L;
-    light_incident(i, P, L);
-    float ndl = abs(dot(N, L));
-    float sn = sqrt(max(1.0 - ndl * ndl, 0.0));
-    if (sn > MAX_RECEIVER_SLOPE * ndl) dz *= MAX_RECEIVER_SLOPE * ndl / sn;
-    return true;
-}
-
-// T: the map uv that a unit step (scene units) along the tangent-plane axes t1, t2 of N moves
-// (columns), for the penumbra width (shadow_pcf_at, want_width only).
-mat2 shadow_tangent_uv(mat3 J, vec3 N) {
     vec3 t1 = normalize(cross(N, abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
     vec3 t2 = cross(N, t1);
-    return mat2((J * t1).xy, (J * t2).xy);
+    vec3 L;
+    light_incident(i, P, L);
+    vec3 d1 = J * t1, d2 = J * t2;
+    T = mat2(d1.xy, d2.xy);
+    float zl = abs((J * L).z);  // depth of a unit step straight along the light
+    float xl = length(d1.xy) + length(d2.xy) + 1e-9;  // ~ uv of a unit step across the light
+    float gmax = MAX_RECEIVER_SLOPE * zl / (0.5 * xl);
+    mat2 M = transpose(T);  // rows: d1.xy, d2.xy
+    float det = determinant(M);
+    float h = max(uShadowParams[i].z, 1e-6);  // rounds 1-4 stepped h (scene units): the same cut-off
+    if (abs(det) * h * h < 1e-12) return true;  // the light grazes the plane: no usable gradient
+    dz = inverse(M) * vec2(d1.z, d2.z);  // M dz = (d1.z, d2.z): rounds 1-4 solved with transpose(M), a wrong gradient wherever M is not symmetric
+    float g = length(dz);
+    if (g > gmax) dz *= gmax / g;
+    return true;
 }
 
 // Sharp shadow (one bilinear-compare tap): for specular, d'Eon 2007 sec. 14.3. c, dz: shadow_receiver's.
@@ -81,10 +73,11 @@ float shadow_sharp_at(int i, vec3 c, vec2 dz) {
 }
 
 float shadow_sharp(int i, vec3 P, vec3 N) {
+    if (uLightRadiance[i].w < 0.5) return 1.0;
     vec3 c;
     vec2 dz;
-    mat3 J;
-    if (!shadow_receiver(i, P, N, c, dz, J)) return 1.0;
+    mat2 T;
+    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
     return shadow_sharp_at(i, c, dz);
 }
 
@@ -167,8 +160,8 @@ float pcf_grid(int i, vec2 c, float z, vec2 dz, float a, bool box, float stride,
 //   g = C^-1 sum_k W_k (s_k - mean s) delta_k,  C = sum_k W_k (delta_k - mean delta)(delta_k - mean delta)^T,
 // so s ramps across 1 / |g| of uv along g; the receiver's tangent plane (T of shadow_receiver)
 // maps that uv step back to the surface. width_mm = 1e30 where the taps agree (no ramp).
-// c, dz, J: shadow_receiver's, for a light that casts shadows and a receiver inside its map; N its normal.
-float shadow_pcf_at(int i, vec3 c, vec2 dz, mat3 J, vec3 N, bool want_width, out float width_mm) {
+// c, dz, T: shadow_receiver's, for a light that casts shadows and a receiver inside its map.
+float shadow_pcf_at(int i, vec3 c, vec2 dz, mat2 T, bool want_width, out float width_mm) {
     width_mm = 1e30;
     float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint of each tap, and curvature
     float R = PCF_DISC_SCALE * uShadowParams[i].x;  // the disc's radius, texels
@@ -192,7 +185,6 @@ float shadow_pcf_at(int i, vec3 c, vec2 dz, mat3 J, vec3 N, bool want_width, out
     float gl = length(g);
     if (gl <= 1e-6) return s_mean;
     // the tangent-plane step a whose map projection is (1 / |g|) along g: T a = step
-    mat2 T = shadow_tangent_uv(J, N);
     if (abs(determinant(T)) < 1e-20) return s_mean;  // the light grazes the surface: the caller bounds it
     vec2 step_t = inverse(T) * (g / (gl * gl));
     width_mm = length(step_t) * uMmPerUnit;
@@ -201,11 +193,12 @@ float shadow_pcf_at(int i, vec3 c, vec2 dz, mat3 J, vec3 N, bool want_width, out
 
 float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
     width_mm = 1e30;
+    if (uLightRadiance[i].w < 0.5) return 1.0;
     vec3 c;
     vec2 dz;
-    mat3 J;
-    if (!shadow_receiver(i, P, N, c, dz, J)) return 1.0;
-    return shadow_pcf_at(i, c, dz, J, N, want_width, width_mm);
+    mat2 T;
+    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
+    return shadow_pcf_at(i, c, dz, T, want_width, width_mm);
 }
 
 float shadow_soft(int i, vec3 P, vec3 N) {
@@ -223,11 +216,12 @@ float shadow_soft_penumbra(int i, vec3 P, vec3 N, out float width_mm) {
 // 2007, 14.5.2: the shadow computed once in texture space and reused).
 float shadow_soft_and_sharp(int i, vec3 P, vec3 N, bool want_soft, out float sharp) {
     sharp = 1.0;
+    if (uLightRadiance[i].w < 0.5) return 1.0;
     vec3 c;
     vec2 dz;
-    mat3 J;
-    if (!shadow_receiver(i, P, N, c, dz, J)) return 1.0;
+    mat2 T;
+    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
     sharp = shadow_sharp_at(i, c, dz);
     float unused;
-    return want_soft ? shadow_pcf_at(i, c, dz, J, N, false, unused) : 1.0;
+    return want_soft ? shadow_pcf_at(i, c, dz, T, false, unused) : 1.0;
 }
