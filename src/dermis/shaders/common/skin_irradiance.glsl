@@ -8,7 +8,6 @@
 #include "common/shadow.glsl"
 #include "common/environment.glsl"
 #include "common/energy.glsl"
-#include "common/bump_shadowing.glsl"
 
 #ifdef SKIN_SHARP_SHADOWS
 // With SKIN_SHARP_SHADOWS = n defined (tsd's texture-space pass), skin_irradiance also leaves each
@@ -48,8 +47,7 @@ vec3 skin_irradiance_directional(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, 
         if (ndl <= 0.0) continue;
         float s = shadow_soft(i, P, Ng);
 #endif
-        // the entry (Cycles: the BSSRDF is a diffuse closure) by the bump terminator's shadowing (common/bump_shadowing.glsl)
-        E += Ei * (ndl * bump_shadowing(Ng, N, L)) * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
+        E += Ei * ndl * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
     }
     E += environment_irradiance_occluded(N, Ng, vis) * energy_transmitted(rho_s, 0.5, m);
     return E;

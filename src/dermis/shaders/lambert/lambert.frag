@@ -5,7 +5,6 @@
 #include "common/surface.glsl"
 #include "common/environment.glsl"
 #include "common/brdf.glsl"
-#include "common/bump_shadowing.glsl"
 
 uniform vec3 uCameraPos;
 in vec3 v_world;
@@ -43,8 +42,7 @@ void main() {
         float ndl = dot(N, L);
         if (ndl <= 0.0 || dot(Ng, L) <= -0.05) continue;
         float s = shadow_soft(i, v_world, Ng);
-        // the diffuse light by the bump terminator's shadowing (common/bump_shadowing.glsl; Cycles: diffuse only)
-        color += E * s * (albedo * INV_PI * ndl * bump_shadowing(Ng, N, L) + vec3(blinn_phong_specular(N, L, V, shininess, ks)));
+        color += E * s * (albedo * INV_PI * ndl + vec3(blinn_phong_specular(N, L, V, shininess, ks)));
     }
     f_color = vec4(color, 1.0);
 }
