@@ -27,3 +27,52 @@ def test_plane_impulse_matches_the_sum_of_gaussians_to_its_tail(gl_ctx):
     # the kernel reaches the profile's 1e-3 radius in every channel (the old one stopped at 3 sigma)
     assert np.all(result["cut_mm"] >= result["reach_mm"] - 0.05), (result["cut_mm"], result["reach_mm"])
     np.testing.assert_allclose(result["energy"], 1.0, atol=0.03)
+
+
+def test_tap_cells_are_a_fixed_number_whatever_the_reach():
+    """The cells of one side (the twin of ssss/kernel.glsl's ssss_cell_start): at most ``taps``
+    of them, covering the pixels 1..last_px exactly once, one pixel each while last_px <= taps,
+    and one pixel each near the centre however far the kernel reaches."""
+    from dermis.techniques.ssss import TAPS, tap_cells
+
+    for taps in (1, 4, TAPS, 24):
+        for last in list(range(0, 200)) + [257, 1000, 4096, 20000]:
+            starts = tap_cells(last, taps)
+            assert starts[0] == 1 and starts[-1] == last + 1
+            assert np.all(np.diff(starts) >= 1)
+            assert starts.size - 1 <= taps, (taps, last, starts)
+            if last <= taps:
+                np.testing.assert_array_equal(starts, np.arange(1, last + 2))
+    # 20 px per mm (the plane above): d'Eon's narrowest Gaussian (sigma 1.6 px) keeps one-pixel cells
+    assert np.all(np.diff(tap_cells(202, TAPS))[:3] == 1), tap_cells(202, TAPS)
+
+
+def test_horizontal_taps_do_not_grow_with_the_kernel_on_screen(gl_ctx):
+    """The number of taps per pixel, read from the GL pass itself: output pixel p receives a
+    single lit pixel c iff one of p's taps lands on c, so the number of lit pixels in c's row of
+    the horizontal pass's image equals, in expectation over the per-pixel draws, the taps per
+    pixel (2 taps + 1). Measured for d'Eon's widest Gaussian at 0.25 mm and 0.05 mm per pixel
+    (reach 41 and 202 px): 23 and 25, within 2 taps + 1 +- 8 (the draws' spread); the 48-tap
+    kernel before lit 81 and 58 (every pixel out to 41; its own taps 5 px apart out to 202)."""
+    from dermis.renderer import Renderer
+    from dermis.techniques.ssss import TAPS
+    from dermis.verification import SSSS_PLANE_SIZE_PX, ssss_plane_scene
+
+    S = SSSS_PLANE_SIZE_PX
+    counts = {}
+    for mm_per_px in (0.25, 0.05):
+        sc = ssss_plane_scene(deon_skin())
+        sc.mm_per_unit = mm_per_px / 0.05  # the plane scene is built at 0.05 mm per pixel
+        with Renderer(sc, (S, S), ctx=gl_ctx, samples=0) as r:
+            r.render("ssss")
+            ssss = r.technique("ssss")
+            irr = np.zeros((S, S, 3), np.float32)
+            c = (S // 2, S // 2)
+            irr[c] = 1.0
+            ssss.screen_space(r.last_frame, irradiance=irr)
+            k = r.scene.profile.k
+            row = ssss.debug_buffers()[f"ssss_horizontal_{k}"][c[0], :, 0]
+        counts[mm_per_px] = int(np.count_nonzero(row > 0.0))
+    print(counts, "taps per side", TAPS)
+    for count in counts.values():
+        assert 2 * TAPS + 1 - 8 <= count <= 2 * TAPS + 1 + 8, counts
