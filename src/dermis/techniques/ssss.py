@@ -60,6 +60,20 @@ TAPS = 12  # taps (cells) per side of each blur, whatever the head's size on scr
 MAX_TAPS = 64  # the option's bound
 
 
+def packed_texels(k: int) -> int:
+    """RGBA32UI texels per pixel of the horizontal pass (ssss/packing.glsl's SSSS_PACKED): the depth
+    (1 uint), the normal and K Gaussians' rgb as halves (3K + 3 halves, two a uint)."""
+    return (1 + (3 * k + 4) // 2 + 3) // 4
+
+
+def unpack_horizontal(textures, k: int) -> list:
+    """The horizontal pass's K images (H, W, 3) float32, row 0 = top, from its packed texels."""
+    w, h = textures[0].size
+    u = np.concatenate([np.frombuffer(t.read(), np.uint32).reshape(h, w, 4) for t in textures], axis=2)[::-1]
+    halves = np.ascontiguousarray(u[:, :, 1:1 + (3 * k + 4) // 2]).view(np.float16).astype(np.float32)
+    return [halves[:, :, 3 + 3 * i:6 + 3 * i].copy() for i in range(k)]
+
+
 def tap_cells(last_px: int, taps: int) -> np.ndarray:
     """First pixel of each of the ``taps`` cells of a side and one past the last: the twin of
     ssss/kernel.glsl's ssss_cell_start. ``last_px``: the last pixel with weight,
@@ -141,12 +155,12 @@ class ScreenSpaceSSS(Technique):
         irradiance = tex("f4")  # a = depth in mm: needs float32 (half: 0.25 mm steps at 500 mm)
         view_normal = tex("f2")  # the geometric normal in view space: the blurs' tissue-path test
         depth = ctx.depth_renderbuffer(size)
-        gaussians = [tex("f2") for _ in range(k)]
+        packed = [tex("u4") for _ in range(packed_texels(k))]  # the horizontal pass's result (ssss/packing.glsl)
         scattered = tex("f4")
-        self.tex = {"irradiance": irradiance, "view_normal": view_normal, "depth": depth, "gaussians": gaussians,
+        self.tex = {"irradiance": irradiance, "view_normal": view_normal, "depth": depth, "packed": packed,
                     "scattered": scattered,
                     "fbo_irradiance": ctx.framebuffer(color_attachments=[irradiance, view_normal], depth_attachment=depth),
-                    "fbo_horizontal": ctx.framebuffer(color_attachments=gaussians),
+                    "fbo_horizontal": ctx.framebuffer(color_attachments=packed),
                     "fbo_vertical": ctx.framebuffer(color_attachments=[scattered])}
         self._targets_key = (size, k)
 
@@ -154,7 +168,7 @@ class ScreenSpaceSSS(Technique):
         for key in ("fbo_irradiance", "fbo_horizontal", "fbo_vertical", "irradiance", "view_normal", "depth", "scattered"):
             if key in self.tex:
                 self.tex[key].release()
-        for t in self.tex.get("gaussians", []):
+        for t in self.tex.get("packed", []):
             t.release()
         self.tex = {}
         self._targets_key = None
@@ -218,7 +232,7 @@ class ScreenSpaceSSS(Technique):
             self._kernel_uniforms(prog, frame, 1)
             bind_sampler(prog, "uIrradiance", t["irradiance"], Unit.FIRST_FREE)
             bind_sampler(prog, "uViewNormal", t["view_normal"], Unit.FIRST_FREE + 1)
-            bind_sampler_array(prog, "uGaussian", t["gaussians"][: profile.k], Unit.FIRST_FREE + 2)
+            bind_sampler_array(prog, "uPacked", t["packed"], Unit.FIRST_FREE + 2)
             t["fbo_vertical"].use()
             self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
         frame.passes_run.append("ssss_blur")
@@ -249,8 +263,8 @@ class ScreenSpaceSSS(Technique):
             return {}
         irr = self.read_texture(self.tex["irradiance"])
         out = {"ssss_irradiance": irr[:, :, :3].copy(), "ssss_depth_mm": np.repeat(irr[:, :, 3:4], 3, axis=2)}
-        for k, g in enumerate(self.tex["gaussians"]):
-            out[f"ssss_horizontal_{k + 1}"] = self.read_texture(g)[:, :, :3]
+        for k, g in enumerate(unpack_horizontal(self.tex["packed"], self.renderer.scene.profile.k)):
+            out[f"ssss_horizontal_{k + 1}"] = g
         out["ssss_scattered"] = self.scattered()
         if self.renderer.last_frame is not None:
             out["specular"] = self.renderer.side_render(self.name, OutputMode.SPECULAR)

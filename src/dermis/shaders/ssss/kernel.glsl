@@ -170,30 +170,33 @@ vec3 ssss_tap_normal(ivec2 q) {
     return needed ? texelFetch(uViewNormal, q, 0).xyz : vec3(0.0, 0.0, 1.0);
 }
 
-// Gaussian k's light at pixel q whose irradiance texel is ``tap``: defined by each pass (the
-// horizontal pass: tap.rgb for every k; the vertical one: the horizontal pass's k-th image).
-vec3 ssss_tap_light(int k, ivec2 q, vec4 tap);
+// What a pass reads at pixel q: its view depth in mm (0: no surface), its normal (where the
+// tissue-path test or the surface measure reads it; ``centre``: always) and each Gaussian's light
+// (the horizontal pass: the pre-scatter light for every k, from uIrradiance and uViewNormal; the
+// vertical pass: the horizontal pass's packed texels, ssss/packing.glsl, 3 fetches for K = 6
+// where the separate images took K + 2).
+void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS]);
 
 // The 1-D blur along uDirection at pixel p, per Gaussian: out[k] = sum_taps w E_k / sum_taps w
 // (pass_index 0 horizontal, 1 vertical), for a pixel on the skin (depth > 0).
 // Written so that a GPU compiler keeps everything in registers: every loop over the Gaussians has
 // a constant trip count (MAX_GAUSSIANS = the profile's K) and no loop inside, so it unrolls and
 // each array is indexed by constants. Per tap: one texel of uIrradiance (depth), the normal where
-// the tissue-path test reads it, each Gaussian's light (ssss_tap_light) and one exp per Gaussian:
+// the tissue-path test reads it, each Gaussian's light (ssss_fetch) and one exp per Gaussian:
 // exp(-(x^2 / 2 (sigma^2 + 1/12) + dz^2 / 2 sigma^2)), the pixel's share times the depth factor.
 // A tap on another surface has dz taken as 0 (its kernel weight) and brings the pixel's own light.
 void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS]) {
     ivec2 size = textureSize(uIrradiance, 0);
-    vec4 c = texelFetch(uIrradiance, p, 0);
-    SsssKernel K = ssss_kernel(c.a, p, pass_index, max(size.x, size.y));
-    vec3 pp = ssss_view_position_mm(p, size, c.a);
-    vec3 np = texelFetch(uViewNormal, p, 0).xyz;
+    float cz;  // the pixel's view depth, mm
+    vec3 np;
     vec3 centre[MAX_GAUSSIANS];  // the pixel's own light: what a tap on another surface brings
+    ssss_fetch(p, true, cz, np, centre);
+    SsssKernel K = ssss_kernel(cz, p, pass_index, max(size.x, size.y));
+    vec3 pp = ssss_view_position_mm(p, size, cz);
     vec3 sum[MAX_GAUSSIANS];
     float wsum[MAX_GAUSSIANS];
     float own[MAX_GAUSSIANS];    // weight carried by the pixel's own light (its own pixel and rejected taps)
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-        centre[k] = ssss_tap_light(k, p, c);
         sum[k] = vec3(0.0);
         wsum[k] = 0.0;
         own[k] = 1.0;  // exp(0): the pixel itself
@@ -214,10 +217,12 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS]) {
             int i = start + min(int(v * cell), n - 1);
             ivec2 q = p + uDirection * (side * i);
             if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
-            vec4 t = texelFetch(uIrradiance, q, 0);
-            vec3 nq = ssss_tap_normal(q);
-            float dz_px = ssss_tap_dz_px(K, c.a, t.a);
-            bool other = dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, t.a, size);  // another surface
+            float tz;
+            vec3 nq;
+            vec3 light[MAX_GAUSSIANS];
+            ssss_fetch(q, false, tz, nq, light);
+            float dz_px = ssss_tap_dz_px(K, cz, tz);
+            bool other = dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, tz, size);  // another surface
             float x2 = float(i * i);
             float dz2 = other ? 0.0 : dz_px * dz_px;
             float measure = ssss_measure(nq);
@@ -227,7 +232,7 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS]) {
                     own[k] += w;
                 } else {
                     w *= measure;
-                    sum[k] += w * ssss_tap_light(k, q, t);
+                    sum[k] += w * light[k];
                     wsum[k] += w;
                 }
             }
