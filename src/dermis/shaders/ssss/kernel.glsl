@@ -104,7 +104,7 @@ SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index, int size_px) {
         K.inv_2var[k] = 0.5 / (sigma_px * sigma_px);
         if (k < uGaussianCount) widest = max(widest, sigma_px);
     }
-    // at most the frame's size (a kernel wider than the frame: the cells' integer products stay small)
+    // at most the frame's size (taps beyond the frame are skipped in any case)
     K.last_px = int(min(ceil(SSSS_REACH_SIGMAS * widest), float(size_px)));
     K.jitter = ssss_hash01(p, pass_index);
     return K;
