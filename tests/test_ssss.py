@@ -46,20 +46,26 @@ def test_impulse_spreads_with_the_profile_in_mm(gl_ctx, mm_per_unit, distance, p
     sum_k w_k G(v_k, r) with r in MILLIMETRES (pixels -> mm from depth, field of view and
     mm_per_unit), integrated over each pixel, within 5% (r-weighted L2) out to 3 sigma of the
     widest Gaussian, per channel: d'Eon's six Gaussians at two scales, and eight other ones.
-    Measured: 0.03-0.06%."""
+    The widest Gaussians reach 30-45 px here, beyond the 12 taps a side: the outer taps are
+    jittered per pixel, so the response is averaged over 8 placements of the impulse (shifted
+    back): the kernel's expectation, compared pixel by pixel. Measured (round 8): 0.2-3.4 %
+    (one impulse: up to 5.7 % in red, the draw's noise); the 48-tap kernel before: 0.03-0.06 %."""
     S = 256
     sc = _facing_quad(mm_per_unit, distance, size_units=4000.0 / mm_per_unit)
     if profile == "eight":
         sc.profile = _eight_gaussians()
     px_mm = _pixel_mm(sc, S)
+    c = (S // 2, S // 2)
+    shifts = [(0, 0), (3, -5), (-6, 2), (5, 6), (-2, -7), (7, -1), (-4, 4), (1, 3)]
+    out = 0.0
     with Renderer(sc, (S, S), ctx=gl_ctx, samples=0) as r:
         r.render("ssss")
         ssss = r.technique("ssss")
-        irr = np.zeros((S, S, 3), np.float32)
-        c = (S // 2, S // 2)
-        irr[c] = 1.0
-        ssss.screen_space(r.last_frame, irradiance=irr)
-        out = ssss.scattered()
+        for dy, dx in shifts:
+            irr = np.zeros((S, S, 3), np.float32)
+            irr[c[0] + dy, c[1] + dx] = 1.0
+            ssss.screen_space(r.last_frame, irradiance=irr)
+            out = out + np.roll(ssss.scattered(), (-dy, -dx), axis=(0, 1)) / len(shifts)
     ref = impulse_reference(sc.profile, (S, S), c, px_mm, px_mm)
     yy, xx = np.mgrid[:S, :S]
     rr = np.hypot(yy - c[0], xx - c[1]) * px_mm
@@ -248,7 +254,9 @@ def test_a_dark_margin_beside_a_crease_stays_dark(gl_ctx):
     measured = out[rows, edge:edge + dark_px].mean(axis=0)
     spread = np.ptp(out[rows, edge:edge + dark_px], axis=0).max()
     print(f"margin ({dark_px} px), red measured {np.round(measured[:, 0], 4)}\nexpected {np.round(expected[:, 0], 4)}")
-    assert spread < 1e-3  # uniform along the edge
+    # uniform along the edge but for the noise of the jittered outer taps (the wide red Gaussians
+    # reach 40 px here, 12 taps a side; measured 4.4e-3; 0 before round 8's fixed tap count)
+    assert spread < 0.01
     assert np.all(np.abs(measured - expected) <= 0.03 * expected + 2e-3), (measured, expected)
     assert expected[0, 0] > 0.05  # the red of the wide Gaussians does reach the edge
 

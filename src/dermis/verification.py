@@ -274,22 +274,28 @@ def profile_reach_mm(profile, fraction=1e-3):
     return np.array(reach)
 
 
-def ssss_plane_impulse(gl_ctx=None, profile=None):
+def ssss_plane_impulse(gl_ctx=None, profile=None, placements: int = 1):
     """ssss's response to the dot: {"error": r-weighted L2 of the ring averages per channel, "ripple":
     largest |ring ratio - 1| beyond 0.2 mm, "cut_mm": outermost lit ring, "reach_mm": where the
-    profile falls below 1e-3 of its peak, "energy": scattered light / dot light}."""
+    profile falls below 1e-3 of its peak, "energy": scattered light / dot light}. ``placements`` > 1:
+    the response averaged over that many placements of the dot (shifted by up to 7 px, shifted back
+    before averaging): where ssss's outer taps are jittered per pixel this measures the kernel's
+    EXPECTATION (each placement meets other pixels' draws) rather than one draw's noise."""
     from dermis.renderer import Renderer
 
     sc = ssss_plane_scene(profile)
     S = SSSS_PLANE_SIZE_PX
+    c = (S // 2, S // 2)
+    shifts = [(0, 0)] + [tuple(int(v) for v in np.random.default_rng(i).integers(-7, 8, 2)) for i in range(1, placements)]
+    out = np.zeros((S, S, 3), np.float64)
     with Renderer(sc, (S, S), ctx=gl_ctx, samples=0) as renderer:
         renderer.render("ssss")
         ssss = renderer.technique("ssss")
-        irradiance = np.zeros((S, S, 3), np.float32)
-        c = (S // 2, S // 2)
-        irradiance[c[0] - 1:c[0] + 1, c[1] - 1:c[1] + 1] = 1.0
-        ssss.screen_space(renderer.last_frame, irradiance=irradiance)
-        out = ssss.scattered()
+        for dy, dx in shifts:
+            irradiance = np.zeros((S, S, 3), np.float32)
+            irradiance[c[0] + dy - 1:c[0] + dy + 1, c[1] + dx - 1:c[1] + dx + 1] = 1.0
+            ssss.screen_space(renderer.last_frame, irradiance=irradiance)
+            out += np.roll(ssss.scattered(), (-dy, -dx), axis=(0, 1)) / len(shifts)
     reference = dot_reference(sc.profile, (S, S), c, SSSS_PLANE_MM_PER_PX)
     reach = profile_reach_mm(sc.profile)
     edges = np.arange(0.0, reach.max() + SSSS_PLANE_MM_PER_PX, SSSS_PLANE_MM_PER_PX)

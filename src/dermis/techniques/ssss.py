@@ -15,6 +15,9 @@ with each pixel's kernel scaled to millimetres by its depth:
   ssss_blur        horizontal pass: one image per Gaussian (g_k(x) * E); vertical pass:
                    sum_k w_k g_k(y) * (g_k(x) * E). Exact for a sum of Gaussians, where a single
                    separable kernel (Jimenez 2015's rank-1 kernel) is 15% off for skin's red.
+                   A fixed number of taps per side (``taps``), whatever the head's size on screen:
+                   one pixel each near the centre, wider cells sampled stratified (one jittered
+                   pixel, weighted by the cell's size) in the wide Gaussians' tails.
                    Pixels per mm = size / (2 tan(fov/2) depth_mm); taps follow the surface (weight
                    of the 3-D distance, taps across a depth jump > depth_cutoff_mm rejected, taps
                    whose straight path to the pixel crosses air rejected: creases, as the
@@ -28,8 +31,9 @@ depth and field of view), the profile's Gaussians (any K <= 8, weights normalise
 Nothing is cached between frames: screen-space results depend on the view.
 Known failure modes: light only comes from what the camera sees (none from behind an ear's
 rim, none from off-screen; kernels are cut at the frame's edge); across a crease narrower than a
-pixel (closed eyelids at a distance) the tissue-path test cannot separate the two sides; when 3 sigma of the widest Gaussian exceeds
-``max_taps`` pixels, taps are spread over integer steps and thin features alias slightly; the
+pixel (closed eyelids at a distance) the tissue-path test cannot separate the two sides; when 3.7 sigma of the widest Gaussian exceeds
+``taps`` pixels, the outer taps are jittered per pixel: fine noise where the light has detail at the
+scale of the cells; the
 horizontal-then-vertical split follows the surface only along the axes (as in Jimenez 2015).
 Shaders: shaders/ssss/*; shared: common/skin_irradiance.glsl, common/transmittance.glsl,
 common/skin_specular.glsl.
@@ -52,7 +56,35 @@ from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_samp
                                       translucency_uniforms)
 
 DEPTH_CUTOFF_MM = 5.0  # a tap this much nearer or further than the pixel is another surface
-MAX_TAPS = 48  # taps per side: impulse-exact while 3 sigma of the widest Gaussian < 48 px
+TAPS = 12  # taps (cells) per side of each blur, whatever the head's size on screen (ssss/kernel.glsl)
+MAX_TAPS = 64  # the option's bound
+
+
+def packed_texels(k: int) -> int:
+    """RGBA32UI texels per pixel of the horizontal pass (ssss/packing.glsl's SSSS_PACKED): the depth
+    (1 uint), the normal and K Gaussians' rgb as halves (3K + 3 halves, two a uint)."""
+    return (1 + (3 * k + 4) // 2 + 3) // 4
+
+
+def unpack_horizontal(textures, k: int) -> list:
+    """The horizontal pass's K images (H, W, 3) float32, row 0 = top, from its packed texels."""
+    w, h = textures[0].size
+    u = np.concatenate([np.frombuffer(t.read(), np.uint32).reshape(h, w, 4) for t in textures], axis=2)[::-1]
+    halves = np.ascontiguousarray(u[:, :, 1:1 + (3 * k + 4) // 2]).view(np.float16).astype(np.float32)
+    return [halves[:, :, 3 + 3 * i:6 + 3 * i].copy() for i in range(k)]
+
+
+def tap_cells(last_px: int, taps: int) -> np.ndarray:
+    """First pixel of each of the ``taps`` cells of a side and one past the last: the twin of
+    ssss/kernel.glsl's ssss_cell_start. ``last_px``: the last pixel with weight,
+    ceil(3.717 sigma_max ppm). Cells with no pixel (start > last_px) are dropped."""
+    j = np.arange(taps + 1)
+    if last_px <= taps:
+        starts = j + 1
+    else:
+        starts = np.maximum(j + 1, np.floor(np.exp2(np.log2(last_px + 1.0) * j / taps) + 0.5).astype(int))
+    starts = np.minimum(starts, last_px + 1)
+    return np.unique(starts)
 
 
 def view_z_row(view: np.ndarray) -> tuple:
@@ -62,7 +94,7 @@ def view_z_row(view: np.ndarray) -> tuple:
 
 @dataclass(frozen=True)
 class SsssOptions(TranslucentOptions):
-    max_taps: int = MAX_TAPS  # taps per side of each blur
+    taps: int = TAPS  # taps (cells) per side of each blur: the blur's cost, fixed (ssss/kernel.glsl)
     depth_cutoff_mm: float = DEPTH_CUTOFF_MM  # taps across a larger depth jump are rejected
     follow_surface: bool = True  # weight taps by the 3-D distance and reject depth jumps
     tissue_paths: bool = True  # skip taps whose straight path to the pixel crosses air (creases)
@@ -70,7 +102,7 @@ class SsssOptions(TranslucentOptions):
 
     def validate(self, technique: str) -> None:
         super().validate(technique)
-        check_int(f"{technique}: max_taps", self.max_taps, 1, 512)
+        check_int(f"{technique}: taps", self.taps, 1, MAX_TAPS)
         check_float(f"{technique}: depth_cutoff_mm", self.depth_cutoff_mm)
         check_bool(f"{technique}: follow_surface", self.follow_surface)
         check_bool(f"{technique}: tissue_paths", self.tissue_paths)
@@ -85,7 +117,7 @@ class ScreenSpaceSSS(Technique):
     def __init__(self, renderer, **options):
         super().__init__(renderer, **options)
         self.p_final = program(self.ctx, "common/mesh.vert", "ssss/final.frag")
-        self._programs = {}  # K -> the passes that loop over the profile, compiled for exactly K Gaussians
+        self._programs = {}  # (K, taps) -> the passes that loop over the profile, compiled for exactly K Gaussians and taps
         self.vaos = {}
         self.tex = {}
         self._targets_key = None
@@ -94,18 +126,19 @@ class ScreenSpaceSSS(Technique):
     # ------------------------------------------------------------------ resources
     def _profile_programs(self, k: int):
         """(irradiance, horizontal, vertical) programs for a K-Gaussian profile. Compiled with
-        MAX_GAUSSIANS = K: the loops over Gaussians unroll to exactly K (15% of the blurs' time)."""
+        MAX_GAUSSIANS = K and SSSS_TAPS = the taps option: the loops over Gaussians and taps unroll."""
         if k > MAX_GAUSSIANS:
             raise DermisError(f"profile has {k} Gaussians; ssss supports at most {MAX_GAUSSIANS}")
-        if k not in self._programs:
-            ctx, defines = self.ctx, {"MAX_GAUSSIANS": k}
+        key = (k, self.options.taps)
+        if key not in self._programs:
+            ctx, defines = self.ctx, {"MAX_GAUSSIANS": k, "SSSS_TAPS": self.options.taps}
             progs = (program(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_horizontal.frag", defines),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines))
             for p in progs[1:]:
                 self.vaos[p] = ctx.vertex_array(p, [])
-            self._programs[k] = progs
-        return self._programs[k]
+            self._programs[key] = progs
+        return self._programs[key]
 
     def _ensure_targets(self, size, k):
         if self._targets_key == (size, k):
@@ -122,12 +155,12 @@ class ScreenSpaceSSS(Technique):
         irradiance = tex("f4")  # a = depth in mm: needs float32 (half: 0.25 mm steps at 500 mm)
         view_normal = tex("f2")  # the geometric normal in view space: the blurs' tissue-path test
         depth = ctx.depth_renderbuffer(size)
-        gaussians = [tex("f2") for _ in range(k)]
+        packed = [tex("u4") for _ in range(packed_texels(k))]  # the horizontal pass's result (ssss/packing.glsl)
         scattered = tex("f4")
-        self.tex = {"irradiance": irradiance, "view_normal": view_normal, "depth": depth, "gaussians": gaussians,
+        self.tex = {"irradiance": irradiance, "view_normal": view_normal, "depth": depth, "packed": packed,
                     "scattered": scattered,
                     "fbo_irradiance": ctx.framebuffer(color_attachments=[irradiance, view_normal], depth_attachment=depth),
-                    "fbo_horizontal": ctx.framebuffer(color_attachments=gaussians),
+                    "fbo_horizontal": ctx.framebuffer(color_attachments=packed),
                     "fbo_vertical": ctx.framebuffer(color_attachments=[scattered])}
         self._targets_key = (size, k)
 
@@ -135,7 +168,7 @@ class ScreenSpaceSSS(Technique):
         for key in ("fbo_irradiance", "fbo_horizontal", "fbo_vertical", "irradiance", "view_normal", "depth", "scattered"):
             if key in self.tex:
                 self.tex[key].release()
-        for t in self.tex.get("gaussians", []):
+        for t in self.tex.get("packed", []):
             t.release()
         self.tex = {}
         self._targets_key = None
@@ -147,7 +180,6 @@ class ScreenSpaceSSS(Technique):
         # pixels per mm at a view depth of 1 mm along this axis: size / 2 * P[axis][axis]
         set_uniform(prog, "uPixelsPerMmAtUnitDepth", float(0.5 * size[axis] * frame.proj[axis, axis]))
         set_uniform(prog, "uDirection", (1, 0) if axis == 0 else (0, 1))
-        set_uniform(prog, "uMaxTaps", int(max(self.options.max_taps, 1)))
         set_uniform(prog, "uDepthCutoffMm", float(self.options.depth_cutoff_mm) if self.options.follow_surface else 1e30)
         set_uniform(prog, "uFollowSurface", 1.0 if self.options.follow_surface else 0.0)
         set_uniform(prog, "uPixelsPerMmXY", (float(0.5 * size[0] * frame.proj[0, 0]), float(0.5 * size[1] * frame.proj[1, 1])))
@@ -200,7 +232,7 @@ class ScreenSpaceSSS(Technique):
             self._kernel_uniforms(prog, frame, 1)
             bind_sampler(prog, "uIrradiance", t["irradiance"], Unit.FIRST_FREE)
             bind_sampler(prog, "uViewNormal", t["view_normal"], Unit.FIRST_FREE + 1)
-            bind_sampler_array(prog, "uGaussian", t["gaussians"][: profile.k], Unit.FIRST_FREE + 2)
+            bind_sampler_array(prog, "uPacked", t["packed"], Unit.FIRST_FREE + 2)
             t["fbo_vertical"].use()
             self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
         frame.passes_run.append("ssss_blur")
@@ -231,8 +263,8 @@ class ScreenSpaceSSS(Technique):
             return {}
         irr = self.read_texture(self.tex["irradiance"])
         out = {"ssss_irradiance": irr[:, :, :3].copy(), "ssss_depth_mm": np.repeat(irr[:, :, 3:4], 3, axis=2)}
-        for k, g in enumerate(self.tex["gaussians"]):
-            out[f"ssss_horizontal_{k + 1}"] = self.read_texture(g)[:, :, :3]
+        for k, g in enumerate(unpack_horizontal(self.tex["packed"], self.renderer.scene.profile.k)):
+            out[f"ssss_horizontal_{k + 1}"] = g
         out["ssss_scattered"] = self.scattered()
         if self.renderer.last_frame is not None:
             out["specular"] = self.renderer.side_render(self.name, OutputMode.SPECULAR)

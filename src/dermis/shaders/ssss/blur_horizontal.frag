@@ -1,11 +1,16 @@
-// Separable SSS, pass 2: the horizontal 1-D blur, one output per Gaussian of the profile
-// (ssss/kernel.glsl): f_gaussian[k].rgb = sum_taps g_k E / sum_taps g_k.
+// Separable SSS, pass 2: the horizontal 1-D blur, one result per Gaussian of the profile
+// (ssss/kernel.glsl): rgb_k = sum_taps g_k E / sum_taps g_k, packed with the pixel's depth and
+// normal for the vertical pass (ssss/packing.glsl).
 #include "ssss/kernel.glsl"
+#include "ssss/packing.glsl"
 
-layout(location = 0) out vec4 f_gaussian[MAX_GAUSSIANS];
+layout(location = 0) out uvec4 f_packed[SSSS_PACKED];
 
-vec3 ssss_tap_light(int k, ivec2 q, vec4 tap) {
-    return tap.rgb;  // the pre-scatter light, the same for every Gaussian
+void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS]) {
+    vec4 t = texelFetch(uIrradiance, q, 0);
+    depth_mm = t.a;
+    normal = centre ? texelFetch(uViewNormal, q, 0).xyz : ssss_tap_normal(q);
+    for (int k = 0; k < MAX_GAUSSIANS; ++k) light[k] = t.rgb;  // the pre-scatter light, the same for every Gaussian
 }
 
 void main() {
@@ -17,7 +22,5 @@ void main() {
     } else {
         for (int k = 0; k < MAX_GAUSSIANS; ++k) blurred[k] = c.rgb;
     }
-    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-        f_gaussian[k] = vec4(blurred[k], 1.0);
-    }
+    ssss_pack(c.a, texelFetch(uViewNormal, p, 0).xyz, blurred, f_packed);
 }

@@ -2,12 +2,15 @@
 // the profile's weights (normalised per channel): the scattered, pre-albedo diffuse light
 //   rgb = sum_k w_k (g_k(y) * (g_k(x) * E)),  a = view depth in mm (copied, for the final pass).
 #include "ssss/kernel.glsl"
+#include "ssss/packing.glsl"
 
-uniform sampler2D uGaussian[MAX_GAUSSIANS];  // the horizontal pass's outputs
+uniform usampler2D uPacked[SSSS_PACKED];  // the horizontal pass's results (ssss/packing.glsl)
 out vec4 f_scattered;
 
-vec3 ssss_tap_light(int k, ivec2 q, vec4 tap) {
-    return k < uGaussianCount ? texelFetch(uGaussian[k], q, 0).rgb : vec3(0.0);
+void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS]) {
+    uvec4 texels[SSSS_PACKED];
+    for (int t = 0; t < SSSS_PACKED; ++t) texels[t] = texelFetch(uPacked[t], q, 0);
+    ssss_unpack(texels, depth_mm, normal, light);
 }
 
 void main() {

@@ -8,19 +8,29 @@
 // view depth is z mm, ppm = uPixelsPerMmAtUnitDepth / z (uPixelsPerMmAtUnitDepth = size / 2 * P[i][i]
 // = size / (2 tan(fov / 2)) along the blur's axis): Jimenez et al. 2009, eq. 2, whose gradient
 // term comes here from following the surface (below).
-// Reach: each Gaussian is followed out to where it falls below 1e-3 of its peak,
-// sqrt(2 ln 1000) = 3.717 sigma (so the whole profile is covered to below 1e-3 of its own peak).
-// Taps: each tap's weight is the 1-D Gaussian integrated over the tap's bin (erf), so each output
-// pixel holds the light landing on its footprint, an impulse reproduces sum_k w_k G(v_k)
-// integrated over pixels (tests/test_ssss.py), and Gaussians narrower than a pixel stay exact.
-// A Gaussian whose reach fits in uMaxTaps pixels is sampled at every pixel (shared taps). A wider
-// one gets its own step of s = ceil(reach / uMaxTaps) pixels, bins s pixels wide, and a per-pixel
-// offset o in [0, s) of its tap grid (taps at o + j s): a fixed grid sees only every s-th pixel,
-// which turned an impulse into +-10-20 % rings; with the offset drawn per pixel (a hash, so the
-// image is stable from frame to frame) every pixel is covered with probability 1/s and weight
-// about s g(x), so the blur is exact in expectation and the rings become fine noise that smooth
-// irradiance averages away (Jimenez et al. 2015 jitter/rotate their kernels per pixel for the
-// same reason). Weights are renormalised over the taps used (inside the frame).
+// Reach: the widest Gaussian is followed out to where it falls below 1e-3 of its peak,
+// sqrt(2 ln 1000) = 3.717 sigma (so the whole profile is covered to below 1e-3 of its own peak):
+// the last pixel with weight is P = ceil(3.717 sigma_max ppm).
+// A FIXED number of taps, SSSS_TAPS per side (Jimenez et al. 2015 use 11-25 in all; the cost must not
+// grow with the head's size on screen): the pixels 1..P of each side are split into SSSS_TAPS cells,
+// cell j = pixels [a_j, a_(j+1)), a_j = max(j + 1, round((P + 1)^(j / SSSS_TAPS)))
+// (dermis.techniques.ssss.tap_cells is its twin): one pixel each near the centre, where the
+// narrow Gaussians live, and widening geometrically into the wide Gaussians' tails, so every
+// Gaussian of the profile (d'Eon's span 34x in sigma) varies little within most of its cells
+// (quadratic widths left the narrow Gaussians in 3-pixel cells at 20 px/mm: the impulse 54 %
+// off). Where
+// P <= SSSS_TAPS every cell is one pixel and the blur is deterministic. A cell of n pixels is
+// represented by ONE of them, drawn per pixel (a hash, so the image is stable from frame to
+// frame), with n times its weight: stratified sampling, exact in expectation for every pixel
+// (each of the cell's pixels is drawn with probability 1 / n), so an impulse's response is the
+// profile's on average and smooth light is blurred with fine noise instead of rings (Jimenez et al.
+// 2015 jitter their kernels per pixel for the same reason).
+// Weights: a pixel's share of a 1-D Gaussian of sigma (px) is the Gaussian integrated over the
+// pixel, i.e. the Gaussian convolved with a 1-pixel box, taken here as the Gaussian of variance
+// sigma^2 + 1/12 (the box's variance) at the pixel's centre: within 0.5 % of the integral's
+// share for sigma >= 0.5 px, and a sub-pixel Gaussian still keeps its light in its pixel. With
+// the depth factor below, every tap costs ONE exp per Gaussian, no erf, and no table that depends
+// on the pixel size. Weights are renormalised over the taps used (inside the frame).
 //
 // Following the surface (Jimenez et al. 2009, sec. 4; 2015, SSSS_FOLLOW_SURFACE): a tap whose
 // depth differs by dz mm lies that much further away on the surface, so its weight also carries
@@ -54,7 +64,7 @@
 uniform sampler2D uIrradiance;          // pass 1: rgb pre-scatter irradiance, a = view depth mm (0: none)
 uniform float uPixelsPerMmAtUnitDepth;  // along this pass's axis
 uniform ivec2 uDirection;               // (1, 0) horizontal, (0, 1) vertical
-uniform int uMaxTaps;                   // taps per side at most
+// SSSS_TAPS: taps (cells) per side, compiled in (the tap loop unrolls)
 uniform float uDepthCutoffMm;           // taps whose depth differs more are another surface
 uniform float uFollowSurface;           // 1: weigh taps by the depth difference; 0: ignore depth (tests)
 uniform sampler2D uViewNormal;          // pass 1: the geometric normal in view space (0: none)
@@ -66,18 +76,15 @@ const float SSSS_REACH_SIGMAS = 3.7169;  // sqrt(2 ln 1000): a Gaussian at 1e-3 
 
 struct SsssKernel {
     float ppm;                           // pixels per mm at this pixel's depth
-    int taps;                            // shared taps per side (Gaussians with step 1)
-    float inv_sqrt2_sigma[MAX_GAUSSIANS]; // 1 / (sqrt(2) sigma_k), 1/px
-    float inv_2var[MAX_GAUSSIANS];       // 1 / (2 v_k ppm^2), 1/px^2
-    float reach_px[MAX_GAUSSIANS];       // 3.717 sigma_k + half a pixel (-1: unused, or a wide Gaussian)
-    int wide_step_px[MAX_GAUSSIANS];     // 0: shared taps; s > 1: own jittered taps s pixels apart
-    int wide_offset_px[MAX_GAUSSIANS];   // o in [0, s): this pixel's offset of its tap grid
-    int wide_taps[MAX_GAUSSIANS];        // its taps per side
+    int last_px;                         // P: the last pixel of each side with weight
+    float inv_2var_px[MAX_GAUSSIANS];    // 1 / (2 (sigma_k^2 + 1/12)), 1/px^2: a pixel's share (above)
+    float inv_2var[MAX_GAUSSIANS];       // 1 / (2 sigma_k^2), 1/px^2: the depth factor
+    float jitter;                        // [0, 1): this pixel's draw in its cells
 };
 
-// An integer hash (Wang 1997 / Jenkins' 32-bit mix) -> [0, 1): per-pixel, per-Gaussian, per-pass.
-float ssss_hash01(ivec2 p, int k, int pass_index) {
-    uint h = uint(p.x) * 1973u + uint(p.y) * 9277u + uint(k) * 26699u + uint(pass_index) * 104729u + 1u;
+// An integer hash (Wang 1997 / Jenkins' 32-bit mix) -> [0, 1): per pixel and pass.
+float ssss_hash01(ivec2 p, int pass_index) {
+    uint h = uint(p.x) * 1973u + uint(p.y) * 9277u + uint(pass_index) * 104729u + 1u;
     h = (h ^ 61u) ^ (h >> 16u);
     h *= 9u;
     h ^= h >> 4u;
@@ -86,63 +93,28 @@ float ssss_hash01(ivec2 p, int k, int pass_index) {
     return float(h >> 8u) / 16777216.0;
 }
 
-// erfc(x) for x >= 0, Abramowitz & Stegun 1964, 7.1.26 (|error of erf| < 1.5e-7), kept as the
-// small number it is: a bin far out in a Gaussian's tail is the DIFFERENCE of two erfc values, and
-// as 1 - erfc in float32 it cancelled to nothing or to twice its value (the impulse's tail beyond
-// 3 sigma came out 1.2-2.7x the Gaussian's).
-float ssss_erfc_positive(float x) {
-    float t = 1.0 / (1.0 + 0.3275911 * x);
-    return (((((1.061405429 * t - 1.453152027) * t) + 1.421413741) * t - 0.284496736) * t + 0.254829592) * t * exp(-x * x);
-}
-
-float ssss_erf(float x) {
-    return sign(x) * (1.0 - ssss_erfc_positive(abs(x)));
-}
-
-// integral over [low, high] (pixels) of the unit 1-D Gaussian of 1 / (sqrt 2 sigma) = inv.
-float ssss_bin_weight(float low, float high, float inv) {
-    float a = low * inv, b = high * inv;
-    if (a >= 0.0) return 0.5 * (ssss_erfc_positive(a) - ssss_erfc_positive(b));
-    if (b <= 0.0) return 0.5 * (ssss_erfc_positive(-b) - ssss_erfc_positive(-a));
-    return 0.5 * (ssss_erf(b) - ssss_erf(a));
-}
-
 // The kernel at a pixel p whose view depth is depth_mm; pass_index 0 horizontal, 1 vertical.
-SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index) {
+SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index, int size_px) {
     SsssKernel K;
     K.ppm = uPixelsPerMmAtUnitDepth / depth_mm;
-    float shared_reach = 0.0;
+    float widest = 0.0;
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         float sigma_px = max(sqrt(uVariances[k]) * K.ppm, 1e-4);
-        float reach = SSSS_REACH_SIGMAS * sigma_px + 0.5;
-        K.inv_sqrt2_sigma[k] = 0.70710678 / sigma_px;
+        K.inv_2var_px[k] = 0.5 / (sigma_px * sigma_px + 1.0 / 12.0);
         K.inv_2var[k] = 0.5 / (sigma_px * sigma_px);
-        K.wide_step_px[k] = 0;
-        K.wide_offset_px[k] = 0;
-        K.wide_taps[k] = 0;
-        K.reach_px[k] = -1.0;
-        if (k >= uGaussianCount) continue;
-        if (reach <= float(uMaxTaps)) {
-            K.reach_px[k] = reach;
-            shared_reach = max(shared_reach, reach);
-        } else {
-            int s = int(ceil(reach / float(uMaxTaps)));
-            K.wide_step_px[k] = s;
-            K.wide_offset_px[k] = min(int(ssss_hash01(p, k, pass_index) * float(s)), s - 1);
-            K.wide_taps[k] = int(ceil(reach / float(s))) + 1;
-        }
+        if (k < uGaussianCount) widest = max(widest, sigma_px);
     }
-    K.taps = min(int(floor(shared_reach)), uMaxTaps);
+    // at most the frame's size (taps beyond the frame are skipped in any case)
+    K.last_px = int(min(ceil(SSSS_REACH_SIGMAS * widest), float(size_px)));
+    K.jitter = ssss_hash01(p, pass_index);
     return K;
 }
 
-// Weight of a wide Gaussian's tap at signed offset d pixels: its bin [d - s/2, d + s/2].
-float ssss_wide_weight(SsssKernel K, int k, int d) {
-    float half_step = 0.5 * float(K.wide_step_px[k]);
-    float low = float(d) - half_step, high = float(d) + half_step;
-    float reach = SSSS_REACH_SIGMAS * 0.70710678 / K.inv_sqrt2_sigma[k] + half_step;
-    if (high < -reach || low > reach) return 0.0;
-    return ssss_bin_weight(low, high, K.inv_sqrt2_sigma[k]);
+// First pixel of cell j of a side (above); cell SSSS_TAPS starts past the last pixel.
+// log2_end = log2(last_px + 1).
+int ssss_cell_start(int j, int last_px, float log2_end) {
+    if (last_px <= SSSS_TAPS) return j + 1;
+    return max(j + 1, int(floor(exp2(log2_end * float(j) / float(SSSS_TAPS)) + 0.5)));
 }
 
 // Depth difference of a tap in pixels at this depth, or -1 to reject the tap.
@@ -198,94 +170,72 @@ vec3 ssss_tap_normal(ivec2 q) {
     return needed ? texelFetch(uViewNormal, q, 0).xyz : vec3(0.0, 0.0, 1.0);
 }
 
-// Gaussian k's light at pixel q whose irradiance texel is ``tap``: defined by each pass (the
-// horizontal pass: tap.rgb for every k; the vertical one: the horizontal pass's k-th image).
-vec3 ssss_tap_light(int k, ivec2 q, vec4 tap);
+// What a pass reads at pixel q: its view depth in mm (0: no surface), its normal (where the
+// tissue-path test or the surface measure reads it; ``centre``: always) and each Gaussian's light
+// (the horizontal pass: the pre-scatter light for every k, from uIrradiance and uViewNormal; the
+// vertical pass: the horizontal pass's packed texels, ssss/packing.glsl, 3 fetches for K = 6
+// where the separate images took K + 2).
+void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS]);
 
 // The 1-D blur along uDirection at pixel p, per Gaussian: out[k] = sum_taps w E_k / sum_taps w
 // (pass_index 0 horizontal, 1 vertical), for a pixel on the skin (depth > 0).
 // Written so that a GPU compiler keeps everything in registers: every loop over the Gaussians has
 // a constant trip count (MAX_GAUSSIANS = the profile's K) and no loop inside, so it unrolls and
-// each array is indexed by constants (a dynamic index sends the arrays to local memory: the
-// first version looped over the wide Gaussians' own taps INSIDE a loop over k). Per tap and
-// Gaussian there is one erfc (each bin's upper edge is the next bin's lower edge, kept), and
-// the pixel's own position and normal are fetched once.
+// each array is indexed by constants. Per tap: one texel of uIrradiance (depth), the normal where
+// the tissue-path test reads it, each Gaussian's light (ssss_fetch) and one exp per Gaussian:
+// exp(-(x^2 / 2 (sigma^2 + 1/12) + dz^2 / 2 sigma^2)), the pixel's share times the depth factor.
+// A tap on another surface has dz taken as 0 (its kernel weight) and brings the pixel's own light.
 void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS]) {
     ivec2 size = textureSize(uIrradiance, 0);
-    vec4 c = texelFetch(uIrradiance, p, 0);
-    SsssKernel K = ssss_kernel(c.a, p, pass_index);
-    vec3 pp = ssss_view_position_mm(p, size, c.a);
-    vec3 np = texelFetch(uViewNormal, p, 0).xyz;
+    float cz;  // the pixel's view depth, mm
+    vec3 np;
     vec3 centre[MAX_GAUSSIANS];  // the pixel's own light: what a tap on another surface brings
+    ssss_fetch(p, true, cz, np, centre);
+    SsssKernel K = ssss_kernel(cz, p, pass_index, max(size.x, size.y));
+    vec3 pp = ssss_view_position_mm(p, size, cz);
     vec3 sum[MAX_GAUSSIANS];
     float wsum[MAX_GAUSSIANS];
-    float own[MAX_GAUSSIANS];    // weight carried by the pixel's own light (its bin and rejected taps)
-    float lower[MAX_GAUSSIANS];  // erfc at the lower edge of the next bin
+    float own[MAX_GAUSSIANS];    // weight carried by the pixel's own light (its own pixel and rejected taps)
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-        centre[k] = ssss_tap_light(k, p, c);
         sum[k] = vec3(0.0);
         wsum[k] = 0.0;
-        own[k] = ssss_erf(0.5 * K.inv_sqrt2_sigma[k]);  // the centre bin [-1/2, 1/2]
-        lower[k] = ssss_erfc_positive(0.5 * K.inv_sqrt2_sigma[k]);
+        own[k] = 1.0;  // exp(0): the pixel itself
     }
-    // Gaussians whose reach fits in uMaxTaps: taps at every pixel, shared
-    for (int j = 1; j <= K.taps; ++j) {
-        float wx[MAX_GAUSSIANS];  // the bin [j - 1/2, j + 1/2] of each Gaussian
-        for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-            if (float(j) - 0.5 > K.reach_px[k]) { wx[k] = 0.0; continue; }  // also wide ones, k >= count
-            float upper = ssss_erfc_positive((float(j) + 0.5) * K.inv_sqrt2_sigma[k]);
-            wx[k] = 0.5 * (lower[k] - upper);
-            lower[k] = upper;
-        }
+    float log2_end = log2(float(K.last_px + 1));
+    int next = 1;  // the next cell's first pixel
+    for (int j = 0; j < SSSS_TAPS; ++j) {
+        int start = next;
+        if (start > K.last_px) break;
+        next = min(ssss_cell_start(j + 1, K.last_px, log2_end), K.last_px + 1);
+        int n = next - start;  // the cell's pixels
+        float cell = float(n);
+        // this pixel's draw in cell j: a golden-ratio sequence from its jitter (decorrelates the
+        // cells); the other side takes the opposite draw
+        float u = fract(K.jitter + 0.61803399 * float(j));
         for (int side = -1; side <= 1; side += 2) {
-            ivec2 q = p + uDirection * (side * j);
+            float v = side < 0 ? u : 1.0 - u;
+            int i = start + min(int(v * cell), n - 1);
+            ivec2 q = p + uDirection * (side * i);
             if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
-            vec4 t = texelFetch(uIrradiance, q, 0);
-            vec3 nq = ssss_tap_normal(q);
-            float dz_px = ssss_tap_dz_px(K, c.a, t.a);
-            if (dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, t.a, size)) {
-                for (int k = 0; k < MAX_GAUSSIANS; ++k) own[k] += wx[k];  // another surface
-                continue;
-            }
-            float dz2 = dz_px * dz_px;
+            float tz;
+            vec3 nq;
+            vec3 light[MAX_GAUSSIANS];
+            ssss_fetch(q, false, tz, nq, light);
+            float dz_px = ssss_tap_dz_px(K, cz, tz);
+            bool other = dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, tz, size);  // another surface
+            float x2 = float(i * i);
+            float dz2 = other ? 0.0 : dz_px * dz_px;
             float measure = ssss_measure(nq);
             for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-                if (wx[k] <= 0.0) continue;
-                float u = dz2 * K.inv_2var[k];
-                float w = wx[k] * measure * (u < 2e-3 ? 1.0 - u : exp(-u));  // the depth factor (above)
-                sum[k] += w * ssss_tap_light(k, q, t);
-                wsum[k] += w;
+                float w = cell * exp(-(x2 * K.inv_2var_px[k] + dz2 * K.inv_2var[k]));
+                if (other) {
+                    own[k] += w;
+                } else {
+                    w *= measure;
+                    sum[k] += w * light[k];
+                    wsum[k] += w;
+                }
             }
-        }
-    }
-    // Gaussians wider than uMaxTaps pixels: their own jittered taps, s pixels apart (above)
-    int wide_taps = 0;
-    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-        if (K.wide_step_px[k] == 0) continue;
-        sum[k] = vec3(0.0);
-        wsum[k] = 0.0;
-        own[k] = 0.0;
-        wide_taps = max(wide_taps, K.wide_taps[k]);
-    }
-    for (int j = -wide_taps; j <= wide_taps; ++j) {
-        for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-            if (K.wide_step_px[k] == 0 || abs(j) > K.wide_taps[k]) continue;
-            int d = j * K.wide_step_px[k] + K.wide_offset_px[k];
-            float w = ssss_wide_weight(K, k, d);
-            if (w <= 0.0) continue;
-            ivec2 q = p + uDirection * d;
-            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
-            vec4 t = texelFetch(uIrradiance, q, 0);
-            vec3 nq = ssss_tap_normal(q);
-            float dz_px = ssss_tap_dz_px(K, c.a, t.a);
-            if (dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, t.a, size)) {
-                own[k] += w;  // another surface
-                continue;
-            }
-            float u = dz_px * dz_px * K.inv_2var[k];
-            w *= ssss_measure(nq) * (u < 2e-3 ? 1.0 - u : exp(-u));
-            sum[k] += w * ssss_tap_light(k, q, t);
-            wsum[k] += w;
         }
     }
     float own_measure = ssss_measure(np);
