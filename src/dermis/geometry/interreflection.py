@@ -161,3 +161,28 @@ def bounce_irradiance(hits: VertexHits, indices, exitant) -> np.ndarray:
     interpolated at the hits; rays that bring nothing add 0."""
     at = hits.at_vertices(exitant, indices)
     return np.nansum(at, axis=1) / hits.rays
+
+
+def layout_median_stretch(positions, uvs, indices, mm_per_unit: float, size: int) -> float:
+    """The median stretch of a texture-space layout at ``size``^2 texels: texels per mm along u and
+    along v (each triangle's |dP/du|^-1 and |dP/dv|^-1, P in mm, u and v in texels), both axes
+    pooled, weighted by the triangle's texels (its uv area): the median of tsd's stretch map over its
+    covered texels (tsd/stretch.frag) without the raster, for the bounce's level
+    (dermis.gl.interreflection.bounce_level)."""
+    p = np.asarray(positions, np.float64) * float(mm_per_unit)
+    uv = np.asarray(uvs, np.float64) * float(size)
+    t = np.asarray(indices, np.int64).reshape(-1, 3)
+    duv = np.stack([uv[t[:, 1]] - uv[t[:, 0]], uv[t[:, 2]] - uv[t[:, 0]]], 1)  # (n, 2 edges, (u, v))
+    dp = np.stack([p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]], 1)  # (n, 2 edges, 3)
+    det = duv[:, 0, 0] * duv[:, 1, 1] - duv[:, 0, 1] * duv[:, 1, 0]
+    ok = np.abs(det) > 1e-12
+    if not ok.any():
+        return 0.0
+    J = np.linalg.solve(duv[ok], dp[ok])  # rows: dP/du, dP/dv (mm per texel)
+    lengths = np.linalg.norm(J, axis=2)
+    ok2 = np.all(lengths > 0, axis=1)
+    vals = (1.0 / lengths[ok2]).T.ravel()  # u then v
+    w = np.tile(0.5 * np.abs(det[ok][ok2]), 2)
+    order = np.argsort(vals)
+    cw = np.cumsum(w[order])
+    return float(vals[order][np.searchsorted(cw, 0.5 * cw[-1])])

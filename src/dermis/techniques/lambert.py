@@ -15,7 +15,7 @@ import moderngl
 from dermis.errors import DermisError
 from dermis.gl.shaders import program
 from dermis.techniques.base import Frame, Technique, draw_mesh, draw_surfaces
-from dermis.techniques.shared import OutputMode
+from dermis.techniques.shared import INTERREFLECTION_DEFINE, OutputMode, bind_interreflection, prepare_interreflection
 
 
 class Lambert(Technique):
@@ -25,17 +25,27 @@ class Lambert(Technique):
     def __init__(self, renderer):
         super().__init__(renderer)
         self.prog = program(self.ctx, "common/mesh.vert", "lambert/lambert.frag")
+        self._prog_bounce = None  # with the shared one bounce (compiled on first use)
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         if output_mode != OutputMode.FULL:
             raise DermisError(f"technique '{self.name}' renders only the full image (output mode {OutputMode.FULL.name.lower()})")
+        prog = self.prog
+        if prepare_interreflection(frame):  # albedo / pi times the shared bounce E_b
+            if self._prog_bounce is None:
+                self._prog_bounce = program(self.ctx, "common/mesh.vert", "lambert/lambert.frag", {INTERREFLECTION_DEFINE: 1})
+            prog = self._prog_bounce
         with frame.timer("lambert"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            draw_mesh(frame, self.prog)
+            if prog is self._prog_bounce:
+                bind_interreflection(frame, prog)
+            draw_mesh(frame, prog)
         frame.passes_run.append("lambert")
         draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing
 
     def release(self):
         self.prog.release()
+        if self._prog_bounce is not None:
+            self._prog_bounce.release()

@@ -54,7 +54,8 @@ from dermis.gl.resources import set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh, draw_surfaces
-from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, casts_translucency, directional_albedo_uniforms,
+from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, OutputMode, Unit, bind_interreflection, bind_sampler,
+                                      casts_translucency, directional_albedo_uniforms, prepare_interreflection,
                                       set_profile_uniforms, surface_detail_uniforms, translucency_uniforms)
 
 # The diffuse table: N.L along s (odd, so N.L = 0 is a texel centre and max(N.L, 0) interpolates
@@ -291,6 +292,7 @@ class PreintegratedSkin(Technique):
         self.curvature = None  # per-vertex curvature (1/mm) of the active mesh, numpy
         self._curvature_buffer = None
         self._vao = None
+        self._bounce = None  # (program, vertex array) with the shared one bounce, made on first use
         self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
         self._mesh_key = None
 
@@ -325,11 +327,25 @@ class PreintegratedSkin(Technique):
         self._mesh_key = key
         frame.passes_run.append("preintegrated_curvature")
 
+    def _bounce_program(self, frame: Frame):
+        """(program, vertex array) of the pass with the shared one bounce E_b (common/interreflection.glsl):
+        a diffuse term like the ambient, through none of the tables (E_b is an irradiance from the
+        whole hemisphere, gathered per vertex: no terminator for the ring to wrap, no shadow-map
+        edge for the penumbra table, no normal-map detail for the blurred normals)."""
+        if self._bounce is None:
+            prog = program(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
+                           {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None, INTERREFLECTION_DEFINE: 1})
+            content = [frame.gpu.vertex_content(prog)]
+            if "in_curvature" in prog:
+                content.append((self._curvature_buffer, "1f", "in_curvature"))
+            self._bounce = (prog, self.ctx.vertex_array(prog, content, frame.gpu.ibo))
+        return self._bounce
+
     def _release_mesh(self):
-        for o in (self._vao, self._curvature_buffer):
+        for o in (self._vao, self._curvature_buffer, *(self._bounce or ())):
             if o is not None:
                 o.release()
-        self._vao = self._curvature_buffer = None
+        self._vao = self._curvature_buffer = self._bounce = None
         self._mesh_key = None
 
     def scene_changed(self):
@@ -340,11 +356,15 @@ class PreintegratedSkin(Technique):
         self._ensure_profile_tables(frame)
         self._ensure_curvature(frame)
         profile = frame.scene.profile
+        prog, vao = self.prog, self._vao
+        if prepare_interreflection(frame):  # the shared one bounce, rebuilt only on a lighting change
+            prog, vao = self._bounce_program(frame)
         with frame.timer("preintegrated"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            prog = self.prog
+            if prog is not self.prog:
+                bind_interreflection(frame, prog)
             bind_sampler(prog, "uDiffuseTable", self.profile_tables["diffuse"], UNIT_DIFFUSE_TABLE)
             bind_sampler(prog, "uPenumbraTable", self.profile_tables["penumbra"], UNIT_PENUMBRA_TABLE)
             bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
@@ -359,7 +379,7 @@ class PreintegratedSkin(Technique):
             set_uniform(prog, "uPenumbraScattering", 1.0 if self.options.penumbra_scattering else 0.0)
             directional_albedo_uniforms(prog, frame.scene)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
-            draw_mesh(frame, prog, vao=self._vao)
+            draw_mesh(frame, prog, vao=vao)
         frame.passes_run.append("preintegrated")
         draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing
 

@@ -47,8 +47,9 @@ from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh, draw_surfaces
-from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
-                                      TISSUE_TAU, casts_translucency, directional_albedo_uniforms, set_profile_uniforms, surface_detail_uniforms,
+from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, OutputMode, Unit, bind_interreflection, bind_sampler,
+                                      bind_sampler_array, TISSUE_TAU, casts_translucency, directional_albedo_uniforms,
+                                      prepare_interreflection, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
 
 DEPTH_CUTOFF_MM = 5.0  # a tap this much nearer or further than the pixel is another surface
@@ -107,6 +108,15 @@ class ScreenSpaceSSS(Technique):
             self._programs[k] = progs
         return self._programs[k]
 
+    def _bounce_program(self, k: int):
+        """Pass 1 with the shared one bounce added to its irradiance (common/interreflection.glsl),
+        for a K-Gaussian profile; compiled on first use."""
+        key = ("bounce", k)
+        if key not in self._programs:
+            self._programs[key] = (program(self.ctx, "common/mesh.vert", "ssss/irradiance.frag",
+                                           {"MAX_GAUSSIANS": k, INTERREFLECTION_DEFINE: 1}),)
+        return self._programs[key][0]
+
     def _ensure_targets(self, size, k):
         if self._targets_key == (size, k):
             return
@@ -161,6 +171,9 @@ class ScreenSpaceSSS(Technique):
         scene = frame.scene
         profile = scene.profile
         p_irradiance, p_horizontal, p_vertical = self._profile_programs(profile.k)
+        bounce = prepare_interreflection(frame)  # the shared one bounce, rebuilt only on a lighting change
+        if bounce:
+            p_irradiance = self._bounce_program(profile.k)
         self._ensure_targets(tuple(frame.size), profile.k)
         t = self.tex
         with frame.timer("ssss_irradiance"):
@@ -179,6 +192,8 @@ class ScreenSpaceSSS(Technique):
                                   scene)
             bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
                          Unit.FIRST_FREE)
+            if bounce:
+                bind_interreflection(frame, prog)
             draw_mesh(frame, prog)
             if irradiance is not None:
                 a = self.read_texture(t["irradiance"])
