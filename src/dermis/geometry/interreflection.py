@@ -17,7 +17,9 @@ nothing here. With the diffuse radiance L_o(y) = rho(y) E(y) / pi leaving y,
 This module casts the rays once per mesh (Embree, dermis.geometry.raycast) and keeps, per vertex and
 ray, the triangle hit and its barycentrics; tsd's runtime pass (techniques/tsd.py,
 shaders/tsd/bounce_*.frag) turns them into texture-space UVs, reads rho E there from a coarse
-level of its irradiance and adds E_b to the irradiance before the diffusion blurs it.
+level of its irradiance and adds E_b to the irradiance before the diffusion blurs it. ssss,
+preintegrated and lambert share one gather per lighting change from a small texture-space raster
+of rho E (dermis.gl.interreflection.SharedBounce) and add E_b per vertex (common/interreflection.glsl).
 
 Rays start at the vertex, lifted along its normal by OFFSET_REL of the mesh's diagonal (as the
 visibility bake). A ray whose first hit is a face turned away from it (the interpolated normal

@@ -31,6 +31,17 @@ from three local quantities looked up in tables computed at start-up from the ac
   channel's rms radius (rounds 1-6) took red's from its wide tail and lost the third of red's
   weight within 0.25 mm: red/green grain along a terminator (tests/test_preintegrated.py).
 
+* interreflection: one diffuse bounce between skin surfaces, E_b per vertex (the Renderer's shared
+  pass, dermis.gl.interreflection.SharedBounce, once per lighting change), added as the ambient is,
+  through none of the tables: the ring wraps a light's N.L past its terminator and the penumbra
+  table scatters a shadow map's edge; E_b is an irradiance already integrated over the hemisphere
+  (no terminator), gathered per vertex and interpolated linearly (no shadow-map edge, no normal-map
+  detail). What the profile would still do to it is smooth it below the vertices' spacing (2.6 mm
+  on the head): measured on the head (side view, exact sampled convolution with tissue paths), the
+  red channel moves by 8% of E_b (sum |change| / sum E_b; mostly the bake's per-vertex Monte Carlo
+  noise averaged out), green and blue by 0.1%; not applied (benchmarks/RESULTS.md, "Round 8,
+  branch bounce8").
+
 Everything else is shared with the other techniques: lights, shadows, environment, specular
 (common/skin_specular.glsl), energy conservation (N.L in, N.V out) and the translucency of thin
 parts from the shadow map's thickness (common/transmittance.glsl, Jimenez et al. 2010).

@@ -11,7 +11,10 @@ with each pixel's kernel scaled to millimetres by its depth:
 
   ssss_irradiance  mesh -> non-multisampled RGBA32F of the frame's size: (E + T) * albedo^mix and the
                    view depth in mm (E: lights, soft shadows, ambient, energy conservation, shared
-                   with tsd; T: light through thin parts from the shadow map's thickness)
+                   with tsd, and one diffuse bounce between skin surfaces, E_b per vertex from the
+                   Renderer's shared pass, dermis.gl.interreflection.SharedBounce, once per lighting
+                   change: added before the blurs, which scatter it as tsd's; T: light through thin
+                   parts from the shadow map's thickness)
   ssss_blur        horizontal pass: one image per Gaussian (g_k(x) * E); vertical pass:
                    sum_k w_k g_k(y) * (g_k(x) * E). Exact for a sum of Gaussians, where a single
                    separable kernel (Jimenez 2015's rank-1 kernel) is 15% off for skin's red.
