@@ -25,10 +25,12 @@ def hit_layout(n_vertices: int, rays: int) -> tuple[int, int]:
 class InterreflectionHits:
     """One technique's copy of the bake; ``get`` rebuilds it when the mesh or its layout changes."""
 
-    def __init__(self, ctx):
+    def __init__(self, ctx, placeholder: bool = False):
         self.ctx = ctx
         self.tex = None
         self.key = None
+        if placeholder:  # a 1x1 stand-in, replaced by get(): the count of live textures never changes
+            self.tex = ctx.texture((1, 1), 2, dtype="f4")
         self.per_row = 1
         self.rays = 0
         self.vertex_count = 0
@@ -40,7 +42,7 @@ class InterreflectionHits:
         m = frame.scene.mesh
         uv_ts = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
         key = (frame.keys["interreflection_bake"], fingerprint(uv_ts))
-        if key != self.key or self.tex is None:
+        if key != self.key or self.tex is None or self.tex.size == (1, 1):
             with frame.timer("interreflection_bake"):
                 hits = mesh_hits(m)
                 uv = hits.at_vertices(uv_ts, m.indices)  # (n, K, 2), NaN: nothing
@@ -93,6 +95,13 @@ class BounceGather:
         self.vao = ctx.vertex_array(self.prog, [])
         self.target = None
         self.fbo = None
+        self._make_target((1, 1))  # re-made at the hits' layout by run()
+
+    def _make_target(self, size):
+        self._release_target()
+        self.target = self.ctx.texture(size, 4, dtype="f4")
+        self.target.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.fbo = self.ctx.framebuffer(color_attachments=[self.target])
 
     def run(self, hits: InterreflectionHits, exitant):
         """Gather into :attr:`target` (made at the hits' layout) and return it."""
@@ -100,10 +109,7 @@ class BounceGather:
 
         size = (hits.per_row, hits.tex.size[1])
         if self.target is None or self.target.size != size:
-            self._release_target()
-            self.target = self.ctx.texture(size, 4, dtype="f4")
-            self.target.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            self.fbo = self.ctx.framebuffer(color_attachments=[self.target])
+            self._make_target(size)
         for name, value in (("uRays", hits.rays), ("uVerticesPerRow", hits.per_row), ("uVertexCount", hits.vertex_count),
                             ("uHits", 0), ("uExitant", 1)):
             set_uniform(self.prog, name, int(value))
@@ -155,55 +161,60 @@ class SharedBounce:
     (:class:`BounceGather`)."""
 
     def __init__(self, ctx):
+        # everything is made here, when the first technique that reads the bounce is built (as the
+        # techniques compile their programs up front: the viewer switches techniques mid-drag), the
+        # textures as 1x1 stand-ins re-made at their sizes on first use
+        from dermis.gl.shaders import program
+
         self.ctx = ctx
-        self.hits = InterreflectionHits(ctx)
-        self._gather = None
-        self._source = None  # tsd/irradiance.frag (no sharp shadows), its output taken as rho E
-        self._down = None
-        self._levels = []  # [(texture, framebuffer)] from the raster's level to the gather's
+        self.hits = InterreflectionHits(ctx, placeholder=True)
+        self._gather = BounceGather(ctx)
+        self._source = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag")
+        self._down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag")
+        self._down_vao = ctx.vertex_array(self._down, [])
+        # [(texture, framebuffer)]: rho E from the raster's level to the gather's; a level-0 gather
+        # uses the first alone
+        self._levels = [self._level_texture(1) for _ in range(SOURCE_FINER_LEVELS + 1)]
         self.key = None
         self.level = None  # the gather's level (of the irradiance size)
 
+    def _level_texture(self, n: int):
+        t = self.ctx.texture((n, n), 4, dtype="f4")
+        t.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        t.repeat_x = t.repeat_y = False
+        return t, self.ctx.framebuffer(color_attachments=[t])
+
     @property
     def texture(self):
-        return None if self._gather is None else self._gather.target
+        return self._gather.target
 
     def get(self, frame):
         """The per-vertex E_b texture for ``frame`` (rebuilt when the product key changed); appends
         "interreflection" to frame.passes_run when it ran."""
-        key = frame.keys["interreflection"]
-        hits = self.hits.get(frame)  # the bake times itself, and may be rebuilt alone (a new layout)
-        key = (key, self.hits.key)
-        if key == self.key and self._gather is not None and self._gather.target is not None:
+        self.hits.get(frame)  # the bake times itself, and may be rebuilt alone (a new layout)
+        key = (frame.keys["interreflection"], self.hits.key)
+        if key == self.key:
             return self._gather.target
         from dermis.gl.resources import maps_without_anisotropy, set_uniform, use_texture
-        from dermis.gl.shaders import program
         from dermis.techniques.base import bind_scene
         from dermis.techniques.shared import directional_albedo_uniforms
 
-        if self._gather is None:
-            self._gather = BounceGather(self.ctx)
-            self._source = program(self.ctx, "tsd/uv_space.vert", "tsd/irradiance.frag")
-            self._down = program(self.ctx, "common/fullscreen.vert", "tsd/downsample.frag")
-            self._down_vao = self.ctx.vertex_array(self._down, [])
         S = int(frame.renderer.irradiance_size)
         level = bounce_level(layout_texels_per_mm(frame.scene, S), S)
         self.level = level
-        first = max(level - SOURCE_FINER_LEVELS, 0)
-        sizes = [max(S >> lvl, 1) for lvl in range(first, level + 1)]
-        if [t.size[0] for t, _ in self._levels] != sizes:
-            self._release_levels()
-            for n in sizes:
-                t = self.ctx.texture((n, n), 4, dtype="f4")
-                t.filter = (moderngl.LINEAR, moderngl.LINEAR)
-                t.repeat_x = t.repeat_y = False
-                self._levels.append((t, self.ctx.framebuffer(color_attachments=[t])))
+        sizes = [max(S >> lvl, 1) for lvl in range(max(level - SOURCE_FINER_LEVELS, 0), level + 1)]
+        for i, n in enumerate(sizes):
+            if self._levels[i][0].size != (n, n):
+                for o in reversed(self._levels[i]):
+                    o.release()
+                self._levels[i] = self._level_texture(n)
+        levels = self._levels[:len(sizes)]
         with frame.timer("interreflection"):
             prog = self._source
             bind_scene(frame, prog)
             directional_albedo_uniforms(prog, frame.scene)
             set_uniform(prog, "uMix", 1.0)  # after bind_scene's material uniforms: E albedo = rho E
-            tex, fbo = self._levels[0]
+            tex, fbo = levels[0]
             fbo.use()
             fbo.viewport = (0, 0, *tex.size)
             fbo.clear(0.0, 0.0, 0.0, 0.0)  # coverage 0 off the layout
@@ -211,12 +222,12 @@ class SharedBounce:
             with maps_without_anisotropy(frame.gpu, surfaces=False):
                 frame.gpu.vao(prog).render(moderngl.TRIANGLES)
             set_uniform(self._down, "uSource", 0)
-            for (src, _), (dst, dfbo) in zip(self._levels, self._levels[1:]):
+            for (src, _), (dst, dfbo) in zip(levels, levels[1:]):
                 use_texture(src, 0)
                 dfbo.use()
                 dfbo.viewport = (0, 0, *dst.size)
                 self._down_vao.render(moderngl.TRIANGLES, vertices=3)
-            out = self._gather.run(self.hits, self._levels[-1][0])
+            out = self._gather.run(self.hits, levels[-1][0])
         self.key = key
         frame.passes_run.append("interreflection")
         return out
@@ -225,21 +236,16 @@ class SharedBounce:
         """E_b of the last build per mesh vertex, (n, 3)."""
         return self._gather.per_vertex(self.hits.vertex_count)
 
-    def _release_levels(self):
+    def release(self):
         for t, f in self._levels:
             f.release()
             t.release()
         self._levels = []
-
-    def release(self):
-        self._release_levels()
         self.hits.release()
-        if self._gather is not None:
-            self._gather.release()
-            self._source.release()
-            self._down_vao.release()
-            self._down.release()
-        self._gather = None
+        self._gather.release()
+        self._source.release()
+        self._down_vao.release()
+        self._down.release()
         self.key = None
 
 

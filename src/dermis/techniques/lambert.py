@@ -28,15 +28,15 @@ class Lambert(Technique):
     def __init__(self, renderer):
         super().__init__(renderer)
         self.prog = program(self.ctx, "common/mesh.vert", "lambert/lambert.frag")
-        self._prog_bounce = None  # with the shared one bounce (compiled on first use)
+        # with the shared one bounce (the Renderer's, made with the first technique that reads it)
+        self._prog_bounce = program(self.ctx, "common/mesh.vert", "lambert/lambert.frag", {INTERREFLECTION_DEFINE: 1})
+        renderer.interreflection  # the shared one bounce: made with the first technique that reads it
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         if output_mode != OutputMode.FULL:
             raise DermisError(f"technique '{self.name}' renders only the full image (output mode {OutputMode.FULL.name.lower()})")
         prog = self.prog
         if prepare_interreflection(frame):  # albedo / pi times the shared bounce E_b
-            if self._prog_bounce is None:
-                self._prog_bounce = program(self.ctx, "common/mesh.vert", "lambert/lambert.frag", {INTERREFLECTION_DEFINE: 1})
             prog = self._prog_bounce
         with frame.timer("lambert"):
             frame.target.use()
@@ -50,5 +50,4 @@ class Lambert(Technique):
 
     def release(self):
         self.prog.release()
-        if self._prog_bounce is not None:
-            self._prog_bounce.release()
+        self._prog_bounce.release()

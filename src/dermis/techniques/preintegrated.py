@@ -303,7 +303,12 @@ class PreintegratedSkin(Technique):
         self.curvature = None  # per-vertex curvature (1/mm) of the active mesh, numpy
         self._curvature_buffer = None
         self._vao = None
-        self._bounce = None  # (program, vertex array) with the shared one bounce, made on first use
+        # with the shared one bounce (the Renderer's, made with the first technique that reads it);
+        # its vertex array is made per mesh (_bounce_vao)
+        self._prog_bounce = program(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
+                                    {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None, INTERREFLECTION_DEFINE: 1})
+        self._bounce_vao = None
+        renderer.interreflection  # the shared one bounce: made with the first technique that reads it
         self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
         self._mesh_key = None
 
@@ -343,20 +348,19 @@ class PreintegratedSkin(Technique):
         a diffuse term like the ambient, through none of the tables (E_b is an irradiance from the
         whole hemisphere, gathered per vertex: no terminator for the ring to wrap, no shadow-map
         edge for the penumbra table, no normal-map detail for the blurred normals)."""
-        if self._bounce is None:
-            prog = program(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
-                           {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None, INTERREFLECTION_DEFINE: 1})
+        if self._bounce_vao is None:
+            prog = self._prog_bounce
             content = [frame.gpu.vertex_content(prog)]
             if "in_curvature" in prog:
                 content.append((self._curvature_buffer, "1f", "in_curvature"))
-            self._bounce = (prog, self.ctx.vertex_array(prog, content, frame.gpu.ibo))
-        return self._bounce
+            self._bounce_vao = self.ctx.vertex_array(prog, content, frame.gpu.ibo)
+        return self._prog_bounce, self._bounce_vao
 
     def _release_mesh(self):
-        for o in (self._vao, self._curvature_buffer, *(self._bounce or ())):
+        for o in (self._vao, self._bounce_vao, self._curvature_buffer):
             if o is not None:
                 o.release()
-        self._vao = self._curvature_buffer = self._bounce = None
+        self._vao = self._bounce_vao = self._curvature_buffer = None
         self._mesh_key = None
 
     def scene_changed(self):
@@ -412,4 +416,5 @@ class PreintegratedSkin(Technique):
         for t in self.profile_tables.values():
             t.release()
         self.prog.release()
+        self._prog_bounce.release()
 

@@ -265,9 +265,14 @@ def prepare_interreflection(frame) -> bool:
 
 def bind_interreflection(frame, prog) -> None:
     """E_b per mesh vertex (made current by :func:`prepare_interreflection`) at Unit.INTERREFLECTION
-    for common/mesh.vert."""
-    from dermis.gl.resources import set_uniform
+    for common/mesh.vert: the uniforms written when the texture or its layout changes, the texture
+    bound every frame (dermis.gl.resources.prepared)."""
+    from dermis.gl.resources import prepared, set_uniform
 
     bounce = frame.renderer.interreflection
-    bind_sampler(prog, "uBounce", bounce.texture, Unit.INTERREFLECTION)
-    set_uniform(prog, "uVerticesPerRow", int(bounce.hits.per_row))
+    tex, per_row = bounce.texture, int(bounce.hits.per_row)
+
+    def setup(p):
+        bind_sampler(p, "uBounce", tex, Unit.INTERREFLECTION)
+        set_uniform(p, "uVerticesPerRow", per_row)
+    prepared(prog, "interreflection", (tex, per_row), setup)

@@ -94,6 +94,7 @@ class ScreenSpaceSSS(Technique):
         self.tex = {}
         self._targets_key = None
         self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
+        renderer.interreflection  # the shared one bounce: made with the first technique that reads it
 
     # ------------------------------------------------------------------ resources
     def _profile_programs(self, k: int):
@@ -105,20 +106,13 @@ class ScreenSpaceSSS(Technique):
             ctx, defines = self.ctx, {"MAX_GAUSSIANS": k}
             progs = (program(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_horizontal.frag", defines),
-                     program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines))
-            for p in progs[1:]:
+                     program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines),
+                     # pass 1 with the shared one bounce added to its irradiance (common/interreflection.glsl)
+                     program(ctx, "common/mesh.vert", "ssss/irradiance.frag", {**defines, INTERREFLECTION_DEFINE: 1}))
+            for p in progs[1:3]:
                 self.vaos[p] = ctx.vertex_array(p, [])
             self._programs[k] = progs
         return self._programs[k]
-
-    def _bounce_program(self, k: int):
-        """Pass 1 with the shared one bounce added to its irradiance (common/interreflection.glsl),
-        for a K-Gaussian profile; compiled on first use."""
-        key = ("bounce", k)
-        if key not in self._programs:
-            self._programs[key] = (program(self.ctx, "common/mesh.vert", "ssss/irradiance.frag",
-                                           {"MAX_GAUSSIANS": k, INTERREFLECTION_DEFINE: 1}),)
-        return self._programs[key][0]
 
     def _ensure_targets(self, size, k):
         if self._targets_key == (size, k):
@@ -173,10 +167,10 @@ class ScreenSpaceSSS(Technique):
         (H, W, 3), row 0 = top, replaces the rendered light (depth kept): used by the tests."""
         scene = frame.scene
         profile = scene.profile
-        p_irradiance, p_horizontal, p_vertical = self._profile_programs(profile.k)
+        p_irradiance, p_horizontal, p_vertical, p_bounce = self._profile_programs(profile.k)
         bounce = prepare_interreflection(frame)  # the shared one bounce, rebuilt only on a lighting change
         if bounce:
-            p_irradiance = self._bounce_program(profile.k)
+            p_irradiance = p_bounce
         self._ensure_targets(tuple(frame.size), profile.k)
         t = self.tex
         with frame.timer("ssss_irradiance"):
