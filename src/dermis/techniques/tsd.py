@@ -619,7 +619,7 @@ class TextureSpaceDiffusion(Technique):
         (tsd/bounce_exitant.frag), reduced to _bounce_level, gathered per vertex over the baked rays
         (tsd/bounce_gather.frag) and splatted into I_0 with additive blending
         (tsd/bounce_splat.frag). No pass reads the texture it writes."""
-        hits = self.hits.get(frame)  # the bake times itself: before this pass's timer
+        self.hits.get(frame)  # the bake times itself: before this pass's timer
         if self._p_bounce is None:
             defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
             self._p_bounce = (program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_exitant.frag", defines),
