@@ -1,13 +1,18 @@
-"""Cost of tsd's one diffuse bounce (dermis.geometry.interreflection) on the head.
+"""Cost of the one diffuse bounce (dermis.geometry.interreflection) on the head.
 
     PYTHONPATH=src python benchmarks/interreflection_cost.py [--scene examples/reference/side.toml]
-        [--irradiance 1024] [--frames 6] [--rays N]
+        [--irradiance 1024] [--frames 6] [--rays N] [--shared [--size 512]]
 
 Prints: the bake's time uncached (Embree, CPU) and read back from the disk cache; then, in ONE
 Renderer, per frame whose lights changed (so every texture-space pass reruns), the times of
 tsd_irradiance (the lights' irradiance pass and the gutter dilation) and tsd_interreflection (rho E,
 its reductions, the per-vertex gather and the splat), as medians over the frames, and the load
 average. On Mesa's llvmpipe the pass timer is wall time around glFinish (dermis.techniques.base.PassTimer).
+
+``--shared``: the bounce ssss, preintegrated and lambert share (dermis.gl.interreflection.SharedBounce):
+per technique, in one Renderer, frames with the bounce on and off alternated back to back: frames
+whose lights changed (the shared pass "interreflection" reruns; its time and the frame's) and
+camera-only frames (the bounce is only read), medians over the frames of the sum of the frame's timed passes.
 """
 
 from __future__ import annotations
@@ -28,7 +33,11 @@ def main():
     ap.add_argument("--irradiance", type=int, default=1024)
     ap.add_argument("--frames", type=int, default=6)
     ap.add_argument("--rays", type=int, default=None)
+    ap.add_argument("--shared", action="store_true", help="the shared bounce of ssss, preintegrated, lambert")
+    ap.add_argument("--size", type=int, default=512, help="frame size of --shared")
     a = ap.parse_args()
+    if a.shared:
+        return shared(a)
     import dermis
     from dermis.geometry import interreflection
     from dermis.renderer import Renderer
@@ -63,6 +72,46 @@ def main():
             print(f"irradiance {a.irradiance}^2, gather level {tsd.bounce_level}, {r.info['renderer']}: "
                   f"tsd_irradiance {mi:.1f} ms, tsd_interreflection {mb:.1f} ms (ratio {mb / mi:.2f}), "
                   f"medians of {a.frames} frames")
+    print(f"load average after: {os.getloadavg()}")
+
+
+def shared(a):
+    import dermis
+    from dermis.renderer import Renderer
+
+    med = statistics.median
+    print(f"load average before: {os.getloadavg()}")
+    sc = dermis.load_scene(a.scene)
+    pos0 = tuple(sc.camera.position)
+    with Renderer(sc, (a.size, a.size), irradiance_size=a.irradiance) as r:
+        for t in ("ssss", "preintegrated", "lambert"):
+            for on in (True, False):  # compile both programs, bake, warm up
+                sc.interreflection = on
+                r.render(t)
+            light = {True: [], False: []}
+            cam = {True: [], False: []}
+            bounce = []
+            for i in range(a.frames):
+                for on in (True, False):
+                    sc.interreflection = on
+                    sc.lights[0].intensity *= 1.0 + 1e-3 * (1 if i % 2 else -1)  # the lights changed
+                    r.render(t)
+                    light[on].append(sum(r.stats["passes_ms"].values()))
+                    if on:
+                        assert "interreflection" in r.stats["passes_run"]
+                        bounce.append(r.stats["passes_ms"]["interreflection"])
+                sc.interreflection = True
+                r.render(t)  # the bounce of the lights as they are now (the off frame changed them)
+                for on in (True, False):
+                    sc.interreflection = on
+                    sc.camera.position = tuple(p + 1e-3 * (i % 2 + on) for p in pos0)  # the camera only
+                    r.render(t)
+                    cam[on].append(sum(r.stats["passes_ms"].values()))
+                    assert "interreflection" not in r.stats["passes_run"]
+            print(f"{t}: lights changed: passes {med(light[False]):.1f} -> {med(light[True]):.1f} ms with the bounce "
+                  f"(its pass {med(bounce):.1f} ms, gather level {r.interreflection.level}); camera only: passes "
+                  f"{med(cam[False]):.1f} -> {med(cam[True]):.1f} ms; medians of {a.frames} ({a.size}^2, "
+                  f"irradiance {a.irradiance}^2, {r.info['renderer']})")
     print(f"load average after: {os.getloadavg()}")
 
 

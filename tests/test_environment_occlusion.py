@@ -43,7 +43,8 @@ def well_scene(depth: float, radius: float = 1.0, occlusion: bool = True) -> Sce
                  camera=Camera(position=(0.0, 0.0, depth + 4.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0),
                                fov_deg=20.0),
                  environment=Environment(color=(SKY,) * 3, occlusion=occlusion),
-                 output=Output(background=(0.0, 0.0, 0.0)), technique="lambert")
+                 output=Output(background=(0.0, 0.0, 0.0)), technique="lambert",
+                 interreflection=False)  # the closed forms have no light from the lit walls (one bounce)
 
 
 def centre(img, half=3):
@@ -65,7 +66,6 @@ def test_well_floor_matches_the_form_factor_to_the_opening(depth):
 def test_every_technique_darkens_the_well_floor_by_its_occlusion(gl_ctx):
     scene = well_scene(1.0)
     scene.mm_per_unit = 100.0  # a 100 mm well: the skin's scattering (mm) stays on the floor
-    scene.interreflection = False  # the closed form has no light from the lit walls (tsd's one bounce)
     with Renderer(scene, SIZE, ctx=gl_ctx, irradiance_size=256, shadow_size=256) as r:
         for tech in ("tsd", "ssss", "preintegrated"):
             scene.environment.occlusion = True

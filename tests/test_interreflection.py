@@ -160,3 +160,94 @@ def test_white_furnace_inside_a_closed_sphere_is_one_bounce_of_rho_e(gl_ctx, man
 
 
 # the scene key itself (default, off, a bad value): tests/test_tsd_scenes.py
+
+
+# ---------------------------------------------------------------------- ssss, preintegrated, lambert
+# They share one bounce per lighting change (dermis.gl.interreflection.SharedBounce: rho E rasterised
+# small in texture space, the same gather as tsd's) and add it where each adds the ambient.
+SHARED = ("ssss", "preintegrated", "lambert")
+
+
+def _wall_points(frame, size):
+    """World points on the wall plane x = 0 under each pixel centre of ``frame`` (H, W, 3)."""
+    w, h = size
+    inv = np.linalg.inv(frame.proj @ frame.view)
+    xs = (np.arange(w) + 0.5) / w * 2.0 - 1.0
+    ys = 1.0 - (np.arange(h) + 0.5) / h * 2.0  # image row 0 = top
+    X, Y = np.meshgrid(xs, ys)
+    near = np.stack([X, Y, -np.ones_like(X), np.ones_like(X)], -1) @ inv.T
+    far = np.stack([X, Y, np.ones_like(X), np.ones_like(X)], -1) @ inv.T
+    a, b = near[..., :3] / near[..., 3:], far[..., :3] / far[..., 3:]
+    t = -a[..., 0] / (b[..., 0] - a[..., 0])
+    return a + t[..., None] * (b - a)
+
+
+def test_l_shape_bounce_of_ssss_preintegrated_and_lambert_is_tsds_and_the_form_factor(gl_ctx, many_rays):
+    sc = l_scene()
+    sc.directional_albedo = False
+    # the camera faces the wall (normal +x) from x = 3: every wall pixel's point on x = 0 is known
+    sc.camera = Camera(position=(3.0, 0.5, 0.6), target=(0.0, 0.5, 0.6), up=(0.0, 0.0, 1.0), fov_deg=25.0)
+    size = (48, 48)
+    A = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]
+    with Renderer(sc, size, ctx=gl_ctx, irradiance_size=S, shadow_size=256, samples=0) as r:
+        r.render("tsd")
+        eb_tsd = r.technique("tsd").bounce_per_vertex()
+        on = {}
+        for t in SHARED:
+            on[t] = r.render(t)
+            # one shared bounce: built for the first technique, read by the others
+            assert ("interreflection" in r.stats["passes_run"]) == (t == SHARED[0]), (t, r.stats["passes_run"])
+        eb = r.interreflection.per_vertex()
+        pts = _wall_points(r.last_frame, size)
+        sc.interreflection = False
+        off = {t: r.render(t) for t in SHARED}
+        assert "interreflection" not in r.stats["passes_run"]
+    # the same E_b as tsd's at every vertex: the same rays and gather; rho E rasterised one level finer
+    # than the gather's instead of at tsd's full resolution (uniform here: f16 vs f32 storage only)
+    np.testing.assert_allclose(eb, eb_tsd, atol=2e-3 * RHO * E)
+    pos, nrm = sc.mesh.positions, sc.mesh.normals
+    wall = (nrm[:, 0] > 0.5) & (pos[:, 2] > 0.05)
+    F = np.array([polygon_form_factor(p, np.array([1.0, 0.0, 0.0]), A) for p in pos[wall]])
+    sigma = np.sqrt(F * (1.0 - F) / RAYS)
+    assert np.all(np.abs(eb[wall, 0] / (RHO * E) - F) <= 4.0 * sigma + 2e-3 * F)
+    assert np.abs(eb[nrm[:, 2] > 0.5]).max() == 0.0  # the floor sees only the unlit wall
+    # in the image: the wall (lit by nothing else) gains albedo / pi x E_b, E_b interpolated between
+    # vertices; in ssss blurred by the profile too (at most ~3 mm here, 50 mm per unit: where F is
+    # smooth the blur moves it by less than the vertex interpolation's 0.005)
+    y, z = pts[..., 1], pts[..., 2]
+    inner = (y > 0.2) & (y < 0.8) & (z > 0.3) & (z < 0.9)
+    assert inner.sum() > 200
+    Fpix = np.array([polygon_form_factor(np.array([0.0, yy, zz]), np.array([1.0, 0.0, 0.0]), A)
+                     for yy, zz in zip(y[inner], z[inner])])
+    for t in SHARED:
+        gained = (on[t] - off[t])[inner][:, 0] / (RHO / np.pi * RHO * E)
+        tol = 0.006 + 4.0 * np.sqrt(Fpix / RAYS)
+        assert np.all(np.abs(gained - Fpix) <= tol), (t, np.abs(gained - Fpix).max())
+        assert abs(np.mean(gained - Fpix)) < 0.004, t
+
+
+def test_flat_plane_adds_nothing_and_the_shared_bounce_reruns_only_with_the_lighting(gl_ctx, many_rays):
+    light = Light(kind="directional", direction=(0.3, 0.2, -1.0), color=(1.0, 0.9, 0.8), intensity=E)
+    sc = _scene([grid_mesh(8, 8, _floor, (0.02, 0.02, 0.98, 0.98))], [light], env=(0.1, 0.1, 0.1))
+    with Renderer(sc, (48, 48), ctx=gl_ctx, irradiance_size=64, shadow_size=256) as r:
+        on = {}
+        for t in SHARED:
+            on[t] = r.render(t)
+        assert np.all(r.interreflection.per_vertex() == 0.0)  # every ray escapes
+        sc.camera.position = (1.5, 1.0, 3.0)  # camera only: the bounce is read, not rebuilt
+        for t in SHARED:
+            r.render(t)
+            assert "interreflection" not in r.stats["passes_run"], t
+        sc.camera.position = (2.0, 1.5, 2.5)
+        sc.lights[0].intensity = 2 * E  # the light changed: rebuilt (once), the bake is not
+        r.render("lambert")
+        assert "interreflection" in r.stats["passes_run"]
+        assert "interreflection_bake" not in r.stats["passes_run"]
+        r.render("ssss")
+        assert "interreflection" not in r.stats["passes_run"]
+        sc.lights[0].intensity = E
+        sc.interreflection = False
+        for t in SHARED:
+            off = r.render(t)
+            assert "interreflection" not in r.stats["passes_run"]
+            np.testing.assert_array_equal(on[t], off)  # adding a zero bounce changes no bit

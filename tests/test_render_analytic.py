@@ -123,7 +123,8 @@ def test_box_over_plane_shadow(gl_ctx):
                   lights=[Light(kind="directional", direction=tuple(light_dir), intensity=E)],
                   camera=Camera(position=(1.0, 1.3, 2.4), target=(0.25, 0.15, 0.0), fov_deg=40.0),
                   # the open-sky ambient of the formula below (the box occludes the plane's sky)
-                  environment=Environment(color=(amb, amb, amb), occlusion=False), output=Output(background=(0.0, 0.0, 0.0)))
+                  environment=Environment(color=(amb, amb, amb), occlusion=False), output=Output(background=(0.0, 0.0, 0.0)),
+                  interreflection=False)  # the formula has no light from the lit box (one bounce)
     size = (160, 160)
     with Renderer(scene, size, ctx=gl_ctx, samples=0) as r:
         img = r.render("lambert")

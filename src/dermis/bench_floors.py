@@ -160,6 +160,8 @@ def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
         return floors["uv_raster_half"]
     if pass_name == "tsd_interreflection":  # two UV-space rasters of the mesh (the exitant light, the splat)
         return 2 * floors["uv_raster"]
+    if pass_name == "interreflection":  # the shared bounce (gl/interreflection.py): one UV-space raster of rho E,
+        return floors["uv_raster_half"]  # at half resolution where the gather reads level 2 (the head at 1024)
     if pass_name == "tsd_blur":
         return 2 * gaussians * floors["copy"]
     if pass_name == "ssss_blur":

@@ -52,6 +52,10 @@ PRODUCTS = {
     "texture_space": ("mesh", "surfaces", "scale", "lights", "environment", "environment_occlusion", "material_maps",
                       "material_scalars", "profile", "irradiance_size", "epoch", "interreflection",
                       "translucency_light_path", "directional_albedo"),
+    # the one-bounce irradiance per vertex shared by ssss, preintegrated and lambert (gl/interreflection.py
+    # SharedBounce: rho E rasterised in texture space, gathered over the bake's rays): what rho E depends on
+    "interreflection": ("mesh", "surfaces", "scale", "lights", "environment", "environment_occlusion", "material_maps",
+                        "material_scalars", "profile", "irradiance_size", "epoch", "interreflection", "directional_albedo"),
 }
 """Every cached product and what it depends on. "epoch" is bumped by Renderer.invalidate()."""
 

@@ -57,6 +57,7 @@ class Renderer:
         self._specular_tables = None
         self._surface_program = None
         self._environment_specular = None  # the prefiltered environment texture (gl/environment.py)
+        self._interreflection = None  # the shared one-bounce irradiance (gl/interreflection.py SharedBounce)
         self.scene = None
         self.gpu = None
         self._built = {}  # product -> the key it was built with (dermis.invalidation.PRODUCTS)
@@ -130,6 +131,17 @@ class Renderer:
 
             self._surface_program = program(self.ctx, "common/mesh.vert", "metallic_roughness/surface.frag")
         return self._surface_program
+
+    @property
+    def interreflection(self):
+        """The one-bounce irradiance per vertex that ssss, preintegrated and lambert share
+        (dermis.gl.interreflection.SharedBounce; built on first use, rebuilt per PRODUCTS
+        "interreflection"): read it through dermis.techniques.shared.bind_interreflection."""
+        if self._interreflection is None:
+            from dermis.gl.interreflection import SharedBounce
+
+            self._interreflection = SharedBounce(self.ctx)
+        return self._interreflection
 
     @property
     def environment_specular(self):
@@ -423,6 +435,9 @@ class Renderer:
         if self._environment_specular is not None:
             self._environment_specular.release()
             self._environment_specular = None
+        if self._interreflection is not None:
+            self._interreflection.release()
+            self._interreflection = None
         self.shadows.release()
         if self._owns_ctx:
             self.ctx.release()

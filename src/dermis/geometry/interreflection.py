@@ -17,7 +17,9 @@ nothing here. With the diffuse radiance L_o(y) = rho(y) E(y) / pi leaving y,
 This module casts the rays once per mesh (Embree, dermis.geometry.raycast) and keeps, per vertex and
 ray, the triangle hit and its barycentrics; tsd's runtime pass (techniques/tsd.py,
 shaders/tsd/bounce_*.frag) turns them into texture-space UVs, reads rho E there from a coarse
-level of its irradiance and adds E_b to the irradiance before the diffusion blurs it.
+level of its irradiance and adds E_b to the irradiance before the diffusion blurs it. ssss,
+preintegrated and lambert share one gather per lighting change from a small texture-space raster
+of rho E (dermis.gl.interreflection.SharedBounce) and add E_b per vertex (common/interreflection.glsl).
 
 Rays start at the vertex, lifted along its normal by OFFSET_REL of the mesh's diagonal (as the
 visibility bake). A ray whose first hit is a face turned away from it (the interpolated normal
@@ -161,3 +163,28 @@ def bounce_irradiance(hits: VertexHits, indices, exitant) -> np.ndarray:
     interpolated at the hits; rays that bring nothing add 0."""
     at = hits.at_vertices(exitant, indices)
     return np.nansum(at, axis=1) / hits.rays
+
+
+def layout_median_stretch(positions, uvs, indices, mm_per_unit: float, size: int) -> float:
+    """The median stretch of a texture-space layout at ``size``^2 texels: texels per mm along u and
+    along v (each triangle's |dP/du|^-1 and |dP/dv|^-1, P in mm, u and v in texels), both axes
+    pooled, weighted by the triangle's texels (its uv area): the median of tsd's stretch map over its
+    covered texels (tsd/stretch.frag) without the raster, for the bounce's level
+    (dermis.gl.interreflection.bounce_level)."""
+    p = np.asarray(positions, np.float64) * float(mm_per_unit)
+    uv = np.asarray(uvs, np.float64) * float(size)
+    t = np.asarray(indices, np.int64).reshape(-1, 3)
+    duv = np.stack([uv[t[:, 1]] - uv[t[:, 0]], uv[t[:, 2]] - uv[t[:, 0]]], 1)  # (n, 2 edges, (u, v))
+    dp = np.stack([p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]], 1)  # (n, 2 edges, 3)
+    det = duv[:, 0, 0] * duv[:, 1, 1] - duv[:, 0, 1] * duv[:, 1, 0]
+    ok = np.abs(det) > 1e-12
+    if not ok.any():
+        return 0.0
+    J = np.linalg.solve(duv[ok], dp[ok])  # rows: dP/du, dP/dv (mm per texel)
+    lengths = np.linalg.norm(J, axis=2)
+    ok2 = np.all(lengths > 0, axis=1)
+    vals = (1.0 / lengths[ok2]).T.ravel()  # u then v
+    w = np.tile(0.5 * np.abs(det[ok][ok2]), 2)
+    order = np.argsort(vals)
+    cw = np.cumsum(w[order])
+    return float(vals[order][np.searchsorted(cw, 0.5 * cw[-1])])

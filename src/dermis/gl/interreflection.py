@@ -6,6 +6,8 @@ key "interreflection_bake" (dermis.invalidation: the mesh) and texture-space lay
 
 from __future__ import annotations
 
+import math
+
 import moderngl
 import numpy as np
 
@@ -23,10 +25,12 @@ def hit_layout(n_vertices: int, rays: int) -> tuple[int, int]:
 class InterreflectionHits:
     """One technique's copy of the bake; ``get`` rebuilds it when the mesh or its layout changes."""
 
-    def __init__(self, ctx):
+    def __init__(self, ctx, placeholder: bool = False):
         self.ctx = ctx
         self.tex = None
         self.key = None
+        if placeholder:  # a 1x1 stand-in, replaced by get(): the count of live textures never changes
+            self.tex = ctx.texture((1, 1), 2, dtype="f4")
         self.per_row = 1
         self.rays = 0
         self.vertex_count = 0
@@ -38,7 +42,7 @@ class InterreflectionHits:
         m = frame.scene.mesh
         uv_ts = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
         key = (frame.keys["interreflection_bake"], fingerprint(uv_ts))
-        if key != self.key or self.tex is None:
+        if key != self.key or self.tex is None or self.tex.size == (1, 1):
             with frame.timer("interreflection_bake"):
                 hits = mesh_hits(m)
                 uv = hits.at_vertices(uv_ts, m.indices)  # (n, K, 2), NaN: nothing
@@ -61,3 +65,198 @@ class InterreflectionHits:
             self.tex.release()
         self.tex = None
         self.key = None
+
+
+# ---------------------------------------------------------------------- the gather, shared
+BOUNCE_TEXEL_MM = 2.0
+"""The gather reads rho E at the level whose texels are about this wide (mm, at the layout's median
+stretch): a box as wide as the profile's widest Gaussians (d'Eon's red: sigma 2.7 mm), so the light
+read is close to the diffused light that leaves the skin (tsd/bounce_exitant.frag)."""
+
+
+def bounce_level(texels_per_mm: float | None, size: int) -> int:
+    """The level (2x2 reductions of a ``size``^2 texture-space layout) whose texels are about
+    BOUNCE_TEXEL_MM wide at ``texels_per_mm`` (the layout's median stretch at level 0), and at
+    least 16 texels across."""
+    lvl = math.floor(math.log2(max(BOUNCE_TEXEL_MM * (texels_per_mm or 1.0), 1.0)))
+    return int(max(0, min(lvl, math.log2(max(size, 16) / 16))))
+
+
+class BounceGather:
+    """tsd/bounce_gather.frag on one context: E_b = (1/K) sum_k rho E(y_k) per mesh vertex, from the
+    hits (:class:`InterreflectionHits`) and a texture-space rho E (premultiplied by coverage), into
+    an rgba32f target of the hits' layout (vertex v at (v mod P, v div P))."""
+
+    def __init__(self, ctx):
+        from dermis.gl.shaders import program
+
+        self.ctx = ctx
+        self.prog = program(ctx, "common/fullscreen.vert", "tsd/bounce_gather.frag")
+        self.vao = ctx.vertex_array(self.prog, [])
+        self.target = None
+        self.fbo = None
+        self._make_target((1, 1))  # re-made at the hits' layout by run()
+
+    def _make_target(self, size):
+        self._release_target()
+        self.target = self.ctx.texture(size, 4, dtype="f4")
+        self.target.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.fbo = self.ctx.framebuffer(color_attachments=[self.target])
+
+    def run(self, hits: InterreflectionHits, exitant):
+        """Gather into :attr:`target` (made at the hits' layout) and return it."""
+        from dermis.gl.resources import set_uniform, use_texture
+
+        size = (hits.per_row, hits.tex.size[1])
+        if self.target is None or self.target.size != size:
+            self._make_target(size)
+        for name, value in (("uRays", hits.rays), ("uVerticesPerRow", hits.per_row), ("uVertexCount", hits.vertex_count),
+                            ("uHits", 0), ("uExitant", 1)):
+            set_uniform(self.prog, name, int(value))
+        use_texture(hits.tex, 0)
+        use_texture(exitant, 1)
+        self.fbo.use()
+        self.fbo.viewport = (0, 0, *size)
+        self.vao.render(moderngl.TRIANGLES, vertices=3)
+        return self.target
+
+    def per_vertex(self, n: int) -> np.ndarray:
+        """E_b of the last gather per mesh vertex, (n, 3)."""
+        t = self.target
+        a = np.frombuffer(t.read(), np.float32).reshape(t.size[1], t.size[0], 4)
+        return a.reshape(-1, 4)[:n, :3].copy()
+
+    def _release_target(self):
+        for o in (self.fbo, self.target):
+            if o is not None:
+                o.release()
+        self.fbo = self.target = None
+
+    def release(self):
+        self._release_target()
+        self.vao.release()
+        self.prog.release()
+
+
+# ---------------------------------------------------------------------- the shared product
+SOURCE_FINER_LEVELS = 1
+"""The shared bounce's rho E is rasterised this many levels finer than the gather's level and
+2x2-reduced to it: each gather texel a box average of 4^SOURCE_FINER_LEVELS samples, where tsd's is
+one of all its level-0 texels. Chosen by measurement against tsd's bounce on the head
+(benchmarks/RESULTS.md, "Round 8, branch bounce8")."""
+
+
+class SharedBounce:
+    """The one-bounce irradiance E_b per mesh vertex for the techniques without a texture-space
+    irradiance of their own (ssss, preintegrated, lambert), one per Renderer, built once per product
+    key "interreflection" (dermis.invalidation: the lights, environment, material, mesh) and shared by
+    all of them: a camera-only frame reads it with one texel fetch per vertex (common/mesh.vert with
+    DERMIS_INTERREFLECTION).
+
+    rho E is tsd's own irradiance pass (tsd/irradiance.frag: lights, soft shadows, occluded ambient,
+    energy conservation, the directional albedo at entry) with mix = 1, so that it writes
+    E albedo^1 = rho E, the light leaving the skin times pi (tsd's bounce_exitant.frag reads the same
+    from I_0 albedo^(1 - mix)); rasterised small (SOURCE_FINER_LEVELS above the gather's ~2 mm level,
+    :func:`bounce_level`), reduced (tsd/downsample.frag) and gathered over the baked rays
+    (:class:`BounceGather`)."""
+
+    def __init__(self, ctx):
+        # everything is made here, when the first technique that reads the bounce is built (as the
+        # techniques compile their programs up front: the viewer switches techniques mid-drag), the
+        # textures as 1x1 stand-ins re-made at their sizes on first use
+        from dermis.gl.shaders import program
+
+        self.ctx = ctx
+        self.hits = InterreflectionHits(ctx, placeholder=True)
+        self._gather = BounceGather(ctx)
+        self._source = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag")
+        self._down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag")
+        self._down_vao = ctx.vertex_array(self._down, [])
+        # [(texture, framebuffer)]: rho E from the raster's level to the gather's; a level-0 gather
+        # uses the first alone
+        self._levels = [self._level_texture(1) for _ in range(SOURCE_FINER_LEVELS + 1)]
+        self.key = None
+        self.level = None  # the gather's level (of the irradiance size)
+
+    def _level_texture(self, n: int):
+        t = self.ctx.texture((n, n), 4, dtype="f4")
+        t.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        t.repeat_x = t.repeat_y = False
+        return t, self.ctx.framebuffer(color_attachments=[t])
+
+    @property
+    def texture(self):
+        return self._gather.target
+
+    def get(self, frame):
+        """The per-vertex E_b texture for ``frame`` (rebuilt when the product key changed); appends
+        "interreflection" to frame.passes_run when it ran."""
+        self.hits.get(frame)  # the bake times itself, and may be rebuilt alone (a new layout)
+        key = (frame.keys["interreflection"], self.hits.key)
+        if key == self.key:
+            return self._gather.target
+        from dermis.gl.resources import maps_without_anisotropy, set_uniform, use_texture
+        from dermis.techniques.base import bind_scene
+        from dermis.techniques.shared import directional_albedo_uniforms
+
+        S = int(frame.renderer.irradiance_size)
+        level = bounce_level(layout_texels_per_mm(frame.scene, S), S)
+        self.level = level
+        sizes = [max(S >> lvl, 1) for lvl in range(max(level - SOURCE_FINER_LEVELS, 0), level + 1)]
+        for i, n in enumerate(sizes):
+            if self._levels[i][0].size != (n, n):
+                for o in reversed(self._levels[i]):
+                    o.release()
+                self._levels[i] = self._level_texture(n)
+        levels = self._levels[:len(sizes)]
+        with frame.timer("interreflection"):
+            prog = self._source
+            bind_scene(frame, prog)
+            directional_albedo_uniforms(prog, frame.scene)
+            set_uniform(prog, "uMix", 1.0)  # after bind_scene's material uniforms: E albedo = rho E
+            tex, fbo = levels[0]
+            fbo.use()
+            fbo.viewport = (0, 0, *tex.size)
+            fbo.clear(0.0, 0.0, 0.0, 0.0)  # coverage 0 off the layout
+            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+            with maps_without_anisotropy(frame.gpu, surfaces=False):
+                frame.gpu.vao(prog).render(moderngl.TRIANGLES)
+            set_uniform(self._down, "uSource", 0)
+            for (src, _), (dst, dfbo) in zip(levels, levels[1:]):
+                use_texture(src, 0)
+                dfbo.use()
+                dfbo.viewport = (0, 0, *dst.size)
+                self._down_vao.render(moderngl.TRIANGLES, vertices=3)
+            out = self._gather.run(self.hits, levels[-1][0])
+        self.key = key
+        frame.passes_run.append("interreflection")
+        return out
+
+    def per_vertex(self) -> np.ndarray:
+        """E_b of the last build per mesh vertex, (n, 3)."""
+        return self._gather.per_vertex(self.hits.vertex_count)
+
+    def release(self):
+        for t, f in self._levels:
+            f.release()
+            t.release()
+        self._levels = []
+        self.hits.release()
+        self._gather.release()
+        self._source.release()
+        self._down_vao.release()
+        self._down.release()
+        self.key = None
+
+
+def layout_texels_per_mm(scene, size: int) -> float:
+    """The texture-space layout's median stretch at ``size``^2 (texels per mm,
+    dermis.geometry.interreflection.layout_median_stretch: tsd's stretch map's median without the
+    raster), remembered per content."""
+    from dermis.geometry.interreflection import layout_median_stretch
+    from dermis.invalidation import memo_by_content, read_only
+
+    m = scene.mesh
+    uv = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
+    return memo_by_content("layout_median_stretch", (m.positions, uv, m.indices), (float(scene.mm_per_unit), int(size)),
+                           lambda: layout_median_stretch(m.positions, uv, m.indices, scene.mm_per_unit, size))

@@ -166,8 +166,8 @@ def validate(scene_files, techniques, size, *, out_dir=None, spp=4, spacing_mm=N
                         "environment light: SH irradiance times its visible fraction (techniques: per-vertex bake; "
                         "reference: ray cast per sample point), unless [environment] occlusion = false",
                         "reference shadows are exact ray casts (hard); techniques use PCF shadow maps",
-                        "interreflection off on both sides (the reference has none; tsd's one bounce is measured "
-                        "against Cycles: validate --against cycles)",
+                        "interreflection off on both sides (the reference has none; the techniques' one bounce is "
+                        "measured against Cycles: validate --against cycles)",
                         "directional albedo off in tsd, ssss and preintegrated (the reference's exit is Lambertian)"],
               "scenes": {}}
     for f in scene_files:

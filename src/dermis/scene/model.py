@@ -255,7 +255,7 @@ class Scene:
     source: str = "<scene>"
     name: str = "scene"
     surfaces: list = field(default_factory=list)  # Surface: the non-skin primitives (glTF metallic-roughness)
-    # one diffuse bounce of light between skin surfaces (tsd only: dermis.geometry.interreflection)
+    # one diffuse bounce of light between skin surfaces (every technique: dermis.geometry.interreflection)
     interreflection: bool = True
     # the key light's path through thin parts where the bake along -N finds no far face
     # (dermis.geometry.thickness.light_thickness): a CPU ray cast per key-light turn (about 1-2 s at

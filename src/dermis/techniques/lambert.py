@@ -5,7 +5,10 @@ hard and dry (sharp shadow edges, no red bleeding, no translucency). It exists a
 skin technique must visibly beat, and it exercises the shared machinery: shadow atlas with PCF soft
 shadows, normal mapping, lights, environment (SH irradiance) and the output transform.
 Inputs: the scene's albedo (linear), normal map, specular map, roughness m (mapped to a Blinn-Phong
-exponent), rho_s. Shader: shaders/lambert/lambert.frag.
+exponent), rho_s. With ``[scene] interreflection`` (default) it adds albedo / pi x E_b, one diffuse
+bounce between skin surfaces (the Renderer's shared pass, dermis.gl.interreflection.SharedBounce),
+so that it is the no-SSS counterpart of a path tracer's diffuse render, which has interreflection.
+Shader: shaders/lambert/lambert.frag.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import moderngl
 from dermis.errors import DermisError
 from dermis.gl.shaders import program
 from dermis.techniques.base import Frame, Technique, draw_mesh, draw_surfaces
-from dermis.techniques.shared import OutputMode
+from dermis.techniques.shared import INTERREFLECTION_DEFINE, OutputMode, bind_interreflection, prepare_interreflection
 
 
 class Lambert(Technique):
@@ -25,17 +28,26 @@ class Lambert(Technique):
     def __init__(self, renderer):
         super().__init__(renderer)
         self.prog = program(self.ctx, "common/mesh.vert", "lambert/lambert.frag")
+        # with the shared one bounce (the Renderer's, made with the first technique that reads it)
+        self._prog_bounce = program(self.ctx, "common/mesh.vert", "lambert/lambert.frag", {INTERREFLECTION_DEFINE: 1})
+        renderer.interreflection  # the shared one bounce: made with the first technique that reads it
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         if output_mode != OutputMode.FULL:
             raise DermisError(f"technique '{self.name}' renders only the full image (output mode {OutputMode.FULL.name.lower()})")
+        prog = self.prog
+        if prepare_interreflection(frame):  # albedo / pi times the shared bounce E_b
+            prog = self._prog_bounce
         with frame.timer("lambert"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            draw_mesh(frame, self.prog)
+            if prog is self._prog_bounce:
+                bind_interreflection(frame, prog)
+            draw_mesh(frame, prog)
         frame.passes_run.append("lambert")
         draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing
 
     def release(self):
         self.prog.release()
+        self._prog_bounce.release()

@@ -42,6 +42,17 @@ from three local quantities looked up in tables computed at start-up from the ac
   per channel the larger of that and Penner's D S: a lit plane and a convex surface keep D S
   exactly (tests/test_preintegrated_folds.py).
 
+* interreflection: one diffuse bounce between skin surfaces, E_b per vertex (the Renderer's shared
+  pass, dermis.gl.interreflection.SharedBounce, once per lighting change), added as the ambient is,
+  through none of the tables: the ring wraps a light's N.L past its terminator and the penumbra
+  table scatters a shadow map's edge; E_b is an irradiance already integrated over the hemisphere
+  (no terminator), gathered per vertex and interpolated linearly (no shadow-map edge, no normal-map
+  detail). What the profile would still do to it is smooth it below the vertices' spacing (2.6 mm
+  on the head): measured on the head (side view, exact sampled convolution with tissue paths), the
+  red channel moves by 8% of E_b (sum |change| / sum E_b; mostly the bake's per-vertex Monte Carlo
+  noise averaged out), green and blue by 0.1%; not applied (benchmarks/RESULTS.md, "Round 8,
+  branch bounce8").
+
 Everything else is shared with the other techniques: lights, shadows, environment, specular
 (common/skin_specular.glsl), energy conservation (N.L in, N.V out) and the translucency of thin
 parts from the shadow map's thickness (common/transmittance.glsl, Jimenez et al. 2010).
@@ -68,7 +79,8 @@ from dermis.gl.resources import set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh, draw_surfaces
-from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, casts_translucency, directional_albedo_uniforms,
+from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, OutputMode, Unit, bind_interreflection, bind_sampler,
+                                      casts_translucency, directional_albedo_uniforms, prepare_interreflection,
                                       set_profile_uniforms, surface_detail_uniforms, translucency_uniforms)
 
 # The diffuse table: N.L along s (odd, so N.L = 0 is a texel centre and max(N.L, 0) interpolates
@@ -308,6 +320,12 @@ class PreintegratedSkin(Technique):
         self.curvature = None  # per-vertex curvature (1/mm) of the active mesh, numpy
         self._curvature_buffer = None
         self._vao = None
+        # with the shared one bounce (the Renderer's, made with the first technique that reads it);
+        # its vertex array is made per mesh (_bounce_vao)
+        self._prog_bounce = program(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
+                                    {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None, INTERREFLECTION_DEFINE: 1})
+        self._bounce_vao = None
+        renderer.interreflection  # the shared one bounce: made with the first technique that reads it
         self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
         self._mesh_key = None
         # the shadow atlas's depths as plain values (skin.frag's fold gather): a sampler object, whose
@@ -346,11 +364,24 @@ class PreintegratedSkin(Technique):
         self._mesh_key = key
         frame.passes_run.append("preintegrated_curvature")
 
+    def _bounce_program(self, frame: Frame):
+        """(program, vertex array) of the pass with the shared one bounce E_b (common/interreflection.glsl):
+        a diffuse term like the ambient, through none of the tables (E_b is an irradiance from the
+        whole hemisphere, gathered per vertex: no terminator for the ring to wrap, no shadow-map
+        edge for the penumbra table, no normal-map detail for the blurred normals)."""
+        if self._bounce_vao is None:
+            prog = self._prog_bounce
+            content = [frame.gpu.vertex_content(prog)]
+            if "in_curvature" in prog:
+                content.append((self._curvature_buffer, "1f", "in_curvature"))
+            self._bounce_vao = self.ctx.vertex_array(prog, content, frame.gpu.ibo)
+        return self._prog_bounce, self._bounce_vao
+
     def _release_mesh(self):
-        for o in (self._vao, self._curvature_buffer):
+        for o in (self._vao, self._bounce_vao, self._curvature_buffer):
             if o is not None:
                 o.release()
-        self._vao = self._curvature_buffer = None
+        self._vao = self._bounce_vao = self._curvature_buffer = None
         self._mesh_key = None
 
     def scene_changed(self):
@@ -361,11 +392,15 @@ class PreintegratedSkin(Technique):
         self._ensure_profile_tables(frame)
         self._ensure_curvature(frame)
         profile = frame.scene.profile
+        prog, vao = self.prog, self._vao
+        if prepare_interreflection(frame):  # the shared one bounce, rebuilt only on a lighting change
+            prog, vao = self._bounce_program(frame)
         with frame.timer("preintegrated"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            prog = self.prog
+            if prog is not self.prog:
+                bind_interreflection(frame, prog)
             bind_sampler(prog, "uDiffuseTable", self.profile_tables["diffuse"], UNIT_DIFFUSE_TABLE)
             bind_sampler(prog, "uPenumbraTable", self.profile_tables["penumbra"], UNIT_PENUMBRA_TABLE)
             bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
@@ -388,7 +423,7 @@ class PreintegratedSkin(Technique):
                 self.depth_sampler.use(UNIT_SHADOW_DEPTH)
             directional_albedo_uniforms(prog, frame.scene)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
-            draw_mesh(frame, prog, vao=self._vao)
+            draw_mesh(frame, prog, vao=vao)
             if fold:
                 self.depth_sampler.clear(UNIT_SHADOW_DEPTH)  # the unit's own state again for whoever binds it next
         frame.passes_run.append("preintegrated")
@@ -413,4 +448,5 @@ class PreintegratedSkin(Technique):
         for t in self.profile_tables.values():
             t.release()
         self.prog.release()
+        self._prog_bounce.release()
 

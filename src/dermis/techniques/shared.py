@@ -68,7 +68,7 @@ class Unit(IntEnum):
     """Texture units of the shared samplers; a technique's own textures start at FIRST_FREE."""
 
     SHADOW_ATLAS = 0
-    # 1 is free: it held the translucent shadow map (removed in round 5)
+    INTERREFLECTION = 1  # the one-bounce irradiance per vertex (common/mesh.vert, bind_interreflection)
     ALBEDO = 2
     NORMAL = 3
     SPECULAR = 4
@@ -236,3 +236,43 @@ def directional_albedo_uniforms(prog, scene) -> None:
 def casts_translucency(scene) -> bool:
     """Thin parts transmit light only from lights with a shadow (thickness) map."""
     return any(L.cast_shadows for L in scene.lights)
+
+
+# ---------------------------------------------------------------------- interreflection
+INTERREFLECTION_DEFINE = "DERMIS_INTERREFLECTION"
+"""The define of the programs that add the one bounce (common/mesh.vert reads E_b per vertex,
+common/interreflection.glsl): a technique compiles them beside its plain ones and draws the plain
+ones with ``[scene] interreflection = false``, so that turning it off gives the old image bit for bit."""
+
+
+def interreflection_on(scene) -> bool:
+    """Whether the scene asks for one diffuse bounce between skin surfaces (``[scene] interreflection``)."""
+    return bool(getattr(scene, "interreflection", True))
+
+
+def prepare_interreflection(frame) -> bool:
+    """Whether the frame's scene has the bounce; if so, the Renderer's shared one-bounce irradiance
+    per vertex (dermis.gl.interreflection.SharedBounce) is made current: its passes run only when
+    the lights, environment, material or mesh changed (PRODUCTS "interreflection"), never on a
+    camera-only frame. Call it before a technique's own passes (it draws into its own targets);
+    then :func:`bind_interreflection` in the program compiled with INTERREFLECTION_DEFINE. tsd adds
+    its own bounce in texture space and calls neither."""
+    if not interreflection_on(frame.scene):
+        return False
+    frame.renderer.interreflection.get(frame)
+    return True
+
+
+def bind_interreflection(frame, prog) -> None:
+    """E_b per mesh vertex (made current by :func:`prepare_interreflection`) at Unit.INTERREFLECTION
+    for common/mesh.vert: the uniforms written when the texture or its layout changes, the texture
+    bound every frame (dermis.gl.resources.prepared)."""
+    from dermis.gl.resources import prepared, set_uniform
+
+    bounce = frame.renderer.interreflection
+    tex, per_row = bounce.texture, int(bounce.hits.per_row)
+
+    def setup(p):
+        bind_sampler(p, "uBounce", tex, Unit.INTERREFLECTION)
+        set_uniform(p, "uVerticesPerRow", per_row)
+    prepared(prog, "interreflection", (tex, per_row), setup)

@@ -11,7 +11,10 @@ with each pixel's kernel scaled to millimetres by its depth:
 
   ssss_irradiance  mesh -> non-multisampled RGBA32F of the frame's size: (E + T) * albedo^mix and the
                    view depth in mm (E: lights, soft shadows, ambient, energy conservation, shared
-                   with tsd; T: light through thin parts from the shadow map's thickness)
+                   with tsd, and one diffuse bounce between skin surfaces, E_b per vertex from the
+                   Renderer's shared pass, dermis.gl.interreflection.SharedBounce, once per lighting
+                   change: added before the blurs, which scatter it as tsd's; T: light through thin
+                   parts from the shadow map's thickness)
   ssss_blur        horizontal pass: one image per Gaussian (g_k(x) * E); vertical pass:
                    sum_k w_k g_k(y) * (g_k(x) * E). Exact for a sum of Gaussians, where a single
                    separable kernel (Jimenez 2015's rank-1 kernel) is 15% off for skin's red.
@@ -51,8 +54,9 @@ from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh, draw_surfaces
-from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
-                                      TISSUE_TAU, casts_translucency, directional_albedo_uniforms, set_profile_uniforms, surface_detail_uniforms,
+from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, OutputMode, Unit, bind_interreflection, bind_sampler,
+                                      bind_sampler_array, TISSUE_TAU, casts_translucency, directional_albedo_uniforms,
+                                      prepare_interreflection, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
 
 DEPTH_CUTOFF_MM = 5.0  # a tap this much nearer or further than the pixel is another surface
@@ -122,6 +126,7 @@ class ScreenSpaceSSS(Technique):
         self.tex = {}
         self._targets_key = None
         self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
+        renderer.interreflection  # the shared one bounce: made with the first technique that reads it
 
     # ------------------------------------------------------------------ resources
     def _profile_programs(self, k: int):
@@ -134,8 +139,10 @@ class ScreenSpaceSSS(Technique):
             ctx, defines = self.ctx, {"MAX_GAUSSIANS": k, "SSSS_TAPS": self.options.taps}
             progs = (program(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_horizontal.frag", defines),
-                     program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines))
-            for p in progs[1:]:
+                     program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines),
+                     # pass 1 with the shared one bounce added to its irradiance (common/interreflection.glsl)
+                     program(ctx, "common/mesh.vert", "ssss/irradiance.frag", {**defines, INTERREFLECTION_DEFINE: 1}))
+            for p in progs[1:3]:
                 self.vaos[p] = ctx.vertex_array(p, [])
             self._programs[key] = progs
         return self._programs[key]
@@ -192,7 +199,10 @@ class ScreenSpaceSSS(Technique):
         (H, W, 3), row 0 = top, replaces the rendered light (depth kept): used by the tests."""
         scene = frame.scene
         profile = scene.profile
-        p_irradiance, p_horizontal, p_vertical = self._profile_programs(profile.k)
+        p_irradiance, p_horizontal, p_vertical, p_bounce = self._profile_programs(profile.k)
+        bounce = prepare_interreflection(frame)  # the shared one bounce, rebuilt only on a lighting change
+        if bounce:
+            p_irradiance = p_bounce
         self._ensure_targets(tuple(frame.size), profile.k)
         t = self.tex
         with frame.timer("ssss_irradiance"):
@@ -211,6 +221,8 @@ class ScreenSpaceSSS(Technique):
                                   scene)
             bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
                          Unit.FIRST_FREE)
+            if bounce:
+                bind_interreflection(frame, prog)
             draw_mesh(frame, prog)
             if irradiance is not None:
                 a = self.read_texture(t["irradiance"])

@@ -47,7 +47,7 @@ from dermis.errors import DermisError
 from dermis.geometry.texture_space import UV_RANGE_TOLERANCE
 from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
-from dermis.gl.interreflection import InterreflectionHits
+from dermis.gl.interreflection import BounceGather, InterreflectionHits, bounce_level
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
@@ -89,10 +89,6 @@ LEVEL_MIN_INPUT_SIGMA_TEXELS_LIGHT = 0.35
 NARROW_MAX_SIGMA_TEXELS = 0.75
 NARROW_STRETCH_PERCENTILE = TAP_STRETCH_PERCENTILE
 NARROW_PASS = True
-# interreflection: the gather reads rho E at the level whose texels are about this wide (mm, at the
-# median stretch): a box as wide as the profile's widest Gaussians (d'Eon's red: sigma 2.7 mm), so the
-# light read is close to the diffused light that leaves the skin (tsd/bounce_exitant.frag)
-BOUNCE_TEXEL_MM = 2.0
 
 
 @dataclass(frozen=True)
@@ -614,27 +610,24 @@ class TextureSpaceDiffusion(Technique):
         return self._programs["per_sample"]
 
     def _bounce_level(self, S):
-        """The level of rho E the gather reads: texels of about BOUNCE_TEXEL_MM at the median
-        stretch, and at least 16 texels across."""
-        lvl = math.floor(math.log2(max(BOUNCE_TEXEL_MM * (self.median_stretch or 1.0), 1.0)))
-        return int(max(0, min(lvl, math.log2(max(S, 16) / 16))))
+        """The level of rho E the gather reads (dermis.gl.interreflection.bounce_level at the
+        stretch map's median)."""
+        return bounce_level(self.median_stretch, S)
 
     def _interreflection(self, frame, irr):
         """Add one diffuse bounce to the irradiance ``irr`` (I_0): rho E in texture space
         (tsd/bounce_exitant.frag), reduced to _bounce_level, gathered per vertex over the baked rays
         (tsd/bounce_gather.frag) and splatted into I_0 with additive blending
         (tsd/bounce_splat.frag). No pass reads the texture it writes."""
-        hits = self.hits.get(frame)  # the bake times itself: before this pass's timer
+        self.hits.get(frame)  # the bake times itself: before this pass's timer
         if self._p_bounce is None:
             defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
-            gather = program(self.ctx, "common/fullscreen.vert", "tsd/bounce_gather.frag", defines)
-            self.vaos[gather] = self.ctx.vertex_array(gather, [])
-            self._p_bounce = (program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_exitant.frag", defines), gather,
+            self._p_bounce = (program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_exitant.frag", defines),
+                              BounceGather(self.ctx),
                               program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag",
                                       {**defines, "INTERREFLECTION": 1}))
         p_exit, p_gather, p_splat = self._p_bounce
-        per_row, rays, n = self.hits.per_row, self.hits.rays, self.hits.vertex_count
-        bounce = self._texture("bounce", (per_row, hits.size[1]), 4, "f4")
+        per_row = self.hits.per_row
         level = self._bounce_level(irr.size[0])
         self.bounce_level = level
         bind_scene(frame, p_exit)
@@ -647,11 +640,7 @@ class TextureSpaceDiffusion(Technique):
             for lvl in range(1, level + 1):
                 src, p = self._down(src, ("bounce_exitant", lvl), lvl)
                 self._draw(p)
-            for name, value in (("uRays", rays), ("uVerticesPerRow", per_row), ("uVertexCount", n)):
-                set_uniform(p_gather, name, int(value))
-            bind_sampler(p_gather, "uHits", hits, 0)
-            bind_sampler(p_gather, "uExitant", src, 1)
-            self._fullscreen(p_gather, bounce)
+            bounce = p_gather.run(self.hits, src)
             bind_sampler(p_splat, "uBounce", bounce, Unit.FIRST_FREE)
             set_uniform(p_splat, "uVerticesPerRow", int(per_row))
             self.ctx.enable(moderngl.BLEND)
@@ -663,9 +652,7 @@ class TextureSpaceDiffusion(Technique):
 
     def bounce_per_vertex(self) -> np.ndarray:
         """E_b of the last bounce pass per mesh vertex, (n, 3) (tsd/bounce_gather.frag's target)."""
-        tex = self.tex["bounce"]
-        a = np.frombuffer(tex.read(), np.float32).reshape(tex.size[1], tex.size[0], 4)
-        return a.reshape(-1, 4)[:self.hits.vertex_count, :3].copy()
+        return self._p_bounce[1].per_vertex(self.hits.vertex_count)
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         key = (frame.lighting_key, self.options)

@@ -10,6 +10,13 @@ layout(location = 7) in vec2 in_uv1;  // TEXCOORD_1 (maps whose texCoord is 1; z
 layout(location = 4) in float in_curvature;  // a technique's own per-vertex scalar (preintegrated: 1/mm)
 out float v_curvature;
 #endif
+#ifdef DERMIS_INTERREFLECTION
+// the one-bounce irradiance E_b per mesh vertex (dermis.gl.interreflection.SharedBounce), vertex v at
+// texel (v mod P, v div P); gl_VertexID is the index buffer's value, the vertex's number
+uniform sampler2D uBounce;
+uniform int uVerticesPerRow;
+out vec3 v_bounce;
+#endif
 uniform mat4 uViewProj;
 out vec3 v_world;
 out vec3 v_normal;
@@ -28,6 +35,9 @@ void main() {
     v_tangent = in_tangent;
 #ifdef DERMIS_VERTEX_CURVATURE
     v_curvature = in_curvature;
+#endif
+#ifdef DERMIS_INTERREFLECTION
+    v_bounce = texelFetch(uBounce, ivec2(gl_VertexID % uVerticesPerRow, gl_VertexID / uVerticesPerRow), 0).rgb;
 #endif
     gl_Position = uViewProj * vec4(in_position, 1.0);
 }

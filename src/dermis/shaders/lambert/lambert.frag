@@ -5,6 +5,7 @@
 #include "common/surface.glsl"
 #include "common/environment.glsl"
 #include "common/brdf.glsl"
+#include "common/interreflection.glsl"
 
 uniform vec3 uCameraPos;
 in vec3 v_world;
@@ -29,6 +30,9 @@ void main() {
     // ks (n + 8) / (8 pi) = rho_s F0 / (4 m^2 pi). No Fresnel: the baseline's highlight is flat.
     float ks = rho_s * 0.028 * 2.0 / (m * m * (shininess + 8.0));
     vec3 color = albedo * INV_PI * environment_irradiance_occluded(N, Ng, v_visibility);
+#ifdef DERMIS_INTERREFLECTION
+    color += albedo * INV_PI * bounce_irradiance();  // one bounce (common/interreflection.glsl)
+#endif
     // the environment's specular (common/environment.glsl) times the lobe's albedo, taken at
     // normal incidence for every view: ks n (n + 8) / ((n + 2)(n + 4)) (the integral of the
     // normalised Blinn-Phong lobe for V = N, its cut at N.L = 0 neglected; baseline approximation)

@@ -20,6 +20,7 @@
 #include "common/skin_specular.glsl"
 #include "common/transmittance.glsl"
 #include "common/directional_albedo.glsl"
+#include "common/interreflection.glsl"
 
 uniform sampler2D uDiffuseTable;   // D(N.L, curvature): s = N.L in [-1, 1], t = sqrt(curvature / max)
 uniform sampler2D uPenumbraTable;  // P(shadow, width): s = shadow in [0, 1], t = log-spaced width
@@ -279,6 +280,9 @@ void main() {
                         environment_irradiance_occluded(N_green, Ngeo, v_visibility).g,
                         environment_irradiance_occluded(N_blue, Ngeo, v_visibility).b);
     E += ambient * energy_transmitted(rho_s, 0.5, m);
+#ifdef DERMIS_INTERREFLECTION
+    E += bounce_irradiance();  // one bounce: as smooth as the profile's reach, no table (common/interreflection.glsl)
+#endif
     // the exit's k(N.V) on the reflected light; the light through a thin part leaves Lambertian
     E = E * directional_factor(c, ndv) + transmitted_irradiance(v_world, Ngeo, v_uv_ts);
 

@@ -16,6 +16,7 @@
 #include "common/skin_irradiance.glsl"
 #include "common/transmittance.glsl"
 #include "common/directional_albedo.glsl"
+#include "common/interreflection.glsl"
 
 uniform float uMix;
 uniform vec4 uViewZ;  // third row of the view matrix: view-space z = dot(uViewZ, (P, 1)), < 0 in front
@@ -39,8 +40,11 @@ void main() {
     vec3 albedo = albedo_at(v_uv);
     vec3 c = uDirectionalAlbedo * directional_c(albedo);
     float ndv = clamp(dot(N, normalize(uCameraPos - v_world)), 0.0, 1.0);
-    vec3 E = skin_irradiance_directional(v_world, Ng, N, rho_s, m, v_visibility, c) * directional_factor(c, ndv)
-           + transmitted_irradiance(v_world, Ng, v_uv_ts);
+    vec3 E_in = skin_irradiance_directional(v_world, Ng, N, rho_s, m, v_visibility, c);
+#ifdef DERMIS_INTERREFLECTION
+    E_in += bounce_irradiance();  // one bounce, before the blurs, which scatter it (common/interreflection.glsl)
+#endif
+    vec3 E = E_in * directional_factor(c, ndv) + transmitted_irradiance(v_world, Ng, v_uv_ts);
     float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
     f_irradiance = vec4(E * albedo_power(albedo, uMix), depth_mm);
     f_view_normal = vec4(normalize(uViewRotation * Ng), 1.0);
