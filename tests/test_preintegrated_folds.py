@@ -52,7 +52,8 @@ def groove_scene() -> Scene:
                  material=SkinMaterial(albedo_color=(ALBEDO,) * 3, rho_s=0.0, pore_strength=0.0),
                  lights=[Light(direction=(0.0, math.sin(b), -math.cos(b)), intensity=np.pi)],
                  camera=Camera(position=(0.0, 0.0, CAMERA_Z), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=FOV_DEG),
-                 environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0, name="groove")
+                 environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0, name="groove",
+                 interreflection=False)  # the closed form is the light scattered across the fold, no bounce
 
 
 def groove_scattered_irradiance(points_yz, profile) -> np.ndarray:
