@@ -31,7 +31,7 @@ from three local quantities looked up in tables computed at start-up from the ac
   channel's rms radius (rounds 1-6) took red's from its wide tail and lost the third of red's
   weight within 0.25 mm: red/green grain along a terminator (tests/test_preintegrated.py).
 
-* folds (``fold_scattering``, issue 12): the tables above see only the point's own ring and its
+* folds (``fold_scattering``, off by default for its cost, issue 12): the tables above see only the point's own ring and its
   own shadow value, so no light crosses a concave fold (an eyelid crease, a nostril: the wall facing
   away has D = 0, the facing wall lies in the fold's shadow, s = 0). skin.frag gathers the light
   the shadow map's lit points scatter to the point at their true 3-D distance (the reference's
@@ -296,7 +296,11 @@ class PreintegratedOptions(TranslucentOptions):
     curvature_source: str = "mesh"  # "mesh": per-vertex curvature; "derivatives": Penner's fwidth
     blurred_normals: bool = True  # per-channel normal-map mip levels
     penumbra_scattering: bool = True  # the penumbra table (else plain PCF)
-    fold_scattering: bool = True  # light scattered across concave folds, gathered from the shadow map (skin.frag)
+    # light scattered across concave folds, gathered from the shadow map (skin.frag). Off by default:
+    # on an NVIDIA H100 it made the preintegrated pass 5.5x dearer (6.7 -> 37.1 ms at 1024^2; llvmpipe
+    # 1.8x) for a crease that reaches ~40% of the surface-integral reference instead of ~15%, where the
+    # shared bounce light (interreflection) already lifts it (benchmarks/RESULTS.md, "Round 8 merged")
+    fold_scattering: bool = False
 
     def validate(self, technique: str) -> None:
         super().validate(technique)
