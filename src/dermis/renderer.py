@@ -58,6 +58,11 @@ class Renderer:
         self._surface_program = None
         self._environment_specular = None  # the prefiltered environment texture (gl/environment.py)
         self._interreflection = None  # the shared one-bounce irradiance (gl/interreflection.py SharedBounce)
+        # the interreflection bake's hits on the GPU, one copy for tsd's bounce and the shared one (a 1x1
+        # stand-in until the first bounce: the count of live GL objects never changes)
+        from dermis.gl.interreflection import InterreflectionHits
+
+        self.interreflection_hits = InterreflectionHits(self.ctx, placeholder=True)
         self.scene = None
         self.gpu = None
         self._built = {}  # product -> the key it was built with (dermis.invalidation.PRODUCTS)
@@ -140,7 +145,7 @@ class Renderer:
         if self._interreflection is None:
             from dermis.gl.interreflection import SharedBounce
 
-            self._interreflection = SharedBounce(self.ctx)
+            self._interreflection = SharedBounce(self.ctx, self.interreflection_hits)
         return self._interreflection
 
     @property
@@ -438,6 +443,7 @@ class Renderer:
         if self._interreflection is not None:
             self._interreflection.release()
             self._interreflection = None
+        self.interreflection_hits.release()
         self.shadows.release()
         if self._owns_ctx:
             self.ctx.release()

@@ -23,7 +23,8 @@ def hit_layout(n_vertices: int, rays: int) -> tuple[int, int]:
 
 
 class InterreflectionHits:
-    """One technique's copy of the bake; ``get`` rebuilds it when the mesh or its layout changes."""
+    """The bake on the GPU, one per Renderer (Renderer.interreflection_hits: tsd's bounce and the
+    shared one read it); ``get`` rebuilds it when the mesh or its layout changes."""
 
     def __init__(self, ctx, placeholder: bool = False):
         self.ctx = ctx
@@ -160,14 +161,14 @@ class SharedBounce:
     :func:`bounce_level`), reduced (tsd/downsample.frag) and gathered over the baked rays
     (:class:`BounceGather`)."""
 
-    def __init__(self, ctx):
+    def __init__(self, ctx, hits: InterreflectionHits):
         # everything is made here, when the first technique that reads the bounce is built (as the
         # techniques compile their programs up front: the viewer switches techniques mid-drag), the
         # textures as 1x1 stand-ins re-made at their sizes on first use
         from dermis.gl.shaders import program
 
         self.ctx = ctx
-        self.hits = InterreflectionHits(ctx, placeholder=True)
+        self.hits = hits  # the Renderer's (Renderer.interreflection_hits), released by it
         self._gather = BounceGather(ctx)
         self._source = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag")
         self._down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag")
@@ -241,7 +242,6 @@ class SharedBounce:
             f.release()
             t.release()
         self._levels = []
-        self.hits.release()
         self._gather.release()
         self._source.release()
         self._down_vao.release()

@@ -47,7 +47,7 @@ from dermis.errors import DermisError
 from dermis.geometry.texture_space import UV_RANGE_TOLERANCE
 from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
-from dermis.gl.interreflection import BounceGather, InterreflectionHits, bounce_level
+from dermis.gl.interreflection import BounceGather, bounce_level
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
@@ -155,7 +155,7 @@ class TextureSpaceDiffusion(Technique):
         self._stretch_chain_key = None
         self._chain_passes = None  # ((chain key, dilated irradiance), the irradiance's prepared passes)
         self.thickness = ThicknessTexture(self.ctx)  # the texel thickness bake (light through thin parts)
-        self.hits = InterreflectionHits(self.ctx)  # the interreflection rays' hits (one bounce)
+        self.hits = renderer.interreflection_hits  # the interreflection rays' hits (one bounce; the Renderer's)
         self._p_bounce = None  # (exitant, gather, splat) programs, compiled on first use
         self.bounce_level = None
 
@@ -200,7 +200,6 @@ class TextureSpaceDiffusion(Technique):
         self._chain_passes = None
         self._narrow_key = None
         self.thickness.release()
-        self.hits.release()
 
     def scene_changed(self):
         self._cache_key = None

@@ -40,12 +40,14 @@ bool shadow_coords_jacobian(int i, vec3 P, out vec3 c, out mat3 J) {
 // the nose wing) a lit blob several mm wide appeared inside the shadow. The gradient is clamped at
 // a slope of MAX_RECEIVER_SLOPE (about 84 degrees), where N.L is ~0 anyway. T: the map uv that a
 // unit step (scene units) along the tangent-plane axes t1, t2 moves (columns), for the penumbra
-// width below.
+// width below. False for a light without a shadow map (uLightRadiance.w) or a point outside its map.
 const float MAX_RECEIVER_SLOPE = 10.0;
 bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat2 T) {
     mat3 J;
+    c = vec3(0.0);
     dz = vec2(0.0);
     T = mat2(0.0);
+    if (uLightRadiance[i].w < 0.5) return false;  // the light casts no shadow: no map to read
     if (!shadow_coords_jacobian(i, P, c, J)) return false;
     vec3 t1 = normalize(cross(N, abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
     vec3 t2 = cross(N, t1);
@@ -73,7 +75,6 @@ float shadow_sharp_at(int i, vec3 c, vec2 dz) {
 }
 
 float shadow_sharp(int i, vec3 P, vec3 N) {
-    if (uLightRadiance[i].w < 0.5) return 1.0;
     vec3 c;
     vec2 dz;
     mat2 T;
@@ -193,7 +194,6 @@ float shadow_pcf_at(int i, vec3 c, vec2 dz, mat2 T, bool want_width, out float w
 
 float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
     width_mm = 1e30;
-    if (uLightRadiance[i].w < 0.5) return 1.0;
     vec3 c;
     vec2 dz;
     mat2 T;
@@ -216,7 +216,6 @@ float shadow_soft_penumbra(int i, vec3 P, vec3 N, out float width_mm) {
 // 2007, 14.5.2: the shadow computed once in texture space and reused).
 float shadow_soft_and_sharp(int i, vec3 P, vec3 N, bool want_soft, out float sharp) {
     sharp = 1.0;
-    if (uLightRadiance[i].w < 0.5) return 1.0;
     vec3 c;
     vec2 dz;
     mat2 T;
