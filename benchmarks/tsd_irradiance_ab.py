@@ -35,7 +35,7 @@ def main(argv=None):
     with Renderer(sc, (a.size, a.size), irradiance_size=a.irradiance_size) as r:
         r.render("tsd")
         t = r.technique("tsd")
-        mine = t.p_irradiance
+        mine = t._stored_irradiance_program(len(sc.lights))  # the program render() draws for the head's 3 lights
         d = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
         other = r.ctx.program(vertex_shader=load_shader_source("tsd/uv_space.vert", d),
                               fragment_shader=source_at(a.against, "tsd/irradiance.frag", d))
@@ -52,7 +52,7 @@ def main(argv=None):
                     r.render("tsd")
                     res[name].append((r.stats["passes_ms"]["tsd_irradiance"], r.stats["frame_ms"]))
         finally:
-            t.p_irradiance = mine
+            t.p_irradiance = None  # back to the program per light count
             other.release()
     print(f"load {os.getloadavg()[0]:.1f}")
     for k, v in res.items():

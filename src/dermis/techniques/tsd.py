@@ -125,9 +125,11 @@ class TextureSpaceDiffusion(Technique):
         defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
         self.p_stretch = program(ctx, "tsd/uv_space.vert", "tsd/stretch.frag", defines)
         # the irradiance and final passes storing / reading the sharp shadows (at most
-        # STORED_SHARP_SHADOWS lights); the per-sample pair compiled on a scene with more lights
-        self.p_irradiance = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag",
-                                    {**defines, "SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS})
+        # STORED_SHARP_SHADOWS lights); the per-sample pair compiled on a scene with more lights.
+        # The storing irradiance program is compiled per light count (_stored_irradiance_program).
+        # p_irradiance, when set (benchmarks swap shaders in), is drawn instead of it.
+        self.p_irradiance = None
+        self._stored_irradiance = {}  # light count -> tsd/irradiance.frag, SKIN_LIGHT_COUNT unrolled
         self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
         self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
         # a full-screen triangle: the pass reads only gl_FragCoord and textures, so rasterising the
@@ -552,7 +554,7 @@ class TextureSpaceDiffusion(Technique):
         irr = self._texture("irradiance", (S, S))
         # the lights' sharp shadows, for the final pass's specular (tsd/sharp_shadow.glsl)
         prog, _ = self._shading_programs(frame)
-        targets = (irr, self._texture("sharp_shadow", (S, S), 4, "f1")) if prog is self.p_irradiance else (irr,)
+        targets = (irr, self._texture("sharp_shadow", (S, S), 4, "f1")) if stores_sharp_shadows(frame.lights.count) else (irr,)
         bind_scene(frame, prog)
         directional_albedo_uniforms(prog, scene)
         if irradiance is not None:
@@ -601,12 +603,23 @@ class TextureSpaceDiffusion(Technique):
         """(irradiance, final) programs for the frame's lights: storing and reading the sharp
         shadows where there are at most STORED_SHARP_SHADOWS lights, else per sample."""
         if stores_sharp_shadows(frame.lights.count):
-            return self.p_irradiance, self.p_final
+            irr = self.p_irradiance if self.p_irradiance is not None else self._stored_irradiance_program(frame.lights.count)
+            return irr, self.p_final
         if "per_sample" not in self._programs:
             defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
             self._programs["per_sample"] = (program(self.ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines),
                                             program(self.ctx, "common/mesh.vert", "tsd/final.frag", defines))
         return self._programs["per_sample"]
+
+    def _stored_irradiance_program(self, n):
+        """tsd/irradiance.frag storing the sharp shadows, its lights unrolled for a scene of ``n``
+        (<= STORED_SHARP_SHADOWS) lights (SKIN_LIGHT_COUNT, common/skin_irradiance.glsl: constant
+        indices into the light uniforms, ~20% faster than the loop on llvmpipe); compiled on first use."""
+        if n not in self._stored_irradiance:
+            self._stored_irradiance[n] = program(
+                self.ctx, "tsd/uv_space.vert", "tsd/irradiance.frag",
+                {"MAX_GAUSSIANS": MAX_GAUSSIANS, "SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS, "SKIN_LIGHT_COUNT": int(n)})
+        return self._stored_irradiance[n]
 
     def _bounce_level(self, S):
         """The level of rho E the gather reads (dermis.gl.interreflection.bounce_level at the
@@ -718,7 +731,7 @@ class TextureSpaceDiffusion(Technique):
         self.release_textures()
         for v in self.vaos.values():
             v.release()
-        for p in (self.p_stretch, self.p_irradiance, self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
+        for p in (self.p_stretch, *self._stored_irradiance.values(), self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
                   self.p_final,
                   self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else []),
                   *(self._p_bounce or ()), *(p for ps in self._programs.values() for p in ps)):

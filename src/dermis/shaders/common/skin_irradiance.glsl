@@ -20,35 +20,62 @@
 vec4 skin_sharp_shadow;
 #endif
 
+// Light i's share of E (d'Eon & Luebke 2007, 14.4.1): E_i max(N.L, 0) shadow_soft (1 - rho_s a / pi) k(N.L).
 // c: the directional albedo's coefficients per channel (common/directional_albedo.glsl), weighting
-// each light by k(N.L) = 1 + c (2/3 - N.L); vec3(0) is the Lambertian entry. The ambient is left at
-// k = 1: its average over a uniform hemisphere.
+// each light by k(N.L) = 1 + c (2/3 - N.L); vec3(0) is the Lambertian entry.
+vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3 c) {
+    vec3 L;
+    vec3 Ei = light_incident(i, P, L);
+    float ndl = dot(N, L);
+#ifdef SKIN_SHARP_SHADOWS
+    // neither the diffuse (N.L) nor the specular (its own test, Ng.L: common/skin_specular.glsl)
+    // uses light i here: skipped before the receiver solve, as the soft shadow alone was (a
+    // block of texels all facing away skips the loop's body, on llvmpipe too). Stored as 0,
+    // unlit: a final-pass sample just on the lit side of the terminator reads it bilinearly
+    // (1 there put a lit speck into the back-lit ear's shadowed side, where the map says 0)
+    if (ndl <= 0.0 && dot(Ng, L) <= 0.0) return vec3(0.0);
+    float sharp;
+    float s = shadow_soft_and_sharp(i, P, Ng, ndl > 0.0, sharp);
+    skin_sharp_shadow = mix(skin_sharp_shadow, vec4(sharp), equal(ivec4(0, 1, 2, 3), ivec4(i)));
+    if (ndl <= 0.0) return vec3(0.0);
+#else
+    if (ndl <= 0.0) return vec3(0.0);
+    float s = shadow_soft(i, P, Ng);
+#endif
+    return Ei * ndl * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
+}
+
+// The sum over the lights, plus the ambient (left at k = 1: its average over a uniform hemisphere).
+// With SKIN_LIGHT_COUNT = n defined (0..4, the scene's light count: dermis.techniques.tsd compiles
+// one program per count), the lights are unrolled with CONSTANT indices into the uniform arrays
+// (uLightViewProj[i], uShadowParams[i], ...): on llvmpipe tsd's irradiance pass measured ~20%
+// faster so on the head than the loop over uLightCount, whose trip count and indices are only
+// known at run time (benchmarks/RESULTS.md, "Round 9, branch irr9"). Without it, that loop (any
+// count). The same arithmetic either way.
 vec3 skin_irradiance_directional(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis, vec3 c) {
     vec3 E = vec3(0.0);
 #ifdef SKIN_SHARP_SHADOWS
     skin_sharp_shadow = vec4(0.0);
 #endif
-    for (int i = 0; i < uLightCount; ++i) {
-        vec3 L;
-        vec3 Ei = light_incident(i, P, L);
-        float ndl = dot(N, L);
-#ifdef SKIN_SHARP_SHADOWS
-        // neither the diffuse (N.L) nor the specular (its own test, Ng.L: common/skin_specular.glsl)
-        // uses light i here: skipped before the receiver solve, as the soft shadow alone was (a
-        // block of texels all facing away skips the loop's body, on llvmpipe too). Stored as 0,
-        // unlit: a final-pass sample just on the lit side of the terminator reads it bilinearly
-        // (1 there put a lit speck into the back-lit ear's shadowed side, where the map says 0)
-        if (ndl <= 0.0 && dot(Ng, L) <= 0.0) continue;
-        float sharp;
-        float s = shadow_soft_and_sharp(i, P, Ng, ndl > 0.0, sharp);
-        skin_sharp_shadow = mix(skin_sharp_shadow, vec4(sharp), equal(ivec4(0, 1, 2, 3), ivec4(i)));
-        if (ndl <= 0.0) continue;
-#else
-        if (ndl <= 0.0) continue;
-        float s = shadow_soft(i, P, Ng);
+#ifdef SKIN_LIGHT_COUNT
+#if SKIN_LIGHT_COUNT > 4
+#error "SKIN_LIGHT_COUNT: at most 4 lights unrolled"
 #endif
-        E += Ei * ndl * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
-    }
+#if SKIN_LIGHT_COUNT > 0
+    E += skin_light_entry(0, P, Ng, N, rho_s, m, c);
+#endif
+#if SKIN_LIGHT_COUNT > 1
+    E += skin_light_entry(1, P, Ng, N, rho_s, m, c);
+#endif
+#if SKIN_LIGHT_COUNT > 2
+    E += skin_light_entry(2, P, Ng, N, rho_s, m, c);
+#endif
+#if SKIN_LIGHT_COUNT > 3
+    E += skin_light_entry(3, P, Ng, N, rho_s, m, c);
+#endif
+#else
+    for (int i = 0; i < uLightCount; ++i) E += skin_light_entry(i, P, Ng, N, rho_s, m, c);
+#endif
     E += environment_irradiance_occluded(N, Ng, vis) * energy_transmitted(rho_s, 0.5, m);
     return E;
 }
