@@ -126,10 +126,10 @@ class TextureSpaceDiffusion(Technique):
         self.p_stretch = program(ctx, "tsd/uv_space.vert", "tsd/stretch.frag", defines)
         # the irradiance and final passes storing / reading the sharp shadows (at most
         # STORED_SHARP_SHADOWS lights); the per-sample pair compiled on a scene with more lights.
-        # The storing irradiance program is compiled per light count (_stored_irradiance_program).
-        # p_irradiance, when set (benchmarks swap shaders in), is drawn instead of it.
+        # The irradiance program is compiled per light count (_irradiance_program).
+        # p_irradiance, when set (benchmarks and tests swap shaders in), is drawn instead of it.
         self.p_irradiance = None
-        self._stored_irradiance = {}  # light count -> tsd/irradiance.frag, SKIN_LIGHT_COUNT unrolled
+        self._irradiance_programs = {}  # light count -> tsd/irradiance.frag, SKIN_LIGHT_COUNT unrolled
         self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
         self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
         # a full-screen triangle: the pass reads only gl_FragCoord and textures, so rasterising the
@@ -138,7 +138,7 @@ class TextureSpaceDiffusion(Technique):
         self.p_trans = program(ctx, "common/fullscreen.vert", "tsd/translucency.frag", defines)
         self.p_trans_tent = program(ctx, "common/fullscreen.vert", "tsd/translucency_tent.frag", defines)
         self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag", {**defines, "SHARP_SHADOW_READ": None})
-        self._programs = {}  # "per_sample" -> (irradiance, final) without the stored shadows
+        self._programs = {}  # "per_sample" -> the final pass without the stored shadows
         self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)
         self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine, self.p_trans,
                                                          self.p_trans_tent)}
@@ -602,24 +602,26 @@ class TextureSpaceDiffusion(Technique):
     def _shading_programs(self, frame):
         """(irradiance, final) programs for the frame's lights: storing and reading the sharp
         shadows where there are at most STORED_SHARP_SHADOWS lights, else per sample."""
-        if stores_sharp_shadows(frame.lights.count):
-            irr = self.p_irradiance if self.p_irradiance is not None else self._stored_irradiance_program(frame.lights.count)
+        n = frame.lights.count
+        irr = self.p_irradiance if self.p_irradiance is not None else self._irradiance_program(n)
+        if stores_sharp_shadows(n):
             return irr, self.p_final
         if "per_sample" not in self._programs:
-            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
-            self._programs["per_sample"] = (program(self.ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines),
-                                            program(self.ctx, "common/mesh.vert", "tsd/final.frag", defines))
-        return self._programs["per_sample"]
+            self._programs["per_sample"] = program(self.ctx, "common/mesh.vert", "tsd/final.frag", {"MAX_GAUSSIANS": MAX_GAUSSIANS})
+        return irr, self._programs["per_sample"]
 
-    def _stored_irradiance_program(self, n):
-        """tsd/irradiance.frag storing the sharp shadows, its lights unrolled for a scene of ``n``
-        (<= STORED_SHARP_SHADOWS) lights (SKIN_LIGHT_COUNT, common/skin_irradiance.glsl: constant
-        indices into the light uniforms, ~20% faster than the loop on llvmpipe); compiled on first use."""
-        if n not in self._stored_irradiance:
-            self._stored_irradiance[n] = program(
-                self.ctx, "tsd/uv_space.vert", "tsd/irradiance.frag",
-                {"MAX_GAUSSIANS": MAX_GAUSSIANS, "SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS, "SKIN_LIGHT_COUNT": int(n)})
-        return self._stored_irradiance[n]
+    def _irradiance_program(self, n):
+        """tsd/irradiance.frag for a scene of ``n`` lights, its lights unrolled (SKIN_LIGHT_COUNT,
+        common/skin_irradiance.glsl: constant indices into the light uniforms, 15-30% faster than
+        the loop over uLightCount on llvmpipe), storing the sharp shadows where
+        stores_sharp_shadows(n); compiled on first use."""
+        n = int(n)
+        if n not in self._irradiance_programs:
+            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "SKIN_LIGHT_COUNT": n}
+            if stores_sharp_shadows(n):
+                defines["SKIN_SHARP_SHADOWS"] = STORED_SHARP_SHADOWS
+            self._irradiance_programs[n] = program(self.ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines)
+        return self._irradiance_programs[n]
 
     def _bounce_level(self, S):
         """The level of rho E the gather reads (dermis.gl.interreflection.bounce_level at the
@@ -731,8 +733,8 @@ class TextureSpaceDiffusion(Technique):
         self.release_textures()
         for v in self.vaos.values():
             v.release()
-        for p in (self.p_stretch, *self._stored_irradiance.values(), self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
+        for p in (self.p_stretch, *self._irradiance_programs.values(), self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
                   self.p_final,
                   self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else []),
-                  *(self._p_bounce or ()), *(p for ps in self._programs.values() for p in ps)):
+                  *(self._p_bounce or ()), *self._programs.values()):
             p.release()

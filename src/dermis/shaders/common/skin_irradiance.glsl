@@ -46,7 +46,7 @@ vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3
 }
 
 // The sum over the lights, plus the ambient (left at k = 1: its average over a uniform hemisphere).
-// With SKIN_LIGHT_COUNT = n defined (0..4, the scene's light count: dermis.techniques.tsd compiles
+// With SKIN_LIGHT_COUNT = n defined (0..8, the scene's light count: dermis.techniques.tsd compiles
 // one program per count), the lights are unrolled with CONSTANT indices into the uniform arrays
 // (uLightViewProj[i], uShadowParams[i], ...): on llvmpipe tsd's irradiance pass measured ~20%
 // faster so on the head than the loop over uLightCount, whose trip count and indices are only
@@ -58,8 +58,8 @@ vec3 skin_irradiance_directional(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, 
     skin_sharp_shadow = vec4(0.0);
 #endif
 #ifdef SKIN_LIGHT_COUNT
-#if SKIN_LIGHT_COUNT > 4
-#error "SKIN_LIGHT_COUNT: at most 4 lights unrolled"
+#if SKIN_LIGHT_COUNT > 8
+#error "SKIN_LIGHT_COUNT: at most 8 lights unrolled (MAX_LIGHTS)"
 #endif
 #if SKIN_LIGHT_COUNT > 0
     E += skin_light_entry(0, P, Ng, N, rho_s, m, c);
@@ -72,6 +72,18 @@ vec3 skin_irradiance_directional(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, 
 #endif
 #if SKIN_LIGHT_COUNT > 3
     E += skin_light_entry(3, P, Ng, N, rho_s, m, c);
+#endif
+#if SKIN_LIGHT_COUNT > 4
+    E += skin_light_entry(4, P, Ng, N, rho_s, m, c);
+#endif
+#if SKIN_LIGHT_COUNT > 5
+    E += skin_light_entry(5, P, Ng, N, rho_s, m, c);
+#endif
+#if SKIN_LIGHT_COUNT > 6
+    E += skin_light_entry(6, P, Ng, N, rho_s, m, c);
+#endif
+#if SKIN_LIGHT_COUNT > 7
+    E += skin_light_entry(7, P, Ng, N, rho_s, m, c);
 #endif
 #else
     for (int i = 0; i < uLightCount; ++i) E += skin_light_entry(i, P, Ng, N, rho_s, m, c);
