@@ -48,10 +48,10 @@ vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3
 // The sum over the lights, plus the ambient (left at k = 1: its average over a uniform hemisphere).
 // With SKIN_LIGHT_COUNT = n defined (0..8, the scene's light count: dermis.techniques.tsd compiles
 // one program per count), the lights are unrolled with CONSTANT indices into the uniform arrays
-// (uLightViewProj[i], uShadowParams[i], ...): on llvmpipe tsd's irradiance pass measured ~20%
-// faster so on the head than the loop over uLightCount, whose trip count and indices are only
-// known at run time (benchmarks/RESULTS.md, "Round 9, branch irr9"). Without it, that loop (any
-// count). The same arithmetic either way.
+// (uLightViewProj[i], uShadowParams[i], ...): on llvmpipe tsd's irradiance pass measured 15-30%
+// cheaper (head, side, 5 lights) than the loop over uLightCount, whose trip count and indices are
+// only known at run time (benchmarks/RESULTS.md, "Round 9, branch irr9"). Without it, that loop
+// (any count). The same arithmetic either way.
 vec3 skin_irradiance_directional(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis, vec3 c) {
     vec3 E = vec3(0.0);
 #ifdef SKIN_SHARP_SHADOWS
