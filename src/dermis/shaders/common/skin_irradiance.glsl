@@ -30,7 +30,7 @@ vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3
 #ifdef SKIN_SHARP_SHADOWS
     // neither the diffuse (N.L) nor the specular (its own test, Ng.L: common/skin_specular.glsl)
     // uses light i here: skipped before the receiver solve, as the soft shadow alone was (a
-    // block of texels all facing away skips the loop's body, on llvmpipe too). Stored as 0,
+    // block of texels all facing away skips the rest: +25% on llvmpipe without it). Stored as 0,
     // unlit: a final-pass sample just on the lit side of the terminator reads it bilinearly
     // (1 there put a lit speck into the back-lit ear's shadowed side, where the map says 0)
     if (ndl <= 0.0 && dot(Ng, L) <= 0.0) return vec3(0.0);
