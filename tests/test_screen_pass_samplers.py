@@ -33,6 +33,7 @@ def _bumpy_quad(wrap_repeat: bool):
     sc.material.normal_map = Texture((n * 0.5 + 0.5).astype(np.float32), "test:bumps",
                                      wrap=("repeat", "repeat") if wrap_repeat else ("clamp", "clamp"))
     sc.directional_albedo = False
+    sc.interreflection = False  # the pass draws PreIntegrated.prog (which _render_with replaces)
     sc.lights = [Light(direction=(-0.6, 0.0, -0.8), intensity=np.pi, cast_shadows=False)]
     return sc
 
@@ -41,6 +42,7 @@ def _render_with(r, fragment_source=None):
     t = r.technique("preintegrated")
     if fragment_source is None:
         return r.render("preintegrated")
+    t._release_mesh()  # its vertex array is made for t.prog: the replacement gets its own
     saved = t.prog
     t.prog = r.ctx.program(vertex_shader=load_shader_source("common/mesh.vert", {"MAX_GAUSSIANS": MAX_GAUSSIANS,
                                                                                 "DERMIS_VERTEX_CURVATURE": None}),
@@ -50,6 +52,7 @@ def _render_with(r, fragment_source=None):
     finally:
         t.prog.release()
         t.prog = saved
+        t._release_mesh()  # the vertex array made for the replacement
 
 
 def test_blurred_normals_sampler_is_the_normal_map_trilinear(gl_ctx):
