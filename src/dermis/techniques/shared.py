@@ -245,10 +245,10 @@ def min_pixel_footprint(frame) -> float:
 
     Orthographic: one pixel spans 2 / (P00 W) along x (2 / (P11 H) along y) at every depth.
     Perspective (view-space ray directions d = (x, y, -1), x = (x_ndc + P02) / P00 per unit depth):
-    two rays one pixel apart (s = 2 / (P00 W) in x) make an angle with sin a = |d1 x d2| / (|d1| |d2|)
-    >= s / |d2|^2 ... exactly s sqrt(1 + y^2) / (|d1| |d2|); the fragment's point on ray 1 at view
-    depth z lies z |d1| from the eye, so any point of ray 2 (its neighbour's, on the triangle's
-    plane, helper pixels included) is at least z |d1| sin a >= z s / |d2| away. |d2| is largest at
+    two rays one pixel apart (s = 2 / (P00 W) in x) make an angle a with
+    sin a = |d1 x d2| / (|d1| |d2|) = s sqrt(1 + y^2) / (|d1| |d2|) >= s / (|d1| |d2|); the fragment's
+    point on ray 1 at view depth z lies z |d1| from the eye, so any point of ray 2 (its neighbour's,
+    on the triangle's plane, helper pixels included) is at least z |d1| sin a >= z s / |d2| away. |d2| is largest at
     the frustum's corners widened by a pixel, and z >= the larger of the near plane (clipping) and
     the nearest vertex's depth (depth is linear over a triangle)."""
     proj = np.asarray(frame.proj, np.float64)
