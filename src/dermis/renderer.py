@@ -56,6 +56,7 @@ class Renderer:
         self.target_sizes_kept = 2  # frame sizes whose render targets are kept (the viewer alternates two)
         self._specular_tables = None
         self._surface_program = None
+        self.program_variants = {}  # id(program) -> (program, its variant): dermis.techniques.shared.shading_program
         self._environment_specular = None  # the prefiltered environment texture (gl/environment.py)
         self._interreflection = None  # the shared one-bounce irradiance (gl/interreflection.py SharedBounce)
         # the interreflection bake's hits on the GPU, one copy for tsd's bounce and the shared one (a 1x1
@@ -437,6 +438,9 @@ class Renderer:
         if self._surface_program is not None:
             self._surface_program.release()
             self._surface_program = None
+        for _, variant in self.program_variants.values():
+            variant.release()
+        self.program_variants = {}
         if self._environment_specular is not None:
             self._environment_specular.release()
             self._environment_specular = None

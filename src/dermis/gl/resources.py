@@ -206,6 +206,11 @@ def upload_texture(ctx, data: np.ndarray, *, components=None, dtype="f4", mipmap
     return tex
 
 
+SPECULAR_MAP_ANISOTROPY = 1.0
+"""The specular intensity map's anisotropic filtering in every pass (the other maps: 8x in the
+screen passes, 1x in texture space: :func:`maps_without_anisotropy`)."""
+
+
 @contextmanager
 def maps_without_anisotropy(gpu, surfaces: bool = True):
     """Within the block the scene's material maps (and, with ``surfaces``, the non-skin surfaces')
@@ -287,6 +292,11 @@ class GpuScene:
         if mat.specular_map is not None:
             self.textures["specular"] = upload_texture(self.ctx, mat.specular_map.data[:, :, :1], components=1, dtype="f1",
                                                      **sampler(mat.specular_map))
+            # trilinear, not anisotropic: a scalar weight of the specular lobe, smooth at the scale of a
+            # grazing footprint's long axis; on the head at 768 px its 8x filtering moved the image by
+            # at most 0.007 (display) and cost 8% of tsd's final pass on llvmpipe, whose elliptical
+            # filter runs on every lookup (benchmarks/RESULTS.md, round 9, branch screen9)
+            self.textures["specular"].anisotropy = SPECULAR_MAP_ANISOTROPY
         else:
             self.textures["specular"] = upload_texture(self.ctx, np.array([[[1.0]]], np.float32), mipmaps=False)
             # no map: rho_s as given (bias + scale * 1 would rescale it)

@@ -97,6 +97,9 @@ def program(ctx, vertex: str, fragment: str | None = None, defines: dict | None 
         )
     except Exception as exc:
         raise RuntimeError(f"compiling {vertex} + {fragment}: {exc}") from exc
+    # what it was compiled from (moderngl's slot for its user's data): a variant with more defines
+    # can be compiled from it (dermis.techniques.shared.shading_program)
+    prog.extra = {"sources": (vertex, fragment, dict(defines or {}), geometry)}
     try:
         check_samplers(ctx, prog, f"{vertex} + {fragment}")
     except Exception:

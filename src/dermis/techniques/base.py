@@ -19,7 +19,7 @@ import moderngl
 import numpy as np
 
 from dermis.errors import DermisError
-from dermis.techniques.shared import OutputMode, bind_environment_specular, bind_specular_tables
+from dermis.techniques.shared import OutputMode, bind_environment_specular, bind_specular_tables, shading_program
 
 
 class PassTimer:
@@ -223,6 +223,8 @@ def draw_mesh(frame: Frame, prog, vao=None):
     set_uniform(prog, "uViewProj", mat_bytes(frame.viewproj))
     set_uniform(prog, "uCameraPos", tuple(float(x) for x in frame.eye))
     bind_scene(frame, prog)
+    if vao is None:  # the same pass without pore detail where it cannot show (its own vertex array: as it is)
+        prog = shading_program(frame, prog)
     cull = not frame.scene.material.double_sided  # a closed skin: its back faces are hidden (SkinMaterial)
     if cull:
         frame.ctx.enable(moderngl.CULL_FACE)  # front faces counter-clockwise, GL's default

@@ -95,6 +95,7 @@ RING_PROFILE = "line"  # the ring's kernel: "line" (profile integrated across th
 
 UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE, UNIT_THICKNESS = Unit.FIRST_FREE, Unit.FIRST_FREE + 1, Unit.FIRST_FREE + 2
 UNIT_SHADOW_DEPTH = Unit.FIRST_FREE + 3  # the shadow atlas again, its depths read without comparison (fold_scattering)
+UNIT_NORMAL_LOD = Unit.FIRST_FREE + 4  # the normal map again, through an isotropic sampler (the blurred normals' textureLod)
 
 _TABLE_CACHE: dict = {}
 
@@ -336,6 +337,12 @@ class PreintegratedSkin(Technique):
         # state overrides the texture's comparison mode on its own unit only (OpenGL 4.5, 8.2)
         self.depth_sampler = self.ctx.sampler(filter=(moderngl.NEAREST, moderngl.NEAREST), compare_func="",
                                               repeat_x=False, repeat_y=False)
+        # the normal map as the blurred normals read it (skin.frag's textureLod at a chosen level):
+        # a sampler object without anisotropy. A lookup at an explicit level has zero derivatives, so
+        # the GL spec's anisotropic footprint is 1:1 there and a GPU returns the trilinear value
+        # either way; Mesa's llvmpipe instead runs its elliptical filter (3-6x the cost) and blurs past
+        # the level (benchmarks/RESULTS.md, "Passes on llvmpipe, round 5"; round 9, branch screen9)
+        self.normal_lod_sampler = self.ctx.sampler(anisotropy=1.0)
 
     # ------------------------------------------------------------------ resources
     def _ensure_profile_tables(self, frame: Frame):
@@ -427,11 +434,27 @@ class PreintegratedSkin(Technique):
                 self.depth_sampler.use(UNIT_SHADOW_DEPTH)
             directional_albedo_uniforms(prog, frame.scene)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
+            uses_lod_sampler = self._bind_normal_lod(frame, prog)
             draw_mesh(frame, prog, vao=vao)
             if fold:
                 self.depth_sampler.clear(UNIT_SHADOW_DEPTH)  # the unit's own state again for whoever binds it next
+            if uses_lod_sampler:
+                self.normal_lod_sampler.clear(UNIT_NORMAL_LOD)
         frame.passes_run.append("preintegrated")
         draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing
+
+    def _bind_normal_lod(self, frame: Frame, prog) -> bool:
+        """The scene's normal map on UNIT_NORMAL_LOD with :attr:`normal_lod_sampler`: the map's own
+        filter and wrap, anisotropy 1. Returns whether the program reads it."""
+        tex = frame.gpu.textures["normal"]
+        if prog.get("uNormalMapLod", None) is None:
+            return False
+        smp = self.normal_lod_sampler
+        smp.filter = tex.filter
+        smp.repeat_x, smp.repeat_y = tex.repeat_x, tex.repeat_y
+        bind_sampler(prog, "uNormalMapLod", tex, UNIT_NORMAL_LOD)
+        smp.use(UNIT_NORMAL_LOD)
+        return True
 
     def debug_buffers(self) -> dict:
         if self.renderer.last_frame is None or self._vao is None:
@@ -449,6 +472,7 @@ class PreintegratedSkin(Technique):
         self._release_mesh()
         self.thickness.release()
         self.depth_sampler.release()
+        self.normal_lod_sampler.release()
         for t in self.profile_tables.values():
             t.release()
         self.prog.release()

@@ -94,6 +94,12 @@ GUARANTEED_TEXTURE_UNITS = 16
 """GL_MAX_TEXTURE_IMAGE_UNITS every GL 4.5 implementation offers per stage."""
 
 
+PORE_FADE = (0.25, 0.5)
+"""The pore detail's first octave fades out as the pixel's footprint grows from PORE_FADE[0] to
+PORE_FADE[1] times the pore scale (common/noise.glsl, pore_normal; the second octave at half of
+those): from PORE_FADE[1] on it leaves the normal unchanged (:func:`pores_invisible`)."""
+
+
 def _glsl_float(x: float) -> str:
     return repr(float(x))
 
@@ -109,7 +115,8 @@ def glsl_constants() -> str:
              f"#define DERMIS_SPECULAR_M_MAX {_glsl_float(M_MAX)}",
              "#ifndef DERMIS_SKIN_F0", f"#define DERMIS_SKIN_F0 {_glsl_float(SKIN_F0)}", "#endif",
              f"#define DERMIS_ENV_SPECULAR_LAYERS {ENV_SPECULAR_LAYERS}",
-             f"#define DERMIS_SKIN_ENV_GRAZING_EXPONENT {_glsl_float(SKIN_ENV_GRAZING_EXPONENT)}"]
+             f"#define DERMIS_SKIN_ENV_GRAZING_EXPONENT {_glsl_float(SKIN_ENV_GRAZING_EXPONENT)}",
+             f"#define DERMIS_PORE_FADE vec2({_glsl_float(PORE_FADE[0])}, {_glsl_float(PORE_FADE[1])})"]
     lines += [f"#define DERMIS_{name.upper()}_RECT vec4({', '.join(_glsl_float(v) for v in rect)})"
               for name, rect in TABLE_ATLAS.items()]
     lines += [f"#define LIGHT_{kind.upper()} {v}" for kind, v in LIGHT_TYPES.items()]
@@ -222,6 +229,84 @@ def surface_detail_uniforms(prog, material, output_mode: int = OutputMode.FULL) 
     for name, value in (("uPoreScaleMm", float(material.pore_scale_mm)), ("uPoreStrength", float(material.pore_strength)),
                         ("uOutputMode", int(OutputMode(output_mode)))):
         set_uniform(prog, name, value)
+
+
+# ---------------------------------------------------------------------- pore detail's program variant
+PORES_INVISIBLE_DEFINE = "DERMIS_PORES_INVISIBLE"
+PORE_FOOTPRINT_MARGIN = 1.05
+""":func:`pores_invisible` asks for a bound this much above the fade's end: the shader's footprint
+is a finite difference in fp32 (relative error ~1e-6), the bound exact but for the pixel's
+half-texel offsets, which the frustum's extent plus one pixel covers."""
+
+
+def min_pixel_footprint(frame) -> float:
+    """A lower bound, in scene units, on what common/noise.glsl takes as a fragment's footprint,
+    max(|dP/dx|, |dP/dy|) (P the world position, one pixel apart), over every fragment of the mesh.
+
+    Orthographic: one pixel spans 2 / (P00 W) along x (2 / (P11 H) along y) at every depth.
+    Perspective (view-space ray directions d = (x, y, -1), x = (x_ndc + P02) / P00 per unit depth):
+    two rays one pixel apart (s = 2 / (P00 W) in x) make an angle a with
+    sin a = |d1 x d2| / (|d1| |d2|) = s sqrt(1 + y^2) / (|d1| |d2|) >= s / (|d1| |d2|); the fragment's
+    point on ray 1 at view depth z lies z |d1| from the eye, so any point of ray 2 (its neighbour's,
+    on the triangle's plane, helper pixels included) is at least z |d1| sin a >= z s / |d2| away. |d2| is largest at
+    the frustum's corners widened by a pixel, and z >= the larger of the near plane (clipping) and
+    the nearest vertex's depth (depth is linear over a triangle)."""
+    proj = np.asarray(frame.proj, np.float64)
+    w, h = frame.size
+    sx, sy = 2.0 / (proj[0, 0] * w), 2.0 / (proj[1, 1] * h)
+    if proj[3, 3] == 1.0 and proj[3, 2] == 0.0:  # orthographic
+        return float(min(sx, sy))
+    view = np.asarray(frame.view, np.float64)
+    pos = np.asarray(frame.scene.mesh.positions, np.float64)
+    depth = -(pos @ view[2, :3] + view[2, 3])
+    z = max(float(depth.min()), float(frame.near))
+    tx = max(abs(-1.0 + proj[0, 2]), abs(1.0 + proj[0, 2])) / proj[0, 0] + sx
+    ty = max(abs(-1.0 + proj[1, 2]), abs(1.0 + proj[1, 2])) / proj[1, 1] + sy
+    return float(z * min(sx, sy) / math.sqrt(1.0 + tx * tx + ty * ty))
+
+
+def pores_invisible(frame) -> bool:
+    """True when pore_normal returns the normal unchanged at every fragment of the frame: no pore
+    strength, or every footprint (:func:`min_pixel_footprint`, in mm) at or beyond the fade's end."""
+    mat = frame.scene.material
+    if mat.pore_strength <= 0.0 or mat.pore_scale_mm <= 0.0:
+        return True
+    footprint_mm = min_pixel_footprint(frame) * frame.scene.mm_per_unit
+    return footprint_mm >= PORE_FADE[1] * mat.pore_scale_mm * PORE_FOOTPRINT_MARGIN
+
+
+def shading_program(frame, prog):
+    """The program to draw a screen-space skin pass with: ``prog``, or where :func:`pores_invisible`
+    holds and ``prog`` evaluates pore detail, its variant compiled with PORES_INVISIBLE_DEFINE
+    (one per program and Renderer, made on first use), with ``prog``'s uniform values copied into it.
+    The image is the same (pore_normal returns N either way); a CPU rasteriser saves the noise,
+    which it evaluates under the false branch anyway (benchmarks/RESULTS.md, round 9, screen9)."""
+    if prog.get("uPoreStrength", None) is None or not pores_invisible(frame):
+        return prog
+    sources = (prog.extra or {}).get("sources") if isinstance(prog.extra, dict) else None
+    if sources is None:  # not made by dermis.gl.shaders.program: nothing to compile a variant from
+        return prog
+    from dermis.gl.shaders import program
+
+    variants = frame.renderer.program_variants
+    entry = variants.get(id(prog))
+    if entry is None:  # keyed on the program object, held in the entry: its id cannot be reused while cached
+        vertex, fragment, defines, geometry = sources
+        entry = variants[id(prog)] = (prog, program(frame.ctx, vertex, fragment, {**defines, PORES_INVISIBLE_DEFINE: None},
+                                                     geometry))
+    variant = entry[1]
+    for name in prog:
+        u = prog[name]
+        if type(u).__name__ != "Uniform":
+            continue
+        v = variant.get(name, None)
+        if v is None:
+            continue
+        data = u.read()
+        if v.extra != data:  # the variant's uniforms go through here only (set_uniform's cache)
+            v.write(data)
+            v.extra = data
+    return variant
 
 
 def directional_albedo_uniforms(prog, scene) -> None:

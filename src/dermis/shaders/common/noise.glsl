@@ -2,6 +2,7 @@
 // place of the permutation table) and its analytic gradient, evaluated on world positions in mm so
 // the detail has a physical scale. Used to perturb the specular normal (d'Eon & Luebke 2007, 14.5:
 // "pore-level detail ... in the specular").
+#include "common/constants.glsl"
 vec3 noise_hash3(vec3 p) {
     p = vec3(dot(p, vec3(127.1, 311.7, 74.7)), dot(p, vec3(269.5, 183.3, 246.1)), dot(p, vec3(113.5, 271.9, 124.6)));
     return -1.0 + 2.0 * fract(sin(p) * 43758.5453123);
@@ -38,15 +39,23 @@ vec4 gradient_noise_d(vec3 x) {
 // Each octave fades out as its wavelength approaches the pixel's footprint on the surface (the
 // noise would alias into sparkle): a frequency clamp (Perlin 1985; Lagae et al. 2010, sec. 3).
 // Fragment shaders only (uses derivatives).
+// DERMIS_PORES_INVISIBLE: the program variant drawn where no pixel's footprint is below half the
+// pore scale (f1 = 0 at every fragment, so N comes back unchanged; dermis.techniques.shared.
+// pores_invisible): the same image without the noise, which a CPU rasteriser (llvmpipe) evaluates
+// under the false branch anyway (it runs both sides of a branch under a mask).
 vec3 pore_normal(vec3 N, vec3 P_mm, float pore_scale_mm, float strength) {
+#ifdef DERMIS_PORES_INVISIBLE
+    return N;
+#else
     if (strength <= 0.0 || pore_scale_mm <= 0.0) return N;
     float footprint_mm = max(length(dFdx(P_mm)), length(dFdy(P_mm)));
-    float f1 = 1.0 - smoothstep(0.25, 0.5, footprint_mm / pore_scale_mm);
-    float f2 = 1.0 - smoothstep(0.25, 0.5, footprint_mm / (0.5 * pore_scale_mm));
+    float f1 = 1.0 - smoothstep(DERMIS_PORE_FADE.x, DERMIS_PORE_FADE.y, footprint_mm / pore_scale_mm);
+    float f2 = 1.0 - smoothstep(DERMIS_PORE_FADE.x, DERMIS_PORE_FADE.y, footprint_mm / (0.5 * pore_scale_mm));
     if (f1 <= 0.0) return N;
     vec4 n1 = gradient_noise_d(P_mm / pore_scale_mm);
     vec4 n2 = gradient_noise_d(P_mm / (0.5 * pore_scale_mm) + 17.0);
     vec3 g = f1 * n1.yzw + 0.5 * f2 * n2.yzw;
     vec3 gt = g - N * dot(N, g);
     return normalize(N - strength * gt);
+#endif
 }

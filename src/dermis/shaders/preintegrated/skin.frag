@@ -24,6 +24,7 @@
 
 uniform sampler2D uDiffuseTable;   // D(N.L, curvature): s = N.L in [-1, 1], t = sqrt(curvature / max)
 uniform sampler2D uPenumbraTable;  // P(shadow, width): s = shadow in [0, 1], t = log-spaced width
+uniform sampler2D uNormalMapLod;   // uNormalMap through a sampler without anisotropy (the blurred normals' explicit levels)
 uniform float uCurvatureMaxPerMm;
 uniform vec2 uPenumbraWidthRangeMm;
 uniform float uCurvatureFromMesh;   // 1: the mesh's per-vertex curvature, 0: screen derivatives
@@ -235,7 +236,7 @@ void main() {
     for (int k = 0; k < uGaussianCount; ++k) {
         float box_texels = sqrt(uVariances[k]) * texels_per_mm * 3.4641016;  // sqrt(12) sigma_k
         float lod_k = max(log2(max(box_texels, 1.0)) * uBlurredNormals, footprint_lod);
-        vec3 m_k = textureLod(uNormalMap, nuv, lod_k).xyz * 2.0 - 1.0;
+        vec3 m_k = textureLod(uNormalMapLod, nuv, lod_k).xyz * 2.0 - 1.0;
         n_profile += mat3(m_k * uWeights[k].r, m_k * uWeights[k].g, m_k * uWeights[k].b);
     }
     vec3 N_red = tangent_to_world(v_normal, v_tangent, n_profile[0]);
