@@ -1,0 +1,102 @@
+"""The random walk inside a mesh (dermis.reference.random_walk) against MCML (dermis.profiles.monte_carlo)
+on a closed slab (a box 60 x 60 x 1 mm), for both boundary models. About 10 s on 2 cores.
+
+Reciprocity ties the two: the walk estimates the radiance leaving one face towards a camera; MCML
+the power leaving per unit power entering. With camera directions drawn cosine-distributed over the
+face's hemisphere, pi x the mean radiance is the face's exitance M, and for a directional light of
+irradiance E at cos theta_l, M = E cos theta_l (1 - F(theta_l)) x MCML's R or T (index 1.4, the beam
+refracted in). The walk's directions never meet MCML's unscattered beam (a delta along the beam):
+its closed form, (1 - F) e / (1 - F^2 e^2) with e = exp(-d / (mfp cos theta_t)), is taken off T.
+Cycles' walk (Lambertian gather, index-matched, seen head-on) gives pi L / E = MCML's R or T of an
+index-matched slab launched along the normal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dermis.errors import DermisError
+from dermis.geometry.raycast import cosine_directions
+from dermis.profiles.medium import Layer, Medium
+from dermis.profiles.monte_carlo import monte_carlo_reflectance
+from dermis.reference.random_walk import DirectionalLight, MeshWalk, WalkMedium, fresnel_unpolarised
+from dermis.scene.builtin import slab
+
+THICKNESS_MM, MFP_MM, ALBEDO = 1.0, 0.5, 0.95
+WALKS, PHOTONS = 4000, 40_000
+
+
+@pytest.fixture(scope="module")
+def slab_walk():
+    p, nn, _, t = slab(size=60.0, thickness=THICKNESS_MM, n=4)
+    mw = MeshWalk(p, t, nn)
+    rng = np.random.default_rng(3)
+    # start points on the front face (z = +d/2) within 1 mm of the centre, and their triangles
+    pts = np.c_[rng.uniform(-1, 1, (WALKS, 2)), np.full(WALKS, THICKNESS_MM / 2)]
+    _, tri, _ = mw.caster.closest_hit(pts + [0, 0, 1.0], np.tile([0, 0, -1.0], (WALKS, 1)))
+    assert (tri >= 0).all()
+    return mw, pts, tri
+
+
+def _mcml(index, incidence_cos=1.0):
+    m = Medium(np.array([(1 - ALBEDO) / MFP_MM]), np.array([ALBEDO / MFP_MM]), 0.0, index)
+    return monte_carlo_reflectance([Layer(m, THICKNESS_MM)], PHOTONS, [0.0, 1e3], seed=1, incidence_cos=incidence_cos)
+
+
+def _close(walk, ref, ref_se):
+    L = np.pi * walk
+    se = np.hypot(L.std() / np.sqrt(len(L)), ref_se)
+    assert abs(L.mean() - ref) < 4.0 * se, (L.mean(), ref, se)
+
+
+@pytest.mark.parametrize("transmitted", [True, False], ids=["T", "R"])
+def test_skin_walk_in_a_slab_mesh_is_mcml(slab_walk, transmitted):
+    mw, pts, tri = slab_walk
+    cos_l = 0.7  # an oblique light: the refracted entry search and the Fresnel factors
+    light = DirectionalLight((np.sqrt(1 - cos_l ** 2), 0.0, -cos_l if transmitted else cos_l), 1.0)
+    rng = np.random.default_rng(4)
+    out = cosine_directions(np.tile([0, 0, 1.0], (WALKS, 1)), rng.random((WALKS, 1)), rng.random((WALKS, 1)))[:, 0]
+    L = mw.radiance(pts, tri, -out, WalkMedium(MFP_MM, ALBEDO, "fresnel", 1.4), [light], seed=5)
+    r = _mcml(1.4, cos_l)
+    F, cos_t = fresnel_unpolarised(np.array([cos_l]), 1.0, 1.4)
+    if transmitted:
+        f_in = fresnel_unpolarised(cos_t, 1.4, 1.0)[0][0]
+        e = np.exp(-THICKNESS_MM / (MFP_MM * cos_t[0]))
+        ref = r.total_transmittance - (1 - f_in) * e / (1 - f_in ** 2 * e * e)
+        ref_se = np.sqrt(r.total_transmittance / PHOTONS)
+    else:
+        ref, ref_se = r.total_reflectance, r.total_reflectance_standard_error
+    scale = cos_l * (1 - F[0])
+    assert ref > 0.1
+    _close(L, ref * scale, ref_se * scale)
+
+
+@pytest.mark.parametrize("transmitted", [True, False], ids=["T", "R"])
+def test_cycles_walk_in_a_slab_mesh_is_index_matched_mcml(slab_walk, transmitted):
+    mw, pts, tri = slab_walk
+    light = DirectionalLight((0.0, 0.0, -1.0 if transmitted else 1.0), 1.0)
+    head_on = np.tile([0, 0, -1.0], (WALKS, 1))
+    L = mw.radiance(pts, tri, head_on, WalkMedium(MFP_MM, ALBEDO, "lambertian", 1.4), [light], seed=6)
+    r = _mcml(1.0)
+    ref = r.total_transmittance if transmitted else r.total_reflectance
+    _close(L, ref, np.sqrt(ref / PHOTONS))
+
+
+def test_environment_alone_through_a_slab(slab_walk):
+    """A uniform environment of radiance C around a non-absorbing slab: every walk leaves, so the
+    radiance is C for both boundaries (energy conservation; the Fresnel n^2 factors cancel)."""
+    mw, pts, tri = slab_walk
+    head_on = np.tile([0, 0, -1.0], (500, 1))
+    for m in (WalkMedium(MFP_MM, 1.0, "fresnel", 1.4), WalkMedium(MFP_MM, 1.0, "lambertian", 1.4)):
+        L = mw.radiance(pts[:500], tri[:500], head_on, m, environment=0.25, seed=7)
+        F = fresnel_unpolarised(np.array([1.0]), 1.0, 1.4)[0][0] if m.boundary == "fresnel" else 0.0
+        # the fresnel walk's radiance leaving is (1 - F_o) of what is inside (the rest is the specular)
+        assert L.mean() == pytest.approx(0.25 * (1 - F), abs=4 * L.std() / np.sqrt(len(L)) + 1e-9)
+
+
+def test_bad_medium_is_refused():
+    with pytest.raises(DermisError, match="boundary"):
+        WalkMedium(1.0, 0.9, "mirror")
+    with pytest.raises(DermisError, match="mean free path"):
+        WalkMedium(0.0, 0.9)
