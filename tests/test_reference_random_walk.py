@@ -100,3 +100,22 @@ def test_bad_medium_is_refused():
         WalkMedium(1.0, 0.9, "mirror")
     with pytest.raises(DermisError, match="mean free path"):
         WalkMedium(0.0, 0.9)
+
+
+def test_refracted_beam_inside_a_slab_is_the_closed_form(slab_walk):
+    """The light's collimated source at points inside the slab, by the refracted-entry search and by
+    the enumeration of facets: E (1 - F) cos_l / cos_t exp(-s / mfp), s the path from the back face
+    along the refracted beam (depth / cos_t)."""
+    mw, _, _ = slab_walk
+    rng = np.random.default_rng(8)
+    depth = rng.uniform(0.05, 0.95, 200) * THICKNESS_MM  # from the back face (z = -d/2)
+    y = np.c_[rng.uniform(-2, 2, (200, 2)), depth - THICKNESS_MM / 2]
+    cos_l = 0.4
+    light = DirectionalLight((np.sqrt(1 - cos_l ** 2), 0.0, -cos_l), 2.0)
+    F, cos_t = fresnel_unpolarised(np.array([cos_l]), 1.0, 1.4)
+    expected = 2.0 * (1 - F[0]) * cos_l / cos_t[0] * np.exp(-depth / cos_t[0] / MFP_MM)
+    e_in, dist, found = mw._beam_at(y, light, 1.4)
+    assert found.all()
+    np.testing.assert_allclose(e_in * np.exp(-dist / MFP_MM), expected, rtol=1e-6)
+    # the slab's facets are 15 mm wide: enumerate those with centroids within 40 mm
+    np.testing.assert_allclose(mw.beam_exhaustive(y, light, 1.4, MFP_MM, 40.0), expected, rtol=1e-6)

@@ -182,11 +182,48 @@ class MeshWalk:
         found = np.isfinite(dist)
         return e_in, dist, found
 
+    def beam_exhaustive(self, y, light, index, mean_free_path_mm, radius_mm):
+        """The same collimated source at y as _beam_at, attenuated (E_in exp(-s / mfp) summed over
+        EVERY facet whose refracted beam reaches y), by enumeration: each facet facing the light
+        with its centroid within ``radius_mm`` of y is tested (the ray from y along -t_T must hit T
+        first). The check of the search (caustics, facets it does not find); (n,)."""
+        from scipy.spatial import cKDTree
+
+        if getattr(self, "_tree", None) is None:
+            self._centroids = (self.caster.v0 + self.caster.v1 + self.caster.v2) / 3.0
+            self._tree = cKDTree(self._centroids)
+        l = np.asarray(light.to_light, np.float64)
+        y = np.asarray(y, np.float64).reshape(-1, 3)
+        lists = self._tree.query_ball_point(y, radius_mm)
+        owner = np.repeat(np.arange(len(y)), [len(c) for c in lists])
+        if len(owner) == 0:
+            return np.zeros(len(y))
+        cand = np.concatenate([np.asarray(c, np.int64) for c in lists])
+        n = self.facet_normals[cand]
+        # outward as seen from y: the side of the facet's plane that y is not on
+        n = n * np.where(np.einsum("ij,ij->i", self.caster.v0[cand] - y[owner], n) >= 0.0, 1.0, -1.0)[:, None]
+        cos_l = n @ l
+        ok = cos_l > 0.0
+        owner, cand, n, cos_l = owner[ok], cand[ok], n[ok], cos_l[ok]
+        beam = refract(np.broadcast_to(-l, n.shape), n, 1.0 / index)
+        t, tri, _ = self.caster.closest_hit(y[owner], -beam, 0.0, np.inf)
+        good = tri == cand
+        owner, n, cos_l, t, beam = owner[good], n[good], cos_l[good], t[good], beam[good]
+        F, cos_t = fresnel_unpolarised(cos_l, 1.0, index)
+        lit = self._lit(y[owner] - beam * t[:, None], n, l)
+        e = lit * light.irradiance * (1.0 - F) * cos_l / np.maximum(cos_t, 1e-12) * np.exp(-t / mean_free_path_mm)
+        return np.bincount(owner, weights=e, minlength=len(y))
+
     def radiance(self, points, triangles, view_dirs, medium: WalkMedium, lights=(), environment: float = 0.0,
-                 seed: int = 0, stats: dict | None = None):
+                 seed: int = 0, stats: dict | None = None, check_fraction: float = 0.0, check_radius_mm: float = 4.0):
         """Radiance leaving each surface point towards the camera, one walk per point (average walks
         per pixel yourself). ``points`` (n, 3) mm on ``triangles`` (n,), ``view_dirs`` (n, 3) unit
-        camera-ray directions (towards the surface). Returns (n,) radiance."""
+        camera-ray directions (towards the surface). Returns (n,) radiance.
+
+        ``check_fraction``: at that random share of the fresnel walk's scattering vertices the light's
+        source is also summed by beam_exhaustive (facets within ``check_radius_mm``); ``stats`` then
+        gets "nee_search" and "nee_exhaustive", the two estimates' weighted sums over the same
+        vertices (their ratio: what the search misses where the walks actually are)."""
         rng = np.random.default_rng(seed)
         p = np.asarray(points, np.float64).reshape(-1, 3).copy()
         v = np.asarray(view_dirs, np.float64).reshape(-1, 3)
@@ -210,7 +247,7 @@ class MeshWalk:
                 d = cosine_directions(-out_n, rng.random((n, 1)), rng.random((n, 1)))[:, 0]
         tmin = np.full(n, EPS_MM)
         alive = np.arange(n)
-        counters = {"steps": 0, "nee": 0, "nee_found": 0}
+        counters = {"steps": 0, "nee": 0, "nee_found": 0, "nee_search": 0.0, "nee_exhaustive": 0.0}
         for _ in range(MAX_STEPS):
             if len(alive) == 0:
                 break
@@ -262,7 +299,14 @@ class MeshWalk:
                         counters["nee"] += len(sc)
                         counters["nee_found"] += int(found.sum())
                         f = found & (e_in > 0)
-                        result[sc[f]] += w[sc[f]] * alpha / (4.0 * np.pi) * e_in[f] * np.exp(-sigma_t * dist[f])
+                        src = np.where(f, e_in * np.exp(-sigma_t * np.where(f, dist, 0.0)), 0.0)
+                        result[sc] += w[sc] * alpha / (4.0 * np.pi) * src
+                        if check_fraction > 0.0:
+                            chk = rng.random(len(sc)) < check_fraction
+                            if chk.any():
+                                ex = self.beam_exhaustive(y[chk], L, eta, medium.mean_free_path_mm, check_radius_mm)
+                                counters["nee_search"] += float((w[sc[chk]] * src[chk]).sum())
+                                counters["nee_exhaustive"] += float((w[sc[chk]] * ex).sum())
                 w[sc] *= alpha
                 d[sc] = _unit_sphere(rng, len(sc))
                 tmin[sc] = 0.0
