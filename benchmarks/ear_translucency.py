@@ -39,7 +39,8 @@ shadow rays, its environment colour with visibility; no interreflection), for th
 entered along the refracted view ray and cosine-distributed; the medium of ear7's fit), per pixel of
 validate's back_lit_ear region at 64 x 64 (rays at 4x, Cycles' pixel filter), against the converged
 Cycles store without specular and tsd (rho_s 0, supersampled as validate), in translucency-share
-groups. WALKS per supersample ray (default 16), CHANNELS e.g. "0" or "01". Heavy: run with nice.
+groups. WALKS per supersample ray (default 16), CHANNELS e.g. "0" or "01"; --bounce adds one bounce of
+interreflection (the surface a leaving ray meets sends back its direct diffuse light). Heavy: run with nice.
 
     PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
 the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
@@ -320,7 +321,7 @@ CYCLES_WALK_MEDIUM = {0: (0.735, 0.930), 1: (0.247, 0.782)}
 WALK_FACTOR = 4  # supersampling of the walk's film (validate's)
 
 
-def walk_study(walks=16, channels=(0,), seed=0):
+def walk_study(walks=16, channels=(0,), seed=0, bounce=False):
     """See the module docstring (--walk)."""
     import os
     import time
@@ -373,7 +374,13 @@ def walk_study(walks=16, channels=(0,), seed=0):
     uvp = uv[idx[tt, 0]] * (1 - b1 - b2) + uv[idx[tt, 1]] * b1 + uv[idx[tt, 2]] * b2
     alb = as_rgb(sc.material.albedo.data).astype(np.float64)
     ah, aw = alb.shape[:2]
-    tex = alb[np.clip(((1 - uvp[:, 1]) * ah).astype(int), 0, ah - 1), np.clip((uvp[:, 0] * aw).astype(int), 0, aw - 1)]
+
+    def albedo_at(tr, bc):
+        b1, b2 = bc[:, :1], bc[:, 1:]
+        q = uv[idx[tr, 0]] * (1 - b1 - b2) + uv[idx[tr, 1]] * b1 + uv[idx[tr, 2]] * b2
+        return alb[np.clip(((1 - q[:, 1]) * ah).astype(int), 0, ah - 1), np.clip((q[:, 0] * aw).astype(int), 0, aw - 1)]
+
+    tex = albedo_at(tt, bary)
     ear_rays = np.repeat(np.repeat(ear, f, 0), f, 1).ravel()[sel] & hit
     albedo = mean_skin_albedo(sc.material)
     print(f"back-ears, {int(ear.sum())} ear pixels, {len(sel)} supersample rays ({int(hit.sum())} on the mesh), "
@@ -403,8 +410,25 @@ def walk_study(walks=16, channels=(0,), seed=0):
     for c in channels:
         mfp = float(1.0 / law.reduced_sigma_t_per_mm[c])
         light = [DirectionalLight(tuple(to_light), float(L.intensity * np.asarray(L.color)[c]))]
+
+        def diffuse_direct(pts, tr, bc, dirs, c=c, light=light):
+            """What a diffuse surface met by a ray sends back along it: its direct light (the light with
+            its shadow ray, the environment unoccluded), albedo map / pi: one bounce of interreflection."""
+            n = mw._shading_normal(tr, bc, mw._outward(tr, -dirs))
+            cos = n @ to_light
+            lit = np.zeros(len(pts), bool)
+            if (cos > 0).any():
+                lit[cos > 0] = mw._lit(pts[cos > 0], n[cos > 0], to_light)
+            return albedo_at(tr, bc)[:, c] / np.pi * (light[0].irradiance * np.maximum(cos, 0) * lit + np.pi * env[c])
+
+        bfn = diffuse_direct if bounce else None
         lam = np.full(len(sel), env[c])
-        lam[hs] = tex[hs, c] / np.pi * (light[0].irradiance * np.maximum(nsh @ to_light, 0) * vis + np.pi * env[c] * envv)
+        if bounce:  # the diffuse surface's incoming light by 16 cosine rays (environment or one bounce)
+            inc = np.mean([mw._incoming(P[hs] + nsh * 1e-3, dd, env[c], bfn) for dd in np.moveaxis(cosine_directions(
+                nsh, np.random.default_rng(9).random((len(hs), 16)), np.random.default_rng(10).random((len(hs), 16))), 1, 0)], 0)
+        else:
+            inc = env[c] * envv
+        lam[hs] = tex[hs, c] / np.pi * (light[0].irradiance * np.maximum(nsh @ to_light, 0) * vis + np.pi * inc)
         img = np.zeros(H * W)
         img[sel] = lam
         results[("diffuse-direct", c)] = [ears(img.reshape(H, W))] * 2
@@ -430,7 +454,7 @@ def walk_study(walks=16, channels=(0,), seed=0):
                     st = {}
                     r = mw.radiance(np.repeat(P[inb], k, 0), np.repeat(tri[inb], k), np.repeat(d[sel][inb], k, 0), med,
                                     light, float(env[c]), seed=seed * 100000 + 1000 * c + 100 * b + 10 * names.index(name) + half,
-                                    stats=st, check_fraction=0.02 if name == "skin" else 0.0)
+                                    stats=st, check_fraction=0.02 if name == "skin" else 0.0, bounce=bfn)
                     rads[name][half][inb] = r.reshape(-1, k).mean(1)
                     if name == "skin":
                         results.setdefault(("check", c), []).append((st["nee_search"], st["nee_exhaustive"]))
@@ -482,14 +506,15 @@ def walk_study(walks=16, channels=(0,), seed=0):
                   f"{s(walk['cycles-refracted-albedo']) / cy:.3f} | {s(walk['cycles-cosine']) / cy:.3f} | {sk / cr:.3f} | "
                   f"{sk / s(walk['skin-mean']):.3f} | {s(tsd['on'][..., c]) / sk:.3f} | {s(tsd['on'][..., c]) / cy:.3f} | "
                   f"{s(tsd['off'][..., c]) / sk:.3f} |")
-    np.savez_compressed("/tmp/ear9_walk.npz", ear=ear, share=share, cycles=cyc, control=ctrl, tsd_on=tsd["on"],
+    np.savez_compressed(f"/tmp/ear9_walk{'_bounce' if bounce else ''}.npz", ear=ear, share=share, cycles=cyc, control=ctrl, tsd_on=tsd["on"],
                         tsd_off=tsd["off"], **{f"{n}_{c}_{i}": results[(n, c)][i] for (n, c) in results if n != "check" for i in (0, 1)})
 
 
 if __name__ == "__main__":
     if sys.argv[1] == "--walk":
-        walk_study(int(sys.argv[2]) if len(sys.argv) > 2 else 16,
-                   tuple(int(x) for x in sys.argv[3]) if len(sys.argv) > 3 else (0,))
+        args = [a for a in sys.argv[2:] if a != "--bounce"]
+        walk_study(int(args[0]) if args else 16, tuple(int(x) for x in args[1]) if len(args) > 1 else (0,),
+                   bounce="--bounce" in sys.argv)
     elif sys.argv[1] == "--slab":
         slab_theory(cycles="--cycles" in sys.argv[2:])
     elif sys.argv[1] == "--boundary":

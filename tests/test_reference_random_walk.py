@@ -119,3 +119,31 @@ def test_refracted_beam_inside_a_slab_is_the_closed_form(slab_walk):
     np.testing.assert_allclose(e_in * np.exp(-dist / MFP_MM), expected, rtol=1e-6)
     # the slab's facets are 15 mm wide: enumerate those with centroids within 40 mm
     np.testing.assert_allclose(mw.beam_exhaustive(y, light, 1.4, MFP_MM, 40.0), expected, rtol=1e-6)
+
+
+def test_bounce_is_what_the_surface_met_sends_back():
+    """A second box 4 mm above the slab's lit face: a leaving ray that meets it gets the ``bounce``
+    callback's radiance instead of the environment's. With both 0.25 and a non-absorbing medium the
+    walk returns 0.25 (1 - F) exactly (as the environment alone); with the box sending back nothing
+    the result drops by the share of rays that meet it (about half of the walks leave through the
+    lit face, and most of those meet the box)."""
+    p, nn, _, t = slab(size=60.0, thickness=THICKNESS_MM, n=4)
+    p2 = p + [0.0, 0.0, 5.0]
+    mw = MeshWalk(np.r_[p, p2], np.r_[t, t + len(p)], np.r_[nn, nn])
+    pts = np.tile([0.0, 0.0, THICKNESS_MM / 2], (300, 1))
+    _, tri, _ = mw.caster.closest_hit(pts - [0, 0, 0.1], np.tile([0, 0, 1.0], (300, 1)))
+    head_on = np.tile([0, 0, -1.0], (300, 1))
+    m = WalkMedium(MFP_MM, 1.0, "fresnel", 1.4)
+    F = fresnel_unpolarised(np.array([1.0]), 1.0, 1.4)[0][0]
+    calls = []
+
+    def same(points, triangles, bary, dirs):
+        calls.append(len(points))
+        assert (points[:, 2] > 4.0).all() and (dirs[:, 2] > 0).all()  # on the box above, rays going up
+        return np.full(len(points), 0.25)
+
+    L = mw.radiance(pts, tri, head_on, m, environment=0.25, seed=9, bounce=same)
+    assert sum(calls) > 0
+    np.testing.assert_allclose(L, 0.25 * (1 - F), rtol=1e-12)
+    dark = mw.radiance(pts, tri, head_on, m, environment=0.25, seed=9, bounce=lambda *a: np.zeros(len(a[0])))
+    assert 0.3 < dark.mean() / L.mean() < 0.75

@@ -182,6 +182,18 @@ class MeshWalk:
         found = np.isfinite(dist)
         return e_in, dist, found
 
+    def _incoming(self, origins, dirs, environment, bounce):
+        """Radiance arriving at origins from dirs: the environment where the ray escapes, else what
+        ``bounce`` says the surface it meets sends back (0 without one)."""
+        if bounce is None:
+            return environment * ~self.caster.occluded(origins, dirs, 0.0, np.inf)
+        t, tri, bary = self.caster.closest_hit(origins, dirs, 0.0, np.inf)
+        out = np.full(len(origins), float(environment))
+        h = tri >= 0
+        if h.any():
+            out[h] = bounce(origins[h] + dirs[h] * t[h, None], tri[h], bary[h], dirs[h])
+        return out
+
     def beam_exhaustive(self, y, light, index, mean_free_path_mm, radius_mm):
         """The same collimated source at y as _beam_at, attenuated (E_in exp(-s / mfp) summed over
         EVERY facet whose refracted beam reaches y), by enumeration: each facet facing the light
@@ -215,7 +227,8 @@ class MeshWalk:
         return np.bincount(owner, weights=e, minlength=len(y))
 
     def radiance(self, points, triangles, view_dirs, medium: WalkMedium, lights=(), environment: float = 0.0,
-                 seed: int = 0, stats: dict | None = None, check_fraction: float = 0.0, check_radius_mm: float = 4.0):
+                 seed: int = 0, stats: dict | None = None, check_fraction: float = 0.0, check_radius_mm: float = 4.0,
+                 bounce=None):
         """Radiance leaving each surface point towards the camera, one walk per point (average walks
         per pixel yourself). ``points`` (n, 3) mm on ``triangles`` (n,), ``view_dirs`` (n, 3) unit
         camera-ray directions (towards the surface). Returns (n,) radiance.
@@ -223,7 +236,11 @@ class MeshWalk:
         ``check_fraction``: at that random share of the fresnel walk's scattering vertices the light's
         source is also summed by beam_exhaustive (facets within ``check_radius_mm``); ``stats`` then
         gets "nee_search" and "nee_exhaustive", the two estimates' weighted sums over the same
-        vertices (their ratio: what the search misses where the walks actually are)."""
+        vertices (their ratio: what the search misses where the walks actually are).
+
+        ``bounce``: None (the environment's ray ends where it meets the mesh: direct light only), or a
+        callable (points, triangles, barycentrics, directions) -> radiance that the surface the ray
+        meets sends back along it (one bounce of interreflection, e.g. that surface's direct diffuse)."""
         rng = np.random.default_rng(seed)
         p = np.asarray(points, np.float64).reshape(-1, 3).copy()
         v = np.asarray(view_dirs, np.float64).reshape(-1, 3)
@@ -269,10 +286,9 @@ class MeshWalk:
                         if lit.any():
                             vis = self._lit(pb[lit], nb[lit], L.to_light)
                             result[hi[lit]] += w[hi[lit]] * L.irradiance * c[lit] * vis / np.pi
-                    if environment:
+                    if environment or bounce is not None:
                         dirs = cosine_directions(ns, rng.random((len(hi), 1)), rng.random((len(hi), 1)))[:, 0]
-                        free = ~self.caster.occluded(pb + nb * EPS_MM, dirs, 0.0, np.inf)
-                        result[hi] += w[hi] * environment * free
+                        result[hi] += w[hi] * self._incoming(pb + nb * EPS_MM, dirs, environment, bounce)
                     w[hi] = 0.0
                 else:
                     cos_i = np.einsum("ij,ij->i", da[hit], nb)
@@ -283,10 +299,10 @@ class MeshWalk:
                     p[r] = pb[refl]
                     tmin[r] = EPS_MM
                     o = hi[~refl]
-                    if environment and len(o):
+                    if (environment or bounce is not None) and len(o):
                         dout = refract(da[hit][~refl], -nb[~refl], eta)
-                        free = ~self.caster.occluded(pb[~refl] + nb[~refl] * EPS_MM, dout, 0.0, np.inf)
-                        result[o] += w[o] * eta ** 2 * environment * free
+                        result[o] += w[o] * eta ** 2 * self._incoming(pb[~refl] + nb[~refl] * EPS_MM, dout, environment,
+                                                                      bounce)
                     w[o] = 0.0
             # scattering vertices
             sc = alive[~hit]
