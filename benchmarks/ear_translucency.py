@@ -40,7 +40,8 @@ entered along the refracted view ray and cosine-distributed; the medium of ear7'
 validate's back_lit_ear region at 64 x 64 (rays at 4x, Cycles' pixel filter), against the converged
 Cycles store without specular and tsd (rho_s 0, supersampled as validate), in translucency-share
 groups. WALKS per supersample ray (default 16), CHANNELS e.g. "0" or "01"; --bounce adds one bounce of
-interreflection (the surface a leaving ray meets sends back its direct diffuse light). Heavy: run with nice.
+interreflection (the surface a leaving ray meets sends back its direct diffuse light); --paths runs the
+skin walk alone and prints where its light entered per group. Heavy: run with nice.
 
     PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
 the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
@@ -321,7 +322,7 @@ CYCLES_WALK_MEDIUM = {0: (0.735, 0.930), 1: (0.247, 0.782)}
 WALK_FACTOR = 4  # supersampling of the walk's film (validate's)
 
 
-def walk_study(walks=16, channels=(0,), seed=0, bounce=False):
+def walk_study(walks=16, channels=(0,), seed=0, bounce=False, paths_only=False):
     """See the module docstring (--walk)."""
     import os
     import time
@@ -438,6 +439,7 @@ def walk_study(walks=16, channels=(0,), seed=0, bounce=False):
         m0, a0 = CYCLES_WALK_MEDIUM[c]
         names = ("skin", "skin-mean", "cycles-refracted", "cycles-cosine", "cycles-refracted-albedo")
         rads = {n: [np.full(len(sel), env[c]), np.full(len(sel), env[c])] for n in names}
+        path_rays = {k: np.zeros(len(sel)) for k in ("light", "far", "opposite", "distance")}
         for b in range(4):
             inb = hs[bins[hs] == b]
             A = float(tex[inb, c].mean())
@@ -448,19 +450,28 @@ def walk_study(walks=16, channels=(0,), seed=0, bounce=False):
                      "cycles-refracted-albedo": WalkMedium(m0, float(a0 + chiang_alpha(A) - chiang_alpha(float(albedo[c]))),
                                                            "lambertian", 1.4, "refracted")}
             for name, med in media.items():
+                if paths_only and name != "skin":
+                    continue
                 t0 = time.perf_counter()
                 for half in range(2):  # two independent halves: the pixel's noise
                     k = max(walks // 2, 1)
                     st = {}
                     r = mw.radiance(np.repeat(P[inb], k, 0), np.repeat(tri[inb], k), np.repeat(d[sel][inb], k, 0), med,
                                     light, float(env[c]), seed=seed * 100000 + 1000 * c + 100 * b + 10 * names.index(name) + half,
-                                    stats=st, check_fraction=0.02 if name == "skin" else 0.0, bounce=bfn)
+                                    stats=st, check_fraction=0.02 if name == "skin" else 0.0, bounce=bfn, paths=name == "skin")
                     rads[name][half][inb] = r.reshape(-1, k).mean(1)
+                    if name == "skin":
+                        for key in path_rays:
+                            path_rays[key][inb] += st["paths"][key].reshape(-1, k).mean(1) / 2
                     if name == "skin":
                         results.setdefault(("check", c), []).append((st["nee_search"], st["nee_exhaustive"]))
                 print(f"  {'RGB'[c]} albedo bin {b} (A {A:.3f}, {len(inb)} rays) {name}: mfp {med.mean_free_path_mm:.3f} mm, "
                       f"albedo {med.single_scattering_albedo:.4f}; {time.perf_counter() - t0:.0f} s "
                       f"(load {os.getloadavg()[0]:.1f})", flush=True)
+        for key, v in path_rays.items():
+            img = np.zeros(H * W)
+            img[sel] = v
+            results[("path-" + key, c)] = [ears(img.reshape(H, W))] * 2
         for name in names:
             halves = []
             for half in range(2):
@@ -482,6 +493,19 @@ def walk_study(walks=16, channels=(0,), seed=0, bounce=False):
     groups = [("< 0.1", share < 0.1), ("0.1-0.3", (share >= 0.1) & (share < 0.3)),
               ("0.3-0.5", (share >= 0.3) & (share < 0.5)), (">= 0.5", share >= 0.5), ("all", np.ones_like(share, bool))]
     for c in channels:
+        pr = {k: results[("path-" + k, c)][0] for k in ("light", "far", "opposite", "distance")}
+        print(f"\n{'RGB'[c]}: where the skin walk's light entered (the light's part of its radiance, per group; "
+              f"far: more than 3 mm from the pixel's point; opposite: through a facet facing away from the pixel's)")
+        print("| tsd translucency share | px | far share | opposite share | mean entry distance (mm) |")
+        print("|---|---|---|---|---|")
+        for g, gm in groups:
+            m = gm & ear
+            if m.any():
+                lt = float(pr["light"][m].sum())
+                print(f"| {g} | {int(m.sum())} | {pr['far'][m].sum() / lt:.3f} | {pr['opposite'][m].sum() / lt:.3f} | "
+                      f"{pr['distance'][m].sum() / lt:.2f} |")
+        if paths_only:
+            continue
         print(f"\n{'RGB'[c]}: sums over the group's ear pixels (linear radiance); ratios of sums; +- half the two halves' difference")
         walk = {n: 0.5 * (results[(n, c)][0] + results[(n, c)][1]) for n in
                 ("skin", "skin-mean", "cycles-refracted", "cycles-cosine", "cycles-refracted-albedo", "diffuse-direct")}
@@ -512,9 +536,9 @@ def walk_study(walks=16, channels=(0,), seed=0, bounce=False):
 
 if __name__ == "__main__":
     if sys.argv[1] == "--walk":
-        args = [a for a in sys.argv[2:] if a != "--bounce"]
+        args = [a for a in sys.argv[2:] if a not in ("--bounce", "--paths")]
         walk_study(int(args[0]) if args else 16, tuple(int(x) for x in args[1]) if len(args) > 1 else (0,),
-                   bounce="--bounce" in sys.argv)
+                   bounce="--bounce" in sys.argv, paths_only="--paths" in sys.argv)
     elif sys.argv[1] == "--slab":
         slab_theory(cycles="--cycles" in sys.argv[2:])
     elif sys.argv[1] == "--boundary":

@@ -147,3 +147,19 @@ def test_bounce_is_what_the_surface_met_sends_back():
     np.testing.assert_allclose(L, 0.25 * (1 - F), rtol=1e-12)
     dark = mw.radiance(pts, tri, head_on, m, environment=0.25, seed=9, bounce=lambda *a: np.zeros(len(a[0])))
     assert 0.3 < dark.mean() / L.mean() < 0.75
+
+
+def test_paths_say_which_face_the_light_entered(slab_walk):
+    """Back-lit, every bit of the light entered through the far face (facing away from the start's);
+    front-lit, none did; and the light-weighted entry distance is at least the thickness when back-lit."""
+    mw, pts, tri = slab_walk
+    head_on = np.tile([0, 0, -1.0], (500, 1))
+    for z, opposite in ((-1.0, 1.0), (1.0, 0.0)):
+        st = {}
+        L = mw.radiance(pts[:500], tri[:500], head_on, WalkMedium(MFP_MM, ALBEDO, "fresnel", 1.4),
+                        [DirectionalLight((0.0, 0.0, z), 1.0)], seed=11, stats=st, paths=True)
+        p = st["paths"]
+        np.testing.assert_allclose(p["light"], L, rtol=1e-12)
+        assert p["opposite"].sum() == pytest.approx(opposite * L.sum(), rel=1e-12)
+        if opposite:
+            assert p["distance"].sum() / L.sum() >= THICKNESS_MM

@@ -53,7 +53,8 @@ NEE_ITERATIONS = 4  # refracted-entry search: casts per scattering vertex and li
 SAME_PLANE_COS = 1.0 - 1e-6  # facets whose normals agree this well refract a beam alike
 ROULETTE_WEIGHT = 1e-3  # MCML's Russian roulette: below this weight, survive with ROULETTE_SURVIVAL
 ROULETTE_SURVIVAL = 0.1
-MAX_STEPS = 100_000  # a walk that left a mesh that is not closed would scatter forever in air
+MAX_STEPS = 100_000
+PATH_FAR_MM = 3.0  # radiance(paths=True): light entering farther than this from the start is "far"  # a walk that left a mesh that is not closed would scatter forever in air
 
 
 @dataclass(frozen=True)
@@ -152,6 +153,7 @@ class MeshWalk:
         n = len(y)
         e_in = np.zeros(n)
         dist = np.full(n, np.inf)
+        entry_normal = np.zeros((n, 3))
         todo = np.arange(n)
         d = np.broadcast_to(l, (n, 3)).copy()  # the first guess: straight to the light
         prev = np.full((n, 3), np.nan)
@@ -173,6 +175,7 @@ class MeshWalk:
                 lit = self._lit(entry, nrm[done], l)
                 e_in[idx] = np.where(lit, light.irradiance * (1.0 - F) * cos_l[done] / np.maximum(cos_t, 1e-12), 0.0)
                 dist[idx] = t[done]
+                entry_normal[idx] = nrm[done]
             go = ~done & facing
             todo = todo[go]
             nrm = nrm[go]
@@ -180,6 +183,7 @@ class MeshWalk:
             d[todo] = -beam
             prev[todo] = nrm
         found = np.isfinite(dist)
+        self._last_entry = (d, entry_normal)  # direction from y to the entry, and its facet's normal
         return e_in, dist, found
 
     def _incoming(self, origins, dirs, environment, bounce):
@@ -228,7 +232,7 @@ class MeshWalk:
 
     def radiance(self, points, triangles, view_dirs, medium: WalkMedium, lights=(), environment: float = 0.0,
                  seed: int = 0, stats: dict | None = None, check_fraction: float = 0.0, check_radius_mm: float = 4.0,
-                 bounce=None):
+                 bounce=None, paths: bool = False):
         """Radiance leaving each surface point towards the camera, one walk per point (average walks
         per pixel yourself). ``points`` (n, 3) mm on ``triangles`` (n,), ``view_dirs`` (n, 3) unit
         camera-ray directions (towards the surface). Returns (n,) radiance.
@@ -240,7 +244,12 @@ class MeshWalk:
 
         ``bounce``: None (the environment's ray ends where it meets the mesh: direct light only), or a
         callable (points, triangles, barycentrics, directions) -> radiance that the surface the ray
-        meets sends back along it (one bounce of interreflection, e.g. that surface's direct diffuse)."""
+        meets sends back along it (one bounce of interreflection, e.g. that surface's direct diffuse).
+
+        ``paths`` (fresnel): ``stats["paths"]`` gets per walk where its light entered: "light" the
+        light's part of the result, "far" the part that entered more than PATH_FAR_MM from the start
+        point, "opposite" the part that entered through a facet facing away from the start's
+        (n_entry . n_start < 0: through the thickness), "distance" the light-weighted mean distance."""
         rng = np.random.default_rng(seed)
         p = np.asarray(points, np.float64).reshape(-1, 3).copy()
         v = np.asarray(view_dirs, np.float64).reshape(-1, 3)
@@ -264,6 +273,8 @@ class MeshWalk:
                 d = cosine_directions(-out_n, rng.random((n, 1)), rng.random((n, 1)))[:, 0]
         tmin = np.full(n, EPS_MM)
         alive = np.arange(n)
+        p0, n0 = p.copy(), out_n.copy()
+        path_sums = {k: np.zeros(n) for k in ("light", "far", "opposite", "distance")}
         counters = {"steps": 0, "nee": 0, "nee_found": 0, "nee_search": 0.0, "nee_exhaustive": 0.0}
         for _ in range(MAX_STEPS):
             if len(alive) == 0:
@@ -316,7 +327,16 @@ class MeshWalk:
                         counters["nee_found"] += int(found.sum())
                         f = found & (e_in > 0)
                         src = np.where(f, e_in * np.exp(-sigma_t * np.where(f, dist, 0.0)), 0.0)
-                        result[sc] += w[sc] * alpha / (4.0 * np.pi) * src
+                        add = w[sc] * alpha / (4.0 * np.pi) * src
+                        result[sc] += add
+                        if paths:
+                            to_entry, n_entry = self._last_entry
+                            entry = y + to_entry * np.where(f, dist, 0.0)[:, None]
+                            far = np.linalg.norm(entry - p0[sc], axis=1)
+                            path_sums["light"][sc] += add
+                            path_sums["far"][sc] += add * (far > PATH_FAR_MM)
+                            path_sums["opposite"][sc] += add * (np.einsum("ij,ij->i", n_entry, n0[sc]) < 0.0)
+                            path_sums["distance"][sc] += add * far
                         if check_fraction > 0.0:
                             chk = rng.random(len(sc)) < check_fraction
                             if chk.any():
@@ -333,4 +353,6 @@ class MeshWalk:
             alive = alive[w[alive] > 0.0]
         if stats is not None:
             stats.update(counters)
+            if paths:
+                stats["paths"] = path_sums
         return result
