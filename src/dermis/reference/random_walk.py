@@ -31,7 +31,8 @@ every boundary hit is a ray cast against the mesh. Two boundary models:
   on the interpolated vertex normal gathers the light: E max(0, N.L) V / pi per directional light and
   C V for the environment (one cosine-distributed ray).
 
-Direct light only: light reflected by other skin before entering (interreflection) is not carried.
+Direct light; light reflected by other skin before entering (interreflection) only as one bounce that
+the caller describes (``bounce``: what the surface a leaving ray meets sends back).
 Lengths in mm (the mesh's positions must be in mm); radiance per unit of the lights' irradiance
 (``irradiance`` = W m^-2 across the beam, as dermis's light intensity) and of the environment's
 radiance.
