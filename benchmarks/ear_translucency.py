@@ -41,7 +41,8 @@ validate's back_lit_ear region at 64 x 64 (rays at 4x, Cycles' pixel filter), ag
 Cycles store without specular and tsd (rho_s 0, supersampled as validate), in translucency-share
 groups. WALKS per supersample ray (default 16), CHANNELS e.g. "0" or "01"; --bounce adds one bounce of
 interreflection (the surface a leaving ray meets sends back its direct diffuse light); --paths runs the
-skin walk alone and prints where its light entered per group. Heavy: run with nice.
+skin walk alone and prints where its light entered per group; --exhaustive runs the skin walk alone with
+the light's source summed over every facet within 4 mm (nee="exhaustive", the search's check; slow). Heavy: run with nice.
 
     PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
 the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
@@ -322,7 +323,7 @@ CYCLES_WALK_MEDIUM = {0: (0.735, 0.930), 1: (0.247, 0.782)}
 WALK_FACTOR = 4  # supersampling of the walk's film (validate's)
 
 
-def walk_study(walks=16, channels=(0,), seed=0, bounce=False, paths_only=False):
+def walk_study(walks=16, channels=(0,), seed=0, bounce=False, paths_only=False, exhaustive=False):
     """See the module docstring (--walk)."""
     import os
     import time
@@ -450,7 +451,7 @@ def walk_study(walks=16, channels=(0,), seed=0, bounce=False, paths_only=False):
                      "cycles-refracted-albedo": WalkMedium(m0, float(a0 + chiang_alpha(A) - chiang_alpha(float(albedo[c]))),
                                                            "lambertian", 1.4, "refracted")}
             for name, med in media.items():
-                if paths_only and name != "skin":
+                if (paths_only or exhaustive) and name != "skin":
                     continue
                 t0 = time.perf_counter()
                 for half in range(2):  # two independent halves: the pixel's noise
@@ -458,13 +459,15 @@ def walk_study(walks=16, channels=(0,), seed=0, bounce=False, paths_only=False):
                     st = {}
                     r = mw.radiance(np.repeat(P[inb], k, 0), np.repeat(tri[inb], k), np.repeat(d[sel][inb], k, 0), med,
                                     light, float(env[c]), seed=seed * 100000 + 1000 * c + 100 * b + 10 * names.index(name) + half,
-                                    stats=st, check_fraction=0.02 if name == "skin" else 0.0, bounce=bfn, paths=name == "skin")
+                                    stats=st, check_fraction=0.02 if name == "skin" and not exhaustive else 0.0, bounce=bfn,
+                                    paths=name == "skin" and not exhaustive, nee="exhaustive" if exhaustive else "search")
                     rads[name][half][inb] = r.reshape(-1, k).mean(1)
-                    if name == "skin":
+                    if name == "skin" and not exhaustive:
                         for key in path_rays:
                             path_rays[key][inb] += st["paths"][key].reshape(-1, k).mean(1) / 2
                     if name == "skin":
-                        results.setdefault(("check", c), []).append((st["nee_search"], st["nee_exhaustive"]))
+                        results.setdefault(("check", c), []).append(
+                            (1.0, 1.0) if exhaustive else (st["nee_search"], st["nee_exhaustive"]))
                 print(f"  {'RGB'[c]} albedo bin {b} (A {A:.3f}, {len(inb)} rays) {name}: mfp {med.mean_free_path_mm:.3f} mm, "
                       f"albedo {med.single_scattering_albedo:.4f}; {time.perf_counter() - t0:.0f} s "
                       f"(load {os.getloadavg()[0]:.1f})", flush=True)
@@ -494,17 +497,27 @@ def walk_study(walks=16, channels=(0,), seed=0, bounce=False, paths_only=False):
               ("0.3-0.5", (share >= 0.3) & (share < 0.5)), (">= 0.5", share >= 0.5), ("all", np.ones_like(share, bool))]
     for c in channels:
         pr = {k: results[("path-" + k, c)][0] for k in ("light", "far", "opposite", "distance")}
-        print(f"\n{'RGB'[c]}: where the skin walk's light entered (the light's part of its radiance, per group; "
-              f"far: more than 3 mm from the pixel's point; opposite: through a facet facing away from the pixel's)")
-        print("| tsd translucency share | px | far share | opposite share | mean entry distance (mm) |")
-        print("|---|---|---|---|---|")
-        for g, gm in groups:
-            m = gm & ear
-            if m.any():
-                lt = float(pr["light"][m].sum())
-                print(f"| {g} | {int(m.sum())} | {pr['far'][m].sum() / lt:.3f} | {pr['opposite'][m].sum() / lt:.3f} | "
-                      f"{pr['distance'][m].sum() / lt:.2f} |")
+        if not exhaustive:
+            print(f"\n{'RGB'[c]}: where the skin walk's light entered (the light's part of its radiance, per group; "
+                  f"far: more than 3 mm from the pixel's point; opposite: through a facet facing away from the pixel's)")
+            print("| tsd translucency share | px | far share | opposite share | mean entry distance (mm) |")
+            print("|---|---|---|---|---|")
+            for g, gm in groups:
+                m = gm & ear
+                if m.any():
+                    lt = float(pr["light"][m].sum())
+                    print(f"| {g} | {int(m.sum())} | {pr['far'][m].sum() / lt:.3f} | {pr['opposite'][m].sum() / lt:.3f} | "
+                          f"{pr['distance'][m].sum() / lt:.2f} |")
         if paths_only:
+            continue
+        if exhaustive:
+            sk = 0.5 * (results[("skin", c)][0] + results[("skin", c)][1])
+            for g, gm in groups:
+                m = gm & ear
+                if m.any():
+                    print(f"{'RGB'[c]} {g}: {int(m.sum())} px, skin walk (every facet's beam) {float(sk[m].sum()):.3f} "
+                          f"+- {float(0.5 * np.sqrt(((results[('skin', c)][0] - results[('skin', c)][1])[m] ** 2).sum())):.3f}, "
+                          f"tsd / skin {float(tsd['on'][..., c][m].sum() / sk[m].sum()):.3f}")
             continue
         print(f"\n{'RGB'[c]}: sums over the group's ear pixels (linear radiance); ratios of sums; +- half the two halves' difference")
         walk = {n: 0.5 * (results[(n, c)][0] + results[(n, c)][1]) for n in
@@ -542,9 +555,9 @@ def walk_study(walks=16, channels=(0,), seed=0, bounce=False, paths_only=False):
 
 if __name__ == "__main__":
     if sys.argv[1] == "--walk":
-        args = [a for a in sys.argv[2:] if a not in ("--bounce", "--paths")]
+        args = [a for a in sys.argv[2:] if a not in ("--bounce", "--paths", "--exhaustive")]
         walk_study(int(args[0]) if args else 16, tuple(int(x) for x in args[1]) if len(args) > 1 else (0,),
-                   bounce="--bounce" in sys.argv, paths_only="--paths" in sys.argv)
+                   bounce="--bounce" in sys.argv, paths_only="--paths" in sys.argv, exhaustive="--exhaustive" in sys.argv)
     elif sys.argv[1] == "--slab":
         slab_theory(cycles="--cycles" in sys.argv[2:])
     elif sys.argv[1] == "--boundary":

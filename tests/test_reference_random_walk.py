@@ -58,6 +58,9 @@ def test_skin_walk_in_a_slab_mesh_is_mcml(slab_walk, transmitted):
     rng = np.random.default_rng(4)
     out = cosine_directions(np.tile([0, 0, 1.0], (WALKS, 1)), rng.random((WALKS, 1)), rng.random((WALKS, 1)))[:, 0]
     L = mw.radiance(pts, tri, -out, WalkMedium(MFP_MM, ALBEDO, "fresnel", 1.4), [light], seed=5)
+    # the enumeration of facets as the light's source (the slab's facets are 15 mm wide: centroids within 40 mm)
+    L_ex = mw.radiance(pts[:1000], tri[:1000], -out[:1000], WalkMedium(MFP_MM, ALBEDO, "fresnel", 1.4), [light],
+                       seed=15, nee="exhaustive", check_radius_mm=40.0)
     r = _mcml(1.4, cos_l)
     F, cos_t = fresnel_unpolarised(np.array([cos_l]), 1.0, 1.4)
     if transmitted:
@@ -70,6 +73,7 @@ def test_skin_walk_in_a_slab_mesh_is_mcml(slab_walk, transmitted):
     scale = cos_l * (1 - F[0])
     assert ref > 0.1
     _close(L, ref * scale, ref_se * scale)
+    _close(L_ex, ref * scale, ref_se * scale)
 
 
 @pytest.mark.parametrize("transmitted", [True, False], ids=["T", "R"])

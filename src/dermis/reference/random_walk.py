@@ -233,7 +233,7 @@ class MeshWalk:
 
     def radiance(self, points, triangles, view_dirs, medium: WalkMedium, lights=(), environment: float = 0.0,
                  seed: int = 0, stats: dict | None = None, check_fraction: float = 0.0, check_radius_mm: float = 4.0,
-                 bounce=None, paths: bool = False):
+                 bounce=None, paths: bool = False, nee: str = "search"):
         """Radiance leaving each surface point towards the camera, one walk per point (average walks
         per pixel yourself). ``points`` (n, 3) mm on ``triangles`` (n,), ``view_dirs`` (n, 3) unit
         camera-ray directions (towards the surface). Returns (n,) radiance.
@@ -250,7 +250,14 @@ class MeshWalk:
         ``paths`` (fresnel): ``stats["paths"]`` gets per walk where its light entered: "light" the
         light's part of the result, "far" the part that entered more than PATH_FAR_MM from the start
         point, "opposite" the part that entered through a facet facing away from the start's
-        (n_entry . n_start < 0: through the thickness), "distance" the light-weighted mean distance."""
+        (n_entry . n_start < 0: through the thickness), "distance" the light-weighted mean distance.
+
+        ``nee`` (fresnel): "search" (the refracted-entry iteration) or "exhaustive" (beam_exhaustive at
+        every scattering vertex, facets within ``check_radius_mm``: exact for flat facets, slower)."""
+        if nee not in ("search", "exhaustive"):
+            raise DermisError(f"random walk: nee must be 'search' or 'exhaustive', got {nee!r}")
+        if nee == "exhaustive" and (paths or check_fraction):
+            raise DermisError("random walk: paths and check_fraction need nee='search'")
         rng = np.random.default_rng(seed)
         p = np.asarray(points, np.float64).reshape(-1, 3).copy()
         v = np.asarray(view_dirs, np.float64).reshape(-1, 3)
@@ -323,6 +330,10 @@ class MeshWalk:
                 p[sc] = y
                 if medium.boundary == "fresnel":
                     for L in lights:
+                        if nee == "exhaustive":
+                            result[sc] += w[sc] * alpha / (4.0 * np.pi) * self.beam_exhaustive(
+                                y, L, eta, medium.mean_free_path_mm, check_radius_mm)
+                            continue
                         e_in, dist, found = self._beam_at(y, L, eta)
                         counters["nee"] += len(sc)
                         counters["nee_found"] += int(found.sum())
