@@ -42,7 +42,8 @@ Cycles store without specular and tsd (rho_s 0, supersampled as validate), in tr
 groups. WALKS per supersample ray (default 16), CHANNELS e.g. "0" or "01"; --bounce adds one bounce of
 interreflection (the surface a leaving ray meets sends back its direct diffuse light); --paths runs the
 skin walk alone and prints where its light entered per group; --exhaustive runs the skin walk alone with
-the light's source summed over every facet within 4 mm (nee="exhaustive", the search's check; slow). Heavy: run with nice.
+the light's source summed over every facet within 4 mm (nee="exhaustive", the search's check; slow). The
+per-pixel arrays go to /tmp/dermis_ear_walk[_bounce].npz. Heavy: run with nice.
 
     PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
 the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
@@ -549,7 +550,7 @@ def walk_study(walks=16, channels=(0,), seed=0, bounce=False, paths_only=False, 
                   f"{s(walk['cycles-cosine']) / cy:.3f} | {sk / cw:.3f} | {s(walk['skin']) / s(walk['skin-mean']):.3f} | "
                   f"{s(tsd['on'][..., c]) / sk:.3f} | {s(tsd['on'][..., c]) / (sk * setup):.3f} | "
                   f"{s(tsd['on'][..., c]) / cy:.3f} | {s(tsd['off'][..., c]) / sk:.3f} |")
-    np.savez_compressed(f"/tmp/ear9_walk{'_bounce' if bounce else ''}.npz", ear=ear, share=share, cycles=cyc, control=ctrl, tsd_on=tsd["on"],
+    np.savez_compressed(f"/tmp/dermis_ear_walk{'_bounce' if bounce else ''}.npz", ear=ear, share=share, cycles=cyc, control=ctrl, tsd_on=tsd["on"],
                         tsd_off=tsd["off"], **{f"{n}_{c}_{i}": results[(n, c)][i] for (n, c) in results if n != "check" for i in (0, 1)})
 
 
