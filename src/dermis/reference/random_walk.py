@@ -54,8 +54,8 @@ NEE_ITERATIONS = 4  # refracted-entry search: casts per scattering vertex and li
 SAME_PLANE_COS = 1.0 - 1e-6  # facets whose normals agree this well refract a beam alike
 ROULETTE_WEIGHT = 1e-3  # MCML's Russian roulette: below this weight, survive with ROULETTE_SURVIVAL
 ROULETTE_SURVIVAL = 0.1
-MAX_STEPS = 100_000
-PATH_FAR_MM = 3.0  # radiance(paths=True): light entering farther than this from the start is "far"  # a walk that left a mesh that is not closed would scatter forever in air
+MAX_STEPS = 100_000  # a walk that left a mesh that is not closed would scatter forever in air
+PATH_FAR_MM = 3.0  # radiance(paths=True): light entering farther than this from the start is "far"
 
 
 @dataclass(frozen=True)
@@ -137,7 +137,8 @@ class MeshWalk:
             return outward
         i = self.indices[tri]
         b1, b2 = bary[:, :1], bary[:, 1:]
-        n = self.vertex_normals[i[:, 0]] * (1 - b1 - b2) + self.vertex_normals[i[:, 1]] * b1 + self.vertex_normals[i[:, 2]] * b2
+        vn = self.vertex_normals
+        n = vn[i[:, 0]] * (1 - b1 - b2) + vn[i[:, 1]] * b1 + vn[i[:, 2]] * b2
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
         return n * np.where(np.einsum("ij,ij->i", n, outward) >= 0.0, 1.0, -1.0)[:, None]
 
