@@ -31,6 +31,20 @@ About 6 min on 2 cores.
     PYTHONPATH=src python benchmarks/ear_translucency.py --cycles-view
 Cycles' walk's dependence on the view angle (it starts along the refracted view ray), red. About 1 min.
 
+    PYTHONPATH=src python benchmarks/ear_translucency.py --walk [WALKS] [CHANNELS]
+the back-lit ear's ground truth in the head's own geometry (round 9): dermis.reference.random_walk
+inside the mesh (mm), from the back-ears camera, direct light (the scene's directional light with
+shadow rays, its environment colour with visibility; no interreflection), for the skin walk (index
+1.4, Fresnel faces, the thin-slab law's medium) and Cycles' walk (index-matched, Lambertian gather,
+entered along the refracted view ray and cosine-distributed; the medium of ear7's fit), per pixel of
+validate's back_lit_ear region at 64 x 64 (rays at 4x, Cycles' pixel filter), against the converged
+Cycles store without specular and tsd (rho_s 0, supersampled as validate), in translucency-share
+groups. WALKS per supersample ray (default 16), CHANNELS e.g. "0" or "01"; --bounce adds one bounce of
+interreflection (the surface a leaving ray meets sends back its direct diffuse light); --paths runs the
+skin walk alone and prints where its light entered per group; --exhaustive runs the skin walk alone with
+the light's source summed over every facet within 4 mm (nee="exhaustive", the search's check; slow). The
+per-pixel arrays go to /tmp/dermis_ear_walk[_bounce].npz. Heavy: run with nice.
+
     PYTHONPATH=src python benchmarks/ear_translucency.py --slab [--cycles]
 the theory behind light through thin parts (issue 12): per channel, through a back-lit slab
 d = 0.5..5 mm thick, the renderers' thin-slab law (dermis.profiles.thin_slab) and d'Eon's
@@ -302,8 +316,250 @@ def against_cycles(npz, techniques):
               f"(load {os.getloadavg()[0]:.1f})")
 
 
+CYCLES_STORE = Path("/work/wt/notes/cycles-conv/back-ears")
+# Cycles' walk for this scene (ear7: Cycles' radius 9.24 / 3.10 mm from dermis.blender.sss, its mean free
+# path radius / 4 pi and its albedo remap of the mean albedo 0.535 / 0.321; red reproduces Cycles' own
+# back-lit slab render within 1-5%)
+CYCLES_WALK_MEDIUM = {0: (0.735, 0.930), 1: (0.247, 0.782)}
+WALK_FACTOR = 4  # supersampling of the walk's film (validate's)
+
+
+def walk_study(walks=16, channels=(0,), seed=0, bounce=False, paths_only=False, exhaustive=False):
+    """See the module docstring (--walk)."""
+    import os
+    import time
+
+    from dermis.blender.pixel_filter import CYCLES_FILTER_WIDTH_PX, reconstruct
+    from dermis.blender.validate import region_masks
+    from dermis.framing import framed_camera
+    from dermis.images import as_rgb
+    from dermis.profiles.thin_slab import slab_law
+    from dermis.geometry.raycast import cosine_directions
+    from dermis.reference.random_walk import DirectionalLight, MeshWalk, WalkMedium
+    from dermis.reference.render import camera_rays
+    from dermis.reference.validate import _render
+    from dermis.scene.model import mean_skin_albedo
+    from dermis.verification import random_walk_albedo
+
+    sc = dermis.load_scene(SCENE)
+    sc.material.pore_strength = 0.0
+    sc.material.rho_s = 0.0  # validate's nospec mode: the walk has no specular
+    mm = float(sc.mm_per_unit)
+    z = np.load(CYCLES_STORE / "cycles_nospec_64x64.npz")
+    spp = int(z["spp"])
+    ca, cb = z["sums"][0] / spp, z["sums"][1] / spp
+    h, w = ca.shape[:2]
+    skin = (ca[..., 3] >= 0.999) & (cb[..., 3] >= 0.999)
+    cyc = 0.5 * (ca[..., :3] + cb[..., :3])
+    zc = np.load(CYCLES_STORE / "cycles_nospec_nosss_64x64.npz")
+    ctrl = zc["sums"][0][..., :3] / int(zc["spp"])
+    ear = region_masks(sc, (w, h), skin)["back_lit_ear"]
+    f = WALK_FACTOR
+    W, H = w * f, h * f
+    # the supersamples within Cycles' filter window of an ear pixel
+    reach = int(np.ceil(CYCLES_FILTER_WIDTH_PX * f))
+    need = np.zeros((H, W), bool)
+    for i, j in zip(*np.nonzero(ear)):
+        cy, cx = (i + 0.5) * f, (j + 0.5) * f
+        need[max(int(cy - reach), 0):int(cy + reach) + 1, max(int(cx - reach), 0):int(cx + reach) + 1] = True
+    mesh = sc.mesh
+    o, d, tmax, _ = camera_rays(sc, (W, H), 1, camera=framed_camera(sc.camera, mesh, W / H))
+    sel = np.nonzero(need.ravel())[0]
+    mw = MeshWalk(np.asarray(mesh.positions, np.float64) * mm, mesh.indices, mesh.normals)
+    t, tri, bary = mw.caster.closest_hit(o[sel] * mm, d[sel], 0.0, tmax[sel] * mm)
+    hit = tri >= 0
+    P = o[sel] * mm + d[sel] * np.where(hit, t, 0.0)[:, None]
+    # the albedo map under the ear's rays (the walks use the scene's mean albedo's medium)
+    uv = np.asarray(mesh.uvs, np.float64)
+    idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
+    tt = np.where(hit, tri, 0)
+    b1, b2 = bary[:, :1], bary[:, 1:]
+    uvp = uv[idx[tt, 0]] * (1 - b1 - b2) + uv[idx[tt, 1]] * b1 + uv[idx[tt, 2]] * b2
+    alb = as_rgb(sc.material.albedo.data).astype(np.float64)
+    ah, aw = alb.shape[:2]
+
+    def albedo_at(tr, bc):
+        b1, b2 = bc[:, :1], bc[:, 1:]
+        q = uv[idx[tr, 0]] * (1 - b1 - b2) + uv[idx[tr, 1]] * b1 + uv[idx[tr, 2]] * b2
+        return alb[np.clip(((1 - q[:, 1]) * ah).astype(int), 0, ah - 1), np.clip((q[:, 0] * aw).astype(int), 0, aw - 1)]
+
+    tex = albedo_at(tt, bary)
+    ear_rays = np.repeat(np.repeat(ear, f, 0), f, 1).ravel()[sel] & hit
+    albedo = mean_skin_albedo(sc.material)
+    print(f"back-ears, {int(ear.sum())} ear pixels, {len(sel)} supersample rays ({int(hit.sum())} on the mesh), "
+          f"{walks} walks each; albedo map under the ear's rays: {' / '.join('%.3f' % x for x in tex[ear_rays].mean(0))}, "
+          f"the skin's mean {' / '.join('%.3f' % x for x in albedo)} (the walks' media)", flush=True)
+    law = slab_law(sc.profile.normalized(), albedo)
+    L = sc.lights[0]
+    to_light = -np.asarray(L.direction, np.float64) / np.linalg.norm(L.direction)
+    env = np.asarray(sc.environment.color, np.float64)
+
+    def ears(img):  # (H, W) supersampled per-ray means -> the 64 x 64 pixels, Cycles' filter
+        return reconstruct(np.repeat(img[..., None], 3, 2), f)[..., 0]
+
+    def chiang_alpha(A):  # Cycles' subsurface_random_walk_remap at anisotropy 0 (Chiang et al. 2016)
+        blend = A ** 0.25
+        return ((1 - blend) * 1.8260523782 * np.arctan(5.11246790329 * A) ** 1.09686102424
+                + blend * 0.496310210422 * np.arctan(4.23500903650 * A) ** 2.40602999408)
+
+    # a diffuse (no subsurface) surface, direct light only, at each ray: the check of the camera, light,
+    # filter and shadows against Cycles' own render without SSS (the control)
+    hs = np.nonzero(hit)[0]
+    nsh = mw._shading_normal(tri[hs], bary[hs], mw._outward(tri[hs], -d[sel][hs]))
+    vis = mw._lit(P[hs], nsh, to_light) & (nsh @ to_light > 0)
+    envv = np.mean([~mw.caster.occluded(P[hs] + nsh * 1e-3, dd, 0.0, np.inf) for dd in np.moveaxis(
+        cosine_directions(nsh, np.random.default_rng(9).random((len(hs), 16)), np.random.default_rng(10).random((len(hs), 16))), 1, 0)], 0)
+    results = {}
+    for c in channels:
+        mfp = float(1.0 / law.reduced_sigma_t_per_mm[c])
+        light = [DirectionalLight(tuple(to_light), float(L.intensity * np.asarray(L.color)[c]))]
+
+        def diffuse_direct(pts, tr, bc, dirs, c=c, light=light):
+            """What a diffuse surface met by a ray sends back along it: its direct light (the light with
+            its shadow ray, the environment unoccluded), albedo map / pi: one bounce of interreflection."""
+            n = mw._shading_normal(tr, bc, mw._outward(tr, -dirs))
+            cos = n @ to_light
+            lit = np.zeros(len(pts), bool)
+            if (cos > 0).any():
+                lit[cos > 0] = mw._lit(pts[cos > 0], n[cos > 0], to_light)
+            return albedo_at(tr, bc)[:, c] / np.pi * (light[0].irradiance * np.maximum(cos, 0) * lit + np.pi * env[c])
+
+        bfn = diffuse_direct if bounce else None
+        lam = np.full(len(sel), env[c])
+        if bounce:  # the diffuse surface's incoming light by 16 cosine rays (environment or one bounce)
+            inc = np.mean([mw._incoming(P[hs] + nsh * 1e-3, dd, env[c], bfn) for dd in np.moveaxis(cosine_directions(
+                nsh, np.random.default_rng(9).random((len(hs), 16)), np.random.default_rng(10).random((len(hs), 16))), 1, 0)], 0)
+        else:
+            inc = env[c] * envv
+        lam[hs] = tex[hs, c] / np.pi * (light[0].irradiance * np.maximum(nsh @ to_light, 0) * vis + np.pi * inc)
+        img = np.zeros(H * W)
+        img[sel] = lam
+        results[("diffuse-direct", c)] = [ears(img.reshape(H, W))] * 2
+        # the walks' media per albedo bin (the albedo map under the ray: quartiles over the rays on the mesh)
+        edges = np.quantile(tex[hs, c], [0.0, 0.25, 0.5, 0.75, 1.0])
+        bins = np.clip(np.searchsorted(edges, tex[:, c], side="right") - 1, 0, 3)
+        m0, a0 = CYCLES_WALK_MEDIUM[c]
+        names = ("skin", "skin-mean", "cycles-refracted", "cycles-cosine", "cycles-refracted-albedo")
+        rads = {n: [np.full(len(sel), env[c]), np.full(len(sel), env[c])] for n in names}
+        path_rays = {k: np.zeros(len(sel)) for k in ("light", "far", "opposite", "distance")}
+        for b in range(4):
+            inb = hs[bins[hs] == b]
+            A = float(tex[inb, c].mean())
+            media = {"skin": WalkMedium(mfp, random_walk_albedo(A, mfp, index=1.4), "fresnel", 1.4),
+                     "skin-mean": WalkMedium(mfp, random_walk_albedo(float(albedo[c]), mfp, index=1.4), "fresnel", 1.4),
+                     "cycles-refracted": WalkMedium(m0, a0, "lambertian", 1.4, "refracted"),
+                     "cycles-cosine": WalkMedium(m0, a0, "lambertian", 1.4, "cosine"),
+                     "cycles-refracted-albedo": WalkMedium(m0, float(a0 + chiang_alpha(A) - chiang_alpha(float(albedo[c]))),
+                                                           "lambertian", 1.4, "refracted")}
+            for name, med in media.items():
+                if (paths_only or exhaustive) and name != "skin":
+                    continue
+                t0 = time.perf_counter()
+                for half in range(2):  # two independent halves: the pixel's noise
+                    k = max(walks // 2, 1)
+                    st = {}
+                    r = mw.radiance(np.repeat(P[inb], k, 0), np.repeat(tri[inb], k), np.repeat(d[sel][inb], k, 0), med,
+                                    light, float(env[c]), seed=seed * 100000 + 1000 * c + 100 * b + 10 * names.index(name) + half,
+                                    stats=st, check_fraction=0.02 if name == "skin" and not exhaustive else 0.0, bounce=bfn,
+                                    paths=name == "skin" and not exhaustive, nee="exhaustive" if exhaustive else "search")
+                    rads[name][half][inb] = r.reshape(-1, k).mean(1)
+                    if name == "skin" and not exhaustive:
+                        for key in path_rays:
+                            path_rays[key][inb] += st["paths"][key].reshape(-1, k).mean(1) / 2
+                    if name == "skin":
+                        results.setdefault(("check", c), []).append(
+                            (1.0, 1.0) if exhaustive else (st["nee_search"], st["nee_exhaustive"]))
+                print(f"  {'RGB'[c]} albedo bin {b} (A {A:.3f}, {len(inb)} rays) {name}: mfp {med.mean_free_path_mm:.3f} mm, "
+                      f"albedo {med.single_scattering_albedo:.4f}; {time.perf_counter() - t0:.0f} s "
+                      f"(load {os.getloadavg()[0]:.1f})", flush=True)
+        for key, v in path_rays.items():
+            img = np.zeros(H * W)
+            img[sel] = v
+            results[("path-" + key, c)] = [ears(img.reshape(H, W))] * 2
+        for name in names:
+            halves = []
+            for half in range(2):
+                img = np.zeros(H * W)
+                img[sel] = rads[name][half]
+                halves.append(ears(img.reshape(H, W)))
+            results[(name, c)] = halves
+        chk = np.array(results[("check", c)])
+        print(f"  {'RGB'[c]}: the light's refracted-entry search against the exhaustive sum over facets (4 mm), "
+              f"at 2% of the skin walk's vertices, weighted: search / exhaustive = {chk[:, 0].sum() / chk[:, 1].sum():.4f}",
+              flush=True)
+    # tsd without specular, supersampled and reconstructed as validate; and without translucency
+    tsd = {}
+    for opt in ("on", "off"):
+        kw = {} if opt == "on" else {"tweak": lambda r: r.technique("tsd", translucency=False)}
+        big, _ = _render(sc, "tsd", (W, H), **kw)
+        tsd[opt] = reconstruct(big[..., :3], f)
+    share = np.where(tsd["on"][..., 0] > 0, 1.0 - tsd["off"][..., 0] / np.maximum(tsd["on"][..., 0], 1e-30), 0.0)
+    groups = [("< 0.1", share < 0.1), ("0.1-0.3", (share >= 0.1) & (share < 0.3)),
+              ("0.3-0.5", (share >= 0.3) & (share < 0.5)), (">= 0.5", share >= 0.5), ("all", np.ones_like(share, bool))]
+    for c in channels:
+        pr = {k: results[("path-" + k, c)][0] for k in ("light", "far", "opposite", "distance")}
+        if not exhaustive:
+            print(f"\n{'RGB'[c]}: where the skin walk's light entered (the light's part of its radiance, per group; "
+                  f"far: more than 3 mm from the pixel's point; opposite: through a facet facing away from the pixel's)")
+            print("| tsd translucency share | px | far share | opposite share | mean entry distance (mm) |")
+            print("|---|---|---|---|---|")
+            for g, gm in groups:
+                m = gm & ear
+                if m.any():
+                    lt = float(pr["light"][m].sum())
+                    print(f"| {g} | {int(m.sum())} | {pr['far'][m].sum() / lt:.3f} | {pr['opposite'][m].sum() / lt:.3f} | "
+                          f"{pr['distance'][m].sum() / lt:.2f} |")
+        if paths_only:
+            continue
+        if exhaustive:
+            sk = 0.5 * (results[("skin", c)][0] + results[("skin", c)][1])
+            for g, gm in groups:
+                m = gm & ear
+                if m.any():
+                    print(f"{'RGB'[c]} {g}: {int(m.sum())} px, skin walk (every facet's beam) {float(sk[m].sum()):.3f} "
+                          f"+- {float(0.5 * np.sqrt(((results[('skin', c)][0] - results[('skin', c)][1])[m] ** 2).sum())):.3f}, "
+                          f"tsd / skin {float(tsd['on'][..., c][m].sum() / sk[m].sum()):.3f}")
+            continue
+        print(f"\n{'RGB'[c]}: sums over the group's ear pixels (linear radiance); ratios of sums; +- half the two halves' difference")
+        walk = {n: 0.5 * (results[(n, c)][0] + results[(n, c)][1]) for n in
+                ("skin", "skin-mean", "cycles-refracted", "cycles-cosine", "cycles-refracted-albedo", "diffuse-direct")}
+        noise = {n: 0.5 * np.abs(results[(n, c)][0] - results[(n, c)][1]) for n in walk}
+        chk = np.array(results[("check", c)])
+        ratio = chk[:, 0].sum() / chk[:, 1].sum()
+        # the search's miss put back on the light's part of the skin walk (the exhaustive sum's ratio)
+        walk["skin-corrected"] = walk["skin"] + pr["light"] * (1.0 / ratio - 1.0)
+        print("| tsd translucency share | px | Cycles | skin walk (search-corrected) | setup: control / diffuse model | "
+              "Cycles walk (refr., albedo map) / Cycles | refr., mean medium / Cycles | cosine, mean / Cycles | "
+              "skin / Cycles walk | skin (map) / skin (mean) | tsd / skin | tsd / (skin x setup) | tsd / Cycles | tsd off / skin |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+        for g, gm in groups:
+            m = gm & ear
+            if not m.any():
+                continue
+
+            def s(x):
+                return float(x[m].sum())
+
+            def ns(n):
+                return float(np.sqrt((noise[n][m] ** 2).sum()))
+            sk, cy = s(walk["skin-corrected"]), s(cyc[..., c])
+            cw = s(walk["cycles-refracted-albedo"])
+            setup = s(ctrl[..., c]) / s(walk["diffuse-direct"])
+            print(f"| {g} | {int(m.sum())} | {cy:.3f} | {sk:.3f} +- {ns('skin'):.3f} | {setup:.3f} | "
+                  f"{cw / cy:.3f} +- {ns('cycles-refracted-albedo') / cy:.3f} | {s(walk['cycles-refracted']) / cy:.3f} | "
+                  f"{s(walk['cycles-cosine']) / cy:.3f} | {sk / cw:.3f} | {s(walk['skin']) / s(walk['skin-mean']):.3f} | "
+                  f"{s(tsd['on'][..., c]) / sk:.3f} | {s(tsd['on'][..., c]) / (sk * setup):.3f} | "
+                  f"{s(tsd['on'][..., c]) / cy:.3f} | {s(tsd['off'][..., c]) / sk:.3f} |")
+    np.savez_compressed(f"/tmp/dermis_ear_walk{'_bounce' if bounce else ''}.npz", ear=ear, share=share, cycles=cyc, control=ctrl, tsd_on=tsd["on"],
+                        tsd_off=tsd["off"], **{f"{n}_{c}_{i}": results[(n, c)][i] for (n, c) in results if n != "check" for i in (0, 1)})
+
+
 if __name__ == "__main__":
-    if sys.argv[1] == "--slab":
+    if sys.argv[1] == "--walk":
+        args = [a for a in sys.argv[2:] if a not in ("--bounce", "--paths", "--exhaustive")]
+        walk_study(int(args[0]) if args else 16, tuple(int(x) for x in args[1]) if len(args) > 1 else (0,),
+                   bounce="--bounce" in sys.argv, paths_only="--paths" in sys.argv, exhaustive="--exhaustive" in sys.argv)
+    elif sys.argv[1] == "--slab":
         slab_theory(cycles="--cycles" in sys.argv[2:])
     elif sys.argv[1] == "--boundary":
         boundary_study()
