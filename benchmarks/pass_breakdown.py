@@ -222,7 +222,7 @@ def main(argv=None):
         if "irradiance" in only:
             vs = load_shader_source("tsd/uv_space.vert", defines)
             # as TextureSpaceDiffusion compiles it for a scene of at most STORED_SHARP_SHADOWS lights
-            # (its lights unrolled: SKIN_LIGHT_COUNT, TextureSpaceDiffusion._irradiance_program)
+            # (its lights unrolled: SKIN_LIGHT_COUNT, TextureSpaceDiffusion._irradiance_programs)
             irr_defines = {**defines, "SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS}
             if len(sc.lights) <= STORED_SHARP_SHADOWS:
                 irr_defines["SKIN_LIGHT_COUNT"] = len(sc.lights)

@@ -42,7 +42,7 @@ def main(argv=None):
         r.render("tsd")
         r.render("lambert")
         tsd, lam = r.technique("tsd"), r.technique("lambert")
-        progs = {"this tree": (tsd._irradiance_program(len(sc.lights)), lam.prog)}
+        progs = {"this tree": (tsd._irradiance_programs(len(sc.lights)), lam.programs(len(sc.lights)))}
         for rev in a.against:
             dd = {**d, "SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS} if len(sc.lights) <= STORED_SHARP_SHADOWS else d
             progs[f"@{rev}"] = (
@@ -69,7 +69,7 @@ def main(argv=None):
                         res[name][f"{tech} frame cpu"].append(1e3 * (time.process_time() - c0))
                         res[name][key].append(r.stats["passes_ms"][key])
         finally:
-            tsd.p_irradiance, lam.prog = None, mine[1]  # tsd: back to its program per light count
+            tsd.p_irradiance, lam.prog = None, None  # back to their programs per light count
     print(f"load {os.getloadavg()}")
     for k, v in res.items():
         print(f"{k}: " + "; ".join(f"{p} median {statistics.median(x):.0f} ms ({', '.join(f'{y:.0f}' for y in x)})"

@@ -35,7 +35,7 @@ def main(argv=None):
     with Renderer(sc, (a.size, a.size), irradiance_size=a.irradiance_size) as r:
         r.render("tsd")
         t = r.technique("tsd")
-        mine = t._irradiance_program(len(sc.lights))  # the program render() draws for the head's 3 lights
+        mine = t._irradiance_programs(len(sc.lights))  # the program render() draws for the head's 3 lights
         d = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
         other = r.ctx.program(vertex_shader=load_shader_source("tsd/uv_space.vert", d),
                               fragment_shader=source_at(a.against, "tsd/irradiance.frag", d))

@@ -16,9 +16,9 @@ from __future__ import annotations
 import moderngl
 
 from dermis.errors import DermisError
-from dermis.gl.shaders import program
 from dermis.techniques.base import Frame, Technique, draw_mesh, draw_surfaces
-from dermis.techniques.shared import INTERREFLECTION_DEFINE, OutputMode, bind_interreflection, prepare_interreflection
+from dermis.techniques.shared import (INTERREFLECTION_DEFINE, LightCountPrograms, OutputMode, bind_interreflection,
+                                      prepare_interreflection)
 
 
 class Lambert(Technique):
@@ -27,27 +27,28 @@ class Lambert(Technique):
 
     def __init__(self, renderer):
         super().__init__(renderer)
-        self.prog = program(self.ctx, "common/mesh.vert", "lambert/lambert.frag")
+        # one program per light count, its light loop unrolled (LightCountPrograms)
+        self.programs = LightCountPrograms(self.ctx, "common/mesh.vert", "lambert/lambert.frag")
         # with the shared one bounce (the Renderer's, made with the first technique that reads it)
-        self._prog_bounce = program(self.ctx, "common/mesh.vert", "lambert/lambert.frag", {INTERREFLECTION_DEFINE: 1})
+        self._programs_bounce = LightCountPrograms(self.ctx, "common/mesh.vert", "lambert/lambert.frag", {INTERREFLECTION_DEFINE: 1})
         renderer.interreflection  # the shared one bounce: made with the first technique that reads it
+        self.prog = None  # when set (benchmarks and tests swap shaders in), drawn instead of the above
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         if output_mode != OutputMode.FULL:
             raise DermisError(f"technique '{self.name}' renders only the full image (output mode {OutputMode.FULL.name.lower()})")
-        prog = self.prog
-        if prepare_interreflection(frame):  # albedo / pi times the shared bounce E_b
-            prog = self._prog_bounce
+        bounce = prepare_interreflection(frame)  # albedo / pi times the shared bounce E_b
+        prog = self.prog if self.prog is not None else (self._programs_bounce if bounce else self.programs)(frame.lights.count)
         with frame.timer("lambert"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            if prog is self._prog_bounce:
+            if bounce:
                 bind_interreflection(frame, prog)
             draw_mesh(frame, prog)
         frame.passes_run.append("lambert")
         draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing
 
     def release(self):
-        self.prog.release()
-        self._prog_bounce.release()
+        self.programs.release()
+        self._programs_bounce.release()

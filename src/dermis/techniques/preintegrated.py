@@ -76,11 +76,10 @@ import moderngl
 import numpy as np
 
 from dermis.gl.resources import set_uniform
-from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh, draw_surfaces
-from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, OutputMode, Unit, bind_interreflection, bind_sampler,
-                                      casts_translucency, directional_albedo_uniforms, prepare_interreflection,
+from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit,
+                                      bind_interreflection, bind_sampler, casts_translucency, directional_albedo_uniforms, prepare_interreflection,
                                       set_profile_uniforms, surface_detail_uniforms, translucency_uniforms)
 
 # The diffuse table: N.L along s (odd, so N.L = 0 is a texel centre and max(N.L, 0) interpolates
@@ -318,18 +317,18 @@ class PreintegratedSkin(Technique):
 
     def __init__(self, renderer, **options):
         super().__init__(renderer, **options)
-        self.prog = program(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
-                            {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None})
+        # one program per light count, its light loop unrolled (LightCountPrograms); with the shared
+        # one bounce (the Renderer's, made with the first technique that reads it) another
+        defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None}
+        self.programs = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag", defines)
+        self._programs_bounce = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
+                                                   {**defines, INTERREFLECTION_DEFINE: 1})
+        self.prog = None  # when set (benchmarks and tests swap shaders in), drawn instead of the above
         self.profile_tables = {}  # "diffuse", "penumbra": textures of the active profile
         self._profile_key = None
         self.curvature = None  # per-vertex curvature (1/mm) of the active mesh, numpy
         self._curvature_buffer = None
-        self._vao = None
-        # with the shared one bounce (the Renderer's, made with the first technique that reads it);
-        # its vertex array is made per mesh (_bounce_vao)
-        self._prog_bounce = program(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
-                                    {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None, INTERREFLECTION_DEFINE: 1})
-        self._bounce_vao = None
+        self._vaos = {}  # id(program) -> (vertex array with the curvature, program): per mesh
         renderer.interreflection  # the shared one bounce: made with the first technique that reads it
         self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
         self._mesh_key = None
@@ -368,31 +367,27 @@ class PreintegratedSkin(Technique):
             m = scene.mesh
             self.curvature = vertex_curvature(m.positions, m.normals, m.indices, scene.mm_per_unit)
             self._curvature_buffer = self.ctx.buffer(np.ascontiguousarray(self.curvature, np.float32).tobytes())
-            content = [frame.gpu.vertex_content(self.prog)]  # the scene's vertex buffer + ours
-            if "in_curvature" in self.prog:
-                content.append((self._curvature_buffer, "1f", "in_curvature"))
-            self._vao = self.ctx.vertex_array(self.prog, content, frame.gpu.ibo)
         self._mesh_key = key
         frame.passes_run.append("preintegrated_curvature")
 
-    def _bounce_program(self, frame: Frame):
-        """(program, vertex array) of the pass with the shared one bounce E_b (common/interreflection.glsl):
-        a diffuse term like the ambient, through none of the tables (E_b is an irradiance from the
-        whole hemisphere, gathered per vertex: no terminator for the ring to wrap, no shadow-map
-        edge for the penumbra table, no normal-map detail for the blurred normals)."""
-        if self._bounce_vao is None:
-            prog = self._prog_bounce
+    def _vao(self, frame: Frame, prog):
+        """``prog``'s vertex array: the scene's vertex buffer and the per-vertex curvature, made per
+        program (a vertex array draws with the program it was made for) and mesh."""
+        key = id(prog)  # the program is held in the entry: its id cannot be reused while cached
+        if key not in self._vaos:
             content = [frame.gpu.vertex_content(prog)]
             if "in_curvature" in prog:
                 content.append((self._curvature_buffer, "1f", "in_curvature"))
-            self._bounce_vao = self.ctx.vertex_array(prog, content, frame.gpu.ibo)
-        return self._prog_bounce, self._bounce_vao
+            self._vaos[key] = (self.ctx.vertex_array(prog, content, frame.gpu.ibo), prog)
+        return self._vaos[key][0]
 
     def _release_mesh(self):
-        for o in (self._vao, self._bounce_vao, self._curvature_buffer):
-            if o is not None:
-                o.release()
-        self._vao = self._bounce_vao = self._curvature_buffer = None
+        for vao, _ in self._vaos.values():
+            vao.release()
+        self._vaos = {}
+        if self._curvature_buffer is not None:
+            self._curvature_buffer.release()
+        self._curvature_buffer = None
         self._mesh_key = None
 
     def scene_changed(self):
@@ -403,14 +398,18 @@ class PreintegratedSkin(Technique):
         self._ensure_profile_tables(frame)
         self._ensure_curvature(frame)
         profile = frame.scene.profile
-        prog, vao = self.prog, self._vao
-        if prepare_interreflection(frame):  # the shared one bounce, rebuilt only on a lighting change
-            prog, vao = self._bounce_program(frame)
+        # the shared one bounce (rebuilt only on a lighting change): a diffuse term like the ambient,
+        # through none of the tables (E_b is an irradiance from the whole hemisphere, gathered per
+        # vertex: no terminator for the ring to wrap, no shadow-map edge for the penumbra table, no
+        # normal-map detail for the blurred normals; common/interreflection.glsl)
+        bounce = prepare_interreflection(frame)
+        prog = self.prog if self.prog is not None else (self._programs_bounce if bounce else self.programs)(frame.lights.count)
+        vao = self._vao(frame, prog)
         with frame.timer("preintegrated"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            if prog is not self.prog:
+            if bounce:
                 bind_interreflection(frame, prog)
             bind_sampler(prog, "uDiffuseTable", self.profile_tables["diffuse"], UNIT_DIFFUSE_TABLE)
             bind_sampler(prog, "uPenumbraTable", self.profile_tables["penumbra"], UNIT_PENUMBRA_TABLE)
@@ -457,7 +456,7 @@ class PreintegratedSkin(Technique):
         return True
 
     def debug_buffers(self) -> dict:
-        if self.renderer.last_frame is None or self._vao is None:
+        if self.renderer.last_frame is None or self._curvature_buffer is None:
             return {}
         out = {"curvature_per_mm": self.renderer.side_render(self.name, OutputMode.CURVATURE),
                "specular": self.renderer.side_render(self.name, OutputMode.SPECULAR)}
@@ -475,6 +474,6 @@ class PreintegratedSkin(Technique):
         self.normal_lod_sampler.release()
         for t in self.profile_tables.values():
             t.release()
-        self.prog.release()
-        self._prog_bounce.release()
+        self.programs.release()
+        self._programs_bounce.release()
 

@@ -231,6 +231,49 @@ def surface_detail_uniforms(prog, material, output_mode: int = OutputMode.FULL) 
         set_uniform(prog, name, value)
 
 
+# ---------------------------------------------------------------------- programs per light count
+LIGHT_COUNT_DEFINE = "SKIN_LIGHT_COUNT"
+"""The define that unrolls a shader's light loop (DERMIS_FOR_EACH_LIGHT, common/lights.glsl)."""
+
+
+class LightCountPrograms:
+    """One shader pair compiled per scene light count, with LIGHT_COUNT_DEFINE = n: its loop over
+    the lights (DERMIS_FOR_EACH_LIGHT) written out with constant indices into the light uniforms.
+    On llvmpipe that made tsd's irradiance pass 15-30% and lambert's ~20% cheaper than the loop
+    over uLightCount, the image the same to float rounding (benchmarks/RESULTS.md, round 9, irr9
+    and unroll9). Each count is compiled on first use and kept (a live Renderer switching light
+    counts recompiles nothing); :meth:`release` frees them all, with the technique.
+    ``defines``: the pair's other defines; ``per_count(n)``: more defines for n lights (or None).
+    The pore-free variant (:func:`shading_program`) is compiled from the per-count program's own
+    sources, so it is unrolled for the same count."""
+
+    def __init__(self, ctx, vertex: str, fragment: str, defines: dict | None = None, per_count=None):
+        self.ctx, self.vertex, self.fragment = ctx, vertex, fragment
+        self.defines = dict(defines or {})
+        self.per_count = per_count
+        self._programs = {}  # light count -> program
+
+    def __call__(self, n: int):
+        """The program for a scene of ``n`` lights (0..MAX_LIGHTS)."""
+        n = int(n)
+        if not 0 <= n <= MAX_LIGHTS:
+            raise DermisError(f"a scene holds 0 to {MAX_LIGHTS} lights, got {n}")
+        if n not in self._programs:
+            from dermis.gl.shaders import program
+
+            defines = {**self.defines, **(self.per_count(n) if self.per_count else {}), LIGHT_COUNT_DEFINE: n}
+            self._programs[n] = program(self.ctx, self.vertex, self.fragment, defines)
+        return self._programs[n]
+
+    def values(self):
+        return list(self._programs.values())
+
+    def release(self) -> None:
+        for p in self._programs.values():
+            p.release()
+        self._programs = {}
+
+
 # ---------------------------------------------------------------------- pore detail's program variant
 PORES_INVISIBLE_DEFINE = "DERMIS_PORES_INVISIBLE"
 PORE_FOOTPRINT_MARGIN = 1.05

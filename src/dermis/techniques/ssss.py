@@ -54,7 +54,7 @@ from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh, draw_surfaces
-from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, OutputMode, Unit, bind_interreflection, bind_sampler,
+from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit, bind_interreflection, bind_sampler,
                                       bind_sampler_array, TISSUE_TAU, casts_translucency, directional_albedo_uniforms,
                                       prepare_interreflection, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
@@ -122,6 +122,7 @@ class ScreenSpaceSSS(Technique):
         super().__init__(renderer, **options)
         self.p_final = program(self.ctx, "common/mesh.vert", "ssss/final.frag")
         self._programs = {}  # (K, taps) -> the passes that loop over the profile, compiled for exactly K Gaussians and taps
+        self.p_irradiance = None  # when set (benchmarks and tests swap shaders in), drawn instead of pass 1's own
         self.vaos = {}
         self.tex = {}
         self._targets_key = None
@@ -130,18 +131,20 @@ class ScreenSpaceSSS(Technique):
 
     # ------------------------------------------------------------------ resources
     def _profile_programs(self, k: int):
-        """(irradiance, horizontal, vertical) programs for a K-Gaussian profile. Compiled with
-        MAX_GAUSSIANS = K and SSSS_TAPS = the taps option: the loops over Gaussians and taps unroll."""
+        """(irradiance, horizontal, vertical, irradiance with the bounce) programs for a K-Gaussian
+        profile, the irradiance ones as LightCountPrograms (called with the light count). Compiled
+        with MAX_GAUSSIANS = K and SSSS_TAPS = the taps option: the loops over Gaussians and taps unroll."""
         if k > MAX_GAUSSIANS:
             raise DermisError(f"profile has {k} Gaussians; ssss supports at most {MAX_GAUSSIANS}")
         key = (k, self.options.taps)
         if key not in self._programs:
             ctx, defines = self.ctx, {"MAX_GAUSSIANS": k, "SSSS_TAPS": self.options.taps}
-            progs = (program(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines),
+            # the irradiance pass per light count, its lights unrolled (LightCountPrograms)
+            progs = (LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_horizontal.frag", defines),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines),
                      # pass 1 with the shared one bounce added to its irradiance (common/interreflection.glsl)
-                     program(ctx, "common/mesh.vert", "ssss/irradiance.frag", {**defines, INTERREFLECTION_DEFINE: 1}))
+                     LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", {**defines, INTERREFLECTION_DEFINE: 1}))
             for p in progs[1:3]:
                 self.vaos[p] = ctx.vertex_array(p, [])
             self._programs[key] = progs
@@ -201,8 +204,8 @@ class ScreenSpaceSSS(Technique):
         profile = scene.profile
         p_irradiance, p_horizontal, p_vertical, p_bounce = self._profile_programs(profile.k)
         bounce = prepare_interreflection(frame)  # the shared one bounce, rebuilt only on a lighting change
-        if bounce:
-            p_irradiance = p_bounce
+        p_irradiance = (self.p_irradiance if self.p_irradiance is not None
+                        else (p_bounce if bounce else p_irradiance)(frame.lights.count))
         self._ensure_targets(tuple(frame.size), profile.k)
         t = self.tex
         with frame.timer("ssss_irradiance"):

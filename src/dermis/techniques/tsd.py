@@ -50,7 +50,7 @@ from dermis.gl.shaders import program
 from dermis.gl.interreflection import BounceGather, bounce_level
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
-from dermis.techniques.shared import (MAX_GAUSSIANS, OutputMode, Unit, bind_sampler, bind_sampler_array,
+from dermis.techniques.shared import (MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit, bind_sampler, bind_sampler_array,
                                       directional_albedo_uniforms, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
 
@@ -126,10 +126,14 @@ class TextureSpaceDiffusion(Technique):
         self.p_stretch = program(ctx, "tsd/uv_space.vert", "tsd/stretch.frag", defines)
         # the irradiance and final passes storing / reading the sharp shadows (at most
         # STORED_SHARP_SHADOWS lights); the per-sample pair compiled on a scene with more lights.
-        # The irradiance program is compiled per light count (_irradiance_program).
+        # The irradiance program is compiled per light count (_irradiance_programs, called with the count).
         # p_irradiance, when set (benchmarks and tests swap shaders in), is drawn instead of it.
         self.p_irradiance = None
-        self._irradiance_programs = {}  # light count -> tsd/irradiance.frag, SKIN_LIGHT_COUNT unrolled
+        # tsd/irradiance.frag per light count, its lights unrolled (LightCountPrograms), storing the
+        # sharp shadows where stores_sharp_shadows(n)
+        self._irradiance_programs = LightCountPrograms(
+            ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines,
+            per_count=lambda n: {"SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS} if stores_sharp_shadows(n) else {})
         self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
         self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
         # a full-screen triangle: the pass reads only gl_FragCoord and textures, so rasterising the
@@ -603,25 +607,12 @@ class TextureSpaceDiffusion(Technique):
         """(irradiance, final) programs for the frame's lights: storing and reading the sharp
         shadows where there are at most STORED_SHARP_SHADOWS lights, else per sample."""
         n = frame.lights.count
-        irr = self.p_irradiance if self.p_irradiance is not None else self._irradiance_program(n)
+        irr = self.p_irradiance if self.p_irradiance is not None else self._irradiance_programs(n)
         if stores_sharp_shadows(n):
             return irr, self.p_final
         if "per_sample" not in self._programs:
             self._programs["per_sample"] = program(self.ctx, "common/mesh.vert", "tsd/final.frag", {"MAX_GAUSSIANS": MAX_GAUSSIANS})
         return irr, self._programs["per_sample"]
-
-    def _irradiance_program(self, n):
-        """tsd/irradiance.frag for a scene of ``n`` lights, its lights unrolled (SKIN_LIGHT_COUNT,
-        common/skin_irradiance.glsl: constant indices into the light uniforms, 15-30% faster than
-        the loop over uLightCount on llvmpipe), storing the sharp shadows where
-        stores_sharp_shadows(n); compiled on first use."""
-        n = int(n)
-        if n not in self._irradiance_programs:
-            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "SKIN_LIGHT_COUNT": n}
-            if stores_sharp_shadows(n):
-                defines["SKIN_SHARP_SHADOWS"] = STORED_SHARP_SHADOWS
-            self._irradiance_programs[n] = program(self.ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines)
-        return self._irradiance_programs[n]
 
     def _bounce_level(self, S):
         """The level of rho E the gather reads (dermis.gl.interreflection.bounce_level at the
@@ -733,7 +724,8 @@ class TextureSpaceDiffusion(Technique):
         self.release_textures()
         for v in self.vaos.values():
             v.release()
-        for p in (self.p_stretch, *self._irradiance_programs.values(), self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
+        self._irradiance_programs.release()
+        for p in (self.p_stretch, self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
                   self.p_final,
                   self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else []),
                   *(self._p_bounce or ()), *self._programs.values()):

@@ -30,3 +30,63 @@ vec3 light_incident(int i, vec3 P, out vec3 L) {
     }
     return E;
 }
+
+// DERMIS_FOR_EACH_LIGHT(STMT): STMT once per light, with `light_i` its index. Without
+// SKIN_LIGHT_COUNT, a loop over uLightCount (any count). With SKIN_LIGHT_COUNT = n defined (0..8,
+// the scene's light count: dermis.techniques.shared.LightCountPrograms compiles one program per
+// count), STMT written out n times with light_i a CONSTANT (a const int in its own block), so every
+// index into the light uniforms (uLightPosType[i], uLightViewProj[i], ...) is known at compile time:
+// on llvmpipe that made tsd's irradiance pass 15-30% and lambert's pass ~20% cheaper than the loop,
+// whose trip count and indices are only known at run time (benchmarks/RESULTS.md, round 9, irr9 and
+// unroll9). The same arithmetic either way, in the same order. STMT must not `continue` or `break`
+// (a function returning the light's share, vec3(0) for none, added to a sum).
+#ifdef SKIN_LIGHT_COUNT
+#if SKIN_LIGHT_COUNT > MAX_LIGHTS || SKIN_LIGHT_COUNT > 8
+#error "SKIN_LIGHT_COUNT: more lights than the light arrays hold or DERMIS_FOR_EACH_LIGHT writes out (8)"
+#endif
+#define DERMIS_LIGHT_STEP(K, STMT) { const int light_i = K; STMT }
+#if SKIN_LIGHT_COUNT > 0
+#define DERMIS_LIGHT_0(STMT) DERMIS_LIGHT_STEP(0, STMT)
+#else
+#define DERMIS_LIGHT_0(STMT)
+#endif
+#if SKIN_LIGHT_COUNT > 1
+#define DERMIS_LIGHT_1(STMT) DERMIS_LIGHT_STEP(1, STMT)
+#else
+#define DERMIS_LIGHT_1(STMT)
+#endif
+#if SKIN_LIGHT_COUNT > 2
+#define DERMIS_LIGHT_2(STMT) DERMIS_LIGHT_STEP(2, STMT)
+#else
+#define DERMIS_LIGHT_2(STMT)
+#endif
+#if SKIN_LIGHT_COUNT > 3
+#define DERMIS_LIGHT_3(STMT) DERMIS_LIGHT_STEP(3, STMT)
+#else
+#define DERMIS_LIGHT_3(STMT)
+#endif
+#if SKIN_LIGHT_COUNT > 4
+#define DERMIS_LIGHT_4(STMT) DERMIS_LIGHT_STEP(4, STMT)
+#else
+#define DERMIS_LIGHT_4(STMT)
+#endif
+#if SKIN_LIGHT_COUNT > 5
+#define DERMIS_LIGHT_5(STMT) DERMIS_LIGHT_STEP(5, STMT)
+#else
+#define DERMIS_LIGHT_5(STMT)
+#endif
+#if SKIN_LIGHT_COUNT > 6
+#define DERMIS_LIGHT_6(STMT) DERMIS_LIGHT_STEP(6, STMT)
+#else
+#define DERMIS_LIGHT_6(STMT)
+#endif
+#if SKIN_LIGHT_COUNT > 7
+#define DERMIS_LIGHT_7(STMT) DERMIS_LIGHT_STEP(7, STMT)
+#else
+#define DERMIS_LIGHT_7(STMT)
+#endif
+#define DERMIS_FOR_EACH_LIGHT(STMT) DERMIS_LIGHT_0(STMT) DERMIS_LIGHT_1(STMT) DERMIS_LIGHT_2(STMT) DERMIS_LIGHT_3(STMT) \
+    DERMIS_LIGHT_4(STMT) DERMIS_LIGHT_5(STMT) DERMIS_LIGHT_6(STMT) DERMIS_LIGHT_7(STMT)
+#else
+#define DERMIS_FOR_EACH_LIGHT(STMT) for (int light_i = 0; light_i < uLightCount; ++light_i) { STMT }
+#endif

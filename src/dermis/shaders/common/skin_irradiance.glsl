@@ -46,48 +46,16 @@ vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3
 }
 
 // The sum over the lights, plus the ambient (left at k = 1: its average over a uniform hemisphere).
-// With SKIN_LIGHT_COUNT = n defined (0..8, the scene's light count: dermis.techniques.tsd compiles
-// one program per count), the lights are unrolled with CONSTANT indices into the uniform arrays
-// (uLightViewProj[i], uShadowParams[i], ...): on llvmpipe tsd's irradiance pass measured 15-30%
-// cheaper (head, side, 5 lights) than the loop over uLightCount, whose trip count and indices are
-// only known at run time (benchmarks/RESULTS.md, "Round 9, branch irr9"). Without it, that loop
-// (any count). The same arithmetic either way.
+// With SKIN_LIGHT_COUNT = n defined (the scene's light count), the lights are unrolled with CONSTANT
+// indices into the uniform arrays (DERMIS_FOR_EACH_LIGHT, common/lights.glsl): on llvmpipe tsd's
+// irradiance pass measured 15-30% cheaper (head, side, 5 lights) than the loop over uLightCount
+// (benchmarks/RESULTS.md, "Round 9, branch irr9"). The same arithmetic either way.
 vec3 skin_irradiance_directional(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis, vec3 c) {
     vec3 E = vec3(0.0);
 #ifdef SKIN_SHARP_SHADOWS
     skin_sharp_shadow = vec4(0.0);
 #endif
-#ifdef SKIN_LIGHT_COUNT
-#if SKIN_LIGHT_COUNT > 8
-#error "SKIN_LIGHT_COUNT: at most 8 lights unrolled (MAX_LIGHTS)"
-#endif
-#if SKIN_LIGHT_COUNT > 0
-    E += skin_light_entry(0, P, Ng, N, rho_s, m, c);
-#endif
-#if SKIN_LIGHT_COUNT > 1
-    E += skin_light_entry(1, P, Ng, N, rho_s, m, c);
-#endif
-#if SKIN_LIGHT_COUNT > 2
-    E += skin_light_entry(2, P, Ng, N, rho_s, m, c);
-#endif
-#if SKIN_LIGHT_COUNT > 3
-    E += skin_light_entry(3, P, Ng, N, rho_s, m, c);
-#endif
-#if SKIN_LIGHT_COUNT > 4
-    E += skin_light_entry(4, P, Ng, N, rho_s, m, c);
-#endif
-#if SKIN_LIGHT_COUNT > 5
-    E += skin_light_entry(5, P, Ng, N, rho_s, m, c);
-#endif
-#if SKIN_LIGHT_COUNT > 6
-    E += skin_light_entry(6, P, Ng, N, rho_s, m, c);
-#endif
-#if SKIN_LIGHT_COUNT > 7
-    E += skin_light_entry(7, P, Ng, N, rho_s, m, c);
-#endif
-#else
-    for (int i = 0; i < uLightCount; ++i) E += skin_light_entry(i, P, Ng, N, rho_s, m, c);
-#endif
+    DERMIS_FOR_EACH_LIGHT(E += skin_light_entry(light_i, P, Ng, N, rho_s, m, c);)
     E += environment_irradiance_occluded(N, Ng, vis) * energy_transmitted(rho_s, 0.5, m);
     return E;
 }

@@ -15,6 +15,15 @@ in vec4 v_tangent;
 in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
 out vec4 f_color;
 
+// Light i's diffuse and specular radiance at v_world (0 where it does not reach the surface).
+vec3 lambert_light(int i, vec3 Ng, vec3 N, vec3 V, vec3 albedo, float shininess, float ks) {
+    vec3 L;
+    vec3 E = light_incident(i, v_world, L);
+    float ndl = dot(N, L);
+    if (ndl <= 0.0 || dot(Ng, L) <= -0.05) return vec3(0.0);
+    float s = shadow_soft(i, v_world, Ng);
+    return E * s * (albedo * INV_PI * ndl + vec3(blinn_phong_specular(N, L, V, shininess, ks)));
+}
 
 void main() {
     vec3 Ng = normalize(v_normal);
@@ -40,13 +49,6 @@ void main() {
     float albedo_bp = ks * shininess * (shininess + 8.0) / ((shininess + 2.0) * (shininess + 4.0));
     color += albedo_bp * environment_specular(specular_dominant_direction(N, reflect(-V, N), m), m)
              * specular_occlusion(ndv, v_visibility.x, m);
-    for (int i = 0; i < uLightCount; ++i) {
-        vec3 L;
-        vec3 E = light_incident(i, v_world, L);
-        float ndl = dot(N, L);
-        if (ndl <= 0.0 || dot(Ng, L) <= -0.05) continue;
-        float s = shadow_soft(i, v_world, Ng);
-        color += E * s * (albedo * INV_PI * ndl + vec3(blinn_phong_specular(N, L, V, shininess, ks)));
-    }
+    DERMIS_FOR_EACH_LIGHT(color += lambert_light(light_i, Ng, N, V, albedo, shininess, ks);)  // common/lights.glsl
     f_color = vec4(color, 1.0);
 }

@@ -205,6 +205,35 @@ vec3 fold_scattered_light(int i, vec3 P, vec3 N, vec3 L) {
     return G;
 }
 
+// Light i's share of the irradiance entering the skin at v_world: Penner's D S (at least what crosses
+// a fold), times the energy the specular leaves and k(N.L); 0 where the light adds nothing.
+vec3 preintegrated_light(int i, vec3 Ngeo, vec3 N, vec3 N_red, vec3 N_green, vec3 N_blue, float curvature,
+                         float rho_s, float m, vec3 c) {
+    vec3 L;
+    vec3 Ei = light_incident(i, v_world, L);
+    vec3 D = diffuse_lookup(vec3(dot(N_red, L), dot(N_green, L), dot(N_blue, L)), curvature);
+    vec3 light = vec3(0.0);  // Penner's D S, then at least what crosses a fold (G)
+    if (max(D.r, max(D.g, D.b)) > 0.0) {
+        float width_mm;
+        float s = shadow_soft_penumbra(i, v_world, Ngeo, width_mm);
+        vec3 S = vec3(s);
+        if (uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0)
+            S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm));
+        light = D * S;
+    }
+    if (uFoldScattering > 0.5) light = max(light, fold_scattered_light(i, v_world, Ngeo, L));
+    if (max(light.r, max(light.g, light.b)) <= 0.0) return vec3(0.0);
+    // k(N.L) outside the table, on each light's contribution: D integrates the profile over the
+    // ring of the local curvature, where the entry cosine runs around N.L; k could go inside
+    // that integral only with the albedo as a third axis (c depends on it, per texel). k is linear
+    // in mu with |c| <= 0.18, so taking it at the centre's N.L is exact on a flat surface and
+    // off by c times the ring's profile-weighted spread of the cosine on a curved one. N.L is
+    // the detailed normal's (the energy term's, tsd's); where the ring wraps light past the
+    // terminator (N.L <= 0) k is the grazing one, k(0), which is where that light entered.
+    float ndl = clamp(dot(N, L), 0.0, 1.0);
+    return Ei * light * energy_transmitted(rho_s, ndl, m) * directional_factor(c, ndl);
+}
+
 void main() {
     vec3 Ngeo = normalize(v_normal);
     vec3 P_mm = v_world * uMmPerUnit;
@@ -252,31 +281,7 @@ void main() {
     vec3 albedo = albedo_at(v_uv);
     vec3 c = uDirectionalAlbedo * directional_c(albedo);
     vec3 E = vec3(0.0);
-    for (int i = 0; i < uLightCount; ++i) {
-        vec3 L;
-        vec3 Ei = light_incident(i, v_world, L);
-        vec3 D = diffuse_lookup(vec3(dot(N_red, L), dot(N_green, L), dot(N_blue, L)), curvature);
-        vec3 light = vec3(0.0);  // Penner's D S, then at least what crosses a fold (G)
-        if (max(D.r, max(D.g, D.b)) > 0.0) {
-            float width_mm;
-            float s = shadow_soft_penumbra(i, v_world, Ngeo, width_mm);
-            vec3 S = vec3(s);
-            if (uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0)
-                S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm));
-            light = D * S;
-        }
-        if (uFoldScattering > 0.5) light = max(light, fold_scattered_light(i, v_world, Ngeo, L));
-        if (max(light.r, max(light.g, light.b)) <= 0.0) continue;
-        // k(N.L) outside the table, on each light's contribution: D integrates the profile over the
-        // ring of the local curvature, where the entry cosine runs around N.L; k could go inside
-        // that integral only with the albedo as a third axis (c depends on it, per texel). k is linear
-        // in mu with |c| <= 0.18, so taking it at the centre's N.L is exact on a flat surface and
-        // off by c times the ring's profile-weighted spread of the cosine on a curved one. N.L is
-        // the detailed normal's (the energy term's, tsd's); where the ring wraps light past the
-        // terminator (N.L <= 0) k is the grazing one, k(0), which is where that light entered.
-        float ndl = clamp(dot(N, L), 0.0, 1.0);
-        E += Ei * light * energy_transmitted(rho_s, ndl, m) * directional_factor(c, ndl);
-    }
+    DERMIS_FOR_EACH_LIGHT(E += preintegrated_light(light_i, Ngeo, N, N_red, N_green, N_blue, curvature, rho_s, m, c);)
     vec3 ambient = vec3(environment_irradiance_occluded(N_red, Ngeo, v_visibility).r,
                         environment_irradiance_occluded(N_green, Ngeo, v_visibility).g,
                         environment_irradiance_occluded(N_blue, Ngeo, v_visibility).b);

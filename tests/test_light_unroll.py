@@ -1,0 +1,139 @@
+"""The light loops of lambert (lambert.frag), ssss (its irradiance pass, common/skin_irradiance.glsl)
+and preintegrated (preintegrated/skin.frag) unrolled at constant indices: SKIN_LIGHT_COUNT,
+DERMIS_FOR_EACH_LIGHT in common/lights.glsl, one program per light count through
+dermis.techniques.shared.LightCountPrograms (tsd's irradiance pass: tests/test_tsd_light_unroll.py).
+The reference is the loop over uLightCount compiled from the same sources and defines but
+SKIN_LIGHT_COUNT: the same arithmetic, so the images must agree to float rounding (1e-5 of the
+largest value) for 1, 2, 3 and 5 lights, the key light in the last slot (a light dropped or read
+from another slot differs there by far more, which the guard test checks); a live Renderer
+switching light counts draws what fresh ones draw; the pore-free variant (shading_program) is
+compiled from the per-count program."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from dermis.gl.shaders import program
+from dermis.renderer import Renderer
+from dermis.techniques.shared import LIGHT_COUNT_DEFINE, interreflection_on
+
+from test_shadow_edge_rim import H, W
+from test_tsd_sharp_shadow import _scene
+
+KW = dict(samples=0, irradiance_size=256, shadow_size=1024)
+REL = 1e-5
+TECHNIQUES = ("lambert", "ssss", "preintegrated")
+
+
+def _programs(t, scene):
+    """The technique's LightCountPrograms its light loop is drawn from for ``scene``."""
+    if t.name == "ssss":
+        irr, _, _, bounce = t._profile_programs(scene.profile.k)
+    else:
+        irr, bounce = t.programs, t._programs_bounce
+    return bounce if interreflection_on(scene) else irr
+
+
+def _override(t, prog):
+    if t.name == "ssss":
+        t.p_irradiance = prog
+    else:
+        t.prog = prog
+
+
+def _render(sc, gl_ctx, technique, count=None, loop=False):
+    """The technique's image; with ``loop`` its light loop drawn from the program without
+    SKIN_LIGHT_COUNT, with ``count`` from the program unrolled for ``count`` lights."""
+    with Renderer(sc, (W, H), ctx=gl_ctx, **KW) as r:
+        t = r.technique(technique)
+        prog = None
+        if loop or count is not None:
+            lcp = _programs(t, sc)
+            vertex, fragment, defines, _ = lcp(len(sc.lights)).extra["sources"]
+            defines = {k: v for k, v in defines.items() if k != LIGHT_COUNT_DEFINE}
+            if count is not None:
+                defines[LIGHT_COUNT_DEFINE] = count
+            prog = program(gl_ctx, vertex, fragment, defines)
+            _override(t, prog)
+        try:
+            return r.render(technique).astype(np.float64)
+        finally:
+            if prog is not None:
+                _override(t, None)
+                prog.release()
+
+
+def _close(a, b):
+    return np.abs(a - b).max() <= REL * max(np.abs(b).max(), 1e-30)
+
+
+@pytest.mark.parametrize("technique", TECHNIQUES)
+@pytest.mark.parametrize("count", [1, 2, 3, 5])
+def test_unrolled_lights_equal_the_loop(gl_ctx, technique, count):
+    sc, _ = _scene(count - 1, count)
+    img = _render(sc, gl_ctx, technique)
+    ref = _render(sc, gl_ctx, technique, loop=True)
+    assert ref.max() > 0.05
+    assert _close(img, ref), np.abs(img - ref).max()
+
+
+@pytest.mark.parametrize("technique", TECHNIQUES)
+def test_a_light_missing_from_the_unroll_is_seen(gl_ctx, technique):
+    """The comparison above can fail, and the swapped-in program is the one drawn: the scene drawn
+    with SKIN_LIGHT_COUNT = 2 of 3 lights (the key light, in the last slot, left out) is far from
+    the loop's."""
+    sc, _ = _scene(2, 3)
+    ref = _render(sc, gl_ctx, technique, loop=True)
+    img = _render(sc, gl_ctx, technique, count=2)
+    assert np.abs(img - ref).max() > 0.1 * ref.max()
+
+
+@pytest.mark.parametrize("technique", TECHNIQUES)
+def test_light_count_change_in_a_live_renderer(gl_ctx, technique):
+    """3 lights, then 1, then 5, then 3 again: the live Renderer draws the program for the new count
+    (its image equals a fresh Renderer's) and keeps one program per count."""
+    sc3, _ = _scene(2, 3)
+    sc1 = replace(sc3, lights=[sc3.lights[2]])
+    sc5, _ = _scene(4, 5)
+    with Renderer(sc3, (W, H), ctx=gl_ctx, **KW) as r:
+        a3 = r.render(technique)
+        r.set_scene(sc1)
+        a1 = r.render(technique)
+        r.set_scene(sc5)
+        a5 = r.render(technique)
+        r.set_scene(sc3)
+        b3 = r.render(technique)
+        lcp = _programs(r.technique(technique), sc3)
+        assert sorted(p.extra["sources"][2][LIGHT_COUNT_DEFINE] for p in lcp.values()) == [1, 3, 5]
+    fresh = {}
+    for n, sc in ((1, sc1), (5, sc5)):
+        with Renderer(sc, (W, H), ctx=gl_ctx, **KW) as r:
+            fresh[n] = r.render(technique)
+    assert np.array_equal(a1, fresh[1])
+    assert np.array_equal(a5, fresh[5])
+    assert np.array_equal(a3, b3)
+    assert np.abs(a3.astype(np.float64) - a1).max() > 0.002  # the two decoys light the shadowed side
+
+
+def test_pore_free_variant_is_unrolled_for_the_same_count(gl_ctx):
+    """shading_program's pore-free variant of a per-count program (of the three, only
+    preintegrated's evaluates pores; it draws through its own vertex arrays, lambert's and ssss's
+    through draw_mesh evaluate none) is compiled from that program's own sources: unrolled for the
+    same count, and a different program per count."""
+    from dermis.techniques.shared import pores_invisible, shading_program
+
+    sc, _ = _scene(2, 3)
+    sc = replace(sc, material=replace(sc.material, pore_strength=0.0))
+    with Renderer(sc, (W, H), ctx=gl_ctx, **KW) as r:
+        r.render("preintegrated")
+        frame = r.last_frame
+        assert pores_invisible(frame)
+        lcp = r.technique("preintegrated").programs
+        variants = {n: shading_program(frame, lcp(n)) for n in (3, 5)}
+        for n, v in variants.items():
+            assert v is not lcp(n)
+            assert v.extra["sources"][2][LIGHT_COUNT_DEFINE] == n
+            assert {**lcp(n).extra["sources"][2], "DERMIS_PORES_INVISIBLE": None} == v.extra["sources"][2]
