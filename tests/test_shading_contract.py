@@ -138,8 +138,9 @@ def test_every_technique_program_fits_the_guaranteed_sampler_units(gl_ctx):
         for name in TECHNIQUE_MODULES:
             r.render(name)
             t = r.technique(name)
-            progs += [v for v in vars(t).values() if isinstance(v, moderngl.Program)]
-            progs += [p for ps in getattr(t, "_programs", {}).values() for p in ps]
+            own = list(vars(t).values()) + [p for ps in getattr(t, "_programs", {}).values() for p in ps]
+            for v in own:  # programs, and the ones compiled per light count (LightCountPrograms)
+                progs += v.values() if isinstance(v, shared.LightCountPrograms) else [v] if isinstance(v, moderngl.Program) else []
         counts = [sampler_count(p) for p in progs]
     assert len(progs) >= 12 and max(counts) <= shared.GUARANTEED_TEXTURE_UNITS, counts
     assert max(counts) == 16  # tsd's final pass: 8 shared samplers, its translucency and 8 blurs

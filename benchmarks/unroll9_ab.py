@@ -1,0 +1,97 @@
+"""Round 9 (unroll9): the light loops of lambert, ssss's irradiance pass and preintegrated,
+unrolled per light count (SKIN_LIGHT_COUNT, dermis.techniques.shared.LightCountPrograms) against
+a revision's shaders (main: the loop over uLightCount) in the SAME Renderer, frames alternated,
+the load average beside them (the machine is shared: only ratios within one run count).
+Per frame: the pass's ms (`dermis bench`'s passes_ms) and the process's CPU ms for the whole
+frame (llvmpipe's threads; the frame's other passes are the same program in both columns).
+The lights stand still: a moving light re-bakes the shared bounce, which would swamp the pass.
+
+    PYTHONPATH=src python benchmarks/unroll9_ab.py [--against main] [--frames 5] [--size 512]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import dermis  # noqa: E402
+from dermis.bench import HEAD_TOML  # noqa: E402
+from dermis.gl.shaders import load_shader_source  # noqa: E402
+from dermis.renderer import Renderer  # noqa: E402
+from dermis.techniques.shared import LIGHT_COUNT_DEFINE, interreflection_on  # noqa: E402
+from pass_breakdown import source_at  # noqa: E402
+
+PASSES = {"lambert": "lambert", "ssss": "ssss_irradiance", "preintegrated": "preintegrated"}
+
+
+def _drawn(t, scene):
+    """The per-count programs (LightCountPrograms) the technique's light loop is drawn from."""
+    if t.name == "ssss":
+        irr, _, _, bounce = t._profile_programs(scene.profile.k)
+    else:
+        irr, bounce = t.programs, t._programs_bounce
+    return bounce if interreflection_on(scene) else irr
+
+
+def _set(t, prog):
+    if t.name == "ssss":
+        t.p_irradiance = prog
+    else:
+        t.prog = prog
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--against", default="main")
+    ap.add_argument("--frames", type=int, default=5)
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--techniques", nargs="+", default=list(PASSES))
+    a = ap.parse_args(argv)
+    sc = dermis.load_scene(str(HEAD_TOML))
+    n = len(sc.lights)
+    print(f"head, {n} lights, {a.size}^2, interreflection {interreflection_on(sc)}")
+    with Renderer(sc, (a.size, a.size)) as r:
+        for tech in a.techniques:
+            r.render(tech)
+            t = r.technique(tech)
+            mine = _drawn(t, sc)(n)
+            vertex, fragment, defines, _ = mine.extra["sources"]
+            old_defines = {k: v for k, v in defines.items() if k != LIGHT_COUNT_DEFINE}
+            theirs = r.ctx.program(vertex_shader=load_shader_source(vertex, old_defines),
+                                   fragment_shader=source_at(a.against, fragment, old_defines))
+            progs = {"unrolled (this tree)": None, f"loop (@{a.against})": theirs}
+            res = {k: {"pass": [], "cpu": []} for k in progs}
+            loads = []
+            try:
+                for name, p in progs.items():  # warm-up: compile, first draw
+                    _set(t, p)
+                    r.render(tech)
+                for _ in range(a.frames):
+                    for name, p in progs.items():
+                        _set(t, p)
+                        r.ctx.finish()
+                        c0 = time.process_time()
+                        r.render(tech)
+                        r.ctx.finish()
+                        res[name]["cpu"].append(1e3 * (time.process_time() - c0))
+                        res[name]["pass"].append(r.stats["passes_ms"][PASSES[tech]])
+                    loads.append(os.getloadavg()[0])
+            finally:
+                _set(t, None)
+                theirs.release()
+            print(f"{tech} ({PASSES[tech]}), load {min(loads):.2f}-{max(loads):.2f}:")
+            med = {k: (statistics.median(v["pass"]), statistics.median(v["cpu"])) for k, v in res.items()}
+            for k, v in res.items():
+                print(f"  {k}: pass median {med[k][0]:.0f} ms ({', '.join(f'{y:.0f}' for y in v['pass'])}); "
+                      f"frame cpu median {med[k][1]:.0f} ms ({', '.join(f'{y:.0f}' for y in v['cpu'])})")
+            (pu, cu), (pl, cl) = med.values()
+            print(f"  unrolled / loop: pass {pu / pl:.3f}, frame cpu {cu / cl:.3f}")
+
+
+if __name__ == "__main__":
+    main()
