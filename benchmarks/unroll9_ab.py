@@ -17,6 +17,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import dermis  # noqa: E402
@@ -81,16 +83,23 @@ def main(argv=None):
                         res[name]["cpu"].append(1e3 * (time.process_time() - c0))
                         res[name]["pass"].append(r.stats["passes_ms"][PASSES[tech]])
                     loads.append(os.getloadavg()[0])
+                imgs = []
+                for p in progs.values():  # the image of each, the same frame
+                    _set(t, p)
+                    imgs.append(r.render(tech).astype(np.float64))
+                diff = np.abs(imgs[0] - imgs[1]).max() / max(np.abs(imgs[1]).max(), 1e-30)
             finally:
                 _set(t, None)
                 theirs.release()
-            print(f"{tech} ({PASSES[tech]}), load {min(loads):.2f}-{max(loads):.2f}:")
+            print(f"{tech} ({PASSES[tech]}), load {min(loads):.2f}-{max(loads):.2f}; image max |unrolled - loop| / max {diff:.2e}:")
             med = {k: (statistics.median(v["pass"]), statistics.median(v["cpu"])) for k, v in res.items()}
             for k, v in res.items():
-                print(f"  {k}: pass median {med[k][0]:.0f} ms ({', '.join(f'{y:.0f}' for y in v['pass'])}); "
-                      f"frame cpu median {med[k][1]:.0f} ms ({', '.join(f'{y:.0f}' for y in v['cpu'])})")
+                print(f"  {k}: pass median {med[k][0]:.0f} min {min(v['pass']):.0f} ms ({', '.join(f'{y:.0f}' for y in v['pass'])}); "
+                      f"frame cpu median {med[k][1]:.0f} min {min(v['cpu']):.0f} ms ({', '.join(f'{y:.0f}' for y in v['cpu'])})")
             (pu, cu), (pl, cl) = med.values()
-            print(f"  unrolled / loop: pass {pu / pl:.3f}, frame cpu {cu / cl:.3f}")
+            (u, lo) = res.values()
+            print(f"  unrolled / loop: pass {pu / pl:.3f} (min {min(u['pass']) / min(lo['pass']):.3f}), frame cpu {cu / cl:.3f} "
+                  f"(min {min(u['cpu']) / min(lo['cpu']):.3f}); frame cpu saved (median) {cl - cu:.0f} ms")
 
 
 if __name__ == "__main__":
