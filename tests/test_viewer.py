@@ -371,10 +371,12 @@ def test_gpu_objects_stay_constant_over_200_frames_of_changes(xvfb_display, box_
     assert counts[0]["texture"] > 10 and counts[0]["framebuffer"] > 5 and counts[0]["program"] > 3
     # the first cycle warms up both of the viewer's renderers (the progressive viewer's small
     # interactive renderer draws some technique x mesh pairs for the first time in the second
-    # cycle: one vertex array each); from then on nothing may grow
+    # cycle: one vertex array each, and a light pass's program for the light count on first draw,
+    # dermis.techniques.shared.LightCountPrograms); from then on nothing may grow
     for c in counts[2:]:
         assert c == counts[1], f"GPU objects grew: {counts}"
-    assert all(c["program"] == counts[0]["program"] and c["texture"] == counts[0]["texture"] for c in counts), counts
+    assert counts[1]["program"] - counts[0]["program"] <= 4, counts  # at most the light passes, first drawn
+    assert all(c["texture"] == counts[0]["texture"] for c in counts), counts
 
 
 def test_progressive_frames_while_dragging_then_the_full_frame(xvfb_display, sphere_toml, tmp_path):
