@@ -31,22 +31,6 @@ from pass_breakdown import source_at  # noqa: E402
 PASSES = {"lambert": "lambert", "ssss": "ssss_irradiance", "preintegrated": "preintegrated"}
 
 
-def _drawn(t, scene):
-    """The per-count programs (LightCountPrograms) the technique's light loop is drawn from."""
-    if t.name == "ssss":
-        irr, _, _, bounce = t._profile_programs(scene.profile.k)
-    else:
-        irr, bounce = t.programs, t._programs_bounce
-    return bounce if interreflection_on(scene) else irr
-
-
-def _set(t, prog):
-    if t.name == "ssss":
-        t.p_irradiance = prog
-    else:
-        t.prog = prog
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--against", default="main")
@@ -61,7 +45,7 @@ def main(argv=None):
         for tech in a.techniques:
             r.render(tech)
             t = r.technique(tech)
-            mine = _drawn(t, sc)(n)
+            mine = t.light_programs(sc, interreflection_on(sc))(n)
             vertex, fragment, defines, _ = mine.extra["sources"]
             old_defines = {k: v for k, v in defines.items() if k != LIGHT_COUNT_DEFINE}
             theirs = r.ctx.program(vertex_shader=load_shader_source(vertex, old_defines),
@@ -71,11 +55,11 @@ def main(argv=None):
             loads = []
             try:
                 for name, p in progs.items():  # warm-up: compile, first draw
-                    _set(t, p)
+                    t.override_light_program(p)
                     r.render(tech)
                 for _ in range(a.frames):
                     for name, p in progs.items():
-                        _set(t, p)
+                        t.override_light_program(p)
                         r.ctx.finish()
                         c0 = time.process_time()
                         r.render(tech)
@@ -85,11 +69,11 @@ def main(argv=None):
                     loads.append(os.getloadavg()[0])
                 imgs = []
                 for p in progs.values():  # the image of each, the same frame
-                    _set(t, p)
+                    t.override_light_program(p)
                     imgs.append(r.render(tech).astype(np.float64))
                 diff = np.abs(imgs[0] - imgs[1]).max() / max(np.abs(imgs[1]).max(), 1e-30)
             finally:
-                _set(t, None)
+                t.override_light_program(None)
                 theirs.release()
             print(f"{tech} ({PASSES[tech]}), load {min(loads):.2f}-{max(loads):.2f}; image max |unrolled - loop| / max {diff:.2e}:")
             med = {k: (statistics.median(v["pass"]), statistics.median(v["cpu"])) for k, v in res.items()}

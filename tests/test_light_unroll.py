@@ -28,22 +28,6 @@ REL = 1e-5
 TECHNIQUES = ("lambert", "ssss", "preintegrated")
 
 
-def _programs(t, scene):
-    """The technique's LightCountPrograms its light loop is drawn from for ``scene``."""
-    if t.name == "ssss":
-        irr, _, _, bounce = t._profile_programs(scene.profile.k)
-    else:
-        irr, bounce = t.programs, t._programs_bounce
-    return bounce if interreflection_on(scene) else irr
-
-
-def _override(t, prog):
-    if t.name == "ssss":
-        t.p_irradiance = prog
-    else:
-        t.prog = prog
-
-
 def _render(sc, gl_ctx, technique, count=None, loop=False):
     """The technique's image; with ``loop`` its light loop drawn from the program without
     SKIN_LIGHT_COUNT, with ``count`` from the program unrolled for ``count`` lights."""
@@ -51,18 +35,18 @@ def _render(sc, gl_ctx, technique, count=None, loop=False):
         t = r.technique(technique)
         prog = None
         if loop or count is not None:
-            lcp = _programs(t, sc)
+            lcp = t.light_programs(sc, interreflection_on(sc))
             vertex, fragment, defines, _ = lcp(len(sc.lights)).extra["sources"]
             defines = {k: v for k, v in defines.items() if k != LIGHT_COUNT_DEFINE}
             if count is not None:
                 defines[LIGHT_COUNT_DEFINE] = count
             prog = program(gl_ctx, vertex, fragment, defines)
-            _override(t, prog)
+            t.override_light_program(prog)
         try:
             return r.render(technique).astype(np.float64)
         finally:
             if prog is not None:
-                _override(t, None)
+                t.override_light_program(None)
                 prog.release()
 
 
@@ -106,7 +90,7 @@ def test_light_count_change_in_a_live_renderer(gl_ctx, technique):
         a5 = r.render(technique)
         r.set_scene(sc3)
         b3 = r.render(technique)
-        lcp = _programs(r.technique(technique), sc3)
+        lcp = r.technique(technique).light_programs(sc3, interreflection_on(sc3))
         assert sorted(p.extra["sources"][2][LIGHT_COUNT_DEFINE] for p in lcp.values()) == [1, 3, 5]
     fresh = {}
     for n, sc in ((1, sc1), (5, sc5)):

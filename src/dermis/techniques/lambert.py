@@ -34,11 +34,21 @@ class Lambert(Technique):
         renderer.interreflection  # the shared one bounce: made with the first technique that reads it
         self.prog = None  # when set (benchmarks and tests swap shaders in), drawn instead of the above
 
+
+    def light_programs(self, scene, bounce: bool) -> LightCountPrograms:
+        """The per-count programs (LightCountPrograms) the light loop is drawn from for ``scene``,
+        with or without the shared bounce."""
+        return self._programs_bounce if bounce else self.programs
+
+    def override_light_program(self, prog) -> None:
+        """Draw ``prog`` instead of the per-count programs (None: back to them); benchmarks, tests."""
+        self.prog = prog
+
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         if output_mode != OutputMode.FULL:
             raise DermisError(f"technique '{self.name}' renders only the full image (output mode {OutputMode.FULL.name.lower()})")
         bounce = prepare_interreflection(frame)  # albedo / pi times the shared bounce E_b
-        prog = self.prog if self.prog is not None else (self._programs_bounce if bounce else self.programs)(frame.lights.count)
+        prog = self.prog if self.prog is not None else self.light_programs(frame.scene, bounce)(frame.lights.count)
         with frame.timer("lambert"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)

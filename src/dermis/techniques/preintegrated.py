@@ -394,6 +394,16 @@ class PreintegratedSkin(Technique):
         self._release_mesh()
 
     # ------------------------------------------------------------------ frame
+
+    def light_programs(self, scene, bounce: bool) -> LightCountPrograms:
+        """The per-count programs (LightCountPrograms) the light loop is drawn from for ``scene``,
+        with or without the shared bounce."""
+        return self._programs_bounce if bounce else self.programs
+
+    def override_light_program(self, prog) -> None:
+        """Draw ``prog`` instead of the per-count programs (None: back to them); benchmarks, tests."""
+        self.prog = prog
+
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         self._ensure_profile_tables(frame)
         self._ensure_curvature(frame)
@@ -403,7 +413,7 @@ class PreintegratedSkin(Technique):
         # vertex: no terminator for the ring to wrap, no shadow-map edge for the penumbra table, no
         # normal-map detail for the blurred normals; common/interreflection.glsl)
         bounce = prepare_interreflection(frame)
-        prog = self.prog if self.prog is not None else (self._programs_bounce if bounce else self.programs)(frame.lights.count)
+        prog = self.prog if self.prog is not None else self.light_programs(frame.scene, bounce)(frame.lights.count)
         vao = self._vao(frame, prog)
         with frame.timer("preintegrated"):
             frame.target.use()

@@ -197,15 +197,25 @@ class ScreenSpaceSSS(Technique):
         set_uniform(prog, "uTissueTau", float(TISSUE_TAU) if tissue else 2.0)
         set_uniform(prog, "uSurfaceMeasure", 1.0 if self.options.surface_measure else 0.0)
 
+
+    def light_programs(self, scene, bounce: bool):
+        """The per-count programs (LightCountPrograms) pass 1's light loop is drawn from for
+        ``scene`` (its profile's Gaussian count), with or without the shared bounce."""
+        p_irradiance, _, _, p_bounce = self._profile_programs(scene.profile.k)
+        return p_bounce if bounce else p_irradiance
+
+    def override_light_program(self, prog) -> None:
+        """Draw ``prog`` as pass 1 instead of the per-count programs (None: back to them)."""
+        self.p_irradiance = prog
     def screen_space(self, frame: Frame, irradiance: np.ndarray | None = None):
         """Passes 1-3: the pre-scatter irradiance and depth, then the two blurs. ``irradiance``
         (H, W, 3), row 0 = top, replaces the rendered light (depth kept): used by the tests."""
         scene = frame.scene
         profile = scene.profile
-        p_irradiance, p_horizontal, p_vertical, p_bounce = self._profile_programs(profile.k)
+        _, p_horizontal, p_vertical, _ = self._profile_programs(profile.k)
         bounce = prepare_interreflection(frame)  # the shared one bounce, rebuilt only on a lighting change
         p_irradiance = (self.p_irradiance if self.p_irradiance is not None
-                        else (p_bounce if bounce else p_irradiance)(frame.lights.count))
+                        else self.light_programs(scene, bounce)(frame.lights.count))
         self._ensure_targets(tuple(frame.size), profile.k)
         t = self.tex
         with frame.timer("ssss_irradiance"):
