@@ -147,6 +147,7 @@ class Renderer:
             from dermis.gl.interreflection import SharedBounce
 
             self._interreflection = SharedBounce(self.ctx, self.interreflection_hits)
+            self._interreflection.programs.compile_for(self.scene)
         return self._interreflection
 
     @property

@@ -172,7 +172,7 @@ class SharedBounce:
         self.hits = hits  # the Renderer's (Renderer.interreflection_hits), released by it
         self._gather = BounceGather(ctx)
         # per light count, its lights unrolled as tsd's own irradiance pass (shared.LightCountPrograms)
-        self._source = LightCountPrograms(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag")
+        self.programs = LightCountPrograms(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag")
         self._down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag")
         self._down_vao = ctx.vertex_array(self._down, [])
         # [(texture, framebuffer)]: rho E from the raster's level to the gather's; a level-0 gather
@@ -213,7 +213,7 @@ class SharedBounce:
                 self._levels[i] = self._level_texture(n)
         levels = self._levels[:len(sizes)]
         with frame.timer("interreflection"):
-            prog = self._source(frame.lights.count)
+            prog = self.programs(frame.lights.count)
             bind_scene(frame, prog)
             directional_albedo_uniforms(prog, frame.scene)
             set_uniform(prog, "uMix", 1.0)  # after bind_scene's material uniforms: E albedo = rho E
@@ -245,7 +245,7 @@ class SharedBounce:
             t.release()
         self._levels = []
         self._gather.release()
-        self._source.release()
+        self.programs.release()
         self._down_vao.release()
         self._down.release()
         self.key = None

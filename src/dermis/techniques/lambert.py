@@ -28,9 +28,9 @@ class Lambert(Technique):
     def __init__(self, renderer):
         super().__init__(renderer)
         # one program per light count, its light loop unrolled (LightCountPrograms)
-        self.programs = LightCountPrograms(self.ctx, "common/mesh.vert", "lambert/lambert.frag")
+        self.programs = LightCountPrograms(self.ctx, "common/mesh.vert", "lambert/lambert.frag").compile_for(renderer.scene)
         # with the shared one bounce (the Renderer's, made with the first technique that reads it)
-        self._programs_bounce = LightCountPrograms(self.ctx, "common/mesh.vert", "lambert/lambert.frag", {INTERREFLECTION_DEFINE: 1})
+        self._programs_bounce = LightCountPrograms(self.ctx, "common/mesh.vert", "lambert/lambert.frag", {INTERREFLECTION_DEFINE: 1}).compile_for(renderer.scene)
         renderer.interreflection  # the shared one bounce: made with the first technique that reads it
         self.prog = None  # when set (benchmarks and tests swap shaders in), drawn instead of the above
 

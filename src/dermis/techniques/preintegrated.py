@@ -320,9 +320,10 @@ class PreintegratedSkin(Technique):
         # one program per light count, its light loop unrolled (LightCountPrograms); with the shared
         # one bounce (the Renderer's, made with the first technique that reads it) another
         defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None}
-        self.programs = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag", defines)
+        scene = renderer.scene
+        self.programs = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag", defines).compile_for(scene)
         self._programs_bounce = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
-                                                   {**defines, INTERREFLECTION_DEFINE: 1})
+                                                   {**defines, INTERREFLECTION_DEFINE: 1}).compile_for(scene)
         self.prog = None  # when set (benchmarks and tests swap shaders in), drawn instead of the above
         self.profile_tables = {}  # "diffuse", "penumbra": textures of the active profile
         self._profile_key = None

@@ -133,7 +133,8 @@ class TextureSpaceDiffusion(Technique):
         # sharp shadows where stores_sharp_shadows(n)
         self._irradiance_programs = LightCountPrograms(
             ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines,
-            per_count=lambda n: {"SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS} if stores_sharp_shadows(n) else {})
+            per_count=lambda n: {"SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS} if stores_sharp_shadows(n) else {}
+        ).compile_for(renderer.scene)
         self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
         self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
         # a full-screen triangle: the pass reads only gl_FragCoord and textures, so rasterising the
