@@ -66,15 +66,15 @@ MAX_TAPS = 64  # the option's bound
 
 def packed_texels(k: int) -> int:
     """RGBA32UI texels per pixel of the horizontal pass (ssss/packing.glsl's SSSS_PACKED): the depth
-    (1 uint), the normal and K Gaussians' rgb as halves (3K + 3 halves, two a uint)."""
-    return (1 + (3 * k + 4) // 2 + 3) // 4
+    (1 uint), the normal, K Gaussians' rgb and the rejected share as halves (3K + 4 halves, two a uint)."""
+    return (1 + (3 * k + 5) // 2 + 3) // 4
 
 
 def unpack_horizontal(textures, k: int) -> list:
     """The horizontal pass's K images (H, W, 3) float32, row 0 = top, from its packed texels."""
     w, h = textures[0].size
     u = np.concatenate([np.frombuffer(t.read(), np.uint32).reshape(h, w, 4) for t in textures], axis=2)[::-1]
-    halves = np.ascontiguousarray(u[:, :, 1:1 + (3 * k + 4) // 2]).view(np.float16).astype(np.float32)
+    halves = np.ascontiguousarray(u[:, :, 1:1 + (3 * k + 5) // 2]).view(np.float16).astype(np.float32)
     return [halves[:, :, 3 + 3 * i:6 + 3 * i].copy() for i in range(k)]
 
 
@@ -103,6 +103,7 @@ class SsssOptions(TranslucentOptions):
     follow_surface: bool = True  # weight taps by the 3-D distance and reject depth jumps
     tissue_paths: bool = True  # skip taps whose straight path to the pixel crosses air (creases)
     surface_measure: bool = False  # weigh taps by the surface each pixel holds (ds/dx; ssss/kernel.glsl: off, why)
+    grain_filter: bool = True  # the wide Gaussians' jitter noise through a variance-compensated 3 x 3 binomial (ssss/kernel.glsl)
 
     def validate(self, technique: str) -> None:
         super().validate(technique)
@@ -111,6 +112,7 @@ class SsssOptions(TranslucentOptions):
         check_bool(f"{technique}: follow_surface", self.follow_surface)
         check_bool(f"{technique}: tissue_paths", self.tissue_paths)
         check_bool(f"{technique}: surface_measure", self.surface_measure)
+        check_bool(f"{technique}: grain_filter", self.grain_filter)
 
 
 class ScreenSpaceSSS(Technique):
@@ -131,27 +133,31 @@ class ScreenSpaceSSS(Technique):
 
     # ------------------------------------------------------------------ resources
     def _profile_programs(self, k: int):
-        """(irradiance, horizontal, vertical, irradiance with the bounce) programs for a K-Gaussian
-        profile, the irradiance ones as LightCountPrograms (called with the light count). Compiled
-        with MAX_GAUSSIANS = K and SSSS_TAPS = the taps option: the loops over Gaussians and taps unroll."""
+        """(irradiance, horizontal, vertical, irradiance with the bounce, grain filter or None)
+        programs for a K-Gaussian profile, the irradiance ones as LightCountPrograms (called with the
+        light count). Compiled with MAX_GAUSSIANS = K, SSSS_TAPS = the taps option (the loops over
+        Gaussians and taps unroll) and SSSS_GRAIN_FILTER = the grain_filter option."""
         if k > MAX_GAUSSIANS:
             raise DermisError(f"profile has {k} Gaussians; ssss supports at most {MAX_GAUSSIANS}")
-        key = (k, self.options.taps)
+        grain = bool(self.options.grain_filter)
+        key = (k, self.options.taps, grain)
         if key not in self._programs:
-            ctx, defines = self.ctx, {"MAX_GAUSSIANS": k, "SSSS_TAPS": self.options.taps}
+            ctx, defines = self.ctx, {"MAX_GAUSSIANS": k, "SSSS_TAPS": self.options.taps, "SSSS_GRAIN_FILTER": int(grain)}
             # the irradiance pass per light count, its lights unrolled (LightCountPrograms)
             progs = (LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_horizontal.frag", defines),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines),
                      # pass 1 with the shared one bounce added to its irradiance (common/interreflection.glsl)
-                     LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", {**defines, INTERREFLECTION_DEFINE: 1}))
-            for p in progs[1:3]:
-                self.vaos[p] = ctx.vertex_array(p, [])
+                     LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", {**defines, INTERREFLECTION_DEFINE: 1}),
+                     program(ctx, "common/fullscreen.vert", "ssss/grain_filter.frag", defines) if grain else None)
+            for p in (progs[1], progs[2], progs[4]):
+                if p is not None:
+                    self.vaos[p] = ctx.vertex_array(p, [])
             self._programs[key] = progs
         return self._programs[key]
 
-    def _ensure_targets(self, size, k):
-        if self._targets_key == (size, k):
+    def _ensure_targets(self, size, k, grain: bool):
+        if self._targets_key == (size, k, grain):
             return
         self._release_targets()
         ctx = self.ctx
@@ -170,12 +176,19 @@ class ScreenSpaceSSS(Technique):
         self.tex = {"irradiance": irradiance, "view_normal": view_normal, "depth": depth, "packed": packed,
                     "scattered": scattered,
                     "fbo_irradiance": ctx.framebuffer(color_attachments=[irradiance, view_normal], depth_attachment=depth),
-                    "fbo_horizontal": ctx.framebuffer(color_attachments=packed),
-                    "fbo_vertical": ctx.framebuffer(color_attachments=[scattered])}
-        self._targets_key = (size, k)
+                    "fbo_horizontal": ctx.framebuffer(color_attachments=packed)}
+        if grain:  # the vertical pass writes the narrow and the wide Gaussians apart; the filter pass sums them
+            narrow, wide = tex("f4"), tex("f4")  # wide: a = mask + rejected share / 2 (ssss/blur_vertical.frag)
+            self.tex.update({"narrow": narrow, "wide": wide,
+                             "fbo_vertical": ctx.framebuffer(color_attachments=[narrow, wide]),
+                             "fbo_grain": ctx.framebuffer(color_attachments=[scattered])})
+        else:
+            self.tex["fbo_vertical"] = ctx.framebuffer(color_attachments=[scattered])
+        self._targets_key = (size, k, grain)
 
     def _release_targets(self):
-        for key in ("fbo_irradiance", "fbo_horizontal", "fbo_vertical", "irradiance", "view_normal", "depth", "scattered"):
+        for key in ("fbo_irradiance", "fbo_horizontal", "fbo_vertical", "fbo_grain", "irradiance", "view_normal", "depth",
+                    "scattered", "narrow", "wide"):
             if key in self.tex:
                 self.tex[key].release()
         for t in self.tex.get("packed", []):
@@ -201,7 +214,7 @@ class ScreenSpaceSSS(Technique):
     def light_programs(self, scene, bounce: bool):
         """The per-count programs (LightCountPrograms) pass 1's light loop is drawn from for
         ``scene`` (its profile's Gaussian count), with or without the shared bounce."""
-        p_irradiance, _, _, p_bounce = self._profile_programs(scene.profile.k)
+        p_irradiance, _, _, p_bounce, _ = self._profile_programs(scene.profile.k)
         return p_bounce if bounce else p_irradiance
 
     def override_light_program(self, prog) -> None:
@@ -212,11 +225,11 @@ class ScreenSpaceSSS(Technique):
         (H, W, 3), row 0 = top, replaces the rendered light (depth kept): used by the tests."""
         scene = frame.scene
         profile = scene.profile
-        _, p_horizontal, p_vertical, _ = self._profile_programs(profile.k)
+        _, p_horizontal, p_vertical, _, p_grain = self._profile_programs(profile.k)
         bounce = prepare_interreflection(frame)  # the shared one bounce, rebuilt only on a lighting change
         p_irradiance = (self.p_irradiance if self.p_irradiance is not None
                         else self.light_programs(scene, bounce)(frame.lights.count))
-        self._ensure_targets(tuple(frame.size), profile.k)
+        self._ensure_targets(tuple(frame.size), profile.k, p_grain is not None)
         t = self.tex
         with frame.timer("ssss_irradiance"):
             fbo = t["fbo_irradiance"]
@@ -260,6 +273,15 @@ class ScreenSpaceSSS(Technique):
             bind_sampler_array(prog, "uPacked", t["packed"], Unit.FIRST_FREE + 2)
             t["fbo_vertical"].use()
             self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
+            if p_grain is not None:
+                prog = p_grain
+                self._kernel_uniforms(prog, frame, 1)  # the blurs' same-surface rules (depth cutoff, tissue paths)
+                bind_sampler(prog, "uNarrow", t["narrow"], Unit.FIRST_FREE)
+                bind_sampler(prog, "uWide", t["wide"], Unit.FIRST_FREE + 1)
+                bind_sampler(prog, "uViewNormal", t["view_normal"], Unit.FIRST_FREE + 2)
+                bind_sampler(prog, "uIrradiance", t["irradiance"], Unit.FIRST_FREE + 3)
+                t["fbo_grain"].use()
+                self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
         frame.passes_run.append("ssss_blur")
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
@@ -302,5 +324,6 @@ class ScreenSpaceSSS(Technique):
             v.release()
         for progs in self._programs.values():
             for p in progs:
-                p.release()
+                if p is not None:
+                    p.release()
         self.p_final.release()

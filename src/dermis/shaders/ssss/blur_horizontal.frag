@@ -6,7 +6,9 @@
 
 layout(location = 0) out uvec4 f_packed[SSSS_PACKED];
 
-void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS]) {
+void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS],
+                out float rejected) {
+    rejected = 0.0;
     vec4 t = texelFetch(uIrradiance, q, 0);
     depth_mm = t.a;
     normal = centre ? texelFetch(uViewNormal, q, 0).xyz : ssss_tap_normal(q);
@@ -17,10 +19,12 @@ void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     vec4 c = texelFetch(uIrradiance, p, 0);
     vec3 blurred[MAX_GAUSSIANS];
+    bool wide[MAX_GAUSSIANS];
+    float rejected = 0.0;
     if (c.a > 0.0) {
-        ssss_blur(p, 0, blurred);
+        ssss_blur(p, 0, blurred, wide, rejected);
     } else {
         for (int k = 0; k < MAX_GAUSSIANS; ++k) blurred[k] = c.rgb;
     }
-    ssss_pack(c.a, texelFetch(uViewNormal, p, 0).xyz, blurred, f_packed);
+    ssss_pack(c.a, texelFetch(uViewNormal, p, 0).xyz, blurred, rejected, f_packed);
 }

@@ -24,7 +24,23 @@
 // frame), with n times its weight: stratified sampling, exact in expectation for every pixel
 // (each of the cell's pixels is drawn with probability 1 / n), so an impulse's response is the
 // profile's on average and smooth light is blurred with fine noise instead of rings (Jimenez et al.
-// 2015 jitter their kernels per pixel for the same reason).
+// 2015 jitter their kernels per pixel for the same reason). Draws stratified across neighbouring
+// pixels (interleaved gradient noise, Jimenez 2014) were tried: the grain filter below then removes
+// a little more (front-key at 768 px, RMS 0.00054 against 0.00067 of the mean), but pixels whose
+// draws are correlated gather a single bright pixel coherently: one dot's energy 1.17 in red
+// (hash: 1.003), so an isolated highlight would come out 17 % too bright.
+// Grain filter (option grain_filter, ssss/grain_filter.frag): the noise lives only in the wide
+// Gaussians, whose outer cells span several pixels. A Gaussian that is at least
+// SSSS_FILTER_SIGMA_PX wide at a pixel is blurred here with its variance less
+// SSSS_FILTER_VARIANCE_PX2 = 1/2 px^2 per axis, and the vertical pass writes the sum of such
+// Gaussians apart from the others; the filter pass convolves that sum with the 3 x 3 binomial
+// [1 2 1] x [1 2 1] / 16, whose variance is exactly 1/2 px^2 per axis, so the wide Gaussians get
+// their full variance back (variances add under convolution; the binomial's higher cumulants are
+// small beside a >= 3 px Gaussian's: tests/test_ssss_grain.py) and the narrow ones, which carry the
+// skin's sharp detail, are not touched: below 3 px a Gaussian keeps nearly all its weight in the
+// one-pixel cells near the centre (d'Eon's profile at 768 px: cells widen from pixel 8), and the
+// compensation is <= 1/18 of the variance of those filtered. Where a blur's rejected taps made the
+// wide light jump from pixel to pixel (creases), the filter backs off (ssss/grain_filter.frag).
 // Weights: a pixel's share of a 1-D Gaussian of sigma (px) is the Gaussian integrated over the
 // pixel, i.e. the Gaussian convolved with a 1-pixel box, taken here as the Gaussian of variance
 // sigma^2 + 1/12 (the box's variance) at the pixel's centre: within 0.5 % of the integral's
@@ -73,6 +89,9 @@ uniform float uTissueTau;               // sin of the largest angle above the ta
 uniform float uSurfaceMeasure;          // 1: weigh taps by their surface per pixel (below); 0: off
 
 const float SSSS_REACH_SIGMAS = 3.7169;  // sqrt(2 ln 1000): a Gaussian at 1e-3 of its peak
+// SSSS_GRAIN_FILTER (0/1), compiled in: the grain filter (above)
+const float SSSS_FILTER_SIGMA_PX = 3.0;      // a Gaussian this wide (px) is blurred less, then filtered
+const float SSSS_FILTER_VARIANCE_PX2 = 0.5;  // the binomial [1 2 1] / 4's variance, px^2
 
 struct SsssKernel {
     float ppm;                           // pixels per mm at this pixel's depth
@@ -80,7 +99,13 @@ struct SsssKernel {
     float inv_2var_px[MAX_GAUSSIANS];    // 1 / (2 (sigma_k^2 + 1/12)), 1/px^2: a pixel's share (above)
     float inv_2var[MAX_GAUSSIANS];       // 1 / (2 sigma_k^2), 1/px^2: the depth factor
     float jitter;                        // [0, 1): this pixel's draw in its cells
+    bool wide[MAX_GAUSSIANS];            // blurred with the filter's variance taken off (grain filter)
 };
+
+// Gaussian k (sigma_px at this pixel) goes through the grain filter (above).
+bool ssss_filtered(float sigma_px) {
+    return SSSS_GRAIN_FILTER != 0 && sigma_px >= SSSS_FILTER_SIGMA_PX;
+}
 
 // An integer hash (Wang 1997 / Jenkins' 32-bit mix) -> [0, 1): per pixel and pass.
 float ssss_hash01(ivec2 p, int pass_index) {
@@ -100,8 +125,10 @@ SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index, int size_px) {
     float widest = 0.0;
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         float sigma_px = max(sqrt(uVariances[k]) * K.ppm, 1e-4);
-        K.inv_2var_px[k] = 0.5 / (sigma_px * sigma_px + 1.0 / 12.0);
-        K.inv_2var[k] = 0.5 / (sigma_px * sigma_px);
+        K.wide[k] = ssss_filtered(sigma_px);
+        float var_px = sigma_px * sigma_px - (K.wide[k] ? SSSS_FILTER_VARIANCE_PX2 : 0.0);
+        K.inv_2var_px[k] = 0.5 / (var_px + 1.0 / 12.0);
+        K.inv_2var[k] = 0.5 / var_px;
         if (k < uGaussianCount) widest = max(widest, sigma_px);
     }
     // at most the frame's size (taps beyond the frame are skipped in any case)
@@ -174,24 +201,42 @@ vec3 ssss_tap_normal(ivec2 q) {
 // tissue-path test or the surface measure reads it; ``centre``: always) and each Gaussian's light
 // (the horizontal pass: the pre-scatter light for every k, from uIrradiance and uViewNormal; the
 // vertical pass: the horizontal pass's packed texels, ssss/packing.glsl, 3 fetches for K = 6
-// where the separate images took K + 2).
-void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS]);
+// where the separate images took K + 2) and the rejected share of the horizontal pass there (0 in
+// the horizontal pass).
+void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS],
+                out float rejected);
 
 // The 1-D blur along uDirection at pixel p, per Gaussian: out[k] = sum_taps w E_k / sum_taps w
-// (pass_index 0 horizontal, 1 vertical), for a pixel on the skin (depth > 0).
+// (pass_index 0 horizontal, 1 vertical), for a pixel on the skin (depth > 0); wide[k]: Gaussian k
+// was blurred for the grain filter (its variance less SSSS_FILTER_VARIANCE_PX2).
 // Written so that a GPU compiler keeps everything in registers: every loop over the Gaussians has
 // a constant trip count (MAX_GAUSSIANS = the profile's K) and no loop inside, so it unrolls and
 // each array is indexed by constants. Per tap: one texel of uIrradiance (depth), the normal where
 // the tissue-path test reads it, each Gaussian's light (ssss_fetch) and one exp per Gaussian:
 // exp(-(x^2 / 2 (sigma^2 + 1/12) + dz^2 / 2 sigma^2)), the pixel's share times the depth factor.
 // A tap on another surface has dz taken as 0 (its kernel weight) and brings the pixel's own light.
-void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS]) {
+//
+// rejected: the share of the widest Gaussian's weight that fell on another surface (the pixel's own
+// light stood in for it), in this pass and, averaged with the same weights, in the horizontal
+// pass at the taps: 1 - (1 - this pass's) (1 - the horizontal pass's). Where it is large the
+// blurred light jumps with the pixel's own light from one pixel to the next (beside a crease the
+// hidden side continues with each pixel's own light), and the grain filter backs off.
+void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool wide[MAX_GAUSSIANS],
+               out float rejected) {
     ivec2 size = textureSize(uIrradiance, 0);
     float cz;  // the pixel's view depth, mm
     vec3 np;
     vec3 centre[MAX_GAUSSIANS];  // the pixel's own light: what a tap on another surface brings
-    ssss_fetch(p, true, cz, np, centre);
+    float centre_rejected;
+    ssss_fetch(p, true, cz, np, centre, centre_rejected);
     SsssKernel K = ssss_kernel(cz, p, pass_index, max(size.x, size.y));
+    // the widest Gaussian (its weight's rejected share)
+    int kw = 0;
+    for (int k = 1; k < MAX_GAUSSIANS; ++k)
+        if (k < uGaussianCount && uVariances[k] > uVariances[kw]) kw = k;
+    rejected = 0.0;
+    float w_rejected = 0.0;  // its weight on rejected taps
+    float r_sum = 0.0;       // sum of its weights times the horizontal pass's rejected share
     vec3 pp = ssss_view_position_mm(p, size, cz);
     vec3 sum[MAX_GAUSSIANS];
     float wsum[MAX_GAUSSIANS];
@@ -220,7 +265,8 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS]) {
             float tz;
             vec3 nq;
             vec3 light[MAX_GAUSSIANS];
-            ssss_fetch(q, false, tz, nq, light);
+            float tap_rejected;
+            ssss_fetch(q, false, tz, nq, light, tap_rejected);
             float dz_px = ssss_tap_dz_px(K, cz, tz);
             bool other = dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, tz, size);  // another surface
             float x2 = float(i * i);
@@ -230,17 +276,24 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS]) {
                 float w = cell * exp(-(x2 * K.inv_2var_px[k] + dz2 * K.inv_2var[k]));
                 if (other) {
                     own[k] += w;
+                    if (k == kw) w_rejected += w;
                 } else {
                     w *= measure;
                     sum[k] += w * light[k];
                     wsum[k] += w;
+                    if (k == kw) r_sum += w * tap_rejected;
                 }
             }
         }
     }
     float own_measure = ssss_measure(np);
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+        wide[k] = K.wide[k];
         float w = own[k] * own_measure;
         result[k] = (sum[k] + w * centre[k]) / max(wsum[k] + w, 1e-20);
+        if (k == kw) {
+            float total = max(wsum[k] + w, 1e-20);
+            rejected = 1.0 - (1.0 - w_rejected * own_measure / total) * (1.0 - (r_sum + w * centre_rejected) / total);
+        }
     }
 }

@@ -3,18 +3,20 @@
 // SSSS_PACKED RGBA32UI texels, so that each vertical tap reads SSSS_PACKED texels (3 for K = 6)
 // instead of K images + the irradiance (depth) + the normal. Halves are what the separate
 // RGBA16F images and the RGBA16F normal held: the same values.
-// uint 0: depth; uints 1..: halves h[0..2] = normal, h[3 + 3k + c] = Gaussian k's channel c.
+// uint 0: depth; uints 1..: halves h[0..2] = normal, h[3 + 3k + c] = Gaussian k's channel c,
+// h[3K + 3] = the rejected share.
 
-const int SSSS_HALVES = 3 * MAX_GAUSSIANS + 3;
+const int SSSS_HALVES = 3 * MAX_GAUSSIANS + 4;
 const int SSSS_UINTS = 1 + (SSSS_HALVES + 1) / 2;
-#define SSSS_PACKED ((1 + (3 * MAX_GAUSSIANS + 4) / 2 + 3) / 4)
+#define SSSS_PACKED ((1 + (3 * MAX_GAUSSIANS + 5) / 2 + 3) / 4)
 
-void ssss_pack(float depth_mm, vec3 normal, vec3 light[MAX_GAUSSIANS], out uvec4 texels[SSSS_PACKED]) {
+void ssss_pack(float depth_mm, vec3 normal, vec3 light[MAX_GAUSSIANS], float rejected, out uvec4 texels[SSSS_PACKED]) {
     float h[2 * SSSS_UINTS];
     h[0] = normal.x; h[1] = normal.y; h[2] = normal.z;
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         h[3 + 3 * k] = light[k].r; h[4 + 3 * k] = light[k].g; h[5 + 3 * k] = light[k].b;
     }
+    h[3 * MAX_GAUSSIANS + 3] = rejected;
     for (int i = SSSS_HALVES; i < 2 * SSSS_UINTS; ++i) h[i] = 0.0;
     uint u[4 * SSSS_PACKED];
     u[0] = floatBitsToUint(depth_mm);
@@ -23,7 +25,8 @@ void ssss_pack(float depth_mm, vec3 normal, vec3 light[MAX_GAUSSIANS], out uvec4
     for (int t = 0; t < SSSS_PACKED; ++t) texels[t] = uvec4(u[4 * t], u[4 * t + 1], u[4 * t + 2], u[4 * t + 3]);
 }
 
-void ssss_unpack(uvec4 texels[SSSS_PACKED], out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS]) {
+void ssss_unpack(uvec4 texels[SSSS_PACKED], out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS],
+                 out float rejected) {
     uint u[4 * SSSS_PACKED];
     for (int t = 0; t < SSSS_PACKED; ++t) {
         u[4 * t] = texels[t].x; u[4 * t + 1] = texels[t].y; u[4 * t + 2] = texels[t].z; u[4 * t + 3] = texels[t].w;
@@ -36,4 +39,5 @@ void ssss_unpack(uvec4 texels[SSSS_PACKED], out float depth_mm, out vec3 normal,
     depth_mm = uintBitsToFloat(u[0]);
     normal = vec3(h[0], h[1], h[2]);
     for (int k = 0; k < MAX_GAUSSIANS; ++k) light[k] = vec3(h[3 + 3 * k], h[4 + 3 * k], h[5 + 3 * k]);
+    rejected = h[3 * MAX_GAUSSIANS + 3];
 }
