@@ -11,6 +11,8 @@ median over ``--frames``, the two shader sets interleaved frame by frame; the fl
 ``--before REV``: the ssss shaders of git revision REV (``git show REV:src/dermis/shaders/ssss/F``);
 ``--before-shaders DIR``: a folder holding an older ssss/ (where there is no git, e.g. a GPU box).
 ``--option surface_measure=false``: ssss options for both (e.g. to compare like for like).
+``--also NAME=VALUE``: one more set, this tree's shaders with that option changed (e.g.
+``--also grain_filter=false``); options the older shaders do not have are left out for them.
 Printed: ms and multiple of the floor for each, and how far this tree's IMAGE is from the older
 one's: max |a - b| / max(|b|, 1e-3 * p99(b)) over the frame (linear, all channels).
 """
@@ -63,6 +65,7 @@ def main(argv=None):
     ap.add_argument("--before", default=None, help="git revision whose ssss shaders to time beside this tree's")
     ap.add_argument("--before-shaders", default=None, help="a folder with the older ssss/ shaders")
     ap.add_argument("--option", action="append", default=[], help="ssss option NAME=VALUE (true/false/number)")
+    ap.add_argument("--also", action="append", default=[], help="one more set: this tree with option NAME=VALUE")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
 
@@ -73,27 +76,37 @@ def main(argv=None):
     from dermis.renderer import Renderer
 
     sc = dermis.load_scene(REPO / "examples" / "lee-perry-smith.toml")
-    options = {}
-    for o in a.option:
-        key, _, value = o.partition("=")
-        options[key] = {"true": True, "false": False}.get(value.lower(), None)
-        if options[key] is None:
-            options[key] = float(value) if "." in value else int(value)
+    def parse(pairs):
+        out = {}
+        for o in pairs:
+            key, _, value = o.partition("=")
+            out[key] = {"true": True, "false": False}.get(value.lower(), None)
+            if out[key] is None:
+                out[key] = float(value) if "." in value else int(value)
+        return out
+
+    options = parse(a.option)
     size = (a.size, a.size)
     ctx = create_context()
     tmp = Path(tempfile.mkdtemp(prefix="ssss_cost_"))
-    sets = {"this tree": shaders.SHADER_DIR}
+    sets = {"this tree": (shaders.SHADER_DIR, options)}
+    for o in a.also:
+        sets[f"this tree, {o}"] = (shaders.SHADER_DIR, {**options, **parse([o])})
     if a.before or a.before_shaders:
-        sets[f"before ({a.before or a.before_shaders})"] = old_shader_dir(a.before, a.before_shaders, tmp)
+        old = old_shader_dir(a.before, a.before_shaders, tmp)
+        # options whose shaders the older tree lacks stay off there
+        has_filter = "SSSS_GRAIN_FILTER" in (old / "ssss" / "kernel.glsl").read_text()
+        old_options = {**options, **({} if has_filter else {"grain_filter": False})}
+        sets[f"before ({a.before or a.before_shaders})"] = (old, old_options)
     renderers, times, images = {}, {}, {}
     try:
-        for name, folder in sets.items():
+        for name, (folder, opts) in sets.items():
             shaders.SHADER_DIR = folder  # the programs are compiled on the first render
             r = renderers[name] = Renderer(sc, size, ctx=ctx, irradiance_size=1024)
-            r.technique("ssss", **options)
+            r.technique("ssss", **opts)
             images[name] = r.render("ssss").astype(np.float64)
             times[name] = []
-        shaders.SHADER_DIR = sets["this tree"]
+        shaders.SHADER_DIR = sets["this tree"][0]
         first = next(iter(renderers.values()))
         floors = measure_floors(first, repeats=a.frames)
         floor = 2 * sc.profile.k * floors["copy_screen"]
@@ -106,7 +119,7 @@ def main(argv=None):
     finally:
         for r in renderers.values():
             r.release()
-        shaders.SHADER_DIR = sets["this tree"]
+        shaders.SHADER_DIR = sets["this tree"][0]
         shutil.rmtree(tmp, ignore_errors=True)
     import os
 
