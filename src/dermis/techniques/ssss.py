@@ -21,6 +21,12 @@ with each pixel's kernel scaled to millimetres by its depth:
                    A fixed number of taps per side (``taps``), whatever the head's size on screen:
                    one pixel each near the centre, wider cells sampled stratified (one jittered
                    pixel, weighted by the cell's size) in the wide Gaussians' tails.
+                   Grain filter (option ``grain_filter``, on): the Gaussians >= 3 px wide are
+                   blurred with 1/2 px^2 less variance per axis, summed apart, and a third
+                   pass convolves their sum with the 3 x 3 binomial (variance 1/2 px^2 per
+                   axis: the variance restored), same-surface pairs only, backing off where
+                   rejected taps make real edges (ssss/grain_filter.frag): the jittered
+                   cells' grain at sharp light edges halved, the narrow Gaussians untouched.
                    Pixels per mm = size / (2 tan(fov/2) depth_mm); taps follow the surface (weight
                    of the 3-D distance, taps across a depth jump > depth_cutoff_mm rejected, taps
                    whose straight path to the pixel crosses air rejected: creases, as the
@@ -36,7 +42,8 @@ Known failure modes: light only comes from what the camera sees (none from behin
 rim, none from off-screen; kernels are cut at the frame's edge); across a crease narrower than a
 pixel (closed eyelids at a distance) the tissue-path test cannot separate the two sides; when 3.7 sigma of the widest Gaussian exceeds
 ``taps`` pixels, the outer taps are jittered per pixel: fine noise where the light has detail at the
-scale of the cells; the
+scale of the cells (the grain filter removes about half of it; what is left sits beside creases and
+silhouettes, where the filter backs off); the
 horizontal-then-vertical split follows the surface only along the axes (as in Jimenez 2015).
 Shaders: shaders/ssss/*; shared: common/skin_irradiance.glsl, common/transmittance.glsl,
 common/skin_specular.glsl.
