@@ -230,10 +230,9 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
     float centre_rejected;
     ssss_fetch(p, true, cz, np, centre, centre_rejected);
     SsssKernel K = ssss_kernel(cz, p, pass_index, max(size.x, size.y));
-    // the widest Gaussian (its weight's rejected share)
-    int kw = 0;
-    for (int k = 1; k < MAX_GAUSSIANS; ++k)
-        if (k < uGaussianCount && uVariances[k] > uVariances[kw]) kw = k;
+    // the widest Gaussian (its weight's rejected share): the last, the profile's variances increase
+    // (dermis.profiles.SumOfGaussians) and ssss compiles for exactly its K: a constant index
+    const int kw = MAX_GAUSSIANS - 1;
     rejected = 0.0;
     float w_rejected = 0.0;  // its weight on rejected taps
     float r_sum = 0.0;       // sum of its weights times the horizontal pass's rejected share
@@ -276,12 +275,16 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
                 float w = cell * exp(-(x2 * K.inv_2var_px[k] + dz2 * K.inv_2var[k]));
                 if (other) {
                     own[k] += w;
+#if SSSS_GRAIN_FILTER
                     if (k == kw) w_rejected += w;
+#endif
                 } else {
                     w *= measure;
                     sum[k] += w * light[k];
                     wsum[k] += w;
+#if SSSS_GRAIN_FILTER
                     if (k == kw) r_sum += w * tap_rejected;
+#endif
                 }
             }
         }
