@@ -48,6 +48,7 @@ from dermis.geometry.texture_space import UV_RANGE_TOLERANCE
 from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
 from dermis.gl.interreflection import BounceGather, bounce_level
+from dermis.gl.subsurface_transfer import SubsurfaceTransfer, source_index
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit, bind_sampler, bind_sampler_array,
@@ -162,6 +163,8 @@ class TextureSpaceDiffusion(Technique):
         self._stretch_chain_key = None
         self._chain_passes = None  # ((chain key, dilated irradiance), the irradiance's prepared passes)
         self.thickness = ThicknessTexture(self.ctx)  # the texel thickness bake (light through thin parts)
+        # light entering the same side around a curl (the ear's rim), where the mesh has a baked transfer
+        self.transfer = SubsurfaceTransfer(self.ctx)
         self.hits = renderer.interreflection_hits  # the interreflection rays' hits (one bounce; the Renderer's)
         self._p_bounce = None  # (exitant, gather, splat) programs, compiled on first use
         self.bounce_level = None
@@ -207,6 +210,7 @@ class TextureSpaceDiffusion(Technique):
         self._chain_passes = None
         self._narrow_key = None
         self.thickness.release()
+        self.transfer.release()
 
     def scene_changed(self):
         self._cache_key = None
@@ -600,6 +604,10 @@ class TextureSpaceDiffusion(Technique):
                 self._fullscreen(prog, own)
                 bind_sampler(self.p_trans_tent, "uSource", own, 0)
                 self._fullscreen(self.p_trans_tent, trans)
+                # + the baked transfer around curls (dermis.gl.subsurface_transfer; nothing without a bake)
+                if self.transfer.add(frame, self._fbo(trans), trans.size,
+                                     self.tex[("blur", source_index(profile.variances_mm2))]):
+                    frame.passes_run.append("tsd_subsurface_transfer")
             frame.passes_run.append("tsd_translucency")
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)

@@ -1,0 +1,386 @@
+"""The bake of the subsurface transfer that texture-space diffusion does not carry (physics: numpy,
+scipy and Embree; no GL). Lengths in mm.
+
+What is baked. For a bake point x_o (a texel centre of the mesh's texture-space layout in a thin
+part, where the ray along -N leaves the tissue within ``thin_mm``) the radiance leaving x_o is, with
+a diffuse (view- and light-direction-independent) exit and entry (the multiple-scattering term of
+Jensen et al. 2001),
+
+    L(x_o) = A(x_o)^(1 - mix) / pi  *  integral  tau(x_o, x_i)  I_0(x_i)  dA_i
+
+with I_0 = E (1 - rho_s a / pi) A^mix tsd's irradiance map and tau normalised so that a flat,
+uniformly lit surface gives integral tau = 1 (tsd's normalised profile does the same: a flat
+surface of uniform irradiance E has radiance A E / pi). tau is sampled by the adjoint skin walk
+(dermis.reference.random_walk, index 1.4, Fresnel at every face, the medium per channel of the
+thin-slab law: the mean free path 1 / sigma_t' the law fits to the profile's mean radius, the
+single-scattering albedo that makes the semi-infinite walk reflect the skin's mean albedo): walks
+start at x_o along cosine-distributed (diffuse) views refracted in; each walk that refracts out at
+x_i carries w n^2, its radiance at x_o per unit radiance arriving at x_i (reciprocity: the same
+number is the transport from light entering at x_i to x_o). A diffuse field L_i = E_i / pi at x_i
+then gives w n^2 E_i / pi; divided by the same walk's flat total R_flat (a semi-infinite slab,
+:func:`flat_reflectance`) that is tau, in the irradiance map's units.
+
+What is kept (the split against tsd, derived). tsd already carries, for an entry point x_i:
+ (1) the blur chain: the normalised profile R at the distance ALONG the surface (its Gaussians run in
+     UV space with the stretch in texels per mm), R(g) dA_i with g the geodesic distance;
+ (2) translucency: the far face behind x_o along -N or along the light, a face whose normal is
+     opposite to x_o's (n_i . n_o < 0; tsd/translucency.frag trusts it only within 60 deg of
+     antiparallel), spread by the wide Gaussians.
+The bake keeps the exits x_i that are (a) SAME-FACING, n_i . n_o > 0 (not translucency's far face),
+and (b) AROUND A CURL: g > max(MIN_SURFACE_MM, CURL_RATIO x r), r = |x_i - x_o| the 3-D distance
+(on a flat or gently curved surface g = r: nothing is kept, the correction vanishes by
+construction). Over the same kept region, what (1) already carries is subtracted: per mesh vertex v
+of it, R(g_v) A_v (A_v a third of its triangles' area; g along the mesh's edges, Dijkstra from the
+point's triangle's corners). So the bake holds tau - R(g) over the kept region: adding it to tsd's
+blur gives the walk's transport there, and nothing is counted twice with (1). With (2): its far face
+is opposite-facing, so disjoint from the kept region; its wide Gaussians (sigma <= 2.7 mm in red)
+spread the far face's irradiance by a few mm and can reach around the rim: that overlap is not
+subtracted (measured on the head: benchmarks/RESULTS.md, round 10).
+
+Geodesic distance on the mesh graph (edge paths) overestimates the true one by a few % on a fine
+mesh; the kept test only needs g against 1.5 r. Exits are assigned to the nearest corner of their
+triangle; each point's per-vertex transfer is compressed to at most ``taps`` taps (weighted k-means
+on the vertices' positions; a tap sits at the member vertex nearest its cluster's weighted centre,
+its weight the cluster's sum: the point's total is kept exactly).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dermis.errors import DermisError
+from dermis.geometry.rasterize import rasterize_uv
+from dermis.geometry.raycast import cosine_directions
+from dermis.reference.random_walk import MeshWalk, WalkMedium
+
+DEFAULT_GRID = 512  # bake points: texel centres of a grid x grid layout (about 1 mm apart on the head's ears)
+THIN_MM = 8.0  # a texel is baked where the ray along -N leaves the tissue within this (the ears, nose wings)
+CURL_RATIO = 1.5  # kept: geodesic > CURL_RATIO x 3-D distance (around a curl)
+MIN_SURFACE_MM = 1.0  # and geodesic > this (the blur's own neighbourhood)
+MAX_SURFACE_MM = 25.0  # Dijkstra's reach; farther along the surface the profile is 0 (e^-42 in red)
+DEFAULT_TAPS = 8
+DEFAULT_WALKS = 64
+CHUNK_WALKS = 1 << 16
+
+
+@dataclass
+class BakePoints:
+    """Where the transfer is baked: texture-space uv (n, 2), position (n, 3) mm, triangle (n,), the
+    facet's outward normal (n, 3)."""
+
+    uv: np.ndarray
+    position: np.ndarray
+    triangle: np.ndarray
+    normal: np.ndarray
+
+
+@dataclass
+class TransferBake:
+    """The baked transfer: per point its uv, and ``taps`` taps (uv in the texture-space layout, RGB
+    weight: tau - R(g) summed over the tap's cluster, in the irradiance map's units; zero weight =
+    unused). ``kept`` / ``subtracted`` (n, 3): per point, the walk's kept transfer and the blur's share
+    removed from it (their difference is the sum of the taps); ``meta``: how it was baked."""
+
+    point_uv: np.ndarray
+    tap_uv: np.ndarray
+    tap_weight: np.ndarray
+    kept: np.ndarray
+    subtracted: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def total(self) -> np.ndarray:
+        return self.tap_weight.sum(1)
+
+
+def skin_media(profile, albedo, index: float = 1.4, photons: int = 20_000) -> tuple:
+    """Per channel the skin walk's medium of ear9 (benchmarks/ear_translucency.py --walk): the
+    thin-slab law's mean free path (dermis.profiles.thin_slab) and the single-scattering albedo whose
+    semi-infinite walk reflects ``albedo`` (dermis.verification.random_walk_albedo)."""
+    from dermis.profiles.thin_slab import slab_law
+    from dermis.verification import random_walk_albedo
+
+    albedo = np.asarray(albedo, np.float64)
+    law = slab_law(profile.normalized(), albedo)
+    out = []
+    for c in range(3):
+        mfp = float(1.0 / law.reduced_sigma_t_per_mm[c])
+        out.append(WalkMedium(mfp, random_walk_albedo(float(albedo[c]), mfp, photons=photons, index=index), "fresnel", index))
+    return tuple(out)
+
+
+def diffuse_views(normals, rng) -> np.ndarray:
+    """View rays (towards the surface) cosine-distributed about the outward ``normals``: a walk
+    started along them estimates the exitance / pi (a diffuse exit)."""
+    n = len(normals)
+    return -cosine_directions(np.asarray(normals, np.float64), rng.random((n, 1)), rng.random((n, 1)))[:, 0]
+
+
+def walk_exits(walker: MeshWalk, position, triangle, normal, medium: WalkMedium, walks: int, seed: int = 0) -> dict:
+    """``walks`` adjoint walks from each point, diffuse views: the exits (random_walk's ``exits``)
+    with "point_index" (which start point) added."""
+    position = np.asarray(position, np.float64)
+    n = len(position)
+    total = n * int(walks)
+    parts = []
+    rng = np.random.default_rng(seed)
+    for start in range(0, total, CHUNK_WALKS):
+        idx = np.arange(start, min(start + CHUNK_WALKS, total)) // int(walks)
+        ex = {}
+        walker.radiance(position[idx], np.asarray(triangle)[idx], diffuse_views(np.asarray(normal)[idx], rng), medium,
+                        seed=int(rng.integers(2 ** 31)), exits=ex)
+        ex["point_index"] = idx[ex["walk"]]
+        parts.append(ex)
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if parts else {}
+
+
+def flat_reflectance(medium: WalkMedium, walks: int = 20_000, seed: int = 7) -> tuple[float, float]:
+    """(R_flat, its standard error): the walk's mean exit weight w n^2 from diffuse views on a flat
+    face of a slab much thicker than the transport (200 x 200 x 60 mm): the normalisation of tau."""
+    from dermis.scene.builtin import slab
+
+    p, nn, _, t = slab(size=200.0, thickness=60.0, n=2)
+    mw = MeshWalk(p, t, nn)
+    pts = np.tile([0.0, 0.0, 30.0], (walks, 1))
+    _, tri, _ = mw.caster.closest_hit(pts + [0, 0, 1.0], np.tile([0, 0, -1.0], (walks, 1)))
+    ex = walk_exits(mw, pts, tri, np.tile([0, 0, 1.0], (walks, 1)), medium, 1, seed)
+    per = np.bincount(ex["point_index"], weights=ex["weight"], minlength=walks)
+    return float(per.mean()), float(per.std() / np.sqrt(walks))
+
+
+def profile_density(profile, g_mm) -> np.ndarray:
+    """tsd's normalised profile R(g) per mm^2, (..., 3): sum_k w_k exp(-g^2 / 2 v_k) / (2 pi v_k)."""
+    p = profile.normalized()
+    w = np.asarray(p.weights, np.float64)  # (K, 3)
+    v = np.asarray(p.variances_mm2, np.float64)  # (K,)
+    g = np.asarray(g_mm, np.float64)[..., None]
+    return (np.exp(-g * g / (2.0 * v)) / (2.0 * np.pi * v)) @ w
+
+
+def subdivide(positions, indices, normals, uvs):
+    """One 1-to-4 midpoint subdivision (a finer graph for geodesic distances): positions, indices,
+    normals (renormalised), uvs of the new mesh. Midpoints per edge of the given triangles, so a
+    triangle's uvs stay in its own chart."""
+    idx = np.asarray(indices, np.int64).reshape(-1, 3)
+    e = np.sort(np.concatenate([idx[:, [0, 1]], idx[:, [1, 2]], idx[:, [2, 0]]]), axis=1)
+    edges, inv = np.unique(e, axis=0, return_inverse=True)
+    inv = inv.reshape(3, -1).T + len(positions)  # midpoint ids of edges 01, 12, 20
+    mid = lambda a: 0.5 * (a[edges[:, 0]] + a[edges[:, 1]])
+    pos = np.r_[positions, mid(positions)]
+    nrm = np.r_[normals, mid(normals)]
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+    uv = np.r_[uvs, mid(uvs)]
+    a, b, c = idx.T
+    ab, bc, ca = inv.T
+    tri = np.concatenate([np.c_[a, ab, ca], np.c_[ab, b, bc], np.c_[ca, bc, c], np.c_[ab, bc, ca]])
+    return pos, tri, nrm, uv
+
+
+class SurfaceGraph:
+    """The mesh's edges, subdivided ``subdivisions`` times, as a graph (vertices merged by position:
+    UV seams do not cut it) for geodesic distances along the surface (Dijkstra), with each merged
+    vertex's area (mm^2), outward normal and texture-space uv. A surface point is represented by the
+    nearest vertex of its own triangle's subdivision; the distance between two points is taken as max(their 3-D distance,
+    the edge path between their vertices less both points' distances to them): a lower bound of the
+    geodesic (triangle inequality, the edge path being >= the geodesic between the vertices up to the
+    graph's own excess), so the curl test g > 1.5 r never keeps an exit beside the point."""
+
+    def __init__(self, positions_mm, indices, normals, uvs, subdivisions: int = 2):
+        pos = np.asarray(positions_mm, np.float64).reshape(-1, 3)
+        idx = np.asarray(indices, np.int64).reshape(-1, 3)
+        nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+        uv = np.asarray(uvs, np.float64).reshape(-1, 2)
+        origin = np.arange(len(idx))  # the given triangle each (sub)triangle lies in
+        for _ in range(subdivisions):
+            pos, idx, nrm, uv = subdivide(pos, idx, nrm, uv)
+            origin = np.tile(origin, 4)
+        _, first, inv = np.unique(np.round(pos, 5), axis=0, return_index=True, return_inverse=True)
+        inv = inv.reshape(-1)
+        self.position = pos[first]
+        self.normal = nrm[first] / np.maximum(np.linalg.norm(nrm[first], axis=1, keepdims=True), 1e-12)
+        self.uv = uv[first]
+        tri = inv[idx]
+        n = len(self.position)
+        area = 0.5 * np.linalg.norm(np.cross(self.position[tri[:, 1]] - self.position[tri[:, 0]],
+                                             self.position[tri[:, 2]] - self.position[tri[:, 0]]), axis=1)
+        self.area = np.bincount(tri.ravel(), weights=np.repeat(area / 3.0, 3), minlength=n)
+        # per given triangle, the vertices of its subtriangles: a point on it is represented by the
+        # nearest of them (never a vertex of another sheet that happens to be near in 3-D)
+        order = np.argsort(origin, kind="stable")
+        self.candidates = tri[order].reshape(len(np.unique(origin)), -1)
+        self.graph = _lattice_graph(self.position, self.candidates)
+
+    def nearest(self, points, triangles) -> np.ndarray:
+        """For points on the given mesh's ``triangles``, the nearest vertex of that triangle's subdivision."""
+        cand = self.candidates[np.asarray(triangles, np.int64)]
+        d = np.linalg.norm(self.position[cand] - np.asarray(points, np.float64)[:, None], axis=2)
+        return cand[np.arange(len(cand)), np.argmin(d, 1)]
+
+    def distances(self, vertices, limit=MAX_SURFACE_MM) -> np.ndarray:
+        """(n, V) edge-path distance (mm) from each of ``vertices`` to every vertex; inf beyond ``limit``."""
+        from scipy.sparse.csgraph import dijkstra
+
+        src, where = np.unique(np.asarray(vertices, np.int64), return_inverse=True)
+        return dijkstra(self.graph, indices=src, limit=limit)[where.reshape(-1)]
+
+
+def _lattice_graph(position, lattice):
+    """The graph joining every pair of vertices of each given triangle's subdivision lattice (rows of
+    ``lattice``) by their straight distance: within a flat triangle that IS the geodesic (a graph of
+    the subtriangles' edges alone zig-zags: on the scan's slivers its paths were up to 3x the straight
+    line); across triangles a path bends only where it crosses a shared edge at a lattice vertex."""
+    from scipy.sparse import csr_matrix
+
+    rows = np.sort(lattice, axis=1)
+    fresh = np.c_[np.ones((len(rows), 1), bool), np.diff(rows, axis=1) != 0]
+    width = int(fresh.sum(1).max())
+    # each row's distinct vertices, padded with its first (self pairs are dropped below)
+    u = np.repeat(rows[:, :1], width, axis=1)
+    r, c = np.nonzero(fresh)
+    u[r, np.cumsum(fresh, axis=1)[r, c] - 1] = rows[r, c]
+    i, j = np.triu_indices(width, 1)
+    e = np.sort(np.stack([u[:, i].ravel(), u[:, j].ravel()], 1), axis=1)
+    e = np.unique(e[e[:, 0] != e[:, 1]], axis=0)
+    length = np.linalg.norm(position[e[:, 0]] - position[e[:, 1]], axis=1)
+    n = len(position)
+    return csr_matrix((np.r_[length, length], (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(n, n))
+
+
+def thin_points(mesh, mm_per_unit: float, grid: int = DEFAULT_GRID, thin_mm: float = THIN_MM) -> BakePoints:
+    """Texel centres of the texture-space layout at grid^2 where the tissue behind is thinner than
+    ``thin_mm`` along -N (dermis.geometry.thickness's bake)."""
+    from dermis.geometry.thickness import texel_thickness
+
+    S = int(grid)
+    uv_ts = np.asarray(mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs, np.float64)
+    idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
+    pos = np.asarray(mesh.positions, np.float64) * float(mm_per_unit)
+    nrm = np.asarray(mesh.normals, np.float64)
+    tri, bary = rasterize_uv(uv_ts, idx, S, S)  # row 0 = top (v = 1), as texel_thickness
+    th = texel_thickness(mesh, S, mm_per_unit)
+    sel = np.nonzero((tri.reshape(-1) >= 0) & (th.reshape(-1, 4)[:, 3] > 0) & (th.reshape(-1, 4)[:, 2] < thin_mm))[0]
+    t = tri.reshape(-1)[sel]
+    b = bary.reshape(-1, 3)[sel].astype(np.float64)
+    p = np.einsum("nk,nkc->nc", b, pos[idx[t]])
+    vn = np.einsum("nk,nkc->nc", b, nrm[idx[t]])
+    fn = np.cross(pos[idx[t, 1]] - pos[idx[t, 0]], pos[idx[t, 2]] - pos[idx[t, 0]])
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+    fn *= np.where(np.einsum("ij,ij->i", fn, vn) >= 0.0, 1.0, -1.0)[:, None]
+    row, col = np.divmod(sel, S)
+    uv = np.stack([(col + 0.5) / S, 1.0 - (row + 0.5) / S], 1)
+    return BakePoints(uv, p, t, fn)
+
+
+def _compress(pos, c, taps):
+    """(members' tap index, tap positions index) of a point's per-vertex transfer ``c`` (m, 3) at
+    positions ``pos`` (m, 3): weighted k-means, deterministic (farthest-point start)."""
+    m = len(pos)
+    if m <= taps:
+        return np.arange(m), np.arange(m)
+    w = np.abs(c).sum(1) + 1e-30
+    centres = [int(np.argmax(w))]
+    d2 = np.sum((pos - pos[centres[0]]) ** 2, 1)
+    for _ in range(taps - 1):
+        j = int(np.argmax(d2 * w))
+        centres.append(j)
+        d2 = np.minimum(d2, np.sum((pos - pos[j]) ** 2, 1))
+    cen = pos[centres]
+    for _ in range(6):
+        lab = np.argmin(((pos[:, None] - cen[None]) ** 2).sum(2), 1)
+        for k in range(taps):
+            s = lab == k
+            if s.any():
+                cen[k] = (pos[s] * w[s, None]).sum(0) / w[s].sum()
+    lab = np.argmin(((pos[:, None] - cen[None]) ** 2).sum(2), 1)
+    rep = np.zeros(taps, np.int64)
+    for k in range(taps):
+        s = np.nonzero(lab == k)[0]
+        if len(s):
+            rep[k] = s[np.argmin(((pos[s] - cen[k]) ** 2).sum(1))]
+    return lab, rep
+
+
+def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFAULT_GRID, walks: int = DEFAULT_WALKS,
+                  taps: int = DEFAULT_TAPS, thin_mm: float = THIN_MM, seed: int = 0, points: BakePoints | None = None,
+                  media=None, flat=None, progress=None) -> TransferBake:
+    """The transfer of the module docstring for ``mesh`` (a dermis Mesh or any object with positions,
+    normals, indices, uvs, texture_space_uvs; positions x ``mm_per_unit`` = mm). ``points``: bake
+    there instead of the thin texels; ``media`` / ``flat``: per channel WalkMedium and R_flat
+    (default: :func:`skin_media`, :func:`flat_reflectance`)."""
+    if walks < 1 or taps < 1:
+        raise DermisError("subsurface transfer: walks and taps must be >= 1")
+    mm = float(mm_per_unit)
+    pos = np.asarray(mesh.positions, np.float64) * mm
+    idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
+    uv_ts = mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
+    pts = points if points is not None else thin_points(mesh, mm, grid, thin_mm)
+    media = media if media is not None else skin_media(profile, albedo)
+    if flat is None:
+        flat = [flat_reflectance(m)[0] for m in media]
+    walker = MeshWalk(pos, idx)
+    graph = SurfaceGraph(pos, idx, mesh.normals, uv_ts)
+    start_vertex = graph.nearest(pts.position, pts.triangle)
+    n = len(pts.position)
+    exits = [walk_exits(walker, pts.position, pts.triangle, pts.normal, m, walks, seed * 3 + c) for c, m in enumerate(media)]
+    if progress:
+        progress(f"walks done: {n} points x {walks} walks x 3 channels")
+    tap_uv = np.zeros((n, taps, 2), np.float32)
+    tap_w = np.zeros((n, taps, 3), np.float32)
+    kept = np.zeros((n, 3))
+    sub = np.zeros((n, 3))
+    order = [np.argsort(e["point_index"], kind="stable") for e in exits]
+    starts = [np.searchsorted(e["point_index"][o], np.arange(n + 1)) for e, o in zip(exits, order)]
+    chunk = 128
+    for c0 in range(0, n, chunk):
+        c1 = min(c0 + chunk, n)
+        G = graph.distances(start_vertex[c0:c1])  # (m, V)
+        for i in range(c0, c1):
+            g_row = G[i - c0]
+            xo, no = pts.position[i], pts.normal[i]
+            off_o = float(np.linalg.norm(graph.position[start_vertex[i]] - xo))
+            tally = {}
+            for c, (e, o, s) in enumerate(zip(exits, order, starts)):
+                sel = o[s[i]:s[i + 1]]
+                if len(sel) == 0:
+                    continue
+                xe, ne, we = e["point"][sel], e["normal"][sel], e["weight"][sel]
+                ve = graph.nearest(xe, e["triangle"][sel])
+                r = np.linalg.norm(xe - xo, axis=1)
+                ge = np.maximum(g_row[ve] - off_o - np.linalg.norm(graph.position[ve] - xe, axis=1), r)
+                keep = (ne @ no > 0.0) & (ge > np.maximum(MIN_SURFACE_MM, CURL_RATIO * r))
+                if keep.any():
+                    v = ve[keep]
+                    val = we[keep] / (walks * flat[c])
+                    kept[i, c] = val.sum()
+                    for vv, x in zip(v, val):
+                        tally.setdefault(int(vv), np.zeros(3))[c] += x
+            # what the blur chain carries from the same kept region: R(g_v) A_v
+            fin = np.nonzero(np.isfinite(g_row))[0]
+            rv = np.linalg.norm(graph.position[fin] - xo, axis=1)
+            gv = np.maximum(g_row[fin] - off_o, rv)
+            kv = (graph.normal[fin] @ no > 0.0) & (gv > np.maximum(MIN_SURFACE_MM, CURL_RATIO * rv))
+            share = profile_density(profile, gv[kv]) * graph.area[fin[kv], None]
+            sub[i] = share.sum(0)
+            vs = {int(v): share[j] for j, v in enumerate(fin[kv]) if share[j].max() > 1e-7}
+            keys = sorted(set(tally) | set(vs))
+            if not keys:
+                continue
+            cv = np.array([tally.get(k, np.zeros(3)) - vs.get(k, np.zeros(3)) for k in keys])
+            pv = graph.position[keys]
+            lab, rep = _compress(pv, cv, taps)
+            for k in range(min(taps, len(keys))):
+                s_ = lab == k
+                if s_.any():
+                    tap_w[i, k] = cv[s_].sum(0)
+                    tap_uv[i, k] = graph.uv[keys[rep[k]]]
+        if progress:
+            progress(f"points {c1} / {n}")
+    meta = {"grid": int(grid), "walks": int(walks), "taps": int(taps), "thin_mm": float(thin_mm), "seed": int(seed),
+            "curl_ratio": CURL_RATIO, "min_surface_mm": MIN_SURFACE_MM, "max_surface_mm": MAX_SURFACE_MM,
+            "mean_free_path_mm": [m.mean_free_path_mm for m in media],
+            "single_scattering_albedo": [m.single_scattering_albedo for m in media], "index": media[0].index,
+            "flat_reflectance": list(map(float, flat)), "profile": profile.name,
+            "albedo": list(map(float, np.asarray(albedo, np.float64)))}
+    return TransferBake(pts.uv.astype(np.float32), tap_uv, tap_w, kept, sub, meta)
