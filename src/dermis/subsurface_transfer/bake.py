@@ -1,47 +1,48 @@
 """The bake of the subsurface transfer that texture-space diffusion does not carry (physics: numpy,
 scipy and Embree; no GL). Lengths in mm.
 
-What is baked. For a bake point x_o (a texel centre of the mesh's texture-space layout in a thin
-part, where the ray along -N leaves the tissue within ``thin_mm``) the radiance leaving x_o is, with
-a diffuse (view- and light-direction-independent) exit and entry (the multiple-scattering term of
-Jensen et al. 2001),
+What is baked. For a bake point x_o (a texel centre of the mesh's texture-space layout in or near a
+thin part) the radiance leaving x_o is, with a diffuse (view- and light-direction-independent) exit
+and entry (the multiple-scattering term of Jensen et al. 2001),
 
     L(x_o) = A(x_o)^(1 - mix) / pi  *  integral  tau(x_o, x_i)  I_0(x_i)  dA_i
 
 with I_0 = E (1 - rho_s a / pi) A^mix tsd's irradiance map and tau normalised so that a flat,
-uniformly lit surface gives integral tau = 1 (tsd's normalised profile does the same: a flat
-surface of uniform irradiance E has radiance A E / pi). tau is sampled by the adjoint skin walk
-(dermis.reference.random_walk, index 1.4, Fresnel at every face, the medium per channel of the
+uniformly lit, semi-infinite medium gives integral tau = 1 (tsd's normalised profile does the same: a
+flat surface of uniform irradiance E has radiance A E / pi). tau is sampled by the adjoint skin walk
+(dermis.reference.random_walk, index 1.4, Fresnel at every face, per channel the medium of the
 thin-slab law: the mean free path 1 / sigma_t' the law fits to the profile's mean radius, the
 single-scattering albedo that makes the semi-infinite walk reflect the skin's mean albedo): walks
 start at x_o along cosine-distributed (diffuse) views refracted in; each walk that refracts out at
-x_i carries w n^2, its radiance at x_o per unit radiance arriving at x_i (reciprocity: the same
-number is the transport from light entering at x_i to x_o). A diffuse field L_i = E_i / pi at x_i
-then gives w n^2 E_i / pi; divided by the same walk's flat total R_flat (a semi-infinite slab,
-:func:`flat_reflectance`) that is tau, in the irradiance map's units.
+x_i carries w n^2, its radiance at x_o per unit radiance arriving at x_i (reciprocity: the same number
+is the transport from light entering at x_i to x_o). A diffuse field L_i = E_i / pi at x_i gives
+w n^2 E_i / pi; divided by the same walk's flat total R_flat (:func:`flat_kernel`) that is tau in the
+irradiance map's units.
 
-What is kept (the split against tsd, derived). tsd already carries, for an entry point x_i:
- (1) the blur chain: the normalised profile R at the distance ALONG the surface (its Gaussians run in
-     UV space with the stretch in texels per mm), R(g) dA_i with g the geodesic distance;
- (2) translucency: the far face behind x_o along -N or along the light, a face whose normal is
-     opposite to x_o's (n_i . n_o < 0; tsd/translucency.frag trusts it only within 60 deg of
-     antiparallel), spread by the wide Gaussians.
-The bake keeps the exits x_i that are (a) SAME-FACING, n_i . n_o > 0 (not translucency's far face),
-and (b) AROUND A CURL: g > max(MIN_SURFACE_MM, CURL_RATIO x r), r = |x_i - x_o| the 3-D distance
-(on a flat or gently curved surface g = r: nothing is kept, the correction vanishes by
-construction). Over the same kept region, what (1) already carries is subtracted: per mesh vertex v
-of it, R(g_v) A_v (A_v a third of its triangles' area; g along the mesh's edges, Dijkstra from the
-point's triangle's corners). So the bake holds tau - R(g) over the kept region: adding it to tsd's
-blur gives the walk's transport there, and nothing is counted twice with (1). With (2): its far face
-is opposite-facing, so disjoint from the kept region; its wide Gaussians (sigma <= 2.7 mm in red)
-spread the far face's irradiance by a few mm and can reach around the rim: that overlap is not
-subtracted (measured on the head: benchmarks/RESULTS.md, round 10).
+What is kept (the split against tsd, derived). tsd carries (1) the blur chain: its profile R at the
+distance along the surface (measured on the head's ear: tsd's texture-space result equals the
+surface integral of R at the geodesic distance within 6%, benchmarks/RESULTS.md round 10), and (2)
+translucency: the far face, whose normal is opposite to x_o's. The bake holds, over the SAME-FACING
+exits (n_i . n_o > 0; the opposite face stays translucency's), the walk's transport in the mesh's
+geometry LESS the same walk's transport on a flat semi-infinite surface at the same geodesic
+distance g, K_flat(g) (:func:`flat_kernel`):
 
-Geodesic distance on the mesh graph (edge paths) overestimates the true one by a few % on a fine
-mesh; the kept test only needs g against 1.5 r. Exits are assigned to the nearest corner of their
-triangle; each point's per-vertex transfer is compressed to at most ``taps`` taps (weighted k-means
-on the vertices' positions; a tap sits at the member vertex nearest its cluster's weighted centre,
-its weight the cluster's sum: the point's total is kept exactly).
+    tau_geo(x_o, x_i) = tau(x_o, x_i) - K_flat(g(x_o, x_i))     (same-facing x_i)
+
+On a flat thick surface it is 0 in expectation (it adds nothing where tsd's blur is the whole
+answer), so it never double counts with (1): tsd + tau_geo = tau + (R - K_flat), the profile's own
+flat mismatch as everywhere else on the face. What it carries: a thin sheet guides light sideways (the
+light that a semi-infinite medium would scatter back from depth meets the far face and is partly
+reflected there: less light within ~1 mm, more beyond), a curled rim brings light entering around
+the curl. It is stored as taps: tap 0 at x_o itself for the exits within MIN_SURFACE_MM along the
+surface (their sum less K_flat's share of that disc, F_flat(MIN_SURFACE_MM)), the others for the
+exits beyond, tallied at the nearest vertex of the mesh subdivided twice less K_flat(g_v) A_v at the
+same-facing vertices beyond MIN_SURFACE_MM (A_v a third of the subtriangles' area), compressed to at
+most ``taps - 1`` taps (weighted k-means on the vertices' positions; a tap sits at the member vertex
+nearest its cluster's weighted centre, its weight the cluster's sum: the point's total is kept
+exactly). Geodesic distance: Dijkstra on a graph joining all vertices of each given triangle's
+subdivision lattice by straight lines (exact within a triangle), a lower bound
+max(r, path - both points' distances to their vertices) between two surface points.
 """
 
 from __future__ import annotations
@@ -57,9 +58,9 @@ from dermis.reference.random_walk import MeshWalk, WalkMedium
 
 DEFAULT_GRID = 512  # bake points: texel centres of a grid x grid layout (about 1 mm apart on the head's ears)
 THIN_MM = 8.0  # a texel is baked where the ray along -N leaves the tissue within this (the ears, nose wings)
-CURL_RATIO = 1.5  # kept: geodesic > CURL_RATIO x 3-D distance (around a curl)
-MIN_SURFACE_MM = 1.0  # and geodesic > this (the blur's own neighbourhood)
-MAX_SURFACE_MM = 25.0  # Dijkstra's reach; farther along the surface the profile is 0 (e^-42 in red)
+MIN_SURFACE_MM = 1.0  # exits nearer than this along the surface go to the point's own tap
+MAX_SURFACE_MM = 15.0  # Dijkstra's reach; farther along the surface K_flat is below 1e-6 of its peak in red
+NEAR_MM = 6.0  # and the texels within this of a thin one
 DEFAULT_TAPS = 8
 DEFAULT_WALKS = 64
 CHUNK_WALKS = 1 << 16
@@ -136,9 +137,35 @@ def walk_exits(walker: MeshWalk, position, triangle, normal, medium: WalkMedium,
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if parts else {}
 
 
-def flat_reflectance(medium: WalkMedium, walks: int = 20_000, seed: int = 7) -> tuple[float, float]:
-    """(R_flat, its standard error): the walk's mean exit weight w n^2 from diffuse views on a flat
-    face of a slab much thicker than the transport (200 x 200 x 60 mm): the normalisation of tau."""
+FLAT_EDGES_MM = np.r_[np.arange(0.0, 5.0, 0.1), np.arange(5.0, 25.5, 0.5)]
+
+
+@dataclass(frozen=True)
+class FlatKernel:
+    """The walk's transport on a flat semi-infinite surface (a slab 200 x 200 x 60 mm, walks from the
+    centre of its top face, diffuse views): R_flat (the mean exit weight w n^2, tau's normalisation)
+    with its standard error, and the radial density of the exits per mm^2 normalised to integral 1
+    over the face (in radius bins ``edges``)."""
+
+    reflectance: float
+    reflectance_se: float
+    edges: np.ndarray
+    density: np.ndarray
+
+    def at(self, g_mm) -> np.ndarray:
+        """K_flat(g) per mm^2 (0 beyond the last bin)."""
+        c = 0.5 * (self.edges[1:] + self.edges[:-1])
+        return np.interp(np.asarray(g_mm, np.float64), c, self.density, right=0.0)
+
+    def within(self, g_mm: float) -> float:
+        """The share of the flat transport that exits within ``g_mm`` of the start (linear in the bin)."""
+        mass = self.density * np.pi * (self.edges[1:] ** 2 - self.edges[:-1] ** 2)
+        inner = np.clip((g_mm ** 2 - self.edges[:-1] ** 2) / (self.edges[1:] ** 2 - self.edges[:-1] ** 2), 0.0, 1.0)
+        return float((mass * inner).sum())
+
+
+def flat_kernel(medium: WalkMedium, walks: int = 40_000, seed: int = 7) -> FlatKernel:
+    """:class:`FlatKernel` of ``medium`` by ``walks`` walks."""
     from dermis.scene.builtin import slab
 
     p, nn, _, t = slab(size=200.0, thickness=60.0, n=2)
@@ -147,7 +174,12 @@ def flat_reflectance(medium: WalkMedium, walks: int = 20_000, seed: int = 7) -> 
     _, tri, _ = mw.caster.closest_hit(pts + [0, 0, 1.0], np.tile([0, 0, -1.0], (walks, 1)))
     ex = walk_exits(mw, pts, tri, np.tile([0, 0, 1.0], (walks, 1)), medium, 1, seed)
     per = np.bincount(ex["point_index"], weights=ex["weight"], minlength=walks)
-    return float(per.mean()), float(per.std() / np.sqrt(walks))
+    R = float(per.mean())
+    top = ex["point"][:, 2] > 29.999
+    r = np.linalg.norm(ex["point"][top, :2], axis=1)
+    h, _ = np.histogram(r, FLAT_EDGES_MM, weights=ex["weight"][top])
+    dens = h / (walks * R) / (np.pi * (FLAT_EDGES_MM[1:] ** 2 - FLAT_EDGES_MM[:-1] ** 2))
+    return FlatKernel(R, float(per.std() / np.sqrt(walks)), FLAT_EDGES_MM.copy(), dens)
 
 
 def profile_density(profile, g_mm) -> np.ndarray:
@@ -248,7 +280,8 @@ def _lattice_graph(position, lattice):
     return csr_matrix((np.r_[length, length], (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(n, n))
 
 
-def thin_points(mesh, mm_per_unit: float, grid: int = DEFAULT_GRID, thin_mm: float = THIN_MM) -> BakePoints:
+def thin_points(mesh, mm_per_unit: float, grid: int = DEFAULT_GRID, thin_mm: float = THIN_MM,
+                require_exit: bool = True) -> BakePoints:
     """Texel centres of the texture-space layout at grid^2 where the tissue behind is thinner than
     ``thin_mm`` along -N (dermis.geometry.thickness's bake)."""
     from dermis.geometry.thickness import texel_thickness
@@ -260,7 +293,8 @@ def thin_points(mesh, mm_per_unit: float, grid: int = DEFAULT_GRID, thin_mm: flo
     nrm = np.asarray(mesh.normals, np.float64)
     tri, bary = rasterize_uv(uv_ts, idx, S, S)  # row 0 = top (v = 1), as texel_thickness
     th = texel_thickness(mesh, S, mm_per_unit)
-    sel = np.nonzero((tri.reshape(-1) >= 0) & (th.reshape(-1, 4)[:, 3] > 0) & (th.reshape(-1, 4)[:, 2] < thin_mm))[0]
+    ok = (th.reshape(-1, 4)[:, 3] > 0) & (th.reshape(-1, 4)[:, 2] < thin_mm) if require_exit else True
+    sel = np.nonzero((tri.reshape(-1) >= 0) & ok)[0]
     t = tri.reshape(-1)[sel]
     b = bary.reshape(-1, 3)[sel].astype(np.float64)
     p = np.einsum("nk,nkc->nc", b, pos[idx[t]])
@@ -271,6 +305,22 @@ def thin_points(mesh, mm_per_unit: float, grid: int = DEFAULT_GRID, thin_mm: flo
     row, col = np.divmod(sel, S)
     uv = np.stack([(col + 0.5) / S, 1.0 - (row + 0.5) / S], 1)
     return BakePoints(uv, p, t, fn)
+
+
+def bake_points(mesh, mm_per_unit: float, grid: int = DEFAULT_GRID, thin_mm: float = THIN_MM,
+                near_mm: float = NEAR_MM) -> BakePoints:
+    """The texel centres of :func:`thin_points` and every covered texel within ``near_mm`` (3-D) of
+    one: the thin parts and the tissue around them (an ear's concha and antihelix, where -N runs into
+    the head but the sheet beside them guides light)."""
+    from scipy.spatial import cKDTree
+
+    thin = thin_points(mesh, mm_per_unit, grid, thin_mm)
+    every = thin_points(mesh, mm_per_unit, grid, np.inf, require_exit=False)
+    if len(thin.position) == 0:
+        return thin
+    d, _ = cKDTree(thin.position).query(every.position, distance_upper_bound=near_mm)
+    m = np.isfinite(d)
+    return BakePoints(every.uv[m], every.position[m], every.triangle[m], every.normal[m])
 
 
 def _compress(pos, c, taps):
@@ -303,22 +353,21 @@ def _compress(pos, c, taps):
 
 
 def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFAULT_GRID, walks: int = DEFAULT_WALKS,
-                  taps: int = DEFAULT_TAPS, thin_mm: float = THIN_MM, seed: int = 0, points: BakePoints | None = None,
-                  media=None, flat=None, progress=None) -> TransferBake:
+                  taps: int = DEFAULT_TAPS, thin_mm: float = THIN_MM, near_mm: float = NEAR_MM, seed: int = 0,
+                  points: BakePoints | None = None, media=None, kernels=None, progress=None) -> TransferBake:
     """The transfer of the module docstring for ``mesh`` (a dermis Mesh or any object with positions,
     normals, indices, uvs, texture_space_uvs; positions x ``mm_per_unit`` = mm). ``points``: bake
-    there instead of the thin texels; ``media`` / ``flat``: per channel WalkMedium and R_flat
-    (default: :func:`skin_media`, :func:`flat_reflectance`)."""
-    if walks < 1 or taps < 1:
-        raise DermisError("subsurface transfer: walks and taps must be >= 1")
+    there instead of :func:`bake_points`; ``media`` / ``kernels``: per channel WalkMedium and
+    FlatKernel (default: :func:`skin_media`, :func:`flat_kernel`)."""
+    if walks < 1 or taps < 2:
+        raise DermisError("subsurface transfer: walks must be >= 1 and taps >= 2")
     mm = float(mm_per_unit)
     pos = np.asarray(mesh.positions, np.float64) * mm
     idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
     uv_ts = mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
-    pts = points if points is not None else thin_points(mesh, mm, grid, thin_mm)
+    pts = points if points is not None else bake_points(mesh, mm, grid, thin_mm, near_mm)
     media = media if media is not None else skin_media(profile, albedo)
-    if flat is None:
-        flat = [flat_reflectance(m)[0] for m in media]
+    kernels = kernels if kernels is not None else [flat_kernel(m) for m in media]
     walker = MeshWalk(pos, idx)
     graph = SurfaceGraph(pos, idx, mesh.normals, uv_ts)
     start_vertex = graph.nearest(pts.position, pts.triangle)
@@ -328,11 +377,13 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
         progress(f"walks done: {n} points x {walks} walks x 3 channels")
     tap_uv = np.zeros((n, taps, 2), np.float32)
     tap_w = np.zeros((n, taps, 3), np.float32)
+    tap_uv[:, 0] = pts.uv
     kept = np.zeros((n, 3))
     sub = np.zeros((n, 3))
+    near_flat = np.array([k.within(MIN_SURFACE_MM) for k in kernels])
     order = [np.argsort(e["point_index"], kind="stable") for e in exits]
     starts = [np.searchsorted(e["point_index"][o], np.arange(n + 1)) for e, o in zip(exits, order)]
-    chunk = 128
+    chunk = 64
     for c0 in range(0, n, chunk):
         c1 = min(c0 + chunk, n)
         G = graph.distances(start_vertex[c0:c1])  # (m, V)
@@ -340,47 +391,53 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
             g_row = G[i - c0]
             xo, no = pts.position[i], pts.normal[i]
             off_o = float(np.linalg.norm(graph.position[start_vertex[i]] - xo))
-            tally = {}
+            ids, vals = [], []
+            own = np.zeros(3)
             for c, (e, o, s) in enumerate(zip(exits, order, starts)):
                 sel = o[s[i]:s[i + 1]]
                 if len(sel) == 0:
                     continue
                 xe, ne, we = e["point"][sel], e["normal"][sel], e["weight"][sel]
-                ve = graph.nearest(xe, e["triangle"][sel])
+                same = ne @ no > 0.0
+                xe, we, ve = xe[same], we[same] / (walks * kernels[c].reflectance), graph.nearest(xe[same], e["triangle"][sel][same])
                 r = np.linalg.norm(xe - xo, axis=1)
                 ge = np.maximum(g_row[ve] - off_o - np.linalg.norm(graph.position[ve] - xe, axis=1), r)
-                keep = (ne @ no > 0.0) & (ge > np.maximum(MIN_SURFACE_MM, CURL_RATIO * r))
-                if keep.any():
-                    v = ve[keep]
-                    val = we[keep] / (walks * flat[c])
-                    kept[i, c] = val.sum()
-                    for vv, x in zip(v, val):
-                        tally.setdefault(int(vv), np.zeros(3))[c] += x
-            # what the blur chain carries from the same kept region: R(g_v) A_v
+                kept[i, c] = we.sum()
+                far = ge > MIN_SURFACE_MM
+                own[c] = we[~far].sum()
+                v3 = np.zeros((int(far.sum()), 3))
+                v3[:, c] = we[far]
+                ids.append(ve[far])
+                vals.append(v3)
+            # what the flat medium carries from the same-facing surface beyond MIN_SURFACE_MM: K_flat(g_v) A_v
             fin = np.nonzero(np.isfinite(g_row))[0]
             rv = np.linalg.norm(graph.position[fin] - xo, axis=1)
             gv = np.maximum(g_row[fin] - off_o, rv)
-            kv = (graph.normal[fin] @ no > 0.0) & (gv > np.maximum(MIN_SURFACE_MM, CURL_RATIO * rv))
-            share = profile_density(profile, gv[kv]) * graph.area[fin[kv], None]
-            sub[i] = share.sum(0)
-            vs = {int(v): share[j] for j, v in enumerate(fin[kv]) if share[j].max() > 1e-7}
-            keys = sorted(set(tally) | set(vs))
-            if not keys:
+            kv = (graph.normal[fin] @ no > 0.0) & (gv > MIN_SURFACE_MM)
+            share = np.stack([k.at(gv[kv]) for k in kernels], 1) * graph.area[fin[kv], None]
+            sub[i] = near_flat + share.sum(0)
+            tap_w[i, 0] = own - near_flat
+            big = share.max(1) > 1e-7
+            ids.append(fin[kv][big])
+            vals.append(-share[big])
+            all_ids = np.concatenate(ids)
+            if len(all_ids) == 0:
                 continue
-            cv = np.array([tally.get(k, np.zeros(3)) - vs.get(k, np.zeros(3)) for k in keys])
-            pv = graph.position[keys]
-            lab, rep = _compress(pv, cv, taps)
-            for k in range(min(taps, len(keys))):
+            keys, inv = np.unique(all_ids, return_inverse=True)
+            cv = np.zeros((len(keys), 3))
+            np.add.at(cv, inv, np.concatenate(vals))
+            lab, rep = _compress(graph.position[keys], cv, taps - 1)
+            for k in range(min(taps - 1, len(keys))):
                 s_ = lab == k
                 if s_.any():
-                    tap_w[i, k] = cv[s_].sum(0)
-                    tap_uv[i, k] = graph.uv[keys[rep[k]]]
-        if progress:
+                    tap_w[i, k + 1] = cv[s_].sum(0)
+                    tap_uv[i, k + 1] = graph.uv[keys[rep[k]]]
+        if progress and (c1 // chunk) % 16 == 0:
             progress(f"points {c1} / {n}")
-    meta = {"grid": int(grid), "walks": int(walks), "taps": int(taps), "thin_mm": float(thin_mm), "seed": int(seed),
-            "curl_ratio": CURL_RATIO, "min_surface_mm": MIN_SURFACE_MM, "max_surface_mm": MAX_SURFACE_MM,
+    meta = {"grid": int(grid), "walks": int(walks), "taps": int(taps), "thin_mm": float(thin_mm), "near_mm": float(near_mm),
+            "seed": int(seed), "min_surface_mm": MIN_SURFACE_MM, "max_surface_mm": MAX_SURFACE_MM,
             "mean_free_path_mm": [m.mean_free_path_mm for m in media],
             "single_scattering_albedo": [m.single_scattering_albedo for m in media], "index": media[0].index,
-            "flat_reflectance": list(map(float, flat)), "profile": profile.name,
-            "albedo": list(map(float, np.asarray(albedo, np.float64)))}
+            "flat_reflectance": [k.reflectance for k in kernels], "flat_within_min_surface": near_flat.tolist(),
+            "profile": getattr(profile, "name", ""), "albedo": list(map(float, np.asarray(albedo, np.float64)))}
     return TransferBake(pts.uv.astype(np.float32), tap_uv, tap_w, kept, sub, meta)
