@@ -1,10 +1,11 @@
 """The baked subsurface transfer (dermis.subsurface_transfer) at run time, in tsd's texture space:
-the light entering the same side around a curl (the ear's helix) that the blur chain and the
-translucency pass do not carry, gathered from the irradiance map and added to the translucency
+the same-side transport that an ear's thin, curled geometry adds to (or takes from) the flat profile
+tsd's blur chain applies, gathered from the blurred irradiance map and added to the translucency
 target. Two passes, only where a bake exists (tsd/transfer_gather.vert, tsd/transfer_add.frag):
 
   gather: one GL point per bake point, at its texel of the bake's grid: sum_k w_k I(uv_k)
-  add:    the grid read bilinearly at each texel of the translucency target, additive blending
+  add:    the grid read (trilinear: its mipmaps where the target is coarser) at each texel of the
+          translucency target, additive blending
 
 A scene without a matching bake (dermis.subsurface_transfer.store.find) draws neither: its image is
 the one tsd gave before. The bake is looked up once per PRODUCTS key "subsurface_transfer"
@@ -18,9 +19,10 @@ import numpy as np
 
 TAP_VARIANCE_MM2 = 0.15
 """The taps read the first blurred irradiance I_k whose variance is at least this (d'Eon's profile:
-I_3, 0.187 mm^2, sigma 0.43 mm): a tap stands for its cluster of mesh vertices (the bake's graph is
-the mesh subdivided once, vertices ~0.5-1.5 mm apart on the ear), so it reads the irradiance
-averaged over about that footprint, not a point of the raw map (shadow edges, pores)."""
+I_3, 0.187 mm^2, sigma 0.43 mm): a tap stands for its cluster of vertices (the bake's graph is the
+mesh subdivided twice, vertices ~0.3-1 mm apart on the ear) and the point's own tap for the exits
+within 1 mm, so it reads the irradiance averaged over about that footprint, not a point of the raw
+map (shadow edges, pores)."""
 POINTS_PER_ROW = 256
 
 
@@ -107,7 +109,10 @@ class SubsurfaceTransfer:
             texs.append(t)
         grid = int(bake.meta.get("grid", 512))
         target = self.ctx.texture((grid, grid), 4, dtype="f4")
-        target.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        # mipmapped: a translucency target coarser than the grid (a small irradiance size) reads the
+        # grid's average over its texel, not every n-th bake point
+        target.build_mipmaps()
+        target.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
         target.repeat_x = target.repeat_y = False
         fbo = self.ctx.framebuffer(color_attachments=[target])
         gather, _, _ = self._programs()
@@ -118,7 +123,7 @@ class SubsurfaceTransfer:
         self._layout = (per_row, k, n)
 
     def gather(self, irradiance) -> None:
-        """T_curl per bake point into :attr:`grid_texture` from ``irradiance`` (premultiplied)."""
+        """T_geo per bake point into :attr:`grid_texture` from ``irradiance`` (premultiplied)."""
         from dermis.gl.resources import set_uniform, use_texture
 
         gather, _, _ = self._programs()
@@ -133,9 +138,10 @@ class SubsurfaceTransfer:
         self._fbo.clear(0.0, 0.0, 0.0, 0.0)
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         self._vao.render(moderngl.POINTS, vertices=n)
+        self.grid_texture.build_mipmaps()
 
     def add(self, frame, target_fbo, target_size, irradiance) -> bool:
-        """Gather and add T_curl into ``target_fbo`` (tsd's translucency target); False (nothing drawn)
+        """Gather and add T_geo into ``target_fbo`` (tsd's translucency target); False (nothing drawn)
         where the scene has no bake."""
         if self.lookup(frame) is None:
             return False
@@ -155,7 +161,7 @@ class SubsurfaceTransfer:
         return True
 
     def per_point(self) -> np.ndarray:
-        """T_curl of the last gather at each bake point, (n, 3) (read back from the grid)."""
+        """T_geo of the last gather at each bake point, (n, 3) (read back from the grid)."""
         t = self.grid_texture
         a = np.frombuffer(t.read(), np.float32).reshape(t.size[1], t.size[0], 4)
         uv = np.asarray(self.bake.point_uv, np.float64)

@@ -80,9 +80,10 @@ class BakePoints:
 @dataclass
 class TransferBake:
     """The baked transfer: per point its uv, and ``taps`` taps (uv in the texture-space layout, RGB
-    weight: tau - R(g) summed over the tap's cluster, in the irradiance map's units; zero weight =
-    unused). ``kept`` / ``subtracted`` (n, 3): per point, the walk's kept transfer and the blur's share
-    removed from it (their difference is the sum of the taps); ``meta``: how it was baked."""
+    weight: tau - K_flat(g) summed over the tap's cluster, in the irradiance map's units; tap 0 at the
+    point itself; zero weight = unused). ``kept`` / ``subtracted`` (n, 3): per point, the walk's
+    same-facing transfer and the flat kernel's share removed from it (their difference is the sum of
+    the taps); ``meta``: how it was baked."""
 
     point_uv: np.ndarray
     tap_uv: np.ndarray
@@ -217,7 +218,7 @@ class SurfaceGraph:
     nearest vertex of its own triangle's subdivision; the distance between two points is taken as max(their 3-D distance,
     the edge path between their vertices less both points' distances to them): a lower bound of the
     geodesic (triangle inequality, the edge path being >= the geodesic between the vertices up to the
-    graph's own excess), so the curl test g > 1.5 r never keeps an exit beside the point."""
+    graph's own excess), so an exit beside the point is never put beyond MIN_SURFACE_MM by the graph."""
 
     def __init__(self, positions_mm, indices, normals, uvs, subdivisions: int = 2):
         pos = np.asarray(positions_mm, np.float64).reshape(-1, 3)
@@ -350,6 +351,32 @@ def _compress(pos, c, taps):
         if len(s):
             rep[k] = s[np.argmin(((pos[s] - cen[k]) ** 2).sum(1))]
     return lab, rep
+
+
+SMOOTH_OWN_MM = 1.0
+
+
+def smooth_own_taps(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOTH_OWN_MM) -> TransferBake:
+    """Each point's own tap (the near-field excess, a sum over ~60% of its walks: a few % Monte Carlo
+    noise per point, which a 1 mm bake grid would show as speckle) replaced by its mean over the
+    same-facing points within ``radius_mm`` (3-D). The quantity varies with the sheet's thickness
+    and curvature over millimetres; the averaging keeps its mean over any region wider than the
+    radius (a box filter), and the far taps are left as they are. Returns a new TransferBake."""
+    from scipy.spatial import cKDTree
+
+    own = bake.tap_weight[:, 0].astype(np.float64)
+    pairs = cKDTree(points.position).query_pairs(radius_mm, output_type="ndarray")
+    if len(pairs):
+        pairs = pairs[np.einsum("ij,ij->i", points.normal[pairs[:, 0]], points.normal[pairs[:, 1]]) > 0.5]
+    i = np.r_[np.arange(len(own)), pairs[:, 0], pairs[:, 1]] if len(pairs) else np.arange(len(own))
+    j = np.r_[np.arange(len(own)), pairs[:, 1], pairs[:, 0]] if len(pairs) else np.arange(len(own))
+    sums = np.zeros_like(own)
+    np.add.at(sums, i, own[j])
+    count = np.bincount(i, minlength=len(own))[:, None]
+    w = bake.tap_weight.copy()
+    w[:, 0] = sums / count
+    return TransferBake(bake.point_uv, bake.tap_uv, w, bake.kept, bake.subtracted,
+                        dict(bake.meta, smooth_own_mm=float(radius_mm)))
 
 
 def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFAULT_GRID, walks: int = DEFAULT_WALKS,

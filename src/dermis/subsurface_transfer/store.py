@@ -94,10 +94,14 @@ def find(scene, folder: Path | None = None) -> TransferBake | None:
 def bake_scene(scene, folder: Path | None = None, progress=print, **options) -> Path:
     """Bake ``scene``'s mesh with its medium and write it where :func:`find` looks."""
     from dermis.scene.model import mean_skin_albedo
-    from dermis.subsurface_transfer.bake import bake_transfer
+    from dermis.subsurface_transfer.bake import (DEFAULT_GRID, NEAR_MM, THIN_MM, bake_points, bake_transfer,
+                                                 smooth_own_taps)
 
     albedo = mean_skin_albedo(scene.material)
-    bake = bake_transfer(scene.mesh, scene.mm_per_unit, scene.profile, albedo, progress=progress, **options)
+    points = bake_points(scene.mesh, scene.mm_per_unit, options.get("grid", DEFAULT_GRID), options.get("thin_mm", THIN_MM),
+                         options.get("near_mm", NEAR_MM))
+    bake = bake_transfer(scene.mesh, scene.mm_per_unit, scene.profile, albedo, points=points, progress=progress, **options)
+    bake = smooth_own_taps(bake, points)
     p = path_for(scene.mesh, folder)
     save(bake, p, mesh_key(scene.mesh), scene.mm_per_unit)
     return p

@@ -163,7 +163,8 @@ class TextureSpaceDiffusion(Technique):
         self._stretch_chain_key = None
         self._chain_passes = None  # ((chain key, dilated irradiance), the irradiance's prepared passes)
         self.thickness = ThicknessTexture(self.ctx)  # the texel thickness bake (light through thin parts)
-        # light entering the same side around a curl (the ear's rim), where the mesh has a baked transfer
+        # the same-side transport an ear's thin, curled sheet adds to the flat profile, where the mesh
+        # has a baked transfer (dermis.subsurface_transfer)
         self.transfer = SubsurfaceTransfer(self.ctx)
         self.hits = renderer.interreflection_hits  # the interreflection rays' hits (one bounce; the Renderer's)
         self._p_bounce = None  # (exitant, gather, splat) programs, compiled on first use
@@ -604,7 +605,7 @@ class TextureSpaceDiffusion(Technique):
                 self._fullscreen(prog, own)
                 bind_sampler(self.p_trans_tent, "uSource", own, 0)
                 self._fullscreen(self.p_trans_tent, trans)
-                # + the baked transfer around curls (dermis.gl.subsurface_transfer; nothing without a bake)
+                # + the baked transfer of thin, curled parts (dermis.gl.subsurface_transfer; nothing without a bake)
                 if self.transfer.add(frame, self._fbo(trans), trans.size,
                                      self.tex[("blur", source_index(profile.variances_mm2))]):
                     frame.passes_run.append("tsd_subsurface_transfer")

@@ -1,9 +1,11 @@
 // Subsurface transfer, step 1 (dermis/subsurface_transfer: the bake; dermis/gl/subsurface_transfer.py):
 // one point per bake point p, drawn at its texel of the bake's grid (its texture-space uv), carrying
-//   T_curl(p) = sum_k w_k I(uv_k),
-// the light entering the same side around a curl that tsd's blurs and translucency do not carry:
-// w_k the bake's RGB tap weights (the walk's transfer less the blur's share, in the irradiance
-// map's units), I the irradiance map (premultiplied by coverage) at the taps' uv. Tap k of point p
+//   T_geo(p) = sum_k w_k I(uv_k),
+// the same-side transport that a thin, curled geometry adds to the flat profile of tsd's blurs:
+// w_k the bake's RGB tap weights (the skin walk's transfer less the flat medium's at the same
+// distance along the surface, in the irradiance map's units; tap 0 is the point itself, negative
+// where a thin sheet loses light to its far face), I a blurred irradiance I_k (premultiplied by
+// coverage) at the taps' uv. Tap k of point p
 // is the texel (x * K + k, y) with (x, y) = (p mod P, p div P), P = points per row.
 layout(location = 0) in vec2 in_uv;
 uniform sampler2D uTapUv;      // rg32f: the taps' texture-space uv
