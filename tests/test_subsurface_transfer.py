@@ -102,7 +102,7 @@ def test_transfer_is_the_forward_walk_on_a_folded_sheet():
     top = mesh.positions[mesh.indices].mean(1)
     in_b = (np.abs(top[:, 2] - 3.0) < 1e-9) & (top[:, 0] > -3.5) & (top[:, 0] < -0.5) & (np.abs(top[:, 1]) < 2.0)
     # the bake: adjoint walks from points of patch B (the top arm's outer face beside the fold)
-    pb, tb, nb, area_b = _area_points(mesh, walker, rng, 300, in_b)
+    pb, tb, nb, area_b = _area_points(mesh, walker, rng, 200, in_b)
     pts = B.BakePoints(np.zeros((len(pb), 2)), pb, tb, nb)
     bake = B.bake_transfer(mesh, 1.0, _profile(), (0.5, 0.5, 0.5), walks=16, points=pts, media=[MEDIUM] * 3,
                            kernels=[_unit_kernel()] * 3, seed=3)
@@ -111,7 +111,7 @@ def test_transfer_is_the_forward_walk_on_a_folded_sheet():
     # forward: walks from everywhere on the surface; the same-facing exits landing in B, split by the
     # same geodesic estimate between the exit (as x_o) and the start (as x_i)
     graph = B.SurfaceGraph(mesh.positions, mesh.indices, mesh.normals, mesh.uvs)
-    n_fwd = 20_000
+    n_fwd = 12_000
     ps, ts, ns, area_s = _area_points(mesh, walker, rng, n_fwd)
     ex = B.walk_exits(walker, ps, ts, ns, MEDIUM, 1, seed=5)
     start = ex["point_index"]
