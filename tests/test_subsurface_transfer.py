@@ -237,3 +237,11 @@ def test_no_bake_renders_as_without_the_hook_and_the_head_gains_red(monkeypatch,
         sc.profile = dataclasses.replace(sc.profile, variances_mm2=np.asarray(sc.profile.variances_mm2) * 1.5)
         r.render("tsd")
         assert "tsd_irradiance" in r.last_frame.passes_run and "tsd_subsurface_transfer" not in r.last_frame.passes_run
+
+
+def test_bake_command_refuses_bad_options_in_one_line(capsys):
+    from dermis.subsurface_transfer.__main__ import main
+
+    assert main([str(REPO / "examples" / "reference" / "back-ears.toml"), "--walks", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("dermis: error: ") and "--walks" in err[0]

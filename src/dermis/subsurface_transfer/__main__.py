@@ -9,20 +9,23 @@ import time
 from pathlib import Path
 
 from dermis.errors import DermisError
+from dermis.subsurface_transfer import bake as B
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m dermis.subsurface_transfer", description=__doc__.split(":")[1])
     ap.add_argument("scene")
-    ap.add_argument("--walks", type=int, default=192)
-    ap.add_argument("--grid", type=int, default=512)
-    ap.add_argument("--taps", type=int, default=8)
-    ap.add_argument("--thin-mm", type=float, default=10.0)
-    ap.add_argument("--near-mm", type=float, default=6.0)
+    ap.add_argument("--walks", type=int, default=B.DEFAULT_WALKS)
+    ap.add_argument("--grid", type=int, default=B.DEFAULT_GRID)
+    ap.add_argument("--taps", type=int, default=B.DEFAULT_TAPS)
+    ap.add_argument("--thin-mm", type=float, default=B.THIN_MM)
+    ap.add_argument("--near-mm", type=float, default=B.NEAR_MM)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=None)
     a = ap.parse_args(argv)
     try:
+        if a.walks < 1 or a.taps < 2 or a.grid < 16 or not a.thin_mm > 0 or not a.near_mm >= 0:
+            raise DermisError("--walks must be >= 1, --taps >= 2, --grid >= 16, --thin-mm > 0 and --near-mm >= 0")
         import dermis
         from dermis.subsurface_transfer.store import bake_scene
 

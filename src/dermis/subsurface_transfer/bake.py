@@ -57,12 +57,12 @@ from dermis.geometry.raycast import cosine_directions
 from dermis.reference.random_walk import MeshWalk, WalkMedium
 
 DEFAULT_GRID = 512  # bake points: texel centres of a grid x grid layout (about 1 mm apart on the head's ears)
-THIN_MM = 8.0  # a texel is baked where the ray along -N leaves the tissue within this (the ears, nose wings)
+THIN_MM = 10.0  # a texel is baked where the ray along -N leaves the tissue within this (the ears, nose wings)
 MIN_SURFACE_MM = 1.0  # exits nearer than this along the surface go to the point's own tap
 MAX_SURFACE_MM = 15.0  # Dijkstra's reach; farther along the surface K_flat is below 1e-6 of its peak in red
 NEAR_MM = 6.0  # and the texels within this of a thin one
 DEFAULT_TAPS = 8
-DEFAULT_WALKS = 64
+DEFAULT_WALKS = 192  # per point and channel (the shipped bake)
 CHUNK_WALKS = 1 << 16
 
 
