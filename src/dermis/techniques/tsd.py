@@ -17,7 +17,10 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
                  half or quarter resolution (they hold no fine detail); where I_1 and I_2 are
                  sub-texel, both come from one 3x3 pass (tsd/blur_narrow.frag)
   translucency T through thin parts: sum over wide k of w_k exp(-d^2 / 2 v_k) I_k(far face), d the
-                 tissue's thickness behind the texel along -N (ray cast once per mesh, geometry/thickness.py)
+                 tissue's thickness behind the texel along -N (ray cast once per mesh, geometry/thickness.py);
+                 + where the mesh has a baked subsurface transfer (dermis.subsurface_transfer: the same-side
+                 transport a thin, curled sheet adds to the flat profile), its taps gathered from I_3 and
+                 added to T (gl/subsurface_transfer.py; with translucency on)
   final (screen space): (sum_k w_k I_k + T) * albedo^(1-mix)/pi * (1 - rho_s a(N.V, m)/pi) + specular
 
 Everything before the final pass is view-independent and cached on the renderer's lighting key:
