@@ -49,6 +49,9 @@ PRODUCTS = {
     "material_uniforms": ("material_maps", "material_scalars", "scale", "profile"),
     # the first hits of the interreflection rays (geometry/interreflection.py, cached per mesh content)
     "interreflection_bake": ("mesh",),
+    # which baked subsurface transfer tsd gathers (dermis.subsurface_transfer.store.find: the mesh's
+    # content, its scale, the medium made from the profile and the mean albedo) and its GPU copy
+    "subsurface_transfer": ("mesh", "scale", "profile", "material_maps", "material_scalars"),
     "texture_space": ("mesh", "surfaces", "scale", "lights", "environment", "environment_occlusion", "material_maps",
                       "material_scalars", "profile", "irradiance_size", "epoch", "interreflection",
                       "translucency_light_path", "directional_albedo"),

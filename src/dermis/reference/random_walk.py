@@ -234,7 +234,7 @@ class MeshWalk:
 
     def radiance(self, points, triangles, view_dirs, medium: WalkMedium, lights=(), environment: float = 0.0,
                  seed: int = 0, stats: dict | None = None, check_fraction: float = 0.0, check_radius_mm: float = 4.0,
-                 bounce=None, paths: bool = False, nee: str = "search"):
+                 bounce=None, paths: bool = False, nee: str = "search", exits: dict | None = None):
         """Radiance leaving each surface point towards the camera, one walk per point (average walks
         per pixel yourself). ``points`` (n, 3) mm on ``triangles`` (n,), ``view_dirs`` (n, 3) unit
         camera-ray directions (towards the surface). Returns (n,) radiance.
@@ -254,7 +254,14 @@ class MeshWalk:
         (n_entry . n_start < 0: through the thickness), "distance" the light-weighted mean distance.
 
         ``nee`` (fresnel): "search" (the refracted-entry iteration) or "exhaustive" (beam_exhaustive at
-        every scattering vertex, facets within ``check_radius_mm``: exact for flat facets, slower)."""
+        every scattering vertex, facets within ``check_radius_mm``: exact for flat facets, slower).
+
+        ``exits`` (fresnel): a dict that gets, per walk that refracts out of the medium, "walk" (the
+        index of its start point), "point" (mm), "triangle", "normal" (the exit facet's outward
+        normal) and "weight" (w n^2: the walk's estimate of the radiance at its start per unit
+        radiance arriving at the exit point along the reversed exit ray). By reciprocity these are
+        samples of the transport from light entering at the exit points (the adjoint walk; Jensen
+        et al. 2001's S(x_i, w_i; x_o, w_o) = S(x_o, -w_o; x_i, -w_i)): dermis.subsurface_transfer."""
         if nee not in ("search", "exhaustive"):
             raise DermisError(f"random walk: nee must be 'search' or 'exhaustive', got {nee!r}")
         if nee == "exhaustive" and (paths or check_fraction):
@@ -319,6 +326,10 @@ class MeshWalk:
                     p[r] = pb[refl]
                     tmin[r] = EPS_MM
                     o = hi[~refl]
+                    if exits is not None and len(o):
+                        for key, val in (("walk", o), ("point", pb[~refl]), ("triangle", tri[hit][~refl]),
+                                         ("normal", nb[~refl]), ("weight", w[o] * eta ** 2)):
+                            exits.setdefault(key, []).append(np.array(val))
                     if (environment or bounce is not None) and len(o):
                         dout = refract(da[hit][~refl], -nb[~refl], eta)
                         result[o] += w[o] * eta ** 2 * self._incoming(pb[~refl] + nb[~refl] * EPS_MM, dout, environment,
@@ -364,6 +375,11 @@ class MeshWalk:
                     keep = rng.random(len(low)) < ROULETTE_SURVIVAL
                     w[low] = np.where(keep, w[low] / ROULETTE_SURVIVAL, 0.0)
             alive = alive[w[alive] > 0.0]
+        if exits is not None:
+            for key, width in (("walk", 0), ("point", 3), ("triangle", 0), ("normal", 3), ("weight", 0)):
+                parts = exits.get(key, [])
+                exits[key] = (np.concatenate(parts) if parts else
+                              np.zeros((0, width) if width else 0, np.int64 if key in ("walk", "triangle") else np.float64))
         if stats is not None:
             stats.update(counters)
             if paths:

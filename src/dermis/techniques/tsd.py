@@ -17,7 +17,10 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
                  half or quarter resolution (they hold no fine detail); where I_1 and I_2 are
                  sub-texel, both come from one 3x3 pass (tsd/blur_narrow.frag)
   translucency T through thin parts: sum over wide k of w_k exp(-d^2 / 2 v_k) I_k(far face), d the
-                 tissue's thickness behind the texel along -N (ray cast once per mesh, geometry/thickness.py)
+                 tissue's thickness behind the texel along -N (ray cast once per mesh, geometry/thickness.py);
+                 + where the mesh has a baked subsurface transfer (dermis.subsurface_transfer: the same-side
+                 transport a thin, curled sheet adds to the flat profile), its taps gathered from I_3 and
+                 added to T (gl/subsurface_transfer.py; with translucency on)
   final (screen space): (sum_k w_k I_k + T) * albedo^(1-mix)/pi * (1 - rho_s a(N.V, m)/pi) + specular
 
 Everything before the final pass is view-independent and cached on the renderer's lighting key:
@@ -48,6 +51,7 @@ from dermis.geometry.texture_space import UV_RANGE_TOLERANCE
 from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
 from dermis.gl.interreflection import BounceGather, bounce_level
+from dermis.gl.subsurface_transfer import SubsurfaceTransfer, source_index
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit, bind_sampler, bind_sampler_array,
@@ -162,6 +166,9 @@ class TextureSpaceDiffusion(Technique):
         self._stretch_chain_key = None
         self._chain_passes = None  # ((chain key, dilated irradiance), the irradiance's prepared passes)
         self.thickness = ThicknessTexture(self.ctx)  # the texel thickness bake (light through thin parts)
+        # the same-side transport an ear's thin, curled sheet adds to the flat profile, where the mesh
+        # has a baked transfer (dermis.subsurface_transfer)
+        self.transfer = SubsurfaceTransfer(self.ctx)
         self.hits = renderer.interreflection_hits  # the interreflection rays' hits (one bounce; the Renderer's)
         self._p_bounce = None  # (exitant, gather, splat) programs, compiled on first use
         self.bounce_level = None
@@ -207,6 +214,7 @@ class TextureSpaceDiffusion(Technique):
         self._chain_passes = None
         self._narrow_key = None
         self.thickness.release()
+        self.transfer.release()
 
     def scene_changed(self):
         self._cache_key = None
@@ -600,6 +608,10 @@ class TextureSpaceDiffusion(Technique):
                 self._fullscreen(prog, own)
                 bind_sampler(self.p_trans_tent, "uSource", own, 0)
                 self._fullscreen(self.p_trans_tent, trans)
+                # + the baked transfer of thin, curled parts (dermis.gl.subsurface_transfer; nothing without a bake)
+                if self.transfer.add(frame, self._fbo(trans), trans.size,
+                                     self.tex[("blur", source_index(profile.variances_mm2))]):
+                    frame.passes_run.append("tsd_subsurface_transfer")
             frame.passes_run.append("tsd_translucency")
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)

@@ -1,0 +1,179 @@
+"""The baked subsurface transfer (dermis.subsurface_transfer) at run time, in tsd's texture space:
+the same-side transport that an ear's thin, curled geometry adds to (or takes from) the flat profile
+tsd's blur chain applies, gathered from the blurred irradiance map and added to the translucency
+target. Two passes, only where a bake exists (tsd/transfer_gather.vert, tsd/transfer_add.frag):
+
+  gather: one GL point per bake point, at its texel of the bake's grid: sum_k w_k I(uv_k)
+  add:    the grid read (trilinear: its mipmaps where the target is coarser) at each texel of the
+          translucency target, additive blending
+
+A scene without a matching bake (dermis.subsurface_transfer.store.find) draws neither: its image is
+the one tsd gave before. The bake is looked up once per PRODUCTS key "subsurface_transfer"
+(dermis.invalidation: mesh, scale, profile, material) and kept on the GPU until it changes.
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+TAP_VARIANCE_MM2 = 0.15
+"""The taps read the first blurred irradiance I_k whose variance is at least this (d'Eon's profile:
+I_3, 0.187 mm^2, sigma 0.43 mm): a tap stands for its cluster of vertices (the bake's graph is the
+mesh subdivided twice, vertices ~0.3-1 mm apart on the ear) and the point's own tap for the exits
+within 1 mm, so it reads the irradiance averaged over about that footprint, not a point of the raw
+map (shadow edges, pores)."""
+POINTS_PER_ROW = 256
+
+
+def source_index(variances_mm2) -> int:
+    """Which blurred irradiance I_(k+1) the taps read (:data:`TAP_VARIANCE_MM2`)."""
+    v = np.asarray(variances_mm2, np.float64)
+    big = np.nonzero(v >= TAP_VARIANCE_MM2)[0]
+    return int(big[0]) if len(big) else len(v) - 1
+
+
+def tap_layout(n_points: int, taps: int) -> tuple[int, int]:
+    """(points per row, rows) of the tap textures."""
+    return POINTS_PER_ROW, max(1, -(-int(n_points) // POINTS_PER_ROW))
+
+
+def transfer_numpy(bake, irradiance_premultiplied: np.ndarray) -> np.ndarray:
+    """The gather's numpy twin, (n, 3): sum_k w_k I(uv_k) per bake point with I (h, w, 4) row 0 =
+    bottom (v = 0, GL's order), premultiplied, sampled bilinearly at the taps' uv (GL's rule: texel
+    centres at (i + 0.5) / w, clamped at the edges), taps with coverage < 1/64 left out."""
+    h, w = irradiance_premultiplied.shape[:2]
+    uv = bake.tap_uv.reshape(-1, 2).astype(np.float64)
+    x, y = uv[:, 0] * w - 0.5, uv[:, 1] * h - 0.5
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = x - x0, y - y0
+    I = np.asarray(irradiance_premultiplied, np.float64)
+    at = lambda yy, xx: I[np.clip(yy, 0, h - 1), np.clip(xx, 0, w - 1)]
+    c = (at(y0, x0) * ((1 - fx) * (1 - fy))[:, None] + at(y0, x0 + 1) * (fx * (1 - fy))[:, None]
+         + at(y0 + 1, x0) * ((1 - fx) * fy)[:, None] + at(y0 + 1, x0 + 1) * (fx * fy)[:, None])
+    ok = c[:, 3] >= 1.0 / 64.0
+    col = np.where(ok[:, None], c[:, :3] / np.where(ok, c[:, 3], 1.0)[:, None], 0.0)
+    wgt = bake.tap_weight.reshape(-1, 3).astype(np.float64)
+    return (wgt * col).reshape(bake.tap_weight.shape).sum(1)
+
+
+class SubsurfaceTransfer:
+    """The bake on the GPU and its two passes, one per tsd technique."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.key = None
+        self.bake = None
+        self._gpu = []  # textures, buffer, vertex arrays, framebuffer of the current bake
+        self._progs = None
+
+    def _programs(self):
+        if self._progs is None:
+            from dermis.gl.shaders import program
+
+            gather = program(self.ctx, "tsd/transfer_gather.vert", "tsd/transfer_gather.frag")
+            add = program(self.ctx, "common/fullscreen.vert", "tsd/transfer_add.frag")
+            self._progs = (gather, add, self.ctx.vertex_array(add, []))
+        return self._progs
+
+    def _release_gpu(self):
+        for o in self._gpu:
+            o.release()
+        self._gpu = []
+
+    def lookup(self, frame):
+        """The bake for ``frame``'s scene (or None), looked up once per its product key."""
+        key = frame.keys["subsurface_transfer"]
+        if key != self.key:
+            from dermis.subsurface_transfer.store import find
+
+            self._release_gpu()
+            self.bake = find(frame.scene)
+            self.key = key
+            if self.bake is not None:
+                self._upload(self.bake)
+        return self.bake
+
+    def _upload(self, bake):
+        n, k = bake.tap_uv.shape[:2]
+        per_row, rows = tap_layout(n, k)
+        uv = np.zeros((rows * per_row, k, 4), np.float32)
+        uv[:n, :, :2] = bake.tap_uv
+        wt = np.zeros((rows * per_row, k, 4), np.float32)
+        wt[:n, :, :3] = bake.tap_weight
+        texs = []
+        for data in (uv, wt):
+            t = self.ctx.texture((per_row * k, rows), 4, dtype="f4")
+            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            t.write(np.ascontiguousarray(data.reshape(rows, per_row * k, 4)).tobytes())
+            texs.append(t)
+        grid = int(bake.meta.get("grid", 512))
+        target = self.ctx.texture((grid, grid), 4, dtype="f4")
+        # mipmapped: a translucency target coarser than the grid (a small irradiance size) reads the
+        # grid's average over its texel, not every n-th bake point
+        target.build_mipmaps()
+        target.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        target.repeat_x = target.repeat_y = False
+        fbo = self.ctx.framebuffer(color_attachments=[target])
+        gather, _, _ = self._programs()
+        buf = self.ctx.buffer(np.ascontiguousarray(bake.point_uv, np.float32).tobytes())
+        vao = self.ctx.vertex_array(gather, [(buf, "2f", "in_uv")])
+        self._gpu = [*texs, fbo, target, vao, buf]
+        self._tap_uv, self._tap_weight, self.grid_texture, self._fbo, self._vao = texs[0], texs[1], target, fbo, vao
+        self._layout = (per_row, k, n)
+
+    def gather(self, irradiance) -> None:
+        """T_geo per bake point into :attr:`grid_texture` from ``irradiance`` (premultiplied)."""
+        from dermis.gl.resources import set_uniform, use_texture
+
+        gather, _, _ = self._programs()
+        per_row, k, n = self._layout
+        for name, value in (("uTapUv", 0), ("uTapWeight", 1), ("uIrradiance", 2), ("uTaps", k), ("uPointsPerRow", per_row)):
+            set_uniform(gather, name, int(value))
+        use_texture(self._tap_uv, 0)
+        use_texture(self._tap_weight, 1)
+        use_texture(irradiance, 2)
+        self._fbo.use()
+        self._fbo.viewport = (0, 0, *self.grid_texture.size)
+        self._fbo.clear(0.0, 0.0, 0.0, 0.0)
+        self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        self._vao.render(moderngl.POINTS, vertices=n)
+        self.grid_texture.build_mipmaps()
+
+    def add(self, frame, target_fbo, target_size, irradiance) -> bool:
+        """Gather and add T_geo into ``target_fbo`` (tsd's translucency target); False (nothing drawn)
+        where the scene has no bake."""
+        if self.lookup(frame) is None:
+            return False
+        from dermis.gl.resources import set_uniform, use_texture
+
+        self.gather(irradiance)
+        _, add, vao = self._programs()
+        set_uniform(add, "uTransfer", 0)
+        set_uniform(add, "uTargetSize", tuple(float(s) for s in target_size))
+        use_texture(self.grid_texture, 0)
+        target_fbo.use()
+        target_fbo.viewport = (0, 0, *target_size)
+        self.ctx.enable(moderngl.BLEND)
+        self.ctx.blend_func = moderngl.ONE, moderngl.ONE
+        vao.render(moderngl.TRIANGLES, vertices=3)
+        self.ctx.disable(moderngl.BLEND)
+        return True
+
+    def per_point(self) -> np.ndarray:
+        """T_geo of the last gather at each bake point, (n, 3) (read back from the grid)."""
+        t = self.grid_texture
+        a = np.frombuffer(t.read(), np.float32).reshape(t.size[1], t.size[0], 4)
+        uv = np.asarray(self.bake.point_uv, np.float64)
+        x = np.clip((uv[:, 0] * t.size[0]).astype(int), 0, t.size[0] - 1)
+        y = np.clip((uv[:, 1] * t.size[1]).astype(int), 0, t.size[1] - 1)
+        return a[y, x, :3].copy()
+
+    def release(self):
+        self._release_gpu()
+        if self._progs is not None:
+            for o in self._progs[::-1]:
+                o.release()
+        self._progs = None
+        self.key = None
+        self.bake = None

@@ -1,0 +1,470 @@
+"""The bake of the subsurface transfer that texture-space diffusion does not carry (physics: numpy,
+scipy and Embree; no GL). Lengths in mm.
+
+What is baked. For a bake point x_o (a texel centre of the mesh's texture-space layout in or near a
+thin part) the radiance leaving x_o is, with a diffuse (view- and light-direction-independent) exit
+and entry (the multiple-scattering term of Jensen et al. 2001),
+
+    L(x_o) = A(x_o)^(1 - mix) / pi  *  integral  tau(x_o, x_i)  I_0(x_i)  dA_i
+
+with I_0 = E (1 - rho_s a / pi) A^mix tsd's irradiance map and tau normalised so that a flat,
+uniformly lit, semi-infinite medium gives integral tau = 1 (tsd's normalised profile does the same: a
+flat surface of uniform irradiance E has radiance A E / pi). tau is sampled by the adjoint skin walk
+(dermis.reference.random_walk, index 1.4, Fresnel at every face, per channel the medium of the
+thin-slab law: the mean free path 1 / sigma_t' the law fits to the profile's mean radius, the
+single-scattering albedo that makes the semi-infinite walk reflect the skin's mean albedo): walks
+start at x_o along cosine-distributed (diffuse) views refracted in; each walk that refracts out at
+x_i carries w n^2, its radiance at x_o per unit radiance arriving at x_i (reciprocity: the same number
+is the transport from light entering at x_i to x_o). A diffuse field L_i = E_i / pi at x_i gives
+w n^2 E_i / pi; divided by the same walk's flat total R_flat (:func:`flat_kernel`) that is tau in the
+irradiance map's units.
+
+What is kept (the split against tsd, derived). tsd carries (1) the blur chain: its profile R at the
+distance along the surface (measured on the head's ear: tsd's texture-space result equals the
+surface integral of R at the geodesic distance within 6%, benchmarks/RESULTS.md round 10), and (2)
+translucency: the far face, whose normal is opposite to x_o's. The bake holds, over the SAME-FACING
+exits (n_i . n_o > 0; the opposite face stays translucency's), the walk's transport in the mesh's
+geometry LESS the same walk's transport on a flat semi-infinite surface at the same geodesic
+distance g, K_flat(g) (:func:`flat_kernel`):
+
+    tau_geo(x_o, x_i) = tau(x_o, x_i) - K_flat(g(x_o, x_i))     (same-facing x_i)
+
+On a flat thick surface it is 0 in expectation (it adds nothing where tsd's blur is the whole
+answer), so it never double counts with (1): tsd + tau_geo = tau + (R - K_flat), the profile's own
+flat mismatch as everywhere else on the face. What it carries: a thin sheet guides light sideways (the
+light that a semi-infinite medium would scatter back from depth meets the far face and is partly
+reflected there: less light within ~1 mm, more beyond), a curled rim brings light entering around
+the curl. It is stored as taps: tap 0 at x_o itself for the exits within MIN_SURFACE_MM along the
+surface (their sum less K_flat's share of that disc, F_flat(MIN_SURFACE_MM)), the others for the
+exits beyond, tallied at the nearest vertex of the mesh subdivided twice less K_flat(g_v) A_v at the
+same-facing vertices beyond MIN_SURFACE_MM (A_v a third of the subtriangles' area), compressed to at
+most ``taps - 1`` taps (weighted k-means on the vertices' positions; a tap sits at the member vertex
+nearest its cluster's weighted centre, its weight the cluster's sum: the point's total is kept
+exactly). Geodesic distance: Dijkstra on a graph joining all vertices of each given triangle's
+subdivision lattice by straight lines (exact within a triangle), a lower bound
+max(r, path - both points' distances to their vertices) between two surface points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dermis.errors import DermisError
+from dermis.geometry.rasterize import rasterize_uv
+from dermis.geometry.raycast import cosine_directions
+from dermis.reference.random_walk import MeshWalk, WalkMedium
+
+DEFAULT_GRID = 512  # bake points: texel centres of a grid x grid layout (about 1 mm apart on the head's ears)
+THIN_MM = 10.0  # a texel is baked where the ray along -N leaves the tissue within this (the ears, nose wings)
+MIN_SURFACE_MM = 1.0  # exits nearer than this along the surface go to the point's own tap
+MAX_SURFACE_MM = 15.0  # Dijkstra's reach; farther along the surface K_flat is below 1e-6 of its peak in red
+NEAR_MM = 6.0  # and the texels within this of a thin one
+DEFAULT_TAPS = 8
+DEFAULT_WALKS = 192  # per point and channel (the shipped bake)
+CHUNK_WALKS = 1 << 16
+
+
+@dataclass
+class BakePoints:
+    """Where the transfer is baked: texture-space uv (n, 2), position (n, 3) mm, triangle (n,), the
+    facet's outward normal (n, 3)."""
+
+    uv: np.ndarray
+    position: np.ndarray
+    triangle: np.ndarray
+    normal: np.ndarray
+
+
+@dataclass
+class TransferBake:
+    """The baked transfer: per point its uv, and ``taps`` taps (uv in the texture-space layout, RGB
+    weight: tau - K_flat(g) summed over the tap's cluster, in the irradiance map's units; tap 0 at the
+    point itself; zero weight = unused). ``kept`` / ``subtracted`` (n, 3): per point, the walk's
+    same-facing transfer and the flat kernel's share removed from it (their difference is the sum of
+    the taps); ``meta``: how it was baked."""
+
+    point_uv: np.ndarray
+    tap_uv: np.ndarray
+    tap_weight: np.ndarray
+    kept: np.ndarray
+    subtracted: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def total(self) -> np.ndarray:
+        return self.tap_weight.sum(1)
+
+
+def skin_media(profile, albedo, index: float = 1.4, photons: int = 20_000) -> tuple:
+    """Per channel the skin walk's medium of ear9 (benchmarks/ear_translucency.py --walk): the
+    thin-slab law's mean free path (dermis.profiles.thin_slab) and the single-scattering albedo whose
+    semi-infinite walk reflects ``albedo`` (dermis.verification.random_walk_albedo)."""
+    from dermis.profiles.thin_slab import slab_law
+    from dermis.verification import random_walk_albedo
+
+    albedo = np.asarray(albedo, np.float64)
+    law = slab_law(profile.normalized(), albedo)
+    out = []
+    for c in range(3):
+        mfp = float(1.0 / law.reduced_sigma_t_per_mm[c])
+        out.append(WalkMedium(mfp, random_walk_albedo(float(albedo[c]), mfp, photons=photons, index=index), "fresnel", index))
+    return tuple(out)
+
+
+def diffuse_views(normals, rng) -> np.ndarray:
+    """View rays (towards the surface) cosine-distributed about the outward ``normals``: a walk
+    started along them estimates the exitance / pi (a diffuse exit)."""
+    n = len(normals)
+    return -cosine_directions(np.asarray(normals, np.float64), rng.random((n, 1)), rng.random((n, 1)))[:, 0]
+
+
+def walk_exits(walker: MeshWalk, position, triangle, normal, medium: WalkMedium, walks: int, seed: int = 0) -> dict:
+    """``walks`` adjoint walks from each point, diffuse views: the exits (random_walk's ``exits``)
+    with "point_index" (which start point) added."""
+    position = np.asarray(position, np.float64)
+    n = len(position)
+    total = n * int(walks)
+    parts = []
+    rng = np.random.default_rng(seed)
+    for start in range(0, total, CHUNK_WALKS):
+        idx = np.arange(start, min(start + CHUNK_WALKS, total)) // int(walks)
+        ex = {}
+        walker.radiance(position[idx], np.asarray(triangle)[idx], diffuse_views(np.asarray(normal)[idx], rng), medium,
+                        seed=int(rng.integers(2 ** 31)), exits=ex)
+        ex["point_index"] = idx[ex["walk"]]
+        parts.append(ex)
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if parts else {}
+
+
+FLAT_EDGES_MM = np.r_[np.arange(0.0, 5.0, 0.1), np.arange(5.0, 25.5, 0.5)]
+
+
+@dataclass(frozen=True)
+class FlatKernel:
+    """The walk's transport on a flat semi-infinite surface (a slab 200 x 200 x 60 mm, walks from the
+    centre of its top face, diffuse views): R_flat (the mean exit weight w n^2, tau's normalisation)
+    with its standard error, and the radial density of the exits per mm^2 normalised to integral 1
+    over the face (in radius bins ``edges``)."""
+
+    reflectance: float
+    reflectance_se: float
+    edges: np.ndarray
+    density: np.ndarray
+
+    def at(self, g_mm) -> np.ndarray:
+        """K_flat(g) per mm^2 (0 beyond the last bin)."""
+        c = 0.5 * (self.edges[1:] + self.edges[:-1])
+        return np.interp(np.asarray(g_mm, np.float64), c, self.density, right=0.0)
+
+    def within(self, g_mm: float) -> float:
+        """The share of the flat transport that exits within ``g_mm`` of the start (linear in the bin)."""
+        mass = self.density * np.pi * (self.edges[1:] ** 2 - self.edges[:-1] ** 2)
+        inner = np.clip((g_mm ** 2 - self.edges[:-1] ** 2) / (self.edges[1:] ** 2 - self.edges[:-1] ** 2), 0.0, 1.0)
+        return float((mass * inner).sum())
+
+
+def flat_kernel(medium: WalkMedium, walks: int = 40_000, seed: int = 7) -> FlatKernel:
+    """:class:`FlatKernel` of ``medium`` by ``walks`` walks."""
+    from dermis.scene.builtin import slab
+
+    p, nn, _, t = slab(size=200.0, thickness=60.0, n=2)
+    mw = MeshWalk(p, t, nn)
+    pts = np.tile([0.0, 0.0, 30.0], (walks, 1))
+    _, tri, _ = mw.caster.closest_hit(pts + [0, 0, 1.0], np.tile([0, 0, -1.0], (walks, 1)))
+    ex = walk_exits(mw, pts, tri, np.tile([0, 0, 1.0], (walks, 1)), medium, 1, seed)
+    per = np.bincount(ex["point_index"], weights=ex["weight"], minlength=walks)
+    R = float(per.mean())
+    top = ex["point"][:, 2] > 29.999
+    r = np.linalg.norm(ex["point"][top, :2], axis=1)
+    h, _ = np.histogram(r, FLAT_EDGES_MM, weights=ex["weight"][top])
+    dens = h / (walks * R) / (np.pi * (FLAT_EDGES_MM[1:] ** 2 - FLAT_EDGES_MM[:-1] ** 2))
+    return FlatKernel(R, float(per.std() / np.sqrt(walks)), FLAT_EDGES_MM.copy(), dens)
+
+
+def profile_density(profile, g_mm) -> np.ndarray:
+    """tsd's normalised profile R(g) per mm^2, (..., 3): sum_k w_k exp(-g^2 / 2 v_k) / (2 pi v_k)."""
+    p = profile.normalized()
+    w = np.asarray(p.weights, np.float64)  # (K, 3)
+    v = np.asarray(p.variances_mm2, np.float64)  # (K,)
+    g = np.asarray(g_mm, np.float64)[..., None]
+    return (np.exp(-g * g / (2.0 * v)) / (2.0 * np.pi * v)) @ w
+
+
+def subdivide(positions, indices, normals, uvs):
+    """One 1-to-4 midpoint subdivision (a finer graph for geodesic distances): positions, indices,
+    normals (renormalised), uvs of the new mesh. Midpoints per edge of the given triangles, so a
+    triangle's uvs stay in its own chart."""
+    idx = np.asarray(indices, np.int64).reshape(-1, 3)
+    e = np.sort(np.concatenate([idx[:, [0, 1]], idx[:, [1, 2]], idx[:, [2, 0]]]), axis=1)
+    edges, inv = np.unique(e, axis=0, return_inverse=True)
+    inv = inv.reshape(3, -1).T + len(positions)  # midpoint ids of edges 01, 12, 20
+    mid = lambda a: 0.5 * (a[edges[:, 0]] + a[edges[:, 1]])
+    pos = np.r_[positions, mid(positions)]
+    nrm = np.r_[normals, mid(normals)]
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+    uv = np.r_[uvs, mid(uvs)]
+    a, b, c = idx.T
+    ab, bc, ca = inv.T
+    tri = np.concatenate([np.c_[a, ab, ca], np.c_[ab, b, bc], np.c_[ca, bc, c], np.c_[ab, bc, ca]])
+    return pos, tri, nrm, uv
+
+
+class SurfaceGraph:
+    """The mesh's edges, subdivided ``subdivisions`` times, as a graph (vertices merged by position:
+    UV seams do not cut it) for geodesic distances along the surface (Dijkstra), with each merged
+    vertex's area (mm^2), outward normal and texture-space uv. A surface point is represented by the
+    nearest vertex of its own triangle's subdivision; the distance between two points is taken as max(their 3-D distance,
+    the edge path between their vertices less both points' distances to them): a lower bound of the
+    geodesic (triangle inequality, the edge path being >= the geodesic between the vertices up to the
+    graph's own excess), so an exit beside the point is never put beyond MIN_SURFACE_MM by the graph."""
+
+    def __init__(self, positions_mm, indices, normals, uvs, subdivisions: int = 2):
+        pos = np.asarray(positions_mm, np.float64).reshape(-1, 3)
+        idx = np.asarray(indices, np.int64).reshape(-1, 3)
+        nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+        uv = np.asarray(uvs, np.float64).reshape(-1, 2)
+        origin = np.arange(len(idx))  # the given triangle each (sub)triangle lies in
+        for _ in range(subdivisions):
+            pos, idx, nrm, uv = subdivide(pos, idx, nrm, uv)
+            origin = np.tile(origin, 4)
+        _, first, inv = np.unique(np.round(pos, 5), axis=0, return_index=True, return_inverse=True)
+        inv = inv.reshape(-1)
+        self.position = pos[first]
+        self.normal = nrm[first] / np.maximum(np.linalg.norm(nrm[first], axis=1, keepdims=True), 1e-12)
+        self.uv = uv[first]
+        tri = inv[idx]
+        n = len(self.position)
+        area = 0.5 * np.linalg.norm(np.cross(self.position[tri[:, 1]] - self.position[tri[:, 0]],
+                                             self.position[tri[:, 2]] - self.position[tri[:, 0]]), axis=1)
+        self.area = np.bincount(tri.ravel(), weights=np.repeat(area / 3.0, 3), minlength=n)
+        # per given triangle, the vertices of its subtriangles: a point on it is represented by the
+        # nearest of them (never a vertex of another sheet that happens to be near in 3-D)
+        order = np.argsort(origin, kind="stable")
+        self.candidates = tri[order].reshape(len(np.unique(origin)), -1)
+        self.graph = _lattice_graph(self.position, self.candidates)
+
+    def nearest(self, points, triangles) -> np.ndarray:
+        """For points on the given mesh's ``triangles``, the nearest vertex of that triangle's subdivision."""
+        cand = self.candidates[np.asarray(triangles, np.int64)]
+        d = np.linalg.norm(self.position[cand] - np.asarray(points, np.float64)[:, None], axis=2)
+        return cand[np.arange(len(cand)), np.argmin(d, 1)]
+
+    def distances(self, vertices, limit=MAX_SURFACE_MM) -> np.ndarray:
+        """(n, V) edge-path distance (mm) from each of ``vertices`` to every vertex; inf beyond ``limit``."""
+        from scipy.sparse.csgraph import dijkstra
+
+        src, where = np.unique(np.asarray(vertices, np.int64), return_inverse=True)
+        return dijkstra(self.graph, indices=src, limit=limit)[where.reshape(-1)]
+
+
+def _lattice_graph(position, lattice):
+    """The graph joining every pair of vertices of each given triangle's subdivision lattice (rows of
+    ``lattice``) by their straight distance: within a flat triangle that IS the geodesic (a graph of
+    the subtriangles' edges alone zig-zags: on the scan's slivers its paths were up to 3x the straight
+    line); across triangles a path bends only where it crosses a shared edge at a lattice vertex."""
+    from scipy.sparse import csr_matrix
+
+    rows = np.sort(lattice, axis=1)
+    fresh = np.c_[np.ones((len(rows), 1), bool), np.diff(rows, axis=1) != 0]
+    width = int(fresh.sum(1).max())
+    # each row's distinct vertices, padded with its first (self pairs are dropped below)
+    u = np.repeat(rows[:, :1], width, axis=1)
+    r, c = np.nonzero(fresh)
+    u[r, np.cumsum(fresh, axis=1)[r, c] - 1] = rows[r, c]
+    i, j = np.triu_indices(width, 1)
+    e = np.sort(np.stack([u[:, i].ravel(), u[:, j].ravel()], 1), axis=1)
+    e = np.unique(e[e[:, 0] != e[:, 1]], axis=0)
+    length = np.linalg.norm(position[e[:, 0]] - position[e[:, 1]], axis=1)
+    n = len(position)
+    return csr_matrix((np.r_[length, length], (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(n, n))
+
+
+def thin_points(mesh, mm_per_unit: float, grid: int = DEFAULT_GRID, thin_mm: float = THIN_MM,
+                require_exit: bool = True) -> BakePoints:
+    """Texel centres of the texture-space layout at grid^2 where the tissue behind is thinner than
+    ``thin_mm`` along -N (dermis.geometry.thickness's bake)."""
+    from dermis.geometry.thickness import texel_thickness
+
+    S = int(grid)
+    uv_ts = np.asarray(mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs, np.float64)
+    idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
+    pos = np.asarray(mesh.positions, np.float64) * float(mm_per_unit)
+    nrm = np.asarray(mesh.normals, np.float64)
+    tri, bary = rasterize_uv(uv_ts, idx, S, S)  # row 0 = top (v = 1), as texel_thickness
+    th = texel_thickness(mesh, S, mm_per_unit)
+    ok = (th.reshape(-1, 4)[:, 3] > 0) & (th.reshape(-1, 4)[:, 2] < thin_mm) if require_exit else True
+    sel = np.nonzero((tri.reshape(-1) >= 0) & ok)[0]
+    t = tri.reshape(-1)[sel]
+    b = bary.reshape(-1, 3)[sel].astype(np.float64)
+    p = np.einsum("nk,nkc->nc", b, pos[idx[t]])
+    vn = np.einsum("nk,nkc->nc", b, nrm[idx[t]])
+    fn = np.cross(pos[idx[t, 1]] - pos[idx[t, 0]], pos[idx[t, 2]] - pos[idx[t, 0]])
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+    fn *= np.where(np.einsum("ij,ij->i", fn, vn) >= 0.0, 1.0, -1.0)[:, None]
+    row, col = np.divmod(sel, S)
+    uv = np.stack([(col + 0.5) / S, 1.0 - (row + 0.5) / S], 1)
+    return BakePoints(uv, p, t, fn)
+
+
+def bake_points(mesh, mm_per_unit: float, grid: int = DEFAULT_GRID, thin_mm: float = THIN_MM,
+                near_mm: float = NEAR_MM) -> BakePoints:
+    """The texel centres of :func:`thin_points` and every covered texel within ``near_mm`` (3-D) of
+    one: the thin parts and the tissue around them (an ear's concha and antihelix, where -N runs into
+    the head but the sheet beside them guides light)."""
+    from scipy.spatial import cKDTree
+
+    thin = thin_points(mesh, mm_per_unit, grid, thin_mm)
+    every = thin_points(mesh, mm_per_unit, grid, np.inf, require_exit=False)
+    if len(thin.position) == 0:
+        return thin
+    d, _ = cKDTree(thin.position).query(every.position, distance_upper_bound=near_mm)
+    m = np.isfinite(d)
+    return BakePoints(every.uv[m], every.position[m], every.triangle[m], every.normal[m])
+
+
+def _compress(pos, c, taps):
+    """(members' tap index, tap positions index) of a point's per-vertex transfer ``c`` (m, 3) at
+    positions ``pos`` (m, 3): weighted k-means, deterministic (farthest-point start)."""
+    m = len(pos)
+    if m <= taps:
+        return np.arange(m), np.arange(m)
+    w = np.abs(c).sum(1) + 1e-30
+    centres = [int(np.argmax(w))]
+    d2 = np.sum((pos - pos[centres[0]]) ** 2, 1)
+    for _ in range(taps - 1):
+        j = int(np.argmax(d2 * w))
+        centres.append(j)
+        d2 = np.minimum(d2, np.sum((pos - pos[j]) ** 2, 1))
+    cen = pos[centres]
+    for _ in range(6):
+        lab = np.argmin(((pos[:, None] - cen[None]) ** 2).sum(2), 1)
+        for k in range(taps):
+            s = lab == k
+            if s.any():
+                cen[k] = (pos[s] * w[s, None]).sum(0) / w[s].sum()
+    lab = np.argmin(((pos[:, None] - cen[None]) ** 2).sum(2), 1)
+    rep = np.zeros(taps, np.int64)
+    for k in range(taps):
+        s = np.nonzero(lab == k)[0]
+        if len(s):
+            rep[k] = s[np.argmin(((pos[s] - cen[k]) ** 2).sum(1))]
+    return lab, rep
+
+
+SMOOTH_OWN_MM = 1.0
+
+
+def smooth_own_taps(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOTH_OWN_MM) -> TransferBake:
+    """Each point's own tap (the near-field excess, a sum over ~60% of its walks: a few % Monte Carlo
+    noise per point, which a 1 mm bake grid would show as speckle) replaced by its mean over the
+    same-facing points within ``radius_mm`` (3-D). The quantity varies with the sheet's thickness
+    and curvature over millimetres; the averaging keeps its mean over any region wider than the
+    radius (a box filter), and the far taps are left as they are. Returns a new TransferBake."""
+    from scipy.spatial import cKDTree
+
+    own = bake.tap_weight[:, 0].astype(np.float64)
+    pairs = cKDTree(points.position).query_pairs(radius_mm, output_type="ndarray")
+    if len(pairs):
+        pairs = pairs[np.einsum("ij,ij->i", points.normal[pairs[:, 0]], points.normal[pairs[:, 1]]) > 0.5]
+    i = np.r_[np.arange(len(own)), pairs[:, 0], pairs[:, 1]] if len(pairs) else np.arange(len(own))
+    j = np.r_[np.arange(len(own)), pairs[:, 1], pairs[:, 0]] if len(pairs) else np.arange(len(own))
+    sums = np.zeros_like(own)
+    np.add.at(sums, i, own[j])
+    count = np.bincount(i, minlength=len(own))[:, None]
+    w = bake.tap_weight.copy()
+    w[:, 0] = sums / count
+    return TransferBake(bake.point_uv, bake.tap_uv, w, bake.kept, bake.subtracted,
+                        dict(bake.meta, smooth_own_mm=float(radius_mm)))
+
+
+def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFAULT_GRID, walks: int = DEFAULT_WALKS,
+                  taps: int = DEFAULT_TAPS, thin_mm: float = THIN_MM, near_mm: float = NEAR_MM, seed: int = 0,
+                  points: BakePoints | None = None, media=None, kernels=None, progress=None) -> TransferBake:
+    """The transfer of the module docstring for ``mesh`` (a dermis Mesh or any object with positions,
+    normals, indices, uvs, texture_space_uvs; positions x ``mm_per_unit`` = mm). ``points``: bake
+    there instead of :func:`bake_points`; ``media`` / ``kernels``: per channel WalkMedium and
+    FlatKernel (default: :func:`skin_media`, :func:`flat_kernel`)."""
+    if walks < 1 or taps < 2:
+        raise DermisError("subsurface transfer: walks must be >= 1 and taps >= 2")
+    mm = float(mm_per_unit)
+    pos = np.asarray(mesh.positions, np.float64) * mm
+    idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
+    uv_ts = mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
+    pts = points if points is not None else bake_points(mesh, mm, grid, thin_mm, near_mm)
+    media = media if media is not None else skin_media(profile, albedo)
+    kernels = kernels if kernels is not None else [flat_kernel(m) for m in media]
+    walker = MeshWalk(pos, idx)
+    graph = SurfaceGraph(pos, idx, mesh.normals, uv_ts)
+    start_vertex = graph.nearest(pts.position, pts.triangle)
+    n = len(pts.position)
+    exits = [walk_exits(walker, pts.position, pts.triangle, pts.normal, m, walks, seed * 3 + c) for c, m in enumerate(media)]
+    if progress:
+        progress(f"walks done: {n} points x {walks} walks x 3 channels")
+    tap_uv = np.zeros((n, taps, 2), np.float32)
+    tap_w = np.zeros((n, taps, 3), np.float32)
+    tap_uv[:, 0] = pts.uv
+    kept = np.zeros((n, 3))
+    sub = np.zeros((n, 3))
+    near_flat = np.array([k.within(MIN_SURFACE_MM) for k in kernels])
+    order = [np.argsort(e["point_index"], kind="stable") for e in exits]
+    starts = [np.searchsorted(e["point_index"][o], np.arange(n + 1)) for e, o in zip(exits, order)]
+    chunk = 64
+    for c0 in range(0, n, chunk):
+        c1 = min(c0 + chunk, n)
+        G = graph.distances(start_vertex[c0:c1])  # (m, V)
+        for i in range(c0, c1):
+            g_row = G[i - c0]
+            xo, no = pts.position[i], pts.normal[i]
+            off_o = float(np.linalg.norm(graph.position[start_vertex[i]] - xo))
+            ids, vals = [], []
+            own = np.zeros(3)
+            for c, (e, o, s) in enumerate(zip(exits, order, starts)):
+                sel = o[s[i]:s[i + 1]]
+                if len(sel) == 0:
+                    continue
+                xe, ne, we = e["point"][sel], e["normal"][sel], e["weight"][sel]
+                same = ne @ no > 0.0
+                xe, we, ve = xe[same], we[same] / (walks * kernels[c].reflectance), graph.nearest(xe[same], e["triangle"][sel][same])
+                r = np.linalg.norm(xe - xo, axis=1)
+                ge = np.maximum(g_row[ve] - off_o - np.linalg.norm(graph.position[ve] - xe, axis=1), r)
+                kept[i, c] = we.sum()
+                far = ge > MIN_SURFACE_MM
+                own[c] = we[~far].sum()
+                v3 = np.zeros((int(far.sum()), 3))
+                v3[:, c] = we[far]
+                ids.append(ve[far])
+                vals.append(v3)
+            # what the flat medium carries from the same-facing surface beyond MIN_SURFACE_MM: K_flat(g_v) A_v
+            fin = np.nonzero(np.isfinite(g_row))[0]
+            rv = np.linalg.norm(graph.position[fin] - xo, axis=1)
+            gv = np.maximum(g_row[fin] - off_o, rv)
+            kv = (graph.normal[fin] @ no > 0.0) & (gv > MIN_SURFACE_MM)
+            share = np.stack([k.at(gv[kv]) for k in kernels], 1) * graph.area[fin[kv], None]
+            sub[i] = near_flat + share.sum(0)
+            tap_w[i, 0] = own - near_flat
+            big = share.max(1) > 1e-7
+            ids.append(fin[kv][big])
+            vals.append(-share[big])
+            all_ids = np.concatenate(ids)
+            if len(all_ids) == 0:
+                continue
+            keys, inv = np.unique(all_ids, return_inverse=True)
+            cv = np.zeros((len(keys), 3))
+            np.add.at(cv, inv, np.concatenate(vals))
+            lab, rep = _compress(graph.position[keys], cv, taps - 1)
+            for k in range(min(taps - 1, len(keys))):
+                s_ = lab == k
+                if s_.any():
+                    tap_w[i, k + 1] = cv[s_].sum(0)
+                    tap_uv[i, k + 1] = graph.uv[keys[rep[k]]]
+        if progress and (c1 // chunk) % 16 == 0:
+            progress(f"points {c1} / {n}")
+    meta = {"grid": int(grid), "walks": int(walks), "taps": int(taps), "thin_mm": float(thin_mm), "near_mm": float(near_mm),
+            "seed": int(seed), "min_surface_mm": MIN_SURFACE_MM, "max_surface_mm": MAX_SURFACE_MM,
+            "mean_free_path_mm": [m.mean_free_path_mm for m in media],
+            "single_scattering_albedo": [m.single_scattering_albedo for m in media], "index": media[0].index,
+            "flat_reflectance": [k.reflectance for k in kernels], "flat_within_min_surface": near_flat.tolist(),
+            "profile": getattr(profile, "name", ""), "albedo": list(map(float, np.asarray(albedo, np.float64)))}
+    return TransferBake(pts.uv.astype(np.float32), tap_uv, tap_w, kept, sub, meta)

@@ -1,0 +1,107 @@
+"""The baked subsurface transfer on disk: one .npz per mesh under dermis/data/subsurface_transfer/,
+named by the mesh's content (positions, triangles, texture-space uvs), found automatically for a
+scene whose mesh, scale and skin medium are the ones baked. Any other scene renders without it.
+
+Rebake (minutes, one core; run it niced):
+    PYTHONPATH=src nice -n 10 python -m dermis.subsurface_transfer examples/reference/back-ears.toml
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from dermis.errors import DermisError
+from dermis.subsurface_transfer.bake import TransferBake
+
+DATA = Path(__file__).resolve().parent.parent / "data" / "subsurface_transfer"
+FORMAT = 1
+MEDIUM_TOLERANCE = 0.02  # relative: the scene's mean free path and mean albedo against the bake's
+
+
+def mesh_key(mesh) -> str:
+    """The bake's name: SHA-256 of the mesh's positions, triangles and texture-space uvs."""
+    from dermis.geometry.atlas import content_hash
+
+    uv = mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
+    return content_hash(mesh.positions, mesh.indices, "subsurface_transfer", np.asarray(uv, np.float32).tobytes())
+
+
+def path_for(mesh, folder: Path | None = None) -> Path:
+    return (folder or DATA) / (mesh_key(mesh)[:24] + ".npz")
+
+
+def save(bake: TransferBake, path: Path, mesh_key_: str, mm_per_unit: float) -> None:
+    """Write ``bake`` (taps' uv float32, weights float16: the weights are Monte Carlo estimates with
+    several % noise, float16's 0.05 % is below it)."""
+    meta = dict(bake.meta, format=FORMAT, mesh_key=mesh_key_, mm_per_unit=float(mm_per_unit))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez_compressed(tmp, point_uv=bake.point_uv.astype(np.float32), tap_uv=bake.tap_uv.astype(np.float32),
+                        tap_weight=bake.tap_weight.astype(np.float16), kept=bake.kept.astype(np.float32),
+                        subtracted=bake.subtracted.astype(np.float32), meta=np.array(json.dumps(meta)))
+    tmp.replace(path)
+
+
+def load(path: Path) -> TransferBake:
+    try:
+        with np.load(path) as z:
+            meta = json.loads(str(z["meta"]))
+            bake = TransferBake(z["point_uv"], z["tap_uv"], z["tap_weight"].astype(np.float32), z["kept"],
+                                z["subtracted"], meta)
+    except (OSError, ValueError, KeyError) as e:
+        raise DermisError(f"{path}: not a subsurface transfer bake ({e})") from None
+    if meta.get("format") != FORMAT:
+        raise DermisError(f"{path}: subsurface transfer bake format {meta.get('format')}, expected {FORMAT}")
+    return bake
+
+
+def scene_medium(scene) -> tuple[np.ndarray, np.ndarray]:
+    """(mean free path per channel, mm; the skin's mean albedo): what the bake's medium is made from
+    (dermis.subsurface_transfer.bake.skin_media), cheap to compare."""
+    from dermis.profiles.thin_slab import slab_law
+    from dermis.scene.model import mean_skin_albedo
+
+    albedo = np.asarray(mean_skin_albedo(scene.material), np.float64)
+    law = slab_law(scene.profile.normalized(), albedo)
+    return 1.0 / np.asarray(law.reduced_sigma_t_per_mm, np.float64), albedo
+
+
+def matches(bake: TransferBake, scene) -> bool:
+    """Whether ``bake`` holds for ``scene``: its mesh, scale and medium (mean free path and mean albedo
+    within MEDIUM_TOLERANCE)."""
+    m = bake.meta
+    if m.get("mesh_key") != mesh_key(scene.mesh) or abs(m.get("mm_per_unit", 0.0) - float(scene.mm_per_unit)) > 1e-6 * float(
+            scene.mm_per_unit):
+        return False
+    mfp, albedo = scene_medium(scene)
+    rel = lambda a, b: np.max(np.abs(np.asarray(a) - np.asarray(b)) / np.maximum(np.abs(np.asarray(b)), 1e-12))
+    return bool(rel(m["mean_free_path_mm"], mfp) <= MEDIUM_TOLERANCE and rel(m["albedo"], albedo) <= MEDIUM_TOLERANCE)
+
+
+def find(scene, folder: Path | None = None) -> TransferBake | None:
+    """The shipped bake for ``scene`` (its mesh's file in ``folder``, default the package data) when it
+    matches the scene (:func:`matches`), else None: the scene renders without it."""
+    p = path_for(scene.mesh, folder)
+    if not p.is_file():
+        return None
+    bake = load(p)
+    return bake if matches(bake, scene) else None
+
+
+def bake_scene(scene, folder: Path | None = None, progress=print, **options) -> Path:
+    """Bake ``scene``'s mesh with its medium and write it where :func:`find` looks."""
+    from dermis.scene.model import mean_skin_albedo
+    from dermis.subsurface_transfer.bake import (DEFAULT_GRID, NEAR_MM, THIN_MM, bake_points, bake_transfer,
+                                                 smooth_own_taps)
+
+    albedo = mean_skin_albedo(scene.material)
+    points = bake_points(scene.mesh, scene.mm_per_unit, options.get("grid", DEFAULT_GRID), options.get("thin_mm", THIN_MM),
+                         options.get("near_mm", NEAR_MM))
+    bake = bake_transfer(scene.mesh, scene.mm_per_unit, scene.profile, albedo, points=points, progress=progress, **options)
+    bake = smooth_own_taps(bake, points)
+    p = path_for(scene.mesh, folder)
+    save(bake, p, mesh_key(scene.mesh), scene.mm_per_unit)
+    return p
