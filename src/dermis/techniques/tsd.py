@@ -114,6 +114,18 @@ def stores_sharp_shadows(light_count: int) -> bool:
     return int(light_count) <= STORED_SHARP_SHADOWS
 
 
+def irradiance_defines(light_count: int) -> dict:
+    """tsd/irradiance.frag's defines for ``light_count`` lights: the stored sharp shadows at location
+    1 where stores_sharp_shadows, then rho E and albedo^mix for the one bounce (SKIN_EXITANT_LOCATION,
+    SKIN_ALBEDO_MIX_LOCATION: the irradiance pass writes them where it reads the albedo map anyway, so
+    the bounce needs no mesh raster of its own for rho E and no albedo map read in its splat; dropped
+    where the framebuffer has no such attachments, without interreflection)."""
+    sharp = stores_sharp_shadows(light_count)
+    first = 2 if sharp else 1
+    return {**({"SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS} if sharp else {}),
+            "SKIN_EXITANT_LOCATION": first, "SKIN_ALBEDO_MIX_LOCATION": first + 1}
+
+
 class TextureSpaceDiffusion(Technique):
     name = "tsd"
     description = "texture-space diffusion (d'Eon, Luebke & Enderton 2007): chained UV-space Gaussian blurs"
@@ -131,9 +143,9 @@ class TextureSpaceDiffusion(Technique):
         self.p_irradiance = None
         # tsd/irradiance.frag per light count, its lights unrolled (LightCountPrograms), storing the
         # sharp shadows where stores_sharp_shadows(n)
+        # sharp shadows where stores_sharp_shadows(n), and the bounce's targets (irradiance_targets)
         self._irradiance_programs = LightCountPrograms(
-            ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines,
-            per_count=lambda n: {"SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS} if stores_sharp_shadows(n) else {}
+            ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines, per_count=irradiance_defines
         ).compile_for(renderer.scene)
         self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
         self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
@@ -560,6 +572,12 @@ class TextureSpaceDiffusion(Technique):
         # the lights' sharp shadows, for the final pass's specular (tsd/sharp_shadow.glsl)
         prog, _ = self._shading_programs(frame)
         targets = (irr, self._texture("sharp_shadow", (S, S), 4, "f1")) if stores_sharp_shadows(frame.lights.count) else (irr,)
+        # the one bounce (an override is the whole irradiance: nothing is added to it); rho E and
+        # albedo^mix from this pass where its program is the technique's own (irradiance_defines)
+        bounce = irradiance is None and getattr(scene, "interreflection", True)
+        bounce_targets = bounce and self.p_irradiance is None
+        if bounce_targets:
+            targets += (self._texture(("bounce_exitant", 0), (S, S)), self._texture("albedo_mix", (S, S)))
         bind_scene(frame, prog)
         directional_albedo_uniforms(prog, scene)
         if irradiance is not None:
@@ -572,10 +590,9 @@ class TextureSpaceDiffusion(Technique):
                 self._uv_pass(frame, prog, targets)
             if irradiance is not None:  # the override replaces the irradiance; the shadows stay the raster's
                 irr.write(a.astype(np.float16).tobytes())
-        # one bounce between skin surfaces, added to I_0 before the dilation and the blurs (an
-        # override is the whole irradiance: nothing is added to it)
-        if irradiance is None and getattr(scene, "interreflection", True):
-            self._interreflection(frame, irr)
+        # one bounce between skin surfaces, added to I_0 before the dilation and the blurs
+        if bounce:
+            self._interreflection(frame, irr, bounce_targets)
         with timer("tsd_irradiance"):
             dil = self._texture("irradiance_dilated", (S, S))
             bind_sampler(self.p_dilate, "uSource", irr, 0)
@@ -620,28 +637,34 @@ class TextureSpaceDiffusion(Technique):
         stretch map's median)."""
         return bounce_level(self.median_stretch, S)
 
-    def _interreflection(self, frame, irr):
+    def _interreflection(self, frame, irr, from_irradiance=False):
         """Add one diffuse bounce to the irradiance ``irr`` (I_0): rho E in texture space
-        (tsd/bounce_exitant.frag), reduced to _bounce_level, gathered per vertex over the baked rays
-        (tsd/bounce_gather.frag) and splatted into I_0 with additive blending
+        (``from_irradiance``: as the irradiance pass wrote it, with albedo^mix, irradiance_defines;
+        else from I_0 by tsd/bounce_exitant.frag), reduced to _bounce_level, gathered per vertex over
+        the baked rays (tsd/bounce_gather.frag) and splatted into I_0 with additive blending
         (tsd/bounce_splat.frag). No pass reads the texture it writes."""
         self.hits.get(frame)  # the bake times itself: before this pass's timer
         if self._p_bounce is None:
             defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
+            splat = {**defines, "INTERREFLECTION": 1}
             self._p_bounce = (program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_exitant.frag", defines),
                               BounceGather(self.ctx),
-                              program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag",
-                                      {**defines, "INTERREFLECTION": 1}))
-        p_exit, p_gather, p_splat = self._p_bounce
+                              program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag", splat),
+                              program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag", {**splat, "ALBEDO_MIX_TARGET": 1}))
+        p_exit, p_gather, p_splat, p_splat_mix = self._p_bounce
+        p_splat = p_splat_mix if from_irradiance else p_splat
         per_row = self.hits.per_row
         level = self._bounce_level(irr.size[0])
         self.bounce_level = level
         bind_scene(frame, p_exit)
         bind_scene(frame, p_splat)
         with frame.timer("tsd_interreflection"):
-            bind_sampler(p_exit, "uIrradiance", irr, Unit.FIRST_FREE)
-            with maps_without_anisotropy(frame.gpu, surfaces=False):
-                self._uv_pass(frame, p_exit, self._texture(("bounce_exitant", 0), irr.size))
+            if from_irradiance:
+                bind_sampler(p_splat, "uAlbedoMix", self.tex["albedo_mix"], Unit.FIRST_FREE + 1)
+            else:
+                bind_sampler(p_exit, "uIrradiance", irr, Unit.FIRST_FREE)
+                with maps_without_anisotropy(frame.gpu, surfaces=False):
+                    self._uv_pass(frame, p_exit, self._texture(("bounce_exitant", 0), irr.size))
             src = self.tex[("bounce_exitant", 0)]
             for lvl in range(1, level + 1):
                 src, p = self._down(src, ("bounce_exitant", lvl), lvl)
