@@ -174,6 +174,7 @@ class TextureSpaceDiffusion(Technique):
         self._stretch_chain_key = None
         self._chain_passes = None  # ((chain key, dilated irradiance), the irradiance's prepared passes)
         self.thickness = ThicknessTexture(self.ctx)  # the texel thickness bake (light through thin parts)
+        self._own_filled = None  # (bake key, target) of the last whole translucency_own pass (tsd/translucency.frag)
         self.hits = renderer.interreflection_hits  # the interreflection rays' hits (one bounce; the Renderer's)
         self._p_bounce = None  # (exitant, gather, splat) programs, compiled on first use
         self.bounce_level = None
@@ -218,6 +219,7 @@ class TextureSpaceDiffusion(Technique):
         self._stretch_chain_key = None
         self._chain_passes = None
         self._narrow_key = None
+        self._own_filled = None
         self.thickness.release()
 
     def scene_changed(self):
@@ -614,7 +616,11 @@ class TextureSpaceDiffusion(Technique):
                 bind_sampler(prog, "uStretch", self.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
                 bind_sampler(prog, "uThickness", thickness, Unit.FIRST_FREE + MAX_GAUSSIANS + 1)
                 own = self._texture("translucency_own", trans.size)
+                # where the bake has no far face the texel's value is fixed by the bake: drawn once
+                filled = self._own_filled is not None and self._own_filled[0] == self.thickness.key and self._own_filled[1] is own
+                set_uniform(prog, "uFarFaceOnly", int(filled))
                 self._fullscreen(prog, own)
+                self._own_filled = (self.thickness.key, own)
                 bind_sampler(self.p_trans_tent, "uSource", own, 0)
                 self._fullscreen(self.p_trans_tent, trans)
             frame.passes_run.append("tsd_translucency")

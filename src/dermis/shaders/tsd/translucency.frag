@@ -32,6 +32,13 @@ uniform float uTranslucencyMinVariance;
 uniform float uTranslucencyStrength;
 uniform sampler2D uStretch;    // texels per mm along u, v (tsd/stretch.frag)
 uniform sampler2D uThickness;  // (u, v) of the far face, thickness in mm, weight (geometry/thickness.py)
+// 1: only the texels with a far face (weight w > 0) are written; the others keep (0, coverage), which
+// depends on the bake alone and was written by an earlier pass with 0 from the same bake into the
+// same target (tsd.py redraws it whole when either changes). On the head at 512^2 13% of the texels
+// (15% of the 4 x 4 blocks) have a far face: on a GPU the other warps end here. On llvmpipe the pass
+// costs half of what it cost without this line whether or not the discard fires (measured, the
+// mechanism not found: benchmarks/RESULTS.md, round 10, perf10).
+uniform int uFarFaceOnly;
 out vec4 f_translucency;
 
 // The light through the tissue to this texel (texture-space uv) from the far face that the bake
@@ -58,6 +65,7 @@ void main() {
     ivec2 c = ivec2(gl_FragCoord.xy);
     vec2 uv = gl_FragCoord.xy / vec2(textureSize(uThickness, 0));  // this texel's texture-space uv
     vec4 th = texelFetch(uThickness, c, 0);
+    if (uFarFaceOnly != 0 && th.w <= 0.0) discard;
     vec3 T = vec3(0.0);
     if (th.w > 0.0) {
         vec3 wide = vec3(0.0);
