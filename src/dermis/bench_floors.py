@@ -158,8 +158,10 @@ def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
         return floors["screen_raster"]
     if pass_name == "tsd_translucency":
         return floors["uv_raster_half"]
-    if pass_name == "tsd_interreflection":  # two UV-space rasters of the mesh (the exitant light, the splat)
-        return 2 * floors["uv_raster"]
+    # one UV-space raster of the mesh (the splat; rho E comes from the irradiance pass since round 10)
+    # and one copy (the 2x2 reductions of rho E and the per-vertex gather's reads, ~2 texels per ray)
+    if pass_name == "tsd_interreflection":
+        return floors["uv_raster"] + floors["copy"]
     if pass_name == "interreflection":  # the shared bounce (gl/interreflection.py): one UV-space raster of rho E,
         return floors["uv_raster_half"]  # at half resolution where the gather reads level 2 (the head at 1024)
     if pass_name == "tsd_blur":
