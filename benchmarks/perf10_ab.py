@@ -7,8 +7,8 @@ Renderer, alternated frame by frame, lights changed every frame (every texture-s
 - the bounce: tsd/irradiance.frag without the bounce targets (SKIN_EXITANT_LOCATION) through
   TextureSpaceDiffusion.p_irradiance, which makes tsd draw rho E in a mesh raster of its own
   (tsd/bounce_exitant.frag) and read the albedo map in the splat, as main does;
-- the translucency: ``--against``'s tsd/translucency.frag (no discard: every texel evaluated every
-  frame) and tsd/translucency_tent.frag (nine texel fetches).
+- the translucency: ``--against``'s tsd/translucency.frag (every texel evaluated every frame, the
+  slab law and the surface distance included) and tsd/translucency_tent.frag (nine texel fetches).
 Prints per variant and pass the medians (min) of the wall ms (dermis.techniques.base.PassTimer:
 glFinish around the pass) and of the process's CPU ms in the same interval (all llvmpipe threads;
 under load from other processes it moves far less than wall time), the frame's CPU ms, the load
@@ -30,7 +30,7 @@ import dermis
 from dermis.bench import HEAD_TOML
 from dermis.gl.shaders import program
 from dermis.renderer import Renderer
-from dermis.techniques.shared import LIGHT_COUNT_DEFINE, MAX_GAUSSIANS
+from dermis.techniques.shared import LIGHT_COUNT_DEFINE, MAX_GAUSSIANS, Unit, bind_sampler
 from dermis.techniques.tsd import irradiance_defines
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -77,6 +77,14 @@ def main(argv=None):
         for p in (tent_main, trans_main):
             t.vaos[p] = r.ctx.vertex_array(p, [])
         tent_mine, trans_mine = t.p_trans_tent, t.p_trans
+        static = t._translucency_static
+
+        def static_and_stretch(frame, thickness, size):
+            # main's first pass reads the stretch itself (this tree's reads it once, in the static pass)
+            out = static(frame, thickness, size)
+            bind_sampler(t.p_trans, "uStretch", t.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
+            return out
+        t._translucency_static = static_and_stretch
         variants = {"main": (p_main, trans_main, tent_main), "this tree": (None, trans_mine, tent_mine)}
         timer = cpu_timed(r.timer)
         res = {k: {p: ([], []) for p in PASSES + ("frame",)} for k in variants}

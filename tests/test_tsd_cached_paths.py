@@ -11,6 +11,8 @@ Renderer on the shipped head (small sizes):
 - the translucency's first pass drawn only where the bake has a far face (uFarFaceOnly = 1) into a
   target kept from a whole pass: equal to the whole pass, and wrong when the kept target is not the
   bake's (the guard: the discard does skip texels, so the kept values matter);
+- the translucency's lighting-independent part (slab law, surface distance) drawn once per bake,
+  stretch, profile and slab law: redrawn when the profile changes (a live Renderer equals a fresh one);
 - the tent as four bilinear taps against a numpy (1 2 1)^2 over the covered 3 x 3 texels (edges
   clamped), random values and coverage.
 """
@@ -141,3 +143,27 @@ def test_tent_four_bilinear_taps_equal_numpy(gl_ctx):
     ref = np.where(data[..., 3:] > 0, acc[..., :3] / np.maximum(acc[..., 3:], 1.0), 0.0)
     np.testing.assert_allclose(got[..., :3], ref, atol=1e-5)
     assert np.all(got[..., 3] == 1.0)
+
+
+def test_translucency_static_part_follows_the_profile(gl_ctx, example_head_toml):
+    """The lighting-independent part (slab law, surface distance: _translucency_static) is kept per
+    bake, stretch, profile and slab law: after the profile changes, a live Renderer's translucency
+    equals a fresh Renderer's (and differs from the old profile's: the guard)."""
+    from pathlib import Path
+
+    from dermis.profiles.scene_skin import resolve_skin_profile
+
+    sc = dermis.load_scene(str(example_head_toml))
+    with Renderer(sc, SIZE, ctx=gl_ctx, **KW) as r:
+        t = r.technique("tsd")
+        r.render("tsd")
+        before = t.read_texture(t.tex["translucency"]).astype(np.float64)
+        sc.profile = resolve_skin_profile({"profile": "dark"}, Path(example_head_toml).parent, "test")
+        r.render("tsd")
+        live = t.read_texture(t.tex["translucency"]).astype(np.float64)
+    with Renderer(sc, SIZE, ctx=gl_ctx, **KW) as r:
+        r.render("tsd")
+        t = r.technique("tsd")
+        fresh = t.read_texture(t.tex["translucency"]).astype(np.float64)
+    assert np.array_equal(live, fresh)
+    assert np.abs(live - before)[..., :3].max() > 0.01

@@ -51,8 +51,8 @@ from dermis.gl.interreflection import BounceGather, bounce_level
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit, bind_sampler, bind_sampler_array,
-                                      directional_albedo_uniforms, set_profile_uniforms, surface_detail_uniforms,
-                                      translucency_uniforms)
+                                      TRANSLUCENCY_MIN_VARIANCE_MM2, directional_albedo_uniforms, set_profile_uniforms,
+                                      surface_detail_uniforms, thin_slab_law, translucency_uniforms)
 
 def unpremultiply(a: np.ndarray) -> np.ndarray:
     """(rgb / a, a) where a > 0, else 0: a premultiplied texture of the blur chain as colours."""
@@ -175,6 +175,8 @@ class TextureSpaceDiffusion(Technique):
         self._chain_passes = None  # ((chain key, dilated irradiance), the irradiance's prepared passes)
         self.thickness = ThicknessTexture(self.ctx)  # the texel thickness bake (light through thin parts)
         self._own_filled = None  # (bake key, target) of the last whole translucency_own pass (tsd/translucency.frag)
+        self._static_filled = None  # (key, target) of the last translucency_static pass (_translucency_static)
+        self._p_trans_static = None
         self.hits = renderer.interreflection_hits  # the interreflection rays' hits (one bounce; the Renderer's)
         self._p_bounce = None  # (exitant, gather, splat) programs, compiled on first use
         self.bounce_level = None
@@ -220,6 +222,7 @@ class TextureSpaceDiffusion(Technique):
         self._chain_passes = None
         self._narrow_key = None
         self._own_filled = None
+        self._static_filled = None
         self.thickness.release()
 
     def scene_changed(self):
@@ -609,12 +612,13 @@ class TextureSpaceDiffusion(Technique):
         if self.options.translucency:
             thickness = self.thickness.get(frame, trans.size[0])
             with timer("tsd_translucency"):
+                static = self._translucency_static(frame, thickness, trans.size)
                 prog = self.p_trans
                 translucency_uniforms(prog, True, self.options.translucency_strength, frame.scene)
                 self._profile_uniforms(prog, profile, Unit.FIRST_FREE, frame.keys)
-                # surface distance to the far face (uv distance / stretch); past the blurs' units
-                bind_sampler(prog, "uStretch", self.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
+                # past the blurs' units
                 bind_sampler(prog, "uThickness", thickness, Unit.FIRST_FREE + MAX_GAUSSIANS + 1)
+                bind_sampler(prog, "uStatic", static, Unit.FIRST_FREE + MAX_GAUSSIANS + 2)
                 own = self._texture("translucency_own", trans.size)
                 # where the bake has no far face the texel's value is fixed by the bake: drawn once
                 filled = self._own_filled is not None and self._own_filled[0] == self.thickness.key and self._own_filled[1] is own
@@ -626,6 +630,32 @@ class TextureSpaceDiffusion(Technique):
             frame.passes_run.append("tsd_translucency")
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)
+
+    def _translucency_static(self, frame, thickness, size):
+        """What of the light through thin parts does not depend on the lighting, per texel
+        (tsd/translucency.frag with TRANSLUCENCY_STATIC: the slab law over the wide weights, the
+        surface distance to the far face), redrawn when the bake, the stretch, the profile or the
+        slab law changes."""
+        albedo, law = thin_slab_law(frame.scene)
+        key = (self.thickness.key, self._stretch_key, frame.keys["profile_tables"], TRANSLUCENCY_MIN_VARIANCE_MM2,
+               tuple(float(x) for a in (albedo, law.reduced_albedo, law.kappa_per_mm, law.source_depth_mm,
+                                        law.extrapolation_mm) for x in np.ravel(a)))
+        tex = self._texture("translucency_static", size, 4, "f4")
+        if self._static_filled is not None and self._static_filled[0] == key and self._static_filled[1] is tex:
+            return tex
+        if self._p_trans_static is None:
+            self._p_trans_static = program(self.ctx, "common/fullscreen.vert", "tsd/translucency.frag",
+                                           {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TRANSLUCENCY_STATIC": 1})
+            self.vaos[self._p_trans_static] = self.ctx.vertex_array(self._p_trans_static, [])
+        prog = self._p_trans_static
+        translucency_uniforms(prog, True, 1.0, frame.scene)
+        self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE, frame.keys)
+        # surface distance to the far face (uv distance / stretch); past the blurs' units
+        bind_sampler(prog, "uStretch", self.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
+        bind_sampler(prog, "uThickness", thickness, Unit.FIRST_FREE + MAX_GAUSSIANS + 1)
+        self._fullscreen(prog, tex)
+        self._static_filled = (key, tex)
+        return tex
 
     def _shading_programs(self, frame):
         """(irradiance, final) programs for the frame's lights: storing and reading the sharp
@@ -758,5 +788,5 @@ class TextureSpaceDiffusion(Technique):
         for p in (self.p_stretch, self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
                   self.p_final,
                   self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else []),
-                  *(self._p_bounce or ()), *self._programs.values()):
+                  *(self._p_bounce or ()), *self._programs.values(), *([self._p_trans_static] if self._p_trans_static else [])):
             p.release()
