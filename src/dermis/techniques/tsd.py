@@ -142,8 +142,7 @@ class TextureSpaceDiffusion(Technique):
         # p_irradiance, when set (benchmarks and tests swap shaders in), is drawn instead of it.
         self.p_irradiance = None
         # tsd/irradiance.frag per light count, its lights unrolled (LightCountPrograms), storing the
-        # sharp shadows where stores_sharp_shadows(n)
-        # sharp shadows where stores_sharp_shadows(n), and the bounce's targets (irradiance_targets)
+        # sharp shadows where stores_sharp_shadows(n), and the bounce's targets (irradiance_defines)
         self._irradiance_programs = LightCountPrograms(
             ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines, per_count=irradiance_defines
         ).compile_for(renderer.scene)
@@ -178,7 +177,7 @@ class TextureSpaceDiffusion(Technique):
         self._static_filled = None  # (key, target) of the last translucency_static pass (_translucency_static)
         self._p_trans_static = None
         self.hits = renderer.interreflection_hits  # the interreflection rays' hits (one bounce; the Renderer's)
-        self._p_bounce = None  # (exitant, gather, splat) programs, compiled on first use
+        self._p_bounce = None  # (exitant, gather, splat, splat reading albedo^mix), compiled on first use
         self.bounce_level = None
 
     # ------------------------------------------------------------------ resources
@@ -695,9 +694,7 @@ class TextureSpaceDiffusion(Technique):
         bind_scene(frame, p_exit)
         bind_scene(frame, p_splat)
         with frame.timer("tsd_interreflection"):
-            if from_irradiance:
-                bind_sampler(p_splat, "uAlbedoMix", self.tex["albedo_mix"], Unit.FIRST_FREE + 1)
-            else:
+            if not from_irradiance:
                 bind_sampler(p_exit, "uIrradiance", irr, Unit.FIRST_FREE)
                 with maps_without_anisotropy(frame.gpu, surfaces=False):
                     self._uv_pass(frame, p_exit, self._texture(("bounce_exitant", 0), irr.size))
@@ -707,6 +704,8 @@ class TextureSpaceDiffusion(Technique):
                 self._draw(p)
             bounce = p_gather.run(self.hits, src)
             bind_sampler(p_splat, "uBounce", bounce, Unit.FIRST_FREE)
+            if from_irradiance:
+                bind_sampler(p_splat, "uAlbedoMix", self.tex["albedo_mix"], Unit.FIRST_FREE + 1)
             set_uniform(p_splat, "uVerticesPerRow", int(per_row))
             self.ctx.enable(moderngl.BLEND)
             self.ctx.blend_func = moderngl.ONE, moderngl.ONE
