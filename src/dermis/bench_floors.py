@@ -158,8 +158,11 @@ def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
         return floors["screen_raster"]
     if pass_name == "tsd_translucency":
         return floors["uv_raster_half"]
-    if pass_name == "tsd_interreflection":  # two UV-space rasters of the mesh (the exitant light, the splat)
-        return 2 * floors["uv_raster"]
+    # one UV-space raster of the mesh (the splat; rho E comes from the irradiance pass since round 10)
+    # and one copy for the 2x2 reductions of rho E and the per-vertex gather (a low bound: on the head
+    # the gather alone reads 2 texels per ray, 9279 x 128 x 2 = 2.4M, where a 1024^2 copy reads 1M)
+    if pass_name == "tsd_interreflection":
+        return floors["uv_raster"] + floors["copy"]
     if pass_name == "interreflection":  # the shared bounce (gl/interreflection.py): one UV-space raster of rho E,
         return floors["uv_raster_half"]  # at half resolution where the gather reads level 2 (the head at 1024)
     if pass_name == "tsd_blur":

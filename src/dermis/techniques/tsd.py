@@ -55,8 +55,8 @@ from dermis.gl.subsurface_transfer import SubsurfaceTransfer, source_index
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit, bind_sampler, bind_sampler_array,
-                                      directional_albedo_uniforms, set_profile_uniforms, surface_detail_uniforms,
-                                      translucency_uniforms)
+                                      TRANSLUCENCY_MIN_VARIANCE_MM2, directional_albedo_uniforms, set_profile_uniforms,
+                                      surface_detail_uniforms, thin_slab_law, translucency_uniforms)
 
 def unpremultiply(a: np.ndarray) -> np.ndarray:
     """(rgb / a, a) where a > 0, else 0: a premultiplied texture of the blur chain as colours."""
@@ -118,6 +118,18 @@ def stores_sharp_shadows(light_count: int) -> bool:
     return int(light_count) <= STORED_SHARP_SHADOWS
 
 
+def irradiance_defines(light_count: int) -> dict:
+    """tsd/irradiance.frag's defines for ``light_count`` lights: the stored sharp shadows at location
+    1 where stores_sharp_shadows, then rho E and albedo^mix for the one bounce (SKIN_EXITANT_LOCATION,
+    SKIN_ALBEDO_MIX_LOCATION: the irradiance pass writes them where it reads the albedo map anyway, so
+    the bounce needs no mesh raster of its own for rho E and no albedo map read in its splat; dropped
+    where the framebuffer has no such attachments, without interreflection)."""
+    sharp = stores_sharp_shadows(light_count)
+    first = 2 if sharp else 1
+    return {**({"SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS} if sharp else {}),
+            "SKIN_EXITANT_LOCATION": first, "SKIN_ALBEDO_MIX_LOCATION": first + 1}
+
+
 class TextureSpaceDiffusion(Technique):
     name = "tsd"
     description = "texture-space diffusion (d'Eon, Luebke & Enderton 2007): chained UV-space Gaussian blurs"
@@ -134,10 +146,9 @@ class TextureSpaceDiffusion(Technique):
         # p_irradiance, when set (benchmarks and tests swap shaders in), is drawn instead of it.
         self.p_irradiance = None
         # tsd/irradiance.frag per light count, its lights unrolled (LightCountPrograms), storing the
-        # sharp shadows where stores_sharp_shadows(n)
+        # sharp shadows where stores_sharp_shadows(n), and the bounce's targets (irradiance_defines)
         self._irradiance_programs = LightCountPrograms(
-            ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines,
-            per_count=lambda n: {"SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS} if stores_sharp_shadows(n) else {}
+            ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines, per_count=irradiance_defines
         ).compile_for(renderer.scene)
         self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
         self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
@@ -169,8 +180,11 @@ class TextureSpaceDiffusion(Technique):
         # the same-side transport an ear's thin, curled sheet adds to the flat profile, where the mesh
         # has a baked transfer (dermis.subsurface_transfer)
         self.transfer = SubsurfaceTransfer(self.ctx)
+        self._own_filled = None  # (bake key, target) of the last whole translucency_own pass (tsd/translucency.frag)
+        self._static_filled = None  # (key, target) of the last translucency_static pass (_translucency_static)
+        self._p_trans_static = None
         self.hits = renderer.interreflection_hits  # the interreflection rays' hits (one bounce; the Renderer's)
-        self._p_bounce = None  # (exitant, gather, splat) programs, compiled on first use
+        self._p_bounce = None  # (exitant, gather, splat, splat reading albedo^mix), compiled on first use
         self.bounce_level = None
 
     # ------------------------------------------------------------------ resources
@@ -213,6 +227,8 @@ class TextureSpaceDiffusion(Technique):
         self._stretch_chain_key = None
         self._chain_passes = None
         self._narrow_key = None
+        self._own_filled = None
+        self._static_filled = None
         self.thickness.release()
         self.transfer.release()
 
@@ -568,6 +584,12 @@ class TextureSpaceDiffusion(Technique):
         # the lights' sharp shadows, for the final pass's specular (tsd/sharp_shadow.glsl)
         prog, _ = self._shading_programs(frame)
         targets = (irr, self._texture("sharp_shadow", (S, S), 4, "f1")) if stores_sharp_shadows(frame.lights.count) else (irr,)
+        # the one bounce (an override is the whole irradiance: nothing is added to it); rho E and
+        # albedo^mix from this pass where its program is the technique's own (irradiance_defines)
+        bounce = irradiance is None and getattr(scene, "interreflection", True)
+        bounce_targets = bounce and self.p_irradiance is None
+        if bounce_targets:
+            targets += (self._texture(("bounce_exitant", 0), (S, S)), self._texture("albedo_mix", (S, S)))
         bind_scene(frame, prog)
         directional_albedo_uniforms(prog, scene)
         if irradiance is not None:
@@ -580,10 +602,9 @@ class TextureSpaceDiffusion(Technique):
                 self._uv_pass(frame, prog, targets)
             if irradiance is not None:  # the override replaces the irradiance; the shadows stay the raster's
                 irr.write(a.astype(np.float16).tobytes())
-        # one bounce between skin surfaces, added to I_0 before the dilation and the blurs (an
-        # override is the whole irradiance: nothing is added to it)
-        if irradiance is None and getattr(scene, "interreflection", True):
-            self._interreflection(frame, irr)
+        # one bounce between skin surfaces, added to I_0 before the dilation and the blurs
+        if bounce:
+            self._interreflection(frame, irr, bounce_targets)
         with timer("tsd_irradiance"):
             dil = self._texture("irradiance_dilated", (S, S))
             bind_sampler(self.p_dilate, "uSource", irr, 0)
@@ -598,14 +619,19 @@ class TextureSpaceDiffusion(Technique):
         if self.options.translucency:
             thickness = self.thickness.get(frame, trans.size[0])
             with timer("tsd_translucency"):
+                static = self._translucency_static(frame, thickness, trans.size)
                 prog = self.p_trans
                 translucency_uniforms(prog, True, self.options.translucency_strength, frame.scene)
                 self._profile_uniforms(prog, profile, Unit.FIRST_FREE, frame.keys)
-                # surface distance to the far face (uv distance / stretch); past the blurs' units
-                bind_sampler(prog, "uStretch", self.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
+                # past the blurs' units
                 bind_sampler(prog, "uThickness", thickness, Unit.FIRST_FREE + MAX_GAUSSIANS + 1)
+                bind_sampler(prog, "uStatic", static, Unit.FIRST_FREE + MAX_GAUSSIANS + 2)
                 own = self._texture("translucency_own", trans.size)
+                # where the bake has no far face the texel's value is fixed by the bake: drawn once
+                filled = self._own_filled is not None and self._own_filled[0] == self.thickness.key and self._own_filled[1] is own
+                set_uniform(prog, "uFarFaceOnly", int(filled))
                 self._fullscreen(prog, own)
+                self._own_filled = (self.thickness.key, own)
                 bind_sampler(self.p_trans_tent, "uSource", own, 0)
                 self._fullscreen(self.p_trans_tent, trans)
                 # + the baked transfer of thin, curled parts (dermis.gl.subsurface_transfer; nothing without a bake)
@@ -615,6 +641,32 @@ class TextureSpaceDiffusion(Technique):
             frame.passes_run.append("tsd_translucency")
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)
+
+    def _translucency_static(self, frame, thickness, size):
+        """What of the light through thin parts does not depend on the lighting, per texel
+        (tsd/translucency.frag with TRANSLUCENCY_STATIC: the slab law over the wide weights, the
+        surface distance to the far face), redrawn when the bake, the stretch, the profile or the
+        slab law changes."""
+        albedo, law = thin_slab_law(frame.scene)
+        key = (self.thickness.key, self._stretch_key, frame.keys["profile_tables"], TRANSLUCENCY_MIN_VARIANCE_MM2,
+               tuple(float(x) for a in (albedo, law.reduced_albedo, law.kappa_per_mm, law.source_depth_mm,
+                                        law.extrapolation_mm) for x in np.ravel(a)))
+        tex = self._texture("translucency_static", size, 4, "f4")
+        if self._static_filled is not None and self._static_filled[0] == key and self._static_filled[1] is tex:
+            return tex
+        if self._p_trans_static is None:
+            self._p_trans_static = program(self.ctx, "common/fullscreen.vert", "tsd/translucency.frag",
+                                           {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TRANSLUCENCY_STATIC": 1})
+            self.vaos[self._p_trans_static] = self.ctx.vertex_array(self._p_trans_static, [])
+        prog = self._p_trans_static
+        translucency_uniforms(prog, True, 1.0, frame.scene)
+        self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE, frame.keys)
+        # surface distance to the far face (uv distance / stretch); past the blurs' units
+        bind_sampler(prog, "uStretch", self.tex["stretch_0"], Unit.FIRST_FREE + MAX_GAUSSIANS)
+        bind_sampler(prog, "uThickness", thickness, Unit.FIRST_FREE + MAX_GAUSSIANS + 1)
+        self._fullscreen(prog, tex)
+        self._static_filled = (key, tex)
+        return tex
 
     def _shading_programs(self, frame):
         """(irradiance, final) programs for the frame's lights: storing and reading the sharp
@@ -632,34 +684,40 @@ class TextureSpaceDiffusion(Technique):
         stretch map's median)."""
         return bounce_level(self.median_stretch, S)
 
-    def _interreflection(self, frame, irr):
+    def _interreflection(self, frame, irr, from_irradiance=False):
         """Add one diffuse bounce to the irradiance ``irr`` (I_0): rho E in texture space
-        (tsd/bounce_exitant.frag), reduced to _bounce_level, gathered per vertex over the baked rays
-        (tsd/bounce_gather.frag) and splatted into I_0 with additive blending
+        (``from_irradiance``: as the irradiance pass wrote it, with albedo^mix, irradiance_defines;
+        else from I_0 by tsd/bounce_exitant.frag), reduced to _bounce_level, gathered per vertex over
+        the baked rays (tsd/bounce_gather.frag) and splatted into I_0 with additive blending
         (tsd/bounce_splat.frag). No pass reads the texture it writes."""
         self.hits.get(frame)  # the bake times itself: before this pass's timer
         if self._p_bounce is None:
             defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS}
+            splat = {**defines, "INTERREFLECTION": 1}
             self._p_bounce = (program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_exitant.frag", defines),
                               BounceGather(self.ctx),
-                              program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag",
-                                      {**defines, "INTERREFLECTION": 1}))
-        p_exit, p_gather, p_splat = self._p_bounce
+                              program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag", splat),
+                              program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag", {**splat, "ALBEDO_MIX_TARGET": 1}))
+        p_exit, p_gather, p_splat, p_splat_mix = self._p_bounce
+        p_splat = p_splat_mix if from_irradiance else p_splat
         per_row = self.hits.per_row
         level = self._bounce_level(irr.size[0])
         self.bounce_level = level
         bind_scene(frame, p_exit)
         bind_scene(frame, p_splat)
         with frame.timer("tsd_interreflection"):
-            bind_sampler(p_exit, "uIrradiance", irr, Unit.FIRST_FREE)
-            with maps_without_anisotropy(frame.gpu, surfaces=False):
-                self._uv_pass(frame, p_exit, self._texture(("bounce_exitant", 0), irr.size))
+            if not from_irradiance:
+                bind_sampler(p_exit, "uIrradiance", irr, Unit.FIRST_FREE)
+                with maps_without_anisotropy(frame.gpu, surfaces=False):
+                    self._uv_pass(frame, p_exit, self._texture(("bounce_exitant", 0), irr.size))
             src = self.tex[("bounce_exitant", 0)]
             for lvl in range(1, level + 1):
                 src, p = self._down(src, ("bounce_exitant", lvl), lvl)
                 self._draw(p)
             bounce = p_gather.run(self.hits, src)
             bind_sampler(p_splat, "uBounce", bounce, Unit.FIRST_FREE)
+            if from_irradiance:
+                bind_sampler(p_splat, "uAlbedoMix", self.tex["albedo_mix"], Unit.FIRST_FREE + 1)
             set_uniform(p_splat, "uVerticesPerRow", int(per_row))
             self.ctx.enable(moderngl.BLEND)
             self.ctx.blend_func = moderngl.ONE, moderngl.ONE
@@ -741,5 +799,5 @@ class TextureSpaceDiffusion(Technique):
         for p in (self.p_stretch, self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
                   self.p_final,
                   self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else []),
-                  *(self._p_bounce or ()), *self._programs.values()):
+                  *(self._p_bounce or ()), *self._programs.values(), *([self._p_trans_static] if self._p_trans_static else [])):
             p.release()

@@ -10,7 +10,18 @@ uniform float uMix;
 in vec2 v_uv;
 in vec3 v_bounce;
 out vec4 f_irradiance;
+#ifdef ALBEDO_MIX_TARGET
+// albedo^mix as tsd/irradiance.frag wrote it at this texel (SKIN_ALBEDO_MIX_LOCATION): the same
+// value as below without a second read of the albedo map (this pass rasterises the same layout into
+// a target of the same size, so the fragment is that texel)
+uniform sampler2D uAlbedoMix;
+#endif
 
 void main() {
-    f_irradiance = vec4(max(v_bounce, vec3(0.0)) * albedo_power(albedo_at(v_uv), uMix), 0.0);
+#ifdef ALBEDO_MIX_TARGET
+    vec3 albedo_mix = texelFetch(uAlbedoMix, ivec2(gl_FragCoord.xy), 0).rgb;
+#else
+    vec3 albedo_mix = albedo_power(albedo_at(v_uv), uMix);
+#endif
+    f_irradiance = vec4(max(v_bounce, vec3(0.0)) * albedo_mix, 0.0);
 }

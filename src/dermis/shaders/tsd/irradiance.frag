@@ -5,6 +5,12 @@
 // With SKIN_SHARP_SHADOWS = 3 (scenes of at most 3 lights: dermis.techniques.tsd), f_sharp: coverage
 // and the lights' sharp shadows (the specular's, common/skin_irradiance.glsl) for tsd/final.frag
 // (tsd/sharp_shadow.glsl).
+// With SKIN_EXITANT_LOCATION (tsd.py: its one bounce, dermis/geometry/interreflection.py) two more
+// targets for that bounce, written here where the albedo map is read anyway: f_exitant, the light
+// leaving the skin times pi, rho E = I_0 albedo^(1 - mix) (coverage 1; tsd/bounce_exitant.frag
+// computes the same from I_0 in a mesh raster of its own), and f_albedo_mix = albedo^mix, the factor
+// by which tsd/bounce_splat.frag adds the gathered bounce E_b to I_0 (instead of a second albedo map
+// read and pow there). Where the framebuffer has no such attachments the writes are dropped.
 #include "common/shadow.glsl"
 #include "common/surface.glsl"
 #include "common/albedo_mix.glsl"
@@ -25,6 +31,10 @@ layout(location = 0) out vec4 f_irradiance;
 #ifdef SKIN_SHARP_SHADOWS
 layout(location = 1) out vec4 f_sharp;
 #endif
+#ifdef SKIN_EXITANT_LOCATION
+layout(location = SKIN_EXITANT_LOCATION) out vec4 f_exitant;
+layout(location = SKIN_ALBEDO_MIX_LOCATION) out vec4 f_albedo_mix;
+#endif
 
 void main() {
     vec3 Ng = normalize(v_normal);
@@ -35,7 +45,12 @@ void main() {
     vec3 c = uDirectionalAlbedo * directional_c(albedo);
     // lights (each by the directional albedo's k(N.L)), soft shadows, ambient, energy
     vec3 E = skin_irradiance_directional(v_world, Ng, N, rho_s, m, v_visibility, c);
-    f_irradiance = vec4(E * albedo_power(albedo, uMix), 1.0);
+    vec3 albedo_mix = albedo_power(albedo, uMix);
+    f_irradiance = vec4(E * albedo_mix, 1.0);
+#ifdef SKIN_EXITANT_LOCATION
+    f_exitant = vec4(f_irradiance.rgb * albedo_power(albedo, 1.0 - uMix), 1.0);
+    f_albedo_mix = vec4(albedo_mix, 1.0);
+#endif
 #ifdef SKIN_SHARP_SHADOWS
     f_sharp = vec4(1.0, skin_sharp_shadow.xyz);
 #endif

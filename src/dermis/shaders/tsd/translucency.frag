@@ -32,15 +32,48 @@ uniform float uTranslucencyMinVariance;
 uniform float uTranslucencyStrength;
 uniform sampler2D uStretch;    // texels per mm along u, v (tsd/stretch.frag)
 uniform sampler2D uThickness;  // (u, v) of the far face, thickness in mm, weight (geometry/thickness.py)
-out vec4 f_translucency;
+// 1: only the texels with a far face (weight w > 0) are written; the others keep (0, coverage), which
+// depends on the bake alone and was written by an earlier pass with 0 from the same bake into the
+// same target (tsd.py redraws it whole when either changes). On the head at 512^2 13% of the texels
+// (15% of the 4 x 4 blocks) have a far face: on a GPU the other warps end here. On llvmpipe the pass
+// costs half of what it cost without this line whether or not the discard fires (measured, the
+// mechanism not found: benchmarks/RESULTS.md, round 10, perf10).
+uniform int uFarFaceOnly;
+// TRANSLUCENCY_STATIC's output for this bake, stretch and profile (tsd.py keeps it until one changes)
+uniform sampler2D uStatic;
 
-// The light through the tissue to this texel (texture-space uv) from the far face that the bake
-// holds in th (its (u, v), thickness, weight), over the bake's weight.
-vec3 through_far_face(vec4 th, vec2 uv, vec3 wide) {
+// What of the light through the tissue does not depend on the lighting, for the texel at uv whose
+// far face the bake holds in th (its (u, v), thickness, weight): the slab law over the wide weights'
+// sum, T(d) / (A sum_wide w) per channel, and g, the surface distance from A to B (mm)
+vec4 far_face_static(vec4 th, vec2 uv) {
+    vec3 wide = vec3(0.0);
+    for (int k = 0; k < MAX_GAUSSIANS; ++k) {
+        if (k >= uGaussianCount) break;
+        if (uVariances[k] >= uTranslucencyMinVariance) wide += uWeights[k];
+    }
     vec2 stretch = max(texture(uStretch, uv).xy, vec2(1e-6));
     vec2 texels = (th.xy - uv) * vec2(textureSize(uStretch, 0));
     float g = length(texels / stretch);  // mm along the surface from A to B
-    vec3 through = slab_transmittance(th.z) / max(wide, vec3(1e-6));  // per unit of the wide weights
+    return vec4(slab_transmittance(th.z) / max(wide, vec3(1e-6)), g);  // through: per unit of the wide weights
+}
+
+#ifdef TRANSLUCENCY_STATIC
+// once per bake, stretch and profile: far_face_static per texel (rgba32f: the same floats as if the
+// light's pass computed them itself)
+out vec4 f_static;
+void main() {
+    vec2 uv = gl_FragCoord.xy / vec2(textureSize(uThickness, 0));  // this texel's texture-space uv
+    vec4 th = texelFetch(uThickness, ivec2(gl_FragCoord.xy), 0);
+    f_static = th.w > 0.0 ? far_face_static(th, uv) : vec4(0.0);
+}
+#else
+out vec4 f_translucency;
+
+// The light through the tissue to this texel from the far face that the bake holds in th (its (u, v),
+// thickness, weight), over the bake's weight; st: far_face_static at this texel.
+vec3 through_far_face(vec4 th, vec4 st) {
+    vec3 through = st.rgb;
+    float g = st.a;
     vec3 T = vec3(0.0);
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         if (k >= uGaussianCount) break;
@@ -56,16 +89,10 @@ vec3 through_far_face(vec4 th, vec2 uv, vec3 wide) {
 // marks uncovered texels w = -1). tsd/translucency_tent.frag blends the 3 x 3 neighbourhood.
 void main() {
     ivec2 c = ivec2(gl_FragCoord.xy);
-    vec2 uv = gl_FragCoord.xy / vec2(textureSize(uThickness, 0));  // this texel's texture-space uv
     vec4 th = texelFetch(uThickness, c, 0);
+    if (uFarFaceOnly != 0 && th.w <= 0.0) discard;
     vec3 T = vec3(0.0);
-    if (th.w > 0.0) {
-        vec3 wide = vec3(0.0);
-        for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-            if (k >= uGaussianCount) break;
-            if (uVariances[k] >= uTranslucencyMinVariance) wide += uWeights[k];
-        }
-        T = th.w * through_far_face(th, uv, wide);
-    }
+    if (th.w > 0.0) T = th.w * through_far_face(th, texelFetch(uStatic, c, 0));
     f_translucency = vec4(T * uTranslucencyStrength, th.w >= 0.0 ? 1.0 : 0.0);
 }
+#endif
