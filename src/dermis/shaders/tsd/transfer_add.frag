@@ -17,12 +17,15 @@ void main() {
     float level = ceil(lod - 1e-4);
     vec2 texel = exp2(level) / grid;
     vec2 uv = gl_FragCoord.xy / uTargetSize;
+    // the (1 2 1)^2 / 16 tent as four bilinear reads half a texel off each centre: a bilinear read
+    // at +-0.5 texel averages two neighbours, so the four reads' mean is the nine texels' tent
+    // (exact where uv is a texel centre of this level, as it is when the grid is a power of two of
+    // the target; tsd/translucency_tent.frag does the same)
     vec3 sum = vec3(0.0);
-    for (int dy = -1; dy <= 1; ++dy) {
-        for (int dx = -1; dx <= 1; ++dx) {
-            float w = float((2 - abs(dx)) * (2 - abs(dy)));
-            sum += w * textureLod(uTransfer, uv + vec2(dx, dy) * texel, level).rgb;
+    for (int dy = -1; dy <= 1; dy += 2) {
+        for (int dx = -1; dx <= 1; dx += 2) {
+            sum += textureLod(uTransfer, uv + 0.5 * vec2(dx, dy) * texel, level).rgb;
         }
     }
-    f_add = vec4(sum / 16.0, 0.0);
+    f_add = vec4(0.25 * sum, 0.0);
 }
