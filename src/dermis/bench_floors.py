@@ -158,6 +158,10 @@ def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
         return floors["screen_raster"]
     if pass_name == "tsd_translucency":
         return floors["uv_raster_half"]
+    # the baked transfer: its points' gather (a few taps each) and one full-screen add over the
+    # translucency target (half the irradiance's size): at least one half-resolution raster
+    if pass_name == "tsd_subsurface_transfer":
+        return floors["uv_raster_half"]
     # one UV-space raster of the mesh (the splat; rho E comes from the irradiance pass since round 10)
     # and one copy for the 2x2 reductions of rho E and the per-vertex gather (a low bound: on the head
     # the gather alone reads 2 texels per ray, 9279 x 128 x 2 = 2.4M, where a 1024^2 copy reads 1M)

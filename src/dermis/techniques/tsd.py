@@ -634,11 +634,14 @@ class TextureSpaceDiffusion(Technique):
                 self._own_filled = (self.thickness.key, own)
                 bind_sampler(self.p_trans_tent, "uSource", own, 0)
                 self._fullscreen(self.p_trans_tent, trans)
-                # + the baked transfer of thin, curled parts (dermis.gl.subsurface_transfer; nothing without a bake)
-                if self.transfer.add(frame, self._fbo(trans), trans.size,
-                                     self.tex[("blur", source_index(profile.variances_mm2))]):
-                    frame.passes_run.append("tsd_subsurface_transfer")
             frame.passes_run.append("tsd_translucency")
+            # + the baked transfer of thin, curled parts (dermis.gl.subsurface_transfer; nothing without a
+            # bake), timed on its own: a pass of its own content, not the far face's
+            with timer("tsd_subsurface_transfer"):
+                added = self.transfer.add(frame, self._fbo(trans), trans.size,
+                                          self.tex[("blur", source_index(profile.variances_mm2))])
+            if added:
+                frame.passes_run.append("tsd_subsurface_transfer")
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)
 
