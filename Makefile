@@ -8,7 +8,7 @@ GL_PACKAGES := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri
 # the viewer's window tests run under a virtual X server
 TEST_PACKAGES := xvfb xauth libxrandr2 libxcursor1 libxi6 libxinerama1
 
-.PHONY: demo test sysdeps test-sysdeps install cycles bench bench-batch fuzz mc-tables clean
+.PHONY: demo test sysdeps test-sysdeps install cycles bench bench-batch fuzz mc-tables subsurface-transfer clean
 
 sysdeps:
 	@scripts/ensure-system-packages.sh $(GL_PACKAGES)
@@ -59,6 +59,14 @@ bench-batch: sysdeps install
 # file; about 1-3 minutes a preset on 2 cores): after changing a preset or the skin coefficients
 mc-tables: install
 	nice -n 10 $(PY) -m dermis.profiles.monte_carlo_tables $(PRESETS)
+
+# tsd's baked subsurface transfer of the example head's thin parts (generated data, not in git: about
+# 16 min on 2 cores, seeded, written to dermis's cache folder, found there by the mesh's content).
+# Without it tsd renders the head without the transfer (benchmarks/RESULTS.md, round 10: the back-lit
+# ear's red 0.77 instead of 0.88 of Cycles'). TRANSFER_SCENE to bake another scene's mesh and medium.
+TRANSFER_SCENE ?= examples/lee-perry-smith.toml
+subsurface-transfer: sysdeps install
+	nice -n 10 $(PY) -m dermis.subsurface_transfer $(TRANSFER_SCENE)
 
 # >= 10,000 generated bad (and good) inputs; counts go to benchmarks/RESULTS.md "Reliability"
 # (FUZZ_CASES, FUZZ_SEED to change the count or replay a seed)

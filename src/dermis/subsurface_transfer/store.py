@@ -1,9 +1,13 @@
-"""The baked subsurface transfer on disk: one .npz per mesh under dermis/data/subsurface_transfer/,
+"""The baked subsurface transfer on disk: one .npz per mesh in dermis's cache folder
+($DERMIS_CACHE_DIR, else $XDG_CACHE_HOME/dermis, else ~/.cache/dermis; under subsurface_transfer/),
 named by the mesh's content (positions, triangles, texture-space uvs), found automatically for a
-scene whose mesh, scale and skin medium are the ones baked. Any other scene renders without it.
+scene whose mesh, scale and skin medium are the ones baked. Any other scene, or a machine where the
+bake was not built, renders without it.
 
-Rebake (minutes, one core; run it niced):
-    PYTHONPATH=src nice -n 10 python -m dermis.subsurface_transfer examples/reference/back-ears.toml
+It is generated data, not shipped: build it (minutes, one core; niced) with
+    make subsurface-transfer          (the example head: examples/lee-perry-smith.toml)
+    python -m dermis.subsurface_transfer SCENE.toml
+The bake is seeded (seed 0): the same code and mesh give the same file.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ import numpy as np
 from dermis.errors import DermisError
 from dermis.subsurface_transfer.bake import TransferBake
 
-DATA = Path(__file__).resolve().parent.parent / "data" / "subsurface_transfer"
+CACHE_SUBFOLDER = "subsurface_transfer"
 FORMAT = 1
 MEDIUM_TOLERANCE = 0.02  # relative: the scene's mean free path and mean albedo against the bake's
 
@@ -29,8 +33,18 @@ def mesh_key(mesh) -> str:
     return content_hash(mesh.positions, mesh.indices, "subsurface_transfer", np.asarray(uv, np.float32).tobytes())
 
 
-def path_for(mesh, folder: Path | None = None) -> Path:
-    return (folder or DATA) / (mesh_key(mesh)[:24] + ".npz")
+def default_folder() -> Path | None:
+    """Where bakes are written and looked up by default: dermis's cache folder (None: the disk cache
+    is off, DERMIS_CACHE_DIR=off; then nothing is found and a bake needs an explicit folder)."""
+    from dermis.profiles.scene_skin import _cache_folder
+
+    base = _cache_folder()
+    return None if base is None else base / CACHE_SUBFOLDER
+
+
+def path_for(mesh, folder: Path | None = None) -> Path | None:
+    folder = folder or default_folder()
+    return None if folder is None else folder / (mesh_key(mesh)[:24] + ".npz")
 
 
 def save(bake: TransferBake, path: Path, mesh_key_: str, mm_per_unit: float) -> None:
@@ -82,10 +96,10 @@ def matches(bake: TransferBake, scene) -> bool:
 
 
 def find(scene, folder: Path | None = None) -> TransferBake | None:
-    """The shipped bake for ``scene`` (its mesh's file in ``folder``, default the package data) when it
+    """The bake for ``scene`` (its mesh's file in ``folder``, default :func:`default_folder`) when it
     matches the scene (:func:`matches`), else None: the scene renders without it."""
     p = path_for(scene.mesh, folder)
-    if not p.is_file():
+    if p is None or not p.is_file():
         return None
     bake = load(p)
     return bake if matches(bake, scene) else None
@@ -97,11 +111,13 @@ def bake_scene(scene, folder: Path | None = None, progress=print, **options) -> 
     from dermis.subsurface_transfer.bake import (DEFAULT_GRID, NEAR_MM, THIN_MM, bake_points, bake_transfer,
                                                  smooth_own_taps)
 
+    p = path_for(scene.mesh, folder)
+    if p is None:  # before minutes of walks, not after
+        raise DermisError("the disk cache is off (DERMIS_CACHE_DIR=off): give the bake a folder (--out DIR)")
     albedo = mean_skin_albedo(scene.material)
     points = bake_points(scene.mesh, scene.mm_per_unit, options.get("grid", DEFAULT_GRID), options.get("thin_mm", THIN_MM),
                          options.get("near_mm", NEAR_MM))
     bake = bake_transfer(scene.mesh, scene.mm_per_unit, scene.profile, albedo, points=points, progress=progress, **options)
     bake = smooth_own_taps(bake, points)
-    p = path_for(scene.mesh, folder)
     save(bake, p, mesh_key(scene.mesh), scene.mm_per_unit)
     return p
