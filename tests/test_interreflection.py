@@ -251,3 +251,37 @@ def test_flat_plane_adds_nothing_and_the_shared_bounce_reruns_only_with_the_ligh
             off = r.render(t)
             assert "interreflection" not in r.stats["passes_run"]
             np.testing.assert_array_equal(on[t], off)  # adding a zero bounce changes no bit
+
+
+def test_shared_bounce_keeps_its_light_free_inputs_while_only_the_lights_change(gl_ctx, many_rays):
+    # SharedBounce draws what of rho E depends on no light (maps, normals, albedo^mix, the occluded
+    # ambient) once per PRODUCTS key "interreflection_inputs" and adds the lights per lighting change:
+    # a light move reuses them, an environment or material change redraws them; either way E_b is a
+    # fresh Renderer's to the bit
+    sc = l_scene()
+
+    def fresh():
+        with Renderer(sc, (32, 32), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as f:
+            f.render("lambert")
+            return f.interreflection.per_vertex()
+
+    with Renderer(sc, (32, 32), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
+        r.render("lambert")
+        assert {"interreflection", "interreflection_inputs"} <= set(r.stats["passes_run"])
+        eb0 = r.interreflection.per_vertex()
+        sc.lights[0].direction = (-0.8, 0.1, -1.0)  # now the wall is lit too
+        r.render("lambert")
+        assert "interreflection" in r.stats["passes_run"]
+        assert "interreflection_inputs" not in r.stats["passes_run"]
+        eb1 = r.interreflection.per_vertex()
+        assert np.abs(eb1 - eb0).max() > 0.05 * np.abs(eb0).max()  # the light's move shows in E_b
+        np.testing.assert_array_equal(eb1, fresh())
+        for change in (lambda: setattr(sc.environment, "color", (0.3, 0.2, 0.1)),
+                       lambda: setattr(sc.material, "albedo_color", (0.5, 0.4, 0.3))):
+            before = r.interreflection.per_vertex()
+            change()
+            r.render("lambert")
+            assert "interreflection_inputs" in r.stats["passes_run"]
+            now = r.interreflection.per_vertex()
+            assert np.abs(now - before).max() > 0.05 * np.abs(before).max()
+            np.testing.assert_array_equal(now, fresh())

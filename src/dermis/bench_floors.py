@@ -167,8 +167,12 @@ def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
     # the gather alone reads 2 texels per ray, 9279 x 128 x 2 = 2.4M, where a 1024^2 copy reads 1M)
     if pass_name == "tsd_interreflection":
         return floors["uv_raster"] + floors["copy"]
-    if pass_name == "interreflection":  # the shared bounce (gl/interreflection.py): one UV-space raster of rho E,
-        return floors["uv_raster_half"]  # at half resolution where the gather reads level 2 (the head at 1024)
+    # the shared bounce (gl/interreflection.py), per lighting change: rho E at half resolution where the
+    # gather reads level 2 (the head at 1024), since round 11 one full-screen pass over its texture-space
+    # inputs (cheaper than a UV raster) plus the reductions and gather; the floor is left one UV-space
+    # raster at that size, as rounds 8-10 measured it against
+    if pass_name in ("interreflection", "interreflection_inputs"):  # the inputs: one UV raster, once per content
+        return floors["uv_raster_half"]
     if pass_name == "tsd_blur":
         return 2 * gaussians * floors["copy"]
     if pass_name == "ssss_blur":

@@ -59,6 +59,11 @@ PRODUCTS = {
     # SharedBounce: rho E rasterised in texture space, gathered over the bake's rays): what rho E depends on
     "interreflection": ("mesh", "surfaces", "scale", "lights", "environment", "environment_occlusion", "material_maps",
                         "material_scalars", "profile", "irradiance_size", "epoch", "interreflection", "directional_albedo"),
+    # what of the shared bounce's rho E depends on no light (SharedBounce's texture-space inputs: position,
+    # normals, material, the directional albedo's c, the occluded ambient): "interreflection" less "lights"
+    "interreflection_inputs": ("mesh", "surfaces", "scale", "environment", "environment_occlusion", "material_maps",
+                               "material_scalars", "profile", "irradiance_size", "epoch", "interreflection",
+                               "directional_albedo"),
 }
 """Every cached product and what it depends on. "epoch" is bumped by Renderer.invalidate()."""
 

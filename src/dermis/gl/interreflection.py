@@ -147,6 +147,10 @@ one of all its level-0 texels. Chosen by measurement against tsd's bounce on the
 (benchmarks/RESULTS.md, "Round 8, branch bounce8")."""
 
 
+BOUNCE_INPUTS = 5
+"""rgba32f targets of the shared bounce's light-independent inputs (tsd/irradiance.frag, SKIN_BOUNCE_INPUTS)."""
+
+
 class SharedBounce:
     """The one-bounce irradiance E_b per mesh vertex for the techniques without a texture-space
     irradiance of their own (ssss, preintegrated, lambert), one per Renderer, built once per product
@@ -159,7 +163,12 @@ class SharedBounce:
     E albedo^1 = rho E, the light leaving the skin times pi (tsd's bounce_exitant.frag reads the same
     from I_0 albedo^(1 - mix)); rasterised small (SOURCE_FINER_LEVELS above the gather's ~2 mm level,
     :func:`bounce_level`), reduced (tsd/downsample.frag) and gathered over the baked rays
-    (:class:`BounceGather`)."""
+    (:class:`BounceGather`). It is drawn in two passes (tsd/irradiance.frag, SKIN_BOUNCE_INPUTS and
+    SKIN_BOUNCE_FROM_INPUTS): the mesh raster of what depends on no light (the maps, normals, the
+    directional albedo's c, albedo^mix, the occluded ambient; 5 rgba32f targets) once per product key
+    "interreflection_inputs", and per lighting change a full-screen pass over those texels adding
+    the lights: the same floats as one raster, ~40% cheaper per lighting change on llvmpipe
+    (benchmarks/RESULTS.md, "Round 11, branch perf11")."""
 
     def __init__(self, ctx, hits: InterreflectionHits):
         # everything is made here, when the first technique that reads the bounce is built (as the
@@ -172,7 +181,13 @@ class SharedBounce:
         self.hits = hits  # the Renderer's (Renderer.interreflection_hits), released by it
         self._gather = BounceGather(ctx)
         # per light count, its lights unrolled as tsd's own irradiance pass (shared.LightCountPrograms)
-        self.programs = LightCountPrograms(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag")
+        self.programs = LightCountPrograms(ctx, "common/fullscreen.vert", "tsd/irradiance.frag",
+                                           {"SKIN_BOUNCE_FROM_INPUTS": 1})
+        self._inputs_prog = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", {"SKIN_BOUNCE_INPUTS": 1})
+        self._inputs = [self._input_texture(1) for _ in range(BOUNCE_INPUTS)]
+        self._inputs_fbo = ctx.framebuffer(color_attachments=self._inputs)
+        self._inputs_key = None
+        self._vaos = {}  # light-pass program -> its attribute-less vertex array
         self._down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag")
         self._down_vao = ctx.vertex_array(self._down, [])
         # [(texture, framebuffer)]: rho E from the raster's level to the gather's; a level-0 gather
@@ -187,6 +202,44 @@ class SharedBounce:
         t.repeat_x = t.repeat_y = False
         return t, self.ctx.framebuffer(color_attachments=[t])
 
+    def _input_texture(self, n: int):
+        t = self.ctx.texture((n, n), 4, dtype="f4")
+        t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        return t
+
+    def _draw_inputs(self, frame, size):
+        """The light-independent inputs of rho E at ``size`` (the raster's level), when their key or
+        size changed; appends "interreflection_inputs" to frame.passes_run when drawn."""
+        key = (frame.keys["interreflection_inputs"], size)
+        if key == self._inputs_key:
+            return
+        with frame.timer("interreflection_inputs"):
+            self._raster_inputs(frame, size)
+        self._inputs_key = key
+        frame.passes_run.append("interreflection_inputs")
+
+    def _raster_inputs(self, frame, size):
+        from dermis.gl.resources import maps_without_anisotropy, set_uniform
+        from dermis.techniques.base import bind_scene
+        from dermis.techniques.shared import directional_albedo_uniforms
+
+        if self._inputs[0].size != size:
+            self._inputs_fbo.release()
+            for t in self._inputs:
+                t.release()
+            self._inputs = [self._input_texture(size[0]) for _ in range(BOUNCE_INPUTS)]
+            self._inputs_fbo = self.ctx.framebuffer(color_attachments=self._inputs)
+        prog = self._inputs_prog
+        bind_scene(frame, prog)
+        directional_albedo_uniforms(prog, frame.scene)
+        set_uniform(prog, "uMix", 1.0)  # after bind_scene's material uniforms: E albedo = rho E
+        self._inputs_fbo.use()
+        self._inputs_fbo.viewport = (0, 0, *size)
+        self._inputs_fbo.clear(0.0, 0.0, 0.0, 0.0)  # Ng = 0 off the layout: coverage 0
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+        with maps_without_anisotropy(frame.gpu, surfaces=False):
+            frame.gpu.vao(prog).render(moderngl.TRIANGLES)
+
     @property
     def texture(self):
         return self._gather.target
@@ -198,9 +251,9 @@ class SharedBounce:
         key = (frame.keys["interreflection"], self.hits.key)
         if key == self.key:
             return self._gather.target
-        from dermis.gl.resources import maps_without_anisotropy, set_uniform, use_texture
+        from dermis.gl.resources import set_uniform, use_texture
         from dermis.techniques.base import bind_scene
-        from dermis.techniques.shared import directional_albedo_uniforms
+        from dermis.techniques.shared import Unit, bind_sampler_array
 
         S = int(frame.renderer.irradiance_size)
         level = bounce_level(layout_texels_per_mm(frame.scene, S), S)
@@ -212,18 +265,18 @@ class SharedBounce:
                     o.release()
                 self._levels[i] = self._level_texture(n)
         levels = self._levels[:len(sizes)]
+        tex, fbo = levels[0]
+        self._draw_inputs(frame, tex.size)
         with frame.timer("interreflection"):
             prog = self.programs(frame.lights.count)
             bind_scene(frame, prog)
-            directional_albedo_uniforms(prog, frame.scene)
-            set_uniform(prog, "uMix", 1.0)  # after bind_scene's material uniforms: E albedo = rho E
-            tex, fbo = levels[0]
+            bind_sampler_array(prog, "uBounceInputs", self._inputs, Unit.FIRST_FREE)
             fbo.use()
-            fbo.viewport = (0, 0, *tex.size)
-            fbo.clear(0.0, 0.0, 0.0, 0.0)  # coverage 0 off the layout
+            fbo.viewport = (0, 0, *tex.size)  # every texel written: 0 off the layout, as a clear
             self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-            with maps_without_anisotropy(frame.gpu, surfaces=False):
-                frame.gpu.vao(prog).render(moderngl.TRIANGLES)
+            if prog not in self._vaos:
+                self._vaos[prog] = self.ctx.vertex_array(prog, [])
+            self._vaos[prog].render(moderngl.TRIANGLES, vertices=3)
             set_uniform(self._down, "uSource", 0)
             for (src, _), (dst, dfbo) in zip(levels, levels[1:]):
                 use_texture(src, 0)
@@ -244,6 +297,15 @@ class SharedBounce:
             f.release()
             t.release()
         self._levels = []
+        self._inputs_fbo.release()
+        for t in self._inputs:
+            t.release()
+        self._inputs = []
+        self._inputs_key = None
+        self._inputs_prog.release()
+        for v in self._vaos.values():
+            v.release()
+        self._vaos = {}
         self._gather.release()
         self.programs.release()
         self._down_vao.release()

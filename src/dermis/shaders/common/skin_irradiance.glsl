@@ -50,13 +50,25 @@ vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3
 // indices into the uniform arrays (DERMIS_FOR_EACH_LIGHT, common/lights.glsl): on llvmpipe tsd's
 // irradiance pass measured 15-30% cheaper (head, side, 5 lights) than the loop over uLightCount
 // (benchmarks/RESULTS.md, "Round 9, branch irr9"). The same arithmetic either way.
-vec3 skin_irradiance_directional(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis, vec3 c) {
+// In two parts: the lights' sum and the ambient, which depends on no light (the shared bounce,
+// tsd/irradiance.frag with SKIN_BOUNCE_INPUTS, keeps the ambient between lighting changes and adds
+// the lights' sum to it: the same two sums in the same order).
+vec3 skin_lights_directional(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3 c) {
     vec3 E = vec3(0.0);
 #ifdef SKIN_SHARP_SHADOWS
     skin_sharp_shadow = vec4(0.0);
 #endif
     DERMIS_FOR_EACH_LIGHT(E += skin_light_entry(light_i, P, Ng, N, rho_s, m, c);)
-    E += environment_irradiance_occluded(N, Ng, vis) * energy_transmitted(rho_s, 0.5, m);
+    return E;
+}
+
+vec3 skin_ambient(vec3 N, vec3 Ng, float rho_s, float m, vec4 vis) {
+    return environment_irradiance_occluded(N, Ng, vis) * energy_transmitted(rho_s, 0.5, m);
+}
+
+vec3 skin_irradiance_directional(vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec4 vis, vec3 c) {
+    vec3 E = skin_lights_directional(P, Ng, N, rho_s, m, c);
+    E += skin_ambient(N, Ng, rho_s, m, vis);
     return E;
 }
 

@@ -12,14 +12,17 @@
 // by which tsd/bounce_splat.frag adds the gathered bounce E_b to I_0 (instead of a second albedo map
 // read and pow there). Where the framebuffer has no such attachments the writes are dropped.
 #include "common/shadow.glsl"
+#ifndef SKIN_BOUNCE_FROM_INPUTS  // that pass reads no map (and its vertex stage has no v_uv1)
 #include "common/surface.glsl"
 #include "common/albedo_mix.glsl"
+#include "common/directional_albedo.glsl"
+#endif
 #include "common/environment.glsl"
 #include "common/brdf.glsl"
 #include "common/energy.glsl"
 #include "common/skin_irradiance.glsl"
-#include "common/directional_albedo.glsl"
 
+#ifndef SKIN_BOUNCE_FROM_INPUTS
 uniform float uMix;
 uniform float uDirectionalAlbedo;  // 1: the skin's directional albedo at entry (scene.directional_albedo), 0: Lambertian
 in vec3 v_world;
@@ -27,7 +30,26 @@ in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
 in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
+#else
+// The shared bounce's rho E (dermis.gl.interreflection.SharedBounce) in two passes: SKIN_BOUNCE_INPUTS
+// (tsd/uv_space.vert, the mesh in its layout) writes what depends on no light, once per content:
+// P and rho_s, N and m, Ng (0 off the mesh: coverage), the directional albedo's c, albedo^mix and
+// the ambient E_a (skin_ambient), as 32-bit floats, the values this pass would compute; then per
+// lighting change SKIN_BOUNCE_FROM_INPUTS (common/fullscreen.vert over the same texels) reads them
+// back and adds the lights: (E_lights + E_a) albedo^mix, the same sums in the same order. On llvmpipe
+// the mesh raster of ~18k triangles of ~14 texels each shades many half-covered blocks and fetches 4
+// filtered maps per texel; the full-screen pass shades each texel once with 5 texel fetches.
+uniform sampler2D uBounceInputs[5];
+#endif
+#if defined(SKIN_BOUNCE_INPUTS)
+layout(location = 0) out vec4 f_P_rho_s;
+layout(location = 1) out vec4 f_N_m;
+layout(location = 2) out vec4 f_Ng_ambient_b;
+layout(location = 3) out vec4 f_c_ambient_r;
+layout(location = 4) out vec4 f_albedo_mix_ambient_g;
+#else
 layout(location = 0) out vec4 f_irradiance;
+#endif
 #ifdef SKIN_SHARP_SHADOWS
 layout(location = 1) out vec4 f_sharp;
 #endif
@@ -36,6 +58,36 @@ layout(location = SKIN_EXITANT_LOCATION) out vec4 f_exitant;
 layout(location = SKIN_ALBEDO_MIX_LOCATION) out vec4 f_albedo_mix;
 #endif
 
+#if defined(SKIN_BOUNCE_INPUTS)
+void main() {
+    vec3 Ng = normalize(v_normal);
+    vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
+    float rho_s = specular_intensity(v_uv);
+    float m = roughness_at(v_uv);
+    vec3 albedo = albedo_at(v_uv);
+    vec3 c = uDirectionalAlbedo * directional_c(albedo);
+    vec3 Ea = skin_ambient(N, Ng, rho_s, m, v_visibility);
+    f_P_rho_s = vec4(v_world, rho_s);
+    f_N_m = vec4(N, m);
+    f_Ng_ambient_b = vec4(Ng, Ea.b);
+    f_c_ambient_r = vec4(c, Ea.r);
+    f_albedo_mix_ambient_g = vec4(albedo_power(albedo, uMix), Ea.g);
+}
+#elif defined(SKIN_BOUNCE_FROM_INPUTS)
+void main() {
+    ivec2 t = ivec2(gl_FragCoord.xy);
+    vec4 ng = texelFetch(uBounceInputs[2], t, 0);
+    if (ng.xyz == vec3(0.0)) {  // off the mesh: as the raster's clear
+        f_irradiance = vec4(0.0);
+        return;
+    }
+    vec4 p = texelFetch(uBounceInputs[0], t, 0), n = texelFetch(uBounceInputs[1], t, 0);
+    vec4 c = texelFetch(uBounceInputs[3], t, 0), am = texelFetch(uBounceInputs[4], t, 0);
+    vec3 E = skin_lights_directional(p.xyz, ng.xyz, n.xyz, p.w, n.w, c.rgb);
+    E += vec3(c.a, am.a, ng.a);
+    f_irradiance = vec4(E * am.rgb, 1.0);
+}
+#else
 void main() {
     vec3 Ng = normalize(v_normal);
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
@@ -55,3 +107,4 @@ void main() {
     f_sharp = vec4(1.0, skin_sharp_shadow.xyz);
 #endif
 }
+#endif
