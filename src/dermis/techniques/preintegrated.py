@@ -93,6 +93,7 @@ PENUMBRA_SHARPEN_MIN = 0.5  # the sharpened edge keeps at least this fraction of
 RING_PROFILE = "line"  # the ring's kernel: "line" (profile integrated across the ring) or "radial" (Penner)
 
 UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE, UNIT_THICKNESS = Unit.FIRST_FREE, Unit.FIRST_FREE + 1, Unit.FIRST_FREE + 2
+FOLD_DEFINE = "PREINTEGRATED_FOLDS"  # skin.frag: the fold gather compiled in (fold_scattering)
 UNIT_SHADOW_DEPTH = Unit.FIRST_FREE + 3  # the shadow atlas again, its depths read without comparison (fold_scattering)
 UNIT_NORMAL_LOD = Unit.FIRST_FREE + 4  # the normal map again, through an isotropic sampler (the blurred normals' textureLod)
 
@@ -324,6 +325,12 @@ class PreintegratedSkin(Technique):
         self.programs = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag", defines).compile_for(scene)
         self._programs_bounce = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
                                                    {**defines, INTERREFLECTION_DEFINE: 1}).compile_for(scene)
+        # with fold_scattering, the same with the fold gather compiled in (PREINTEGRATED_FOLDS: without
+        # it, its code behind the uniform that turns it off still cost ~9% of the pass on llvmpipe),
+        # made when first drawn
+        self._programs_fold = {bounce: LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
+                                                          {**p.defines, FOLD_DEFINE: 1})
+                               for bounce, p in ((False, self.programs), (True, self._programs_bounce))}
         self.prog = None  # when set (benchmarks and tests swap shaders in), drawn instead of the above
         self.profile_tables = {}  # "diffuse", "penumbra": textures of the active profile
         self._profile_key = None
@@ -398,7 +405,9 @@ class PreintegratedSkin(Technique):
 
     def light_programs(self, scene, bounce: bool) -> LightCountPrograms:
         """The per-count programs (LightCountPrograms) the light loop is drawn from for ``scene``,
-        with or without the shared bounce."""
+        with or without the shared bounce, with the fold gather where ``fold_scattering`` is on."""
+        if self.options.fold_scattering:
+            return self._programs_fold[bool(bounce)]
         return self._programs_bounce if bounce else self.programs
 
     def override_light_program(self, prog) -> None:
@@ -487,4 +496,6 @@ class PreintegratedSkin(Technique):
             t.release()
         self.programs.release()
         self._programs_bounce.release()
+        for p in self._programs_fold.values():
+            p.release()
 
