@@ -77,8 +77,7 @@ import numpy as np
 
 from dermis.gl.resources import set_uniform
 from dermis.gl.thickness import ThicknessTexture
-from dermis.techniques.base import (Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_choice, draw_mesh,
-                                    draw_surfaces)
+from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit,
                                       bind_interreflection, bind_sampler, casts_translucency, directional_albedo_uniforms, prepare_interreflection,
                                       set_profile_uniforms, surface_detail_uniforms, translucency_uniforms)
@@ -94,8 +93,6 @@ PENUMBRA_SHARPEN_MIN = 0.5  # the sharpened edge keeps at least this fraction of
 RING_PROFILE = "line"  # the ring's kernel: "line" (profile integrated across the ring) or "radial" (Penner)
 
 UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE, UNIT_THICKNESS = Unit.FIRST_FREE, Unit.FIRST_FREE + 1, Unit.FIRST_FREE + 2
-UNIT_TRANSMITTED = Unit.FIRST_FREE + 5  # the texture-space light through thin parts (preintegrated/translucency.frag)
-TRANSLUCENCY_CACHED_DEFINE = "PREINTEGRATED_TRANSLUCENCY_CACHED"  # skin.frag reads it instead of evaluating it per pixel
 FOLD_DEFINE = "PREINTEGRATED_FOLDS"  # skin.frag: the fold gather compiled in (fold_scattering)
 UNIT_SHADOW_DEPTH = Unit.FIRST_FREE + 3  # the shadow atlas again, its depths read without comparison (fold_scattering)
 UNIT_NORMAL_LOD = Unit.FIRST_FREE + 4  # the normal map again, through an isotropic sampler (the blurred normals' textureLod)
@@ -323,7 +320,7 @@ class PreintegratedSkin(Technique):
         super().__init__(renderer, **options)
         # one program per light count, its light loop unrolled (LightCountPrograms); with the shared
         # one bounce (the Renderer's, made with the first technique that reads it) another
-        defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None, TRANSLUCENCY_CACHED_DEFINE: 1}
+        defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None}
         scene = renderer.scene
         self.programs = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag", defines).compile_for(scene)
         self._programs_bounce = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
@@ -342,15 +339,6 @@ class PreintegratedSkin(Technique):
         self._vaos = {}  # id(program) -> (vertex array with the curvature, program): per mesh
         renderer.interreflection  # the shared one bounce: made with the first technique that reads it
         self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
-        # the light through thin parts per texel of the thickness map's layout (preintegrated/translucency.frag),
-        # kept while its inputs stay (_ensure_transmitted): a camera-only frame reads it per pixel
-        from dermis.gl.shaders import program
-
-        self._p_transmitted = program(self.ctx, "tsd/uv_space.vert", "preintegrated/translucency.frag",
-                                      {"MAX_GAUSSIANS": MAX_GAUSSIANS})
-        self.transmitted = None  # rgba32f (transmitted irradiance, coverage), made at the thickness map's size
-        self._transmitted_fbo = None
-        self._transmitted_key = None
         self._mesh_key = None
         # the shadow atlas's depths as plain values (skin.frag's fold gather): a sampler object, whose
         # state overrides the texture's comparison mode on its own unit only (OpenGL 4.5, 8.2)
@@ -413,45 +401,6 @@ class PreintegratedSkin(Technique):
     def scene_changed(self):
         self._release_mesh()
 
-    def _ensure_transmitted(self, frame: Frame, thickness, enabled: bool):
-        """The texture-space light through thin parts (preintegrated/translucency.frag) at the
-        thickness map's size, drawn when the lights, the shadow atlas, the bake, the slab law
-        (material and profile) or the option changed; appends "preintegrated_translucency" to
-        frame.passes_run when drawn."""
-        size = thickness.size
-        strength = float(self.options.translucency_strength)
-        key = (frame.keys["light_uniforms"], frame.keys["shadow_atlas"], frame.keys["material_uniforms"],
-               self.thickness.key, enabled, strength, size)
-        if key == self._transmitted_key and self.transmitted is not None:
-            return
-        with frame.timer("preintegrated_translucency"):
-            if self.transmitted is None or self.transmitted.size != size:
-                self._release_transmitted()
-                self.transmitted = self.ctx.texture(size, 4, dtype="f4")
-                self.transmitted.filter = (moderngl.LINEAR, moderngl.LINEAR)
-                self.transmitted.repeat_x = self.transmitted.repeat_y = False
-                self._transmitted_fbo = self.ctx.framebuffer(color_attachments=[self.transmitted])
-            prog = self._p_transmitted
-            bind_scene(frame, prog)
-            bind_sampler(prog, "uThicknessMap", thickness, UNIT_THICKNESS)
-            set_profile_uniforms(prog, frame.scene.profile, MAX_GAUSSIANS)
-            translucency_uniforms(prog, enabled, strength, frame.scene)
-            fbo = self._transmitted_fbo
-            fbo.use()
-            fbo.viewport = (0, 0, *size)
-            fbo.clear(0.0, 0.0, 0.0, 0.0)  # coverage 0 off the layout
-            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-            frame.gpu.vao(prog).render(moderngl.TRIANGLES)
-        self._transmitted_key = key
-        frame.passes_run.append("preintegrated_translucency")
-
-    def _release_transmitted(self):
-        for o in (self._transmitted_fbo, self.transmitted):
-            if o is not None:
-                o.release()
-        self._transmitted_fbo = self.transmitted = None
-        self._transmitted_key = None
-
     # ------------------------------------------------------------------ frame
 
     def light_programs(self, scene, bounce: bool) -> LightCountPrograms:
@@ -476,9 +425,6 @@ class PreintegratedSkin(Technique):
         bounce = prepare_interreflection(frame)
         prog = self.prog if self.prog is not None else self.light_programs(frame.scene, bounce)(frame.lights.count)
         vao = self._vao(frame, prog)
-        translucent = self.options.translucency and casts_translucency(frame.scene)
-        thickness = self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1))
-        self._ensure_transmitted(frame, thickness, translucent)
         with frame.timer("preintegrated"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
@@ -487,10 +433,11 @@ class PreintegratedSkin(Technique):
                 bind_interreflection(frame, prog)
             bind_sampler(prog, "uDiffuseTable", self.profile_tables["diffuse"], UNIT_DIFFUSE_TABLE)
             bind_sampler(prog, "uPenumbraTable", self.profile_tables["penumbra"], UNIT_PENUMBRA_TABLE)
-            bind_sampler(prog, "uThicknessMap", thickness, UNIT_THICKNESS)  # programs that evaluate it per pixel (tests)
-            bind_sampler(prog, "uTransmitted", self.transmitted, UNIT_TRANSMITTED)
+            bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
+                         UNIT_THICKNESS)
             set_profile_uniforms(prog, profile, MAX_GAUSSIANS)
-            translucency_uniforms(prog, translucent, self.options.translucency_strength, frame.scene)
+            translucency_uniforms(prog, self.options.translucency and casts_translucency(frame.scene), self.options.translucency_strength,
+                                  frame.scene)
             set_uniform(prog, "uCurvatureMaxPerMm", float(CURVATURE_MAX_PER_MM))
             set_uniform(prog, "uPenumbraWidthRangeMm", tuple(float(x) for x in PENUMBRA_WIDTH_RANGE_MM))
             set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.options.curvature_source == "mesh" else 0.0)
@@ -542,8 +489,6 @@ class PreintegratedSkin(Technique):
 
     def release(self):
         self._release_mesh()
-        self._release_transmitted()
-        self._p_transmitted.release()
         self.thickness.release()
         self.depth_sampler.release()
         self.normal_lod_sampler.release()

@@ -53,38 +53,23 @@ vec3 transmittance_profile(float d_mm) {
 // ear) still shadow it.
 const float FAR_FACE_LIFT_MM = 2.5;
 const float FAR_FACE_LIFT_ALONG_LIGHT_MM = 0.5;
-// The bake at uv_ts: false where no far face is within reach; else h (mm) and the slab law's T(h) / A
-// per channel, faded by the bake's partial coverage at its edge (over a texel).
-bool thin_part_at(vec2 uv_ts, out float h, out vec3 T_h) {
-    h = 0.0;
-    T_h = vec3(0.0);
-    vec2 th = textureLod(uThicknessMap, uv_ts, 0.0).xy;  // (h x valid, valid), bilinear, one level
-    if (th.y <= 0.0) return false;  // no far face within reach
-    h = th.x / th.y;  // mm
-    T_h = transmittance_profile(h) * th.y;
-    return true;
-}
-
-// Light i's irradiance entering the far face A (normal -Ng), times A's soft shadow; 0 where it does
-// not reach A.
-vec3 far_face_light(int i, vec3 A, vec3 Ng) {
-    if (uLightRadiance[i].w < 0.5) return vec3(0.0);  // no shadow map: the light is not known to reach A
-    vec3 L;
-    vec3 Ei = light_incident(i, A, L);
-    float cos_far = -dot(Ng, L);
-    if (cos_far <= 0.0) return vec3(0.0);
-    float s = max(shadow_soft(i, A - Ng * (FAR_FACE_LIFT_MM / uMmPerUnit), -Ng),
-                  shadow_soft(i, A + L * (FAR_FACE_LIFT_ALONG_LIGHT_MM / uMmPerUnit), -Ng));
-    return Ei * (cos_far * s);
-}
-
 vec3 transmitted_irradiance(vec3 P, vec3 Ng, vec2 uv_ts) {
     vec3 T = vec3(0.0);
     if (uTranslucencyStrength <= 0.0) return T;
-    float h;
-    vec3 T_h;
-    if (!thin_part_at(uv_ts, h, T_h)) return T;
+    vec2 th = textureLod(uThicknessMap, uv_ts, 0.0).xy;  // (h x valid, valid), bilinear, one level
+    if (th.y <= 0.0) return T;  // no far face within reach
+    float h = th.x / th.y;  // mm
+    vec3 T_h = transmittance_profile(h) * th.y;  // partial coverage at the bake's edge: fades over a texel
     vec3 A = P - Ng * (h / uMmPerUnit);
-    for (int i = 0; i < uLightCount; ++i) T += far_face_light(i, A, Ng) * T_h;
+    for (int i = 0; i < uLightCount; ++i) {
+        if (uLightRadiance[i].w < 0.5) continue;  // no shadow map: the light is not known to reach A
+        vec3 L;
+        vec3 Ei = light_incident(i, A, L);
+        float cos_far = -dot(Ng, L);
+        if (cos_far <= 0.0) continue;
+        float s = max(shadow_soft(i, A - Ng * (FAR_FACE_LIFT_MM / uMmPerUnit), -Ng),
+                      shadow_soft(i, A + L * (FAR_FACE_LIFT_ALONG_LIGHT_MM / uMmPerUnit), -Ng));
+        T += Ei * (cos_far * s) * T_h;
+    }
     return T * uTranslucencyStrength;
 }

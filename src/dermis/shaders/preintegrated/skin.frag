@@ -24,9 +24,6 @@
 
 uniform sampler2D uDiffuseTable;   // D(N.L, curvature): s = N.L in [-1, 1], t = sqrt(curvature / max)
 uniform sampler2D uPenumbraTable;  // P(shadow, width): s = shadow in [0, 1], t = log-spaced width
-#ifdef PREINTEGRATED_TRANSLUCENCY_CACHED
-uniform sampler2D uTransmitted;    // the far face's irradiance per texel, with a weight (preintegrated/translucency.frag)
-#endif
 uniform sampler2D uNormalMapLod;   // uNormalMap through a sampler without anisotropy (the blurred normals' explicit levels)
 uniform float uCurvatureMaxPerMm;
 uniform vec2 uPenumbraWidthRangeMm;
@@ -300,21 +297,7 @@ void main() {
     E += bounce_irradiance();  // one bounce: as smooth as the profile's reach, no table (common/interreflection.glsl)
 #endif
     // the exit's k(N.V) on the reflected light; the light through a thin part leaves Lambertian
-#ifdef PREINTEGRATED_TRANSLUCENCY_CACHED
-    // the light through thin parts: the far face's irradiance from its texture-space pass
-    // (preintegrated/translucency.frag; bilinear, normalised by its weight) times the slab law at
-    // this pixel's thickness, as transmitted_irradiance
-    vec3 transmitted = vec3(0.0);
-    float h_far;
-    vec3 T_h;
-    if (uTranslucencyStrength > 0.0 && thin_part_at(v_uv_ts, h_far, T_h)) {
-        vec4 x = textureLod(uTransmitted, v_uv_ts, 0.0);
-        if (x.a > 0.0) transmitted = x.rgb / x.a * T_h * uTranslucencyStrength;
-    }
-    E = E * directional_factor(c, ndv) + transmitted;
-#else
     E = E * directional_factor(c, ndv) + transmitted_irradiance(v_world, Ngeo, v_uv_ts);
-#endif
 
     vec3 diffuse = E * albedo * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uSpecularTables, v_visibility);
