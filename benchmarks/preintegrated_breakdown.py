@@ -42,6 +42,8 @@ def variants(fs0: str) -> dict:
         "no specular": [("vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uSpecularTables, v_visibility);",
                          "vec3 spec = vec3(0.0);")],
         "no lights (E = 0 before the ambient)": [("DERMIS_FOR_EACH_LIGHT(E += preintegrated_light(light_i, Ngeo, N, N_red, N_green, N_blue, curvature, rho_s, m, c);)", "")],
+        "blurred normals' loop at a constant trip count (the profile's k)": [
+            ("for (int k = 0; k < uGaussianCount; ++k) {\n        float box_texels", "for (int k = 0; k < PROFILE_K; ++k) {\n        float box_texels")],
         "const": [("f_color = vec4(color, 1.0);", "f_color = vec4(1.0);")],
     }
     out = {"full": fs0}
@@ -73,7 +75,7 @@ def main(argv=None):
         t, frame, ctx = r.technique("preintegrated"), r.last_frame, r.ctx
         d = {**t.programs.defines, LIGHT_COUNT_DEFINE: len(sc.lights), INTERREFLECTION_DEFINE: 1}
         vs = load_shader_source("common/mesh.vert", d)
-        v = variants(load_shader_source("preintegrated/skin.frag", d))
+        v = {k: f.replace("PROFILE_K", str(sc.profile.k)) for k, f in variants(load_shader_source("preintegrated/skin.frag", d)).items()}
         if a.only:
             keep = set(a.only.split(",")) | {"full", "const"}
             v = {k: f for k, f in v.items() if k in keep}

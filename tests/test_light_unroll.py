@@ -121,3 +121,38 @@ def test_pore_free_variant_is_unrolled_for_the_same_count(gl_ctx):
             assert v is not lcp(n)
             assert v.extra["sources"][2][LIGHT_COUNT_DEFINE] == n
             assert {**lcp(n).extra["sources"][2], "DERMIS_PORES_INVISIBLE": None} == v.extra["sources"][2]
+
+
+def test_preintegrated_programs_follow_the_profiles_gaussian_count(gl_ctx):
+    """preintegrated compiles its blurred normals' loop for the profile's Gaussian count
+    (PREINTEGRATED_GAUSSIANS, dermis.techniques.preintegrated): a live Renderer whose profile goes
+    from 3 of d'Eon's Gaussians to all 6 and back draws, each time, what the loop over uGaussianCount
+    compiled from the same sources draws (a program for fewer Gaussians than the profile's would
+    drop the rest)."""
+    import dermis
+    from dermis.bench import HEAD_TOML
+    from dermis.profiles.gaussians import SumOfGaussians, deon_skin
+    from dermis.techniques.preintegrated import GAUSSIANS_DEFINE
+
+    sc = dermis.load_scene(str(HEAD_TOML))  # its normal map: the blurred normals differ per Gaussian
+    six = deon_skin()
+    three = SumOfGaussians(six.variances_mm2[::2], six.weights[::2], "every other of d'Eon's")
+    sc.profile = three
+    with Renderer(sc, (48, 48), ctx=gl_ctx, samples=0, irradiance_size=128, shadow_size=512) as r:
+        t = r.technique("preintegrated")
+        live = {}
+        for name, profile in (("three", three), ("six", six), ("three again", three)):
+            sc.profile = profile
+            live[name] = r.render("preintegrated").astype(np.float64)
+            vertex, fragment, defines, _ = t.light_programs(sc, interreflection_on(sc))(len(sc.lights)).extra["sources"]
+            assert defines[GAUSSIANS_DEFINE] == profile.k
+            loop = program(gl_ctx, vertex, fragment, {k: v for k, v in defines.items() if k != GAUSSIANS_DEFINE})
+            t.override_light_program(loop)
+            try:
+                reference = r.render("preintegrated").astype(np.float64)
+            finally:
+                t.override_light_program(None)
+                loop.release()
+            assert _close(live[name], reference), (name, np.abs(live[name] - reference).max())
+    assert np.abs(live["three"] - live["six"]).max() > 0.002 * live["six"].max()  # the count matters (0.7% here)
+    np.testing.assert_array_equal(live["three again"], live["three"])

@@ -94,6 +94,7 @@ RING_PROFILE = "line"  # the ring's kernel: "line" (profile integrated across th
 
 UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE, UNIT_THICKNESS = Unit.FIRST_FREE, Unit.FIRST_FREE + 1, Unit.FIRST_FREE + 2
 FOLD_DEFINE = "PREINTEGRATED_FOLDS"  # skin.frag: the fold gather compiled in (fold_scattering)
+GAUSSIANS_DEFINE = "PREINTEGRATED_GAUSSIANS"  # skin.frag: the profile's Gaussian count, a compile-time constant
 UNIT_SHADOW_DEPTH = Unit.FIRST_FREE + 3  # the shadow atlas again, its depths read without comparison (fold_scattering)
 UNIT_NORMAL_LOD = Unit.FIRST_FREE + 4  # the normal map again, through an isotropic sampler (the blurred normals' textureLod)
 
@@ -319,18 +320,17 @@ class PreintegratedSkin(Technique):
     def __init__(self, renderer, **options):
         super().__init__(renderer, **options)
         # one program per light count, its light loop unrolled (LightCountPrograms); with the shared
-        # one bounce (the Renderer's, made with the first technique that reads it) another
-        defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None}
+        # one bounce (the Renderer's, made with the first technique that reads it) another; with
+        # fold_scattering the fold gather compiled in (PREINTEGRATED_FOLDS: without it, its code behind
+        # the uniform that turns it off still cost ~9% of the pass on llvmpipe); and per profile's
+        # Gaussian count (PREINTEGRATED_GAUSSIANS: the blurred normals' loop at a constant trip count,
+        # -7% on llvmpipe). The scene's sets are compiled now, others when first drawn.
+        self._defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "DERMIS_VERTEX_CURVATURE": None}
+        self._program_sets = {}  # (bounce, fold, Gaussian count) -> LightCountPrograms
         scene = renderer.scene
-        self.programs = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag", defines).compile_for(scene)
-        self._programs_bounce = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
-                                                   {**defines, INTERREFLECTION_DEFINE: 1}).compile_for(scene)
-        # with fold_scattering, the same with the fold gather compiled in (PREINTEGRATED_FOLDS: without
-        # it, its code behind the uniform that turns it off still cost ~9% of the pass on llvmpipe),
-        # made when first drawn
-        self._programs_fold = {bounce: LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag",
-                                                          {**p.defines, FOLD_DEFINE: 1})
-                               for bounce, p in ((False, self.programs), (True, self._programs_bounce))}
+        k = scene.profile.k if scene is not None else MAX_GAUSSIANS
+        self.programs = self._programs_for(False, self.options.fold_scattering, k).compile_for(scene)
+        self._programs_for(True, self.options.fold_scattering, k).compile_for(scene)
         self.prog = None  # when set (benchmarks and tests swap shaders in), drawn instead of the above
         self.profile_tables = {}  # "diffuse", "penumbra": textures of the active profile
         self._profile_key = None
@@ -403,12 +403,22 @@ class PreintegratedSkin(Technique):
 
     # ------------------------------------------------------------------ frame
 
+    def _programs_for(self, bounce: bool, fold: bool, gaussians: int) -> LightCountPrograms:
+        key = (bool(bounce), bool(fold), int(gaussians))
+        if key not in self._program_sets:
+            defines = dict(self._defines, **{GAUSSIANS_DEFINE: int(gaussians)})
+            if bounce:
+                defines[INTERREFLECTION_DEFINE] = 1
+            if fold:
+                defines[FOLD_DEFINE] = 1
+            self._program_sets[key] = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag", defines)
+        return self._program_sets[key]
+
     def light_programs(self, scene, bounce: bool) -> LightCountPrograms:
-        """The per-count programs (LightCountPrograms) the light loop is drawn from for ``scene``,
-        with or without the shared bounce, with the fold gather where ``fold_scattering`` is on."""
-        if self.options.fold_scattering:
-            return self._programs_fold[bool(bounce)]
-        return self._programs_bounce if bounce else self.programs
+        """The per-count programs (LightCountPrograms) the light loop is drawn from for ``scene``
+        (its profile's Gaussian count), with or without the shared bounce, with the fold gather where
+        ``fold_scattering`` is on."""
+        return self._programs_for(bounce, self.options.fold_scattering, scene.profile.k)
 
     def override_light_program(self, prog) -> None:
         """Draw ``prog`` instead of the per-count programs (None: back to them); benchmarks, tests."""
@@ -494,8 +504,7 @@ class PreintegratedSkin(Technique):
         self.normal_lod_sampler.release()
         for t in self.profile_tables.values():
             t.release()
-        self.programs.release()
-        self._programs_bounce.release()
-        for p in self._programs_fold.values():
+        for p in self._program_sets.values():
             p.release()
+        self._program_sets = {}
 
