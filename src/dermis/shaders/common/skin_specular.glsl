@@ -18,14 +18,21 @@
 #ifndef SPECULAR_SHADOW
 #define SPECULAR_SHADOW(i, P, Ng) shadow_sharp(i, P, Ng)
 #endif
+// Light i's share; 0 where it lies behind the geometric surface.
+vec3 skin_specular_light(int i, vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho_s, sampler2D beckmannTex) {
+    vec3 L;
+    vec3 Ei = light_incident(i, P, L);
+    if (dot(Ng, L) <= 0.0) return vec3(0.0);
+    return Ei * SPECULAR_SHADOW(i, P, Ng) * ks_skin_specular(Ns, L, V, m, rho_s, beckmannTex) * INV_PI;
+}
+
+// The lights through DERMIS_FOR_EACH_LIGHT (common/lights.glsl): written out at constant indices in
+// the programs compiled per light count (SKIN_LIGHT_COUNT; preintegrated's: its pass -8% on llvmpipe,
+// benchmarks/RESULTS.md, round 11, perf11), the loop over uLightCount elsewhere; the same sum in the
+// same order.
 vec3 skin_specular_radiance(vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho_s, sampler2D beckmannTex, vec4 vis) {
     vec3 spec = vec3(0.0);
-    for (int i = 0; i < uLightCount; ++i) {
-        vec3 L;
-        vec3 Ei = light_incident(i, P, L);
-        if (dot(Ng, L) <= 0.0) continue;
-        spec += Ei * SPECULAR_SHADOW(i, P, Ng) * ks_skin_specular(Ns, L, V, m, rho_s, beckmannTex) * INV_PI;
-    }
+    DERMIS_FOR_EACH_LIGHT(spec += skin_specular_light(light_i, P, Ng, Ns, V, m, rho_s, beckmannTex);)
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
     spec += skin_environment_specular(Ns, V, m) * rho_s * rho_dt_lookup(uSpecularTables, ndv, m) * INV_PI
             * specular_occlusion(ndv, vis.x, m);
