@@ -179,15 +179,52 @@ float ssss_measure(vec3 n) {
     return min(sqrt(na * na + n.z * n.z) / max(abs(n.z), 1e-6), SSSS_MAX_MEASURE);
 }
 
-// False where the straight path from the pixel's surface point (view space, mm, with its normal
-// np) to pixel q's (normal nq) crosses air (above).
-bool ssss_tissue_path(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size) {
-    if (uTissueTau > 1.0) return true;
+// The tissue path from the pixel's surface point pp (view space, mm, unit normal np) to pixel q's
+// (normal nq) (above): how much longer than the straight chord c it is, s^2 - c^2 in mm^2 (0: the
+// chord itself runs in the tissue), or -1 where q is on another surface (no path through the
+// tissue: a step, an overhang, facing sheets).
+//   h_q = (q - p).N_p, q's height above p's tangent plane; h_p = -(q - p).N_q, p's above q's.
+//   Both <= tau c: the chord leaves neither end into the air (convex or flat skin): s = c.
+//   Both >= -tau c, one above: a concave bend, q and p each above the other's tangent plane. The
+//     chord crosses the air over the bend; the light goes round it inside the tissue. For the
+//     sharpest surface those normals allow, the two tangent planes meeting at their common line
+//     (direction a = N_p x N_q / sin phi, phi the angle between the normals), the shortest path is
+//     straight on the unfolded wedge: p lies h_p / sin phi and q h_q / sin phi from the fold line,
+//     t = (q - p).a apart along it, so s^2 = (h_p + h_q)^2 / sin^2 phi + t^2 (a rounded bend is a
+//     little shorter: c (phi/2) / sin(phi/2) for a circular arc, 1.02 c at phi = 40 degrees
+//     against the wedge's 1 / cos(phi/2) = 1.06 c). As the bend closes to facing sheets (phi ->
+//     180 degrees) s grows without bound: a crease between lids passes nothing.
+//   Otherwise (one end below the other's plane by more than tau c, e.g. parallel normals 2 mm
+//     apart: a step) no single bend joins them: another surface.
+// A step over a concave 40 degree bend (the side view's inner eye corner, benchmarks/RESULTS.md
+// round 11 eye11) rejected every tap across it under the chord test alone.
+float ssss_tissue_extra_mm2(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size) {
+    if (uTissueTau > 1.0) return 0.0;
     vec3 d = ssss_view_position_mm(q, size, zq) - pp;
-    float len = length(d);
-    if (len <= 0.0) return true;
-    vec3 u = d / len;
-    return dot(u, np) <= uTissueTau && -dot(u, nq) <= uTissueTau;
+    float c2 = dot(d, d);
+    if (c2 <= 0.0) return 0.0;
+    vec3 n_p = normalize(np);
+    vec3 n_q = normalize(nq);
+    float h_q = dot(d, n_p);
+    float h_p = -dot(d, n_q);
+    float tol = uTissueTau * sqrt(c2);
+    if (h_q <= tol && h_p <= tol) return 0.0;
+    if (h_q < -tol || h_p < -tol) return -1.0;
+    vec3 axis = cross(n_p, n_q);
+    float sin_phi = length(axis);
+    if (sin_phi < 1e-3) return -1.0;  // facing sheets: s > 250 c, nothing passes
+    float t = dot(d, axis) / sin_phi;
+    float h = max(h_p, 0.0) + max(h_q, 0.0);
+    return max(h * h / (sin_phi * sin_phi) + t * t - c2, 0.0);
+}
+
+// True where a tissue path joins the pixel to q at most twice as long as the chord (the grain
+// filter's pairs are a pixel apart: a longer path is a crease, whose far side is another surface).
+bool ssss_tissue_path(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size) {
+    float extra = ssss_tissue_extra_mm2(pp, np, q, nq, zq, size);
+    if (extra <= 0.0) return extra == 0.0;
+    vec3 d = ssss_view_position_mm(q, size, zq) - pp;
+    return extra <= 3.0 * dot(d, d);
 }
 
 // Pixel q's normal, fetched only when the tissue-path test or the surface measure reads it (they
@@ -267,9 +304,11 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
             float tap_rejected;
             ssss_fetch(q, false, tz, nq, light, tap_rejected);
             float dz_px = ssss_tap_dz_px(K, cz, tz);
-            bool other = dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, tz, size);  // another surface
+            float extra = dz_px < 0.0 ? -1.0 : ssss_tissue_extra_mm2(pp, np, q, nq, tz, size);
+            bool other = extra < 0.0;  // another surface
             float x2 = float(i * i);
             float dz2 = other ? 0.0 : dz_px * dz_px;
+            float extra_px2 = other ? 0.0 : extra * K.ppm * K.ppm;  // the path round a bend, beyond the chord
             float measure = ssss_measure(nq);
             for (int k = 0; k < MAX_GAUSSIANS; ++k) {
                 float w = cell * exp(-(x2 * K.inv_2var_px[k] + dz2 * K.inv_2var[k]));
@@ -279,7 +318,14 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
                     if (k == kw) w_rejected += w;
 #endif
                 } else {
-                    w *= measure;
+                    // the kernel at the tissue path s instead of the chord c: exp(-(s^2 - c^2) / 2 sigma^2)
+                    // of the weight reaches q; the rest stands for the bend's hidden tissue (own light)
+                    float reach = w * exp(-extra_px2 * K.inv_2var[k]);
+                    own[k] += w - reach;
+#if SSSS_GRAIN_FILTER
+                    if (k == kw) w_rejected += w - reach;
+#endif
+                    w = reach * measure;
                     sum[k] += w * light[k];
                     wsum[k] += w;
 #if SSSS_GRAIN_FILTER
