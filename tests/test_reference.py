@@ -142,7 +142,7 @@ def test_tissue_paths_go_round_a_concave_bend():
     dark half of a flat plane does, Phi(-b / sigma) (closed form), within 1%. Straight paths (the
     chord, shorter) give more; before (pairs whose chord rose more than asin(TISSUE_TAU) above
     either end skipped) the reference gave 0.20x that at b = 0.5 mm, sigma = 1 mm (0.03x at
-    b = 1 mm): a dark edge at every concave bend."""
+    b = 1 mm): a dark edge at every concave bend. A fold (bent by 100 degrees) stays a crease."""
     from scipy.special import erfc
 
     from dermis.reference.integrate import TISSUE_TAU, gather
@@ -163,6 +163,22 @@ def test_tissue_paths_go_round_a_concave_bend():
             print(f"b {b} v {v}: tissue {tissue[0, 0, 0]:.4f} straight {straight[0, 0, 0]:.4f} expected {expected:.4f}")
             assert tissue[0, 0, 0] == pytest.approx(expected, rel=0.01, abs=1e-4)
             assert straight[0, 0, 0] > tissue[0, 0, 0]
+    # bent by 100 degrees (the closed lips' line: 96-120 across it at 768 px) it is a fold of two
+    # tissues: only the pairs whose chord stays in the tissue count (numpy, the straight-segment
+    # test), 0.04x the flat plane at b = 0.5 mm
+    bend, b, v = 100.0, 0.5, 1.0
+    P, N, W, s = _folded_sheet(bend)
+    a = math.radians(bend / 2)
+    q = np.array([b * math.cos(a), 0.0, b * math.sin(a)])
+    qn = np.array([-math.sin(a), 0.0, math.cos(a)])
+    e = P - q
+    dist = np.linalg.norm(e, axis=1)
+    keep = (s < 0) & (e @ qn <= TISSUE_TAU * dist) & (-np.sum(e * N, axis=1) <= TISSUE_TAU * dist) & (dist < cutoff_radius(v))
+    chord_only = np.sum(W[keep] * np.exp(-dist[keep] ** 2 / (2 * v)) / (2 * np.pi * v))
+    tissue, _ = gather(q[None], P, W, np.repeat((s < 0).astype(np.float64)[:, None], 3, axis=1), [v], [cutoff_radius(v)],
+                       query_normals=qn[None], sample_normals=N, tissue_tau=TISSUE_TAU)
+    assert tissue[0, 0, 0] == pytest.approx(chord_only, rel=1e-9)
+    assert chord_only < 0.1 * 0.5 * erfc(b / math.sqrt(2 * v))
 
 
 def _plane(albedo=(0.6, 0.4, 0.3), view_mm=40.0):

@@ -191,7 +191,8 @@ def test_light_goes_round_a_concave_bend(gl_ctx):
     dropped) the dark face's red fell to 0.66x that 3 pixels from the fold and 0.5x beyond: a
     dark edge at the bend. Both halves of the fix are needed: the facets' normals with the chord
     test alone give 0 on the whole dark face (every tap across dropped); the path round the bend
-    on the interpolated normals 0.66x (taps of one face look like a step to them)."""
+    on the interpolated normals 0.66x (taps of one face look like a step to them). Bent by 100
+    degrees it is a fold (below)."""
     from dermis.verification import binned_gaussian_1d
 
     S, bend = 128, 40.0
@@ -224,6 +225,16 @@ def test_light_goes_round_a_concave_bend(gl_ctx):
     assert np.all(np.abs(measured[:, 0] - expected[:, 0]) <= 0.04 * expected[:, 0] + 2e-3), measured[:, 0] / expected[:, 0]
     assert np.all(np.abs(measured - expected) <= 0.2 * expected + 3e-3), measured / expected
     assert expected[3, 0] > 0.04  # the widest red Gaussians reach 1.6 mm into the dark face
+    # bent by 100 degrees (the closed lips' line: 96-120 across it at 768 px) it is a fold of two
+    # tissues, a crease: nothing crosses (before: red 0.12 at the fold, through the lagging normals)
+    S = 64
+    with Renderer(_valley(100.0), (S, S), ctx=gl_ctx, samples=0) as r:
+        r.render("ssss")
+        ssss = r.technique("ssss")
+        lit = np.broadcast_to(np.arange(S)[None, :] < S // 2, (S, S))
+        ssss.screen_space(r.last_frame, irradiance=np.repeat(lit[:, :, None].astype(np.float32), 3, axis=2))
+        fold = ssss.scattered()[S // 4:3 * S // 4, S // 2:S // 2 + 8]
+    assert fold.max() < 1e-3, fold.max()
 
 
 def test_uniform_light_energy(gl_ctx):
