@@ -207,8 +207,8 @@ float ssss_tissue_path(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size,
     vec3 d = ssss_view_position_mm(q, size, zq) - pp;
     float c2 = dot(d, d);
     if (c2 <= 0.0) return 0.0;
-    vec3 n_p = normalize(np);
-    vec3 n_q = normalize(nq);
+    vec3 n_p = np;  // unit (ssss/irradiance.frag normalises them; half floats: 1e-3)
+    vec3 n_q = nq;
     float h_q = dot(d, n_p);
     float h_p = -dot(d, n_q);
     float tol = uTissueTau * sqrt(c2);
@@ -322,6 +322,7 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
             float x2 = float(i * i);
             float dz2 = other ? 0.0 : dz_px * dz_px;
             float extra_px2 = other ? 0.0 : extra * K.ppm * K.ppm;  // the path round a bend, beyond the chord
+            bool bend = !other && (extra_px2 > 0.0 || share < 1.0);
             float measure = ssss_measure(nq);
             for (int k = 0; k < MAX_GAUSSIANS; ++k) {
                 float w = cell * exp(-(x2 * K.inv_2var_px[k] + dz2 * K.inv_2var[k]));
@@ -334,12 +335,15 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
                     // the kernel at the tissue path s instead of the chord c: exp(-(s^2 - c^2) / 2 sigma^2)
                     // of the weight (times its share) reaches q; the rest stands for the tissue the
                     // path misses (a fold's hidden side: the pixel's own light, as a rejected tap)
-                    float reach = w * share * exp(-extra_px2 * K.inv_2var[k]);
-                    own[k] += w - reach;
+                    if (bend) {  // (a second exp only for taps round a bend)
+                        float reach = w * share * exp(-extra_px2 * K.inv_2var[k]);
+                        own[k] += w - reach;
 #if SSSS_GRAIN_FILTER
-                    if (k == kw) w_rejected += w - reach;
+                        if (k == kw) w_rejected += w - reach;
 #endif
-                    w = reach * measure;
+                        w = reach;
+                    }
+                    w *= measure;
                     sum[k] += w * light[k];
                     wsum[k] += w;
 #if SSSS_GRAIN_FILTER
