@@ -173,10 +173,12 @@ def test_tissue_paths_go_round_a_concave_bend():
     qn = np.array([-math.sin(a), 0.0, math.cos(a)])
     e = P - q
     dist = np.linalg.norm(e, axis=1)
-    keep = (s < 0) & (e @ qn <= TISSUE_TAU * dist) & (-np.sum(e * N, axis=1) <= TISSUE_TAU * dist) & (dist < cutoff_radius(v))
+    keep = ((s < 0) & (e @ qn <= TISSUE_TAU * dist) & (-np.sum(e * N, axis=1) <= TISSUE_TAU * dist)
+            & (dist < cutoff_radius(v)))
     chord_only = np.sum(W[keep] * np.exp(-dist[keep] ** 2 / (2 * v)) / (2 * np.pi * v))
-    tissue, _ = gather(q[None], P, W, np.repeat((s < 0).astype(np.float64)[:, None], 3, axis=1), [v], [cutoff_radius(v)],
-                       query_normals=qn[None], sample_normals=N, tissue_tau=TISSUE_TAU)
+    lit = np.repeat((s < 0).astype(np.float64)[:, None], 3, axis=1)
+    tissue, _ = gather(q[None], P, W, lit, [v], [cutoff_radius(v)], query_normals=qn[None], sample_normals=N,
+                       tissue_tau=TISSUE_TAU)
     assert tissue[0, 0, 0] == pytest.approx(chord_only, rel=1e-9)
     assert chord_only < 0.1 * 0.5 * erfc(b / math.sqrt(2 * v))
 

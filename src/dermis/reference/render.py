@@ -157,7 +157,8 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
     either point into the air (integrate.TISSUE_TAU) go round the concave bend between them inside
     the tissue (integrate._tissue_path: the kernel at that longer path), or exchange nothing
     where no single bend joins them, so no light crosses the air gap of a crease (closed eyelids,
-    lips, nostril and ear folds) while light through thin parts (ears) still counts. The difference between the two bounds what creases mean for a technique.
+    lips, nostril and ear folds) while light through thin parts (ears) still counts. The
+    difference between the two bounds what creases mean for a technique.
     """
     if paths not in ("straight", "tissue"):
         raise DermisError(f"paths must be 'straight' or 'tissue', got '{paths}'")
@@ -264,7 +265,8 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
                     nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
                 ks = [l.index for l in s.levels]
                 out, pairs = gather(xq, pos, area, val, [l.effective_variance_mm2 for l in s.levels],
-                                    [l.cutoff_mm for l in s.levels], progress=bar, query_normals=attrs_x["normal_facet"],
+                                    [l.cutoff_mm for l in s.levels], progress=bar,
+                                    query_normals=attrs_x["normal_facet"],
                                     sample_normals=nrm, tissue_tau=TISSUE_TAU if paths == "tissue" else None)
                 C[:, ks, :] = out
                 pairs_total += pairs
