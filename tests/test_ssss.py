@@ -186,7 +186,7 @@ def test_light_goes_round_a_concave_bend(gl_ctx):
     the tissue: the shortest path from a point of one face to one of the other runs along the faces
     (the straight chord crosses the air over the valley), so on the unfolded valley the dark face
     receives what the dark half of a flat plane does: sum_k w_k (G_k * lit pixels) at the distances
-    along the surface (closed form, binned Gaussians), within 5% + 3e-3 over its first 12 pixels.
+    along the surface (closed form, binned Gaussians): red within 3% + 2e-3 over its first 12 pixels.
     Before (the straight-chord test alone, on the interpolated normals: taps across the bend
     dropped) the dark face's red fell to 0.66x that 3 pixels from the fold and 0.5x beyond: a
     dark edge at the bend. Both halves of the fix are needed: the facets' normals with the chord
@@ -219,11 +219,11 @@ def test_light_goes_round_a_concave_bend(gl_ctx):
     rows = slice(S // 4, 3 * S // 4)
     measured = out[rows][:, dark].mean(axis=0)
     print(f"dark face, red measured {np.round(measured[:, 0], 4)}\nexpected {np.round(expected[:, 0], 4)}")
-    # red (the wide Gaussians, which carry the light across): measured 0.974-0.98 of the closed
-    # form (on a flat plane, bend 0: 0.997-1.005); the narrow Gaussians' fold pixel is binned more
-    # coarsely by ssss (green 0.89, blue 0.81 there; 1.03 and 1.10 on the flat plane)
+    # red (the wide Gaussians, which carry the light across): measured 0.991-1.012 of the closed
+    # form (on a flat plane, bend 0: 0.994-1.011); the narrow Gaussians' fold pixel is binned more
+    # coarsely by ssss (green 0.92, blue 0.84 there; 1.03 and 1.10 on the flat plane)
     red = measured[:, 0] / expected[:, 0]
-    assert np.all(np.abs(measured[:, 0] - expected[:, 0]) <= 0.04 * expected[:, 0] + 2e-3), red
+    assert np.all(np.abs(measured[:, 0] - expected[:, 0]) <= 0.03 * expected[:, 0] + 2e-3), red
     assert np.all(np.abs(measured - expected) <= 0.2 * expected + 3e-3), measured / expected
     assert expected[3, 0] > 0.04  # the widest red Gaussians reach 1.6 mm into the dark face
     # bent by 100 degrees (the closed lips' line: 96-120 across it at 768 px) it is a fold of two

@@ -320,9 +320,9 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
             float extra = dz_px < 0.0 ? 0.0 : ssss_tissue_path(pp, np, q, nq, tz, size, share);
             bool other = share <= 0.0;  // another surface
             float x2 = float(i * i);
-            float dz2 = other ? 0.0 : dz_px * dz_px;
-            float extra_px2 = other ? 0.0 : extra * K.ppm * K.ppm;  // the path round a bend, beyond the chord
-            bool bend = !other && (extra_px2 > 0.0 || share < 1.0);
+            // the kernel at the tissue path s: x^2 + dz^2 is the chord c^2, the path round a bend
+            // adds s^2 - c^2 (0 elsewhere)
+            float dz2 = other ? 0.0 : dz_px * dz_px + extra * K.ppm * K.ppm;
             float measure = ssss_measure(nq);
             for (int k = 0; k < MAX_GAUSSIANS; ++k) {
                 float w = cell * exp(-(x2 * K.inv_2var_px[k] + dz2 * K.inv_2var[k]));
@@ -332,18 +332,14 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
                     if (k == kw) w_rejected += w;
 #endif
                 } else {
-                    // the kernel at the tissue path s instead of the chord c: exp(-(s^2 - c^2) / 2 sigma^2)
-                    // of the weight (times its share) reaches q; the rest stands for the tissue the
-                    // path misses (a fold's hidden side: the pixel's own light, as a rejected tap)
-                    if (bend) {  // (a second exp only for taps round a bend)
-                        float reach = w * share * exp(-extra_px2 * K.inv_2var[k]);
-                        own[k] += w - reach;
+                    // a bend's share of the weight reaches q; the rest (a 60-90 degree fold, whose
+                    // far side is another tissue) brings the pixel's own light, as a rejected tap
+                    float fold = w * (1.0 - share);
+                    own[k] += fold;
 #if SSSS_GRAIN_FILTER
-                        if (k == kw) w_rejected += w - reach;
+                    if (k == kw) w_rejected += fold;
 #endif
-                        w = reach;
-                    }
-                    w *= measure;
+                    w *= share * measure;
                     sum[k] += w * light[k];
                     wsum[k] += w;
 #if SSSS_GRAIN_FILTER
