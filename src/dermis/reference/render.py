@@ -154,9 +154,11 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
 
     ``paths``: "straight" (default) - every pair of points within the cutoff exchanges light by
     their 3-D distance, as the model is defined; "tissue" - pairs whose straight segment leaves
-    either point into the air (integrate.TISSUE_TAU) are skipped, so no light crosses the air gap of
-    a crease (closed eyelids, lips, nostril and ear folds) while light through thin parts
-    (ears) still counts. The difference between the two bounds what creases mean for a technique.
+    either point into the air (integrate.TISSUE_TAU) go round the concave bend between them inside
+    the tissue (integrate._tissue_path: the kernel at that longer path), or exchange nothing
+    where no single bend joins them, so no light crosses the air gap of a crease (closed eyelids,
+    lips, nostril and ear folds) while light through thin parts (ears) still counts. The
+    difference between the two bounds what creases mean for a technique.
     """
     if paths not in ("straight", "tissue"):
         raise DermisError(f"paths must be 'straight' or 'tissue', got '{paths}'")
@@ -240,7 +242,7 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
                 a = surface.interpolate(ct[c0:c1], cb[c0:c1])
                 cpos[c0:c1] = a["position"]
                 if cnrm is not None:
-                    cnrm[c0:c1] = a["normal_geo"]
+                    cnrm[c0:c1] = a["normal_facet"]
                 cval[c0:c1] = scattered_irradiance(surface, rig, a)
                 bar(c1 - c0)
             timings["irradiance_s"] = time.perf_counter() - t0
@@ -263,7 +265,8 @@ def render_reference(scene, size=(256, 256), *, spp: int = 4, min_spacing_mm: fl
                     nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
                 ks = [l.index for l in s.levels]
                 out, pairs = gather(xq, pos, area, val, [l.effective_variance_mm2 for l in s.levels],
-                                    [l.cutoff_mm for l in s.levels], progress=bar, query_normals=attrs_x["normal_geo"],
+                                    [l.cutoff_mm for l in s.levels], progress=bar,
+                                    query_normals=attrs_x["normal_facet"],
                                     sample_normals=nrm, tissue_tau=TISSUE_TAU if paths == "tissue" else None)
                 C[:, ks, :] = out
                 pairs_total += pairs

@@ -218,6 +218,11 @@ def bilinear(img, u, v):
     return out
 
 
+def _oriented(n, like):
+    """Unit normals ``n`` flipped where they point away from ``like`` (n, 3)."""
+    return np.where(np.sum(n * like, axis=1, keepdims=True) < 0.0, -n, n)
+
+
 def _normalize(v):
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
 
@@ -295,6 +300,9 @@ class SurfaceModel:
         return {
             "position": self.v0[tri] * b0 + self.v1[tri] * b1 + self.v2[tri] * b2,
             "normal_geo": _normalize(lerp(self.normals)),
+            # the triangle's own plane (oriented as the interpolated normal): the tissue-path test's
+            # normal (integrate._tissue_path), consistent with the positions, which lie on it
+            "normal_facet": _oriented(self.face_normals[tri], lerp(self.normals)),
             "uv": lerp(self.uvs),
             "uv1": None if self.uvs1 is None else lerp(self.uvs1),
             "tangent": lerp(self.tangents),

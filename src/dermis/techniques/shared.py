@@ -46,8 +46,11 @@ the skin table (v >= 0.187), the narrow ones carry nothing through millimetres o
 
 TISSUE_TAU = 0.25
 """Light travels between two surface points inside the tissue only: a pair whose straight segment
-leaves either point into the air more than asin(TISSUE_TAU) = 14.5 degrees above its tangent plane
-exchanges none (dermis.reference paths = "tissue"; ssss's blurs skip such taps: creases)."""
+leaves either point into the air more than asin(TISSUE_TAU) = 14.5 degrees above its (facet's)
+tangent plane exchanges light along the path round the concave bend between them, or none where no
+single bend joins them (a crease, a step): dermis.reference.integrate._tissue_path (paths =
+"tissue") and ssss's blurs (ssss/kernel.glsl, ssss_tissue_path). The same tau bounds how far the
+two facets may depart from a wedge."""
 
 INV_PI = 1.0 / math.pi
 

@@ -108,7 +108,7 @@ class SsssOptions(TranslucentOptions):
     taps: int = TAPS  # taps (cells) per side of each blur: the blur's cost, fixed (ssss/kernel.glsl)
     depth_cutoff_mm: float = DEPTH_CUTOFF_MM  # taps across a larger depth jump are rejected
     follow_surface: bool = True  # weight taps by the 3-D distance and reject depth jumps
-    tissue_paths: bool = True  # skip taps whose straight path to the pixel crosses air (creases)
+    tissue_paths: bool = True  # light reaches taps only through the tissue: round concave bends, not across creases
     surface_measure: bool = False  # weigh taps by the surface each pixel holds (ds/dx; ssss/kernel.glsl: off, why)
     grain_filter: bool = True  # the wide Gaussians' jitter noise through a variance-compensated 3 x 3 binomial (ssss/kernel.glsl)
 

@@ -5,7 +5,7 @@
 //   rgb = narrow(p) + sum_n b_n wide(n),  a = view depth in mm (copied)
 // The binomial is taken in opposite pairs (left-right, up-down, the two diagonals): a pair whose
 // either pixel is on another surface (off the mesh, across a depth jump or air: the blurs' own
-// rules, ssss_tap_dz_px and ssss_tissue_path) or whose wide Gaussians are not the pixel's (where a
+// rules, ssss_tap_dz_px and ssss_same_tissue) or whose wide Gaussians are not the pixel's (where a
 // Gaussian crosses SSSS_FILTER_SIGMA_PX) gives its weight to the pixel's own wide light. A pair
 // is symmetric about the pixel, so a dropped pair shifts nothing (a one-sided neighbour dropped
 // would pull the light from the other side across a silhouette's last pixel), and energy is kept.
@@ -36,7 +36,7 @@ float ssss_filter_accept(ivec2 q, ivec2 size, vec4 c, vec3 pp, vec3 np, float ma
     light = tw.rgb;
     float tmask = floor(tw.a);
     if (t.a <= 0.0 || tmask != mask || abs(t.a - c.a) > uDepthCutoffMm
-        || !ssss_tissue_path(pp, np, q, texelFetch(uViewNormal, q, 0).xyz, t.a, size)) return 0.0;
+        || !ssss_same_tissue(pp, np, q, texelFetch(uViewNormal, q, 0).xyz, t.a, size)) return 0.0;
     vec3 jump = max(r, 2.0 * (tw.a - tmask)) * abs(t.rgb - c.rgb) * share;
     return 1.0 - smoothstep(0.0, SSSS_FILTER_JUMP, max(jump.r, max(jump.g, jump.b)));
 }

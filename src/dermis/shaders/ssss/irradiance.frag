@@ -47,5 +47,15 @@ void main() {
     vec3 E = E_in * directional_factor(c, ndv) + transmitted_irradiance(v_world, Ng, v_uv_ts);
     float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
     f_irradiance = vec4(E * albedo_power(albedo, uMix), depth_mm);
-    f_view_normal = vec4(normalize(uViewRotation * Ng), 1.0);
+    // the FACET's normal (the plane of the triangle, from the screen derivatives of the position:
+    // exact, v_world is linear on a triangle), oriented as the interpolated one: the depth these
+    // pixels write lies on it, so two pixels of one facet see each other in its plane and a bend
+    // between facets is the angle between their normals (the interpolated normal lags a coarse
+    // mesh's facets by up to 15 degrees at the side view's inner eye corner, which the tissue-path
+    // test, ssss/kernel.glsl, read as air between neighbours of one facet)
+    vec3 Nf = cross(dFdx(v_world), dFdy(v_world));
+    float nf = length(Nf);
+    Nf = nf > 0.0 ? Nf / nf : Ng;
+    if (dot(Nf, Ng) < 0.0) Nf = -Nf;
+    f_view_normal = vec4(normalize(uViewRotation * Nf), 1.0);
 }

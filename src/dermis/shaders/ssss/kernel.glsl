@@ -63,10 +63,12 @@
 // orange line 1.87x the reference's red (benchmarks/eyelid_slit.py, RESULTS "Eyelids, ssss cost").
 // Energy is kept either way; light neither bleeds across silhouettes nor leaks into the background.
 //
-// Tissue paths (as dermis.reference's paths = "tissue", TISSUE_TAU in techniques/shared.py): a tap q is skipped
-// where the straight segment between the two surface points leaves either of them into the AIR,
-// more than asin(uTissueTau) above its tangent plane: u.N_p > tau or -u.N_q > tau (u the unit
-// offset from p to q, N the geometric normals of the pixels, view space). Across a crease (closed
+// Tissue paths (as dermis.reference's paths = "tissue", TISSUE_TAU in techniques/shared.py): where
+// the straight segment between the two surface points leaves either of them into the AIR, more
+// than asin(uTissueTau) above its tangent plane (u.N_p > tau or -u.N_q > tau; u the unit offset
+// from p to q, N the facets' normals, view space), the light goes round the concave bend between
+// them inside the tissue, a longer path, or, where no single bend joins them, q is skipped
+// (ssss_tissue_path below). Across a crease (closed
 // eyelids, lips, a nostril's rim) the two sides lie a pixel apart on screen and at about the same
 // depth, so depth alone let the lit lids' light into the dark crease between them: a thin
 // saturated orange line along both eyelid creases, where tsd (whose texture-space neighbours are
@@ -179,15 +181,62 @@ float ssss_measure(vec3 n) {
     return min(sqrt(na * na + n.z * n.z) / max(abs(n.z), 1e-6), SSSS_MAX_MEASURE);
 }
 
-// False where the straight path from the pixel's surface point (view space, mm, with its normal
-// np) to pixel q's (normal nq) crosses air (above).
-bool ssss_tissue_path(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size) {
-    if (uTissueTau > 1.0) return true;
+// The path through the tissue from the pixel's surface point pp (view space, mm, normal np) to
+// pixel q's (normal nq) (above), as dermis.reference.integrate._tissue_path (its docstring has the
+// derivation): returns s^2 - c^2 in mm^2, how much longer than the straight chord c it is, with
+// share the part of the light that takes it; share 0: no path, q is on another surface.
+//   h_q = (q - p).N_p, q's height above p's tangent plane; h_p = -(q - p).N_q, p's above q's.
+//   Both <= tau c: the chord leaves neither end into the air (flat or convex skin): s = c.
+//   Both >= -tau c, one above: a CONCAVE bend. Its chord crosses the air over the valley; the
+//     light goes round the bend inside the tissue. On the wedge of the two tangent planes (the
+//     sharpest surface those normals allow; fold line along N_p x N_q, phi the angle between the
+//     normals) p and q lie a = h_p / sin phi and b = h_q / sin phi from the fold, t apart along
+//     it, and the path is straight on the unfolded wedge: s^2 = (a + b)^2 + t^2 (a circular arc
+//     is shorter: 1.02 c against the wedge's 1.06 c at phi = 40 degrees). Facing sheets: s -> inf.
+//     The wedge's chord across the fold (law of cosines) more than tau from the real one: no
+//     wedge joins them. share = clamp(2 N_p.N_q, 0, 1): 1 up to 60 degrees, 0 from 90 (a sharper
+//     bend on a mesh is a fold of two tissues, the closed lips' line: 96-120 degrees at 768 px).
+//   Otherwise (one end below the other's plane, e.g. parallel normals 2 mm apart: a step): none.
+// The normals are the FACETS' (ssss/irradiance.frag): the interpolated ones lag a coarse mesh by
+// 15 degrees at the side view's inner eye corner, where two pixels of one facet looked like a step.
+// Before the bend's path, every tap across a concave bend was dropped: a hard dark wedge where the
+// nose's shadow edge falls on a 45 degree bend at the inner eye corner (RESULTS, round 11 eye11).
+float ssss_tissue_path(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size, out float share) {
+    share = 1.0;
+    if (uTissueTau > 1.0) return 0.0;
     vec3 d = ssss_view_position_mm(q, size, zq) - pp;
-    float len = length(d);
-    if (len <= 0.0) return true;
-    vec3 u = d / len;
-    return dot(u, np) <= uTissueTau && -dot(u, nq) <= uTissueTau;
+    float c2 = dot(d, d);
+    if (c2 <= 0.0) return 0.0;
+    vec3 n_p = np;  // unit (ssss/irradiance.frag normalises them; half floats: 1e-3)
+    vec3 n_q = nq;
+    float h_q = dot(d, n_p);
+    float h_p = -dot(d, n_q);
+    float tol = uTissueTau * sqrt(c2);
+    if (h_q <= tol && h_p <= tol) return 0.0;
+    share = 0.0;
+    if (h_q < -tol || h_p < -tol) return 0.0;
+    vec3 axis = cross(n_p, n_q);
+    float sin_phi = length(axis);
+    if (sin_phi < 1e-3) return 0.0;  // facing sheets: s > 250 c, nothing passes
+    float t = dot(d, axis) / sin_phi;
+    float a = max(h_p, 0.0) / sin_phi;  // p's distance from the fold line, mm
+    float b = max(h_q, 0.0) / sin_phi;  // q's
+    float cos_phi = dot(n_p, n_q);
+    float across = sqrt(max(c2 - t * t, 0.0));
+    float wedge = sqrt(a * a + b * b + 2.0 * a * b * cos_phi);
+    if (abs(wedge - across) > uTissueTau * across) return 0.0;
+    share = clamp(2.0 * cos_phi, 0.0, 1.0);
+    return max((a + b) * (a + b) + t * t - c2, 0.0);
+}
+
+// True where the tissue joins the pixel to q by the chord or a bend all its light takes, at most
+// twice as long as the chord (the grain filter's pairs are a pixel apart: a longer path, or a
+// fold, is a crease whose far side is another surface).
+bool ssss_same_tissue(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size) {
+    float share;
+    float extra = ssss_tissue_path(pp, np, q, nq, zq, size, share);
+    vec3 d = ssss_view_position_mm(q, size, zq) - pp;
+    return share >= 1.0 && extra <= 3.0 * dot(d, d);
 }
 
 // Pixel q's normal, fetched only when the tissue-path test or the surface measure reads it (they
@@ -267,9 +316,13 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
             float tap_rejected;
             ssss_fetch(q, false, tz, nq, light, tap_rejected);
             float dz_px = ssss_tap_dz_px(K, cz, tz);
-            bool other = dz_px < 0.0 || !ssss_tissue_path(pp, np, q, nq, tz, size);  // another surface
+            float share = 0.0;  // of the light that reaches q's surface through the tissue
+            float extra = dz_px < 0.0 ? 0.0 : ssss_tissue_path(pp, np, q, nq, tz, size, share);
+            bool other = share <= 0.0;  // another surface
             float x2 = float(i * i);
-            float dz2 = other ? 0.0 : dz_px * dz_px;
+            // the kernel at the tissue path s: x^2 + dz^2 is the chord c^2, the path round a bend
+            // adds s^2 - c^2 (0 elsewhere)
+            float dz2 = other ? 0.0 : dz_px * dz_px + extra * K.ppm * K.ppm;
             float measure = ssss_measure(nq);
             for (int k = 0; k < MAX_GAUSSIANS; ++k) {
                 float w = cell * exp(-(x2 * K.inv_2var_px[k] + dz2 * K.inv_2var[k]));
@@ -279,7 +332,14 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
                     if (k == kw) w_rejected += w;
 #endif
                 } else {
-                    w *= measure;
+                    // a bend's share of the weight reaches q; the rest (a 60-90 degree fold, whose
+                    // far side is another tissue) brings the pixel's own light, as a rejected tap
+                    float fold = w * (1.0 - share);
+                    own[k] += fold;
+#if SSSS_GRAIN_FILTER
+                    if (k == kw) w_rejected += fold;
+#endif
+                    w *= share * measure;
                     sum[k] += w * light[k];
                     wsum[k] += w;
 #if SSSS_GRAIN_FILTER
