@@ -1,0 +1,256 @@
+"""The baked subsurface transfer's Monte Carlo noise (issue 12, round 11: the mottle beside thin parts).
+
+    PYTHONPATH=src nice -n 10 python benchmarks/transfer_noise.py bake SCENE.toml OUT_DIR
+        the head's bake as `python -m dermis.subsurface_transfer` makes it, written twice: OUT_DIR/raw.npz
+        (before the significance shrinkage: round 10's taps) and OUT_DIR/cache/subsurface_transfer/<key>.npz
+        (the shipped bake; DERMIS_CACHE_DIR=OUT_DIR/cache renders with it), with the points (points.npz)
+    PYTHONPATH=src nice -n 10 python benchmarks/transfer_noise.py reference SCENE.toml OUT_DIR [--walks 1536]
+        a bake of two patches (the cheek under the +x eye, the +x ear's helix) with many more walks:
+        OUT_DIR/reference.npz, the independent reference of the per-point net transfer
+    PYTHONPATH=src python benchmarks/transfer_noise.py compare SCENE.toml OUT_DIR
+        the RMS difference of the per-point net (the taps' sum, per channel) against the reference,
+        round 10's taps and the shrunk ones, per patch
+    PYTHONPATH=src python benchmarks/transfer_noise.py ratio SCENE.toml OUT_DIR [--size 768]
+        tsd rendered without a bake, with raw.npz (round 10's taps) and with the shipped bake: the
+        luminance ratio (with / without) and its high-pass (less its 6 x 6 px box mean) std over the lit
+        skin the round-10 bake changes (OUT_DIR/ratio-<scene>-<size>.npz and a line of JSON)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "src"))
+
+# the patches (mm about the nose tip, as benchmarks/crop_sheet.py's landmarks): centre, radius
+PATCHES = {"cheek": ((28.0, 12.0), 6.0), "helix": (None, 7.0)}  # cheek: under the +x eye
+
+
+def _points(scene):
+    from dermis.subsurface_transfer.bake import bake_points
+
+    return bake_points(scene.mesh, scene.mm_per_unit)
+
+
+def _save_points(path, pts):
+    np.savez(path, uv=pts.uv, position=pts.position, triangle=pts.triangle, normal=pts.normal)
+
+
+def _load_points(path):
+    from dermis.subsurface_transfer.bake import BakePoints
+
+    with np.load(path) as z:
+        return BakePoints(z["uv"], z["position"], z["triangle"], z["normal"])
+
+
+def cmd_bake(a):
+    import dermis
+    from dermis.scene.model import mean_skin_albedo
+    from dermis.subsurface_transfer import store
+    from dermis.subsurface_transfer.bake import bake_transfer, shrink_insignificant, smooth_own_taps
+
+    sc = dermis.load_scene(a.scene)
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    pts = _points(sc)
+    _save_points(out / "points.npz", pts)
+    bake = bake_transfer(sc.mesh, sc.mm_per_unit, sc.profile, mean_skin_albedo(sc.material), points=pts,
+                         progress=lambda s: print(f"{time.perf_counter() - t0:7.1f} s {s}", flush=True))
+    raw = smooth_own_taps(bake, pts)
+    store.save(raw, out / "raw.npz", store.mesh_key(sc.mesh), sc.mm_per_unit)
+    final = shrink_insignificant(raw, pts)
+    p = store.path_for(sc.mesh, out / "cache" / store.CACHE_SUBFOLDER)
+    store.save(final, p, store.mesh_key(sc.mesh), sc.mm_per_unit)
+    print(f"{time.perf_counter() - t0:.1f} s; {p} {p.stat().st_size / 1e6:.2f} MB; {json.dumps(final.meta)}")
+
+
+def patch_mask(scene, pts):
+    """{patch: bool mask over the bake points}: the cheek disc (3-D distance to the landmark) and the
+    +x ear's helix (the ear's outermost points: crop_sheet's ear landmark)."""
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    from crop_sheet import landmarks
+
+    mm = float(scene.mm_per_unit)
+    pos = np.asarray(scene.mesh.positions, np.float64) * mm
+    tip = pos[np.argmax(pos[:, 2])]
+    out = {}
+    (cx, cy), r = PATCHES["cheek"]
+    sel = np.nonzero((np.abs(pos[:, 0] - tip[0] - cx) < 3) & (np.abs(pos[:, 1] - tip[1] - cy) < 3))[0]
+    centre = pos[sel[np.argmax(pos[sel, 2])]]
+    out["cheek"] = np.linalg.norm(pts.position - centre, axis=1) < r
+    ear = np.asarray(landmarks(scene.mesh, mm)["ear +x"][0], np.float64) * mm
+    out["helix"] = np.linalg.norm(pts.position - ear, axis=1) < PATCHES["helix"][1]
+    return out
+
+
+def cmd_reference(a):
+    import dermis
+    from dermis.scene.model import mean_skin_albedo
+    from dermis.subsurface_transfer.bake import BakePoints, bake_transfer, smooth_own_taps
+
+    sc = dermis.load_scene(a.scene)
+    out = Path(a.out)
+    pts = _load_points(out / "points.npz") if (out / "points.npz").is_file() else _points(sc)
+    masks = patch_mask(sc, pts)
+    sel = np.nonzero(masks["cheek"] | masks["helix"])[0]
+    sub = BakePoints(pts.uv[sel], pts.position[sel], pts.triangle[sel], pts.normal[sel])
+    t0 = time.perf_counter()
+    bake = bake_transfer(sc.mesh, sc.mm_per_unit, sc.profile, mean_skin_albedo(sc.material), points=sub, walks=a.walks,
+                         seed=a.seed, progress=lambda s: print(f"{time.perf_counter() - t0:7.1f} s {s}", flush=True))
+    bake = smooth_own_taps(bake, sub)
+    np.savez(out / "reference.npz", index=sel, total=bake.total, excess=bake.excess, excess_cov=bake.excess_cov,
+             walks=a.walks, seconds=time.perf_counter() - t0)
+    print(f"{len(sel)} points x {a.walks} walks: {time.perf_counter() - t0:.1f} s")
+
+
+def interior(pts, mask, margin_mm):
+    """The points of ``mask`` at least ``margin_mm`` from any point outside it (their 1 mm own-tap
+    smoothing saw the same neighbours in the patch's bake and in the full one)."""
+    from scipy.spatial import cKDTree
+
+    if mask.all():
+        return mask
+    d, _ = cKDTree(pts.position[~mask]).query(pts.position[mask])
+    out = np.zeros_like(mask)
+    out[np.nonzero(mask)[0][d >= margin_mm]] = True
+    return out
+
+
+def cmd_compare(a):
+    import dermis
+    from dermis.subsurface_transfer import store
+    from dermis.subsurface_transfer.bake import shrink_factor, significance
+
+    out = Path(a.out)
+    sc = dermis.load_scene(a.scene)
+    pts = _load_points(out / "points.npz")
+    raw = store.load(out / "raw.npz")
+    ref = np.load(out / "reference.npz")
+    masks = patch_mask(sc, pts)
+    full = np.zeros(len(pts.uv), bool)
+    full[ref["index"]] = True
+    sub_pts = type(pts)(*(x[ref["index"]] for x in (pts.uv, pts.position, pts.triangle, pts.normal)))
+    T = significance(raw, pts)
+    rules = {"round 10 (no shrinkage)": np.ones(len(T)), "firm (shipped)": shrink_factor(T)}
+    from scipy.special import erf
+    from scipy.stats import chi2
+
+    k = chi2.ppf(erf(2 / np.sqrt(2)), 6)
+    rules["positive-part James-Stein 1-k/T"] = np.clip(1 - k / T, 0, 1)
+    rules["James-Stein 1-4/T (unpooled)"] = np.clip(1 - 4 / significance(raw, pts, 1e-6), 0, 1)
+    ref_total = np.zeros((len(pts.uv), 3))
+    ref_total[ref["index"]] = ref["total"]
+    ref_se = np.zeros((len(pts.uv), 3))
+    ref_se[ref["index"]] = np.sqrt(np.maximum(ref["excess_cov"][..., 0] + ref["excess_cov"][..., 1] + 2 * ref["excess_cov"][..., 2], 0))
+    inner = interior(sub_pts, np.ones(len(sub_pts.uv), bool), 1.0)
+    keep = np.zeros(len(pts.uv), bool)
+    keep[ref["index"]] = True
+    rows = []
+    for name, m in masks.items():
+        m = m & keep & interior(pts, masks[name], 1.5)
+        line = {"patch": name, "points": int(m.sum()), "reference mean net (RGB)": ref_total[m].mean(0).round(4).tolist(),
+                "reference rms se": np.sqrt((ref_se[m] ** 2).mean(0)).round(4).tolist()}
+        for rule, s in rules.items():
+            net = raw.total[m] * s[m, None]
+            line[rule] = {"rms diff": np.sqrt(((net - ref_total[m]) ** 2).mean(0)).round(4).tolist(),
+                          "mean": net.mean(0).round(4).tolist(), "mean s": float(s[m].mean().round(3))}
+        rows.append(line)
+    print(json.dumps(rows, indent=1))
+
+
+def _cache_with(out: Path, name: str, bake_file: Path | None, scene) -> Path:
+    """A cache folder whose subsurface_transfer/ holds only ``bake_file`` (under the mesh's name) and
+    whose other caches are the user's (symlinks: the visibility and interreflection bakes are reused)."""
+    import os
+
+    from dermis.profiles.scene_skin import _cache_folder
+    from dermis.subsurface_transfer import store
+
+    home = _cache_folder()
+    d = out / name
+    d.mkdir(parents=True, exist_ok=True)
+    if home is not None and home.is_dir():
+        for sub in home.iterdir():
+            if sub.name != store.CACHE_SUBFOLDER and not (d / sub.name).exists():
+                os.symlink(sub, d / sub.name)
+    st = d / store.CACHE_SUBFOLDER
+    st.mkdir(exist_ok=True)
+    target = store.path_for(scene.mesh, st)
+    if target.exists() or target.is_symlink():
+        target.unlink()
+    if bake_file is not None:
+        os.symlink(Path(bake_file).resolve(), target)
+    return d
+
+
+def luminance(img):
+    return img[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def highpass_std(ratio, mask, box: int = 6):
+    """std of ratio less its box x box mean, over the pixels of ``mask`` whose whole box lies in it."""
+    from scipy.ndimage import binary_erosion, uniform_filter
+
+    r = np.where(mask, ratio, 0.0)
+    m = mask.astype(np.float64)
+    inner = binary_erosion(mask, np.ones((box + 1, box + 1), bool))
+    hp = r - uniform_filter(r, box) / np.maximum(uniform_filter(m, box), 1e-9)
+    return float(hp[inner].std()), int(inner.sum()), hp
+
+
+def cmd_ratio(a):
+    import os
+
+    import dermis
+    from dermis.renderer import Renderer
+    from dermis.subsurface_transfer import store
+
+    out = Path(a.out)
+    sc = dermis.load_scene(a.scene)
+    shipped = store.path_for(sc.mesh, out / "cache" / store.CACHE_SUBFOLDER)
+    imgs = {}
+    for name, f in (("none", None), ("round10", out / "raw.npz"), ("shipped", shipped)):
+        os.environ["DERMIS_CACHE_DIR"] = str(_cache_with(out, f"cache-{name}", f, sc))
+        sc = dermis.load_scene(a.scene)
+        t0 = time.perf_counter()
+        with Renderer(sc, (a.size, a.size), irradiance_size=1024) as r:
+            imgs[name] = r.render("tsd").astype(np.float64)
+            ran = "tsd_subsurface_transfer" in r.last_frame.passes_run
+        assert ran == (f is not None), (name, ran)
+        print(f"{name}: {time.perf_counter() - t0:.1f} s", flush=True)
+    L0 = luminance(imgs["none"])
+    lit = L0 > 0.05 * np.percentile(L0[L0 > 0], 99)
+    ratios = {k: luminance(imgs[k]) / np.maximum(L0, 1e-12) for k in ("round10", "shipped")}
+    changed = lit & (np.abs(ratios["round10"] - 1.0) > 1e-3)
+    res = {"scene": Path(a.scene).stem, "size": a.size, "lit changed px": int(changed.sum())}
+    for k, rt in ratios.items():
+        sd, npx, hp = highpass_std(rt, changed)
+        res[k] = {"highpass std": round(sd, 5), "px": npx, "ratio mean": round(float(rt[changed].mean()), 5),
+                  "ratio p1-p99": np.percentile(rt[changed], [1, 99]).round(4).tolist()}
+    np.savez_compressed(out / f"ratio-{Path(a.scene).stem}-{a.size}.npz", **{k: v.astype(np.float32) for k, v in imgs.items()},
+                        changed=changed)
+    print(json.dumps(res))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("cmd", choices=("bake", "reference", "compare", "ratio"))
+    ap.add_argument("scene")
+    ap.add_argument("out")
+    ap.add_argument("--walks", type=int, default=1536)
+    ap.add_argument("--seed", type=int, default=101)
+    ap.add_argument("--size", type=int, default=768)
+    a = ap.parse_args(argv)
+    {"bake": cmd_bake, "reference": cmd_reference, "compare": cmd_compare, "ratio": cmd_ratio}[a.cmd](a)
+
+
+if __name__ == "__main__":
+    main()
