@@ -165,6 +165,14 @@ def test_flat_slab_transfer_vanishes_in_expectation():
     shrunk = B.shrink_insignificant(bake, pts)
     z_after = shrunk.total / se
     assert np.all(np.abs(z_after) < 2.0) and np.mean(shrunk.total == 0.0) > 0.8, (np.abs(z_after).max(), np.mean(shrunk.total == 0))
+    # the shipped denoising: each point's transfer the mean of its neighbourhood's (the taps of all
+    # recompressed, their sums kept), then the same shrinkage
+    smooth = B.smooth_taps(bake, pts, 1.0)
+    i, j = B._neighbourhoods(pts, 1.0)
+    mean = np.zeros((120, 3))
+    np.add.at(mean, i, bake.total[j])
+    np.testing.assert_allclose(smooth.total, mean / np.bincount(i)[:, None], atol=1e-5)
+    assert np.mean(B.denoise(bake, pts).total == 0.0) > 0.8
     # a thin sheet (1 mean free path: most same-side light leaves through the back) keeps its net whole
     p, nn, uv, t = slab(size=14.0, thickness=0.5, n=14)
     thin = SimpleNamespace(positions=p, normals=nn, indices=t, uvs=uv, texture_space_uvs=None)

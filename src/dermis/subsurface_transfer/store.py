@@ -125,7 +125,7 @@ def bake_scene(scene, folder: Path | None = None, progress=print, **options) -> 
     """Bake ``scene``'s mesh with its medium and write it where :func:`find` looks."""
     from dermis.scene.model import mean_skin_albedo
     from dermis.subsurface_transfer.bake import (DEFAULT_GRID, NEAR_MM, THIN_MM, bake_points, bake_transfer,
-                                                 shrink_insignificant, smooth_own_taps)
+                                                 denoise)
 
     p = path_for(scene.mesh, folder)
     if p is None:  # before minutes of walks, not after
@@ -134,6 +134,6 @@ def bake_scene(scene, folder: Path | None = None, progress=print, **options) -> 
     points = bake_points(scene.mesh, scene.mm_per_unit, options.get("grid", DEFAULT_GRID), options.get("thin_mm", THIN_MM),
                          options.get("near_mm", NEAR_MM))
     bake = bake_transfer(scene.mesh, scene.mm_per_unit, scene.profile, albedo, points=points, progress=progress, **options)
-    bake = shrink_insignificant(smooth_own_taps(bake, points), points)
+    bake = denoise(bake, points)
     save(bake, p, mesh_key(scene.mesh), scene.mm_per_unit)
     return p
