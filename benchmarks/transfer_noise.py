@@ -278,6 +278,16 @@ def cmd_ear(a):
     print(json.dumps(res))
 
 
+def highpass_gauss_std(ratio, mask, sigma: float = 6.0) -> float:
+    """std of ratio less its Gaussian (``sigma`` px) mean over ``mask``, over the pixels 2 sigma inside it."""
+    from scipy.ndimage import binary_erosion, gaussian_filter
+
+    r = np.where(mask, ratio, 0.0)
+    lo = gaussian_filter(r, sigma) / np.maximum(gaussian_filter(mask.astype(np.float64), sigma), 1e-9)
+    inner = binary_erosion(mask, iterations=int(2 * sigma))
+    return float((r - lo)[inner].std())
+
+
 def cmd_ratio(a):
     out = Path(a.out)
     imgs = render_three(a)
@@ -298,7 +308,8 @@ def cmd_ratio(a):
         res[k] = {}
         for where, m in (("all", changed), ("face (no ears)", face), ("band (thick skin beside)", band)):
             sd, npx, hp = highpass_std(rt, m, box)
-            res[k][where] = {"highpass std": round(sd, 5), "px": npx, "ratio mean": round(float(rt[m].mean()), 5),
+            sg = highpass_gauss_std(rt, m, box)
+            res[k][where] = {"highpass std (box)": round(sd, 5), "highpass std (gaussian)": round(sg, 5), "px": npx, "ratio mean": round(float(rt[m].mean()), 5),
                              "ratio p1-p99": np.percentile(rt[m], [1, 99]).round(4).tolist()}
     np.savez_compressed(out / f"ratio-{Path(a.scene).stem}-{a.size}.npz", **{k: v.astype(np.float32) for k, v in imgs.items()},
                         changed=changed)

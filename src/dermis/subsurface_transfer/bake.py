@@ -53,7 +53,8 @@ estimates less the flat share (within / beyond MIN_SURFACE_MM) and their covaria
 tallies (:func:`_tally_moments`); :func:`significance` pools them over the same-facing points within
 POOL_MM (a chi-square statistic, 6 degrees of freedom where the expectation is 0). :func:`denoise`
 then (1) averages each point's transfer with its same-facing neighbours' (:func:`smooth_taps`: the
-taps of all of them, recompressed; SMOOTH_MM where the transfer is strong, SMOOTH_WEAK_MM elsewhere)
+taps of all of them, recompressed; SMOOTH_MM at thin points and where the transfer is strong,
+SMOOTH_WEAK_MM elsewhere)
 and (2) scales the taps of each point of the band (not thin itself) by the firm shrinkage of its
 statistic (:func:`shrink_factor`): 0 where the pooled transfer is within ~2 standard errors of 0,
 whole where it is 4x beyond, continuous between; a thin point's transfer is kept.
@@ -380,8 +381,8 @@ def _compress(pos, c, taps):
 
 
 SMOOTH_OWN_MM = 1.0
-SMOOTH_MM = 2.0  # the neighbourhood whose transfers are averaged (:func:`smooth_taps`) where the transfer is strong
-SMOOTH_WEAK_MM = 4.0  # and where it is not (thick skin beside the thin parts: a small, smooth transfer)
+SMOOTH_MM = 2.0  # the neighbourhood whose transfers are averaged (:func:`smooth_taps`) at thin points and strong ones
+SMOOTH_WEAK_MM = 4.0  # and elsewhere (thick skin beside the thin parts: a small, smooth transfer)
 POOL_MM = 3.0  # the neighbourhood whose pooled walks decide whether a point's transfer is significant
 SIGNIFICANCE_Z = 2.0  # kept in full only well beyond this many standard errors (the 2-sigma level, 95.4 %)
 
@@ -529,14 +530,17 @@ def shrink_insignificant(bake: TransferBake, points: BakePoints, pool_mm: float 
 def denoise(bake: TransferBake, points: BakePoints, pool_mm: float = POOL_MM, z: float = SIGNIFICANCE_Z,
             radius_mm: float = SMOOTH_MM, weak_radius_mm: float = SMOOTH_WEAK_MM) -> TransferBake:
     """The bake as shipped (:func:`dermis.subsurface_transfer.store.bake_scene`): :func:`smooth_taps`
-    over ``radius_mm`` where the pooled transfer is kept whole (:func:`shrink_factor` 1: the ear's
-    sheet, where its spatial detail matters and its signal is many standard errors) and over
-    ``weak_radius_mm`` elsewhere (a transfer within a few standard errors of 0, smooth on the scale
-    of the thick skin's curvature), then :func:`shrink_insignificant`. Measured on the head
-    (benchmarks/RESULTS.md, round 11 mottle11): 2 mm everywhere kept 0.99 of the back-lit ear's gain,
-    4 mm everywhere 0.97; this split 0.98 with the band's mottle of 4 mm."""
-    strong = shrink_factor(significance(bake, points, pool_mm), z) >= 1.0
-    return shrink_insignificant(smooth_taps(bake, points, np.where(strong, radius_mm, weak_radius_mm)), points, pool_mm, z)
+    over ``radius_mm`` at a thin point and where the pooled transfer is kept whole
+    (:func:`shrink_factor` 1: many standard errors from 0), over ``weak_radius_mm`` elsewhere (thick
+    skin beside the thin parts, a transfer within a few standard errors of 0: smooth on the scale of
+    the skin's curvature), then :func:`shrink_insignificant`. Measured on the head (benchmarks/RESULTS.md,
+    round 11 mottle11; validate's back_lit_ear red, the share of round 10's gain kept): 2 mm everywhere
+    0.991, 4 mm everywhere 0.968, 4 mm except where strong 0.983 (the helix's RMS error against an 8x
+    reference worse than round 10's), this split 0.986 (the helix's better, the cheek's 4 mm)."""
+    fine = shrink_factor(significance(bake, points, pool_mm), z) >= 1.0
+    if points.thin is not None:
+        fine |= np.asarray(points.thin, bool)
+    return shrink_insignificant(smooth_taps(bake, points, np.where(fine, radius_mm, weak_radius_mm)), points, pool_mm, z)
 
 
 def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFAULT_GRID, walks: int = DEFAULT_WALKS,
