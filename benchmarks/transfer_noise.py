@@ -307,6 +307,8 @@ def cmd_ratio(a):
     for k, rt in ratios.items():
         res[k] = {}
         for where, m in (("all", changed), ("face (no ears)", face), ("band (thick skin beside)", band)):
+            if m.sum() < 100:
+                continue
             sd, npx, hp = highpass_std(rt, m, box)
             sg = highpass_gauss_std(rt, m, box)
             res[k][where] = {"highpass std (box)": round(sd, 5), "highpass std (gaussian)": round(sg, 5), "px": npx, "ratio mean": round(float(rt[m].mean()), 5),
