@@ -410,7 +410,8 @@ def smooth_own_taps(bake: TransferBake, points: BakePoints, radius_mm: float = S
     noise per point, which a 1 mm bake grid would show as speckle) replaced by its mean over the
     same-facing points within ``radius_mm`` (3-D). The quantity varies with the sheet's thickness
     and curvature over millimetres; the averaging keeps its mean over any region wider than the
-    radius (a box filter), and the far taps are left as they are. Returns a new TransferBake."""
+    radius (a box filter), and the far taps are left as they are. Returns a new TransferBake. Round 10's
+    shipped smoothing (benchmarks/transfer_noise.py's "before"); :func:`denoise` replaced it."""
     import dataclasses
 
     own = bake.tap_weight[:, 0].astype(np.float64)

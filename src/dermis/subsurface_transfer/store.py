@@ -21,7 +21,7 @@ from dermis.errors import DermisError
 from dermis.subsurface_transfer.bake import TransferBake
 
 CACHE_SUBFOLDER = "subsurface_transfer"
-FORMAT = 2  # 2: per-point excess and its covariance; taps shrunk by their significance (round 11)
+FORMAT = 2  # 2 (round 11): per-point excess and its covariance; taps denoised (bake.denoise)
 MEDIUM_TOLERANCE = 0.02  # relative: the scene's mean free path and mean albedo against the bake's
 
 
