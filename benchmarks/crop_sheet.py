@@ -3,7 +3,7 @@ and after, with an optional Cycles column.
 
     PYTHONPATH=src python benchmarks/crop_sheet.py OUT_DIR [--size 768] [--before REV]
         [--techniques tsd ssss preintegrated lambert] [--scenes A.toml ...] [--cycles DIR]
-        [--crop-mm 56] [--tile 192] [--reuse-work]
+        [--crop-mm 56] [--tile 192] [--reuse-work] [--cache-dir DIR] [--before-cache-dir DIR]
 
 writes OUT_DIR/<scene>.png: one row per landmark the camera sees, one column per technique and
 tree ("tsd @aa056b3", "tsd"), then Cycles. Default scenes: examples/lee-perry-smith.toml and the
@@ -13,6 +13,8 @@ src`` (a temporary copy, in a subprocess) beside this tree's; renders are cached
 written by ``dermis validate --against cycles --out DIR`` (skipped where absent), at any size of
 the renders' aspect (the validation's 64 x 64 included: its crops are cut from the same mm square
 and enlarged to the tile, so they are blurry; the column is labelled with the size).
+``--cache-dir`` / ``--before-cache-dir``: DERMIS_CACHE_DIR for this tree's / the before tree's renders
+(generated data such as tsd's subsurface transfer bake is found there: an A/B of two bakes).
 
 Crops are located from the MESH, not from pixel boxes: landmarks are points of the head found in
 millimetres about the nose tip (the mesh's frontmost vertex, +z is the face's direction, as in
@@ -127,13 +129,17 @@ def render_to(path: Path, scene_file: str, techniques, size: int) -> None:
     np.savez_compressed(path, **arrays)
 
 
-def renders(tree: str, src: Path, scene_file: Path, techniques, size: int, cache: Path, reuse_work: bool = False) -> dict:
-    """{technique: (linear image, view, proj, eye)} of ``tree`` (its src directory ``src``), cached."""
-    key = hashlib.sha1(f"{tree}|{scene_file}|{size}|{','.join(techniques)}".encode()).hexdigest()[:12]
+def renders(tree: str, src: Path, scene_file: Path, techniques, size: int, cache: Path, reuse_work: bool = False,
+            dermis_cache: str | None = None) -> dict:
+    """{technique: (linear image, view, proj, eye)} of ``tree`` (its src directory ``src``; its
+    DERMIS_CACHE_DIR ``dermis_cache`` where given), cached."""
+    key = hashlib.sha1(f"{tree}|{scene_file}|{size}|{','.join(techniques)}|{dermis_cache}".encode()).hexdigest()[:12]
     path = cache / f"{tree}-{scene_file.stem}-{size}-{key}.npz"
     # this tree's renders are redone (the shaders may have changed) unless reuse_work
     if (tree == "work" and not reuse_work) or not path.is_file():
         env = dict(os.environ, PYTHONPATH=str(src))
+        if dermis_cache is not None:
+            env["DERMIS_CACHE_DIR"] = dermis_cache
         subprocess.run([sys.executable, __file__, "--render-to", str(path), "--size", str(size), "--techniques",
                         *techniques, "--scenes", str(scene_file)], check=True, env=env)
     z = np.load(path)
@@ -203,6 +209,8 @@ def main(argv=None):
     ap.add_argument("--crop-mm", type=float, default=56.0)
     ap.add_argument("--tile", type=int, default=192)
     ap.add_argument("--reuse-work", action="store_true", help="reuse this tree's cached renders (e.g. another --tile)")
+    ap.add_argument("--cache-dir", default=None, help="DERMIS_CACHE_DIR for this tree's renders")
+    ap.add_argument("--before-cache-dir", default=None, help="DERMIS_CACHE_DIR for the --before tree's renders")
     ap.add_argument("--render-to", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.render_to:
@@ -221,7 +229,8 @@ def main(argv=None):
         trees.insert(0, (a.before, old_tree(a.before, Path(tmp.name))))
     for scene_file in map(Path, a.scenes):
         scene_file = scene_file.resolve()
-        per_tree = {tree: renders(tree, src, scene_file, a.techniques, a.size, cache, a.reuse_work) for tree, src in trees}
+        per_tree = {tree: renders(tree, src, scene_file, a.techniques, a.size, cache, a.reuse_work,
+                                  a.cache_dir if tree == "work" else a.before_cache_dir) for tree, src in trees}
         columns = []
         for t in a.techniques:
             for tree, _ in trees:

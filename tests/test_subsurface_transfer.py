@@ -148,11 +148,43 @@ def test_flat_slab_transfer_vanishes_in_expectation():
     front = (c[:, 2] > 2.99) & (np.abs(c[:, :2]) < 3).all(1)
     pb, tb, nb, _ = _area_points(mesh, walker, rng, 120, front)
     kernel = B.flat_kernel(MEDIUM, 20_000)
-    bake = B.bake_transfer(mesh, 1.0, _profile(), (0.5, 0.5, 0.5), walks=16, points=B.BakePoints(np.zeros((120, 2)), pb, tb, nb),
-                           media=[MEDIUM] * 3, kernels=[kernel] * 3)
+    pts = B.BakePoints(np.zeros((120, 2)), pb, tb, nb)
+    bake = B.bake_transfer(mesh, 1.0, _profile(), (0.5, 0.5, 0.5), walks=32, points=pts, media=[MEDIUM] * 3, kernels=[kernel] * 3)
     tot = bake.total[:, 0]
     assert bake.subtracted[:, 0].mean() > 0.9  # nearly all of the flat transport is within reach
     assert abs(tot.mean()) < 4.0 * tot.std() / np.sqrt(len(tot)) + 0.01, (tot.mean(), tot.std())
+    # the stated per-point standard error (from the per-walk tallies) is the spread of the per-point
+    # nets about their expectation 0: the z-scores have unit spread
+    se = np.sqrt(bake.excess_cov[..., 0] + bake.excess_cov[..., 1] + 2.0 * bake.excess_cov[..., 2])
+    np.testing.assert_allclose(bake.excess.sum(2), bake.total, atol=1e-4)
+    z = bake.total / se
+    assert 0.8 < z.std() < 1.3, z.std()
+    # round 10's estimator leaves each point's Monte Carlo net (the mottle); the shrunk one is 0 within
+    # its stated standard error at every point, and exactly 0 at most (pooled: thick skin is insignificant)
+    assert np.mean(np.abs(z) > 1.0) > 0.2
+    shrunk = B.shrink_insignificant(bake, pts)
+    z_after = shrunk.total / se
+    assert np.all(np.abs(z_after) < 2.0) and np.mean(shrunk.total == 0.0) > 0.8, (np.abs(z_after).max(), np.mean(shrunk.total == 0))
+    # the shipped denoising: each point's transfer the mean of its neighbourhood's (the taps of all
+    # recompressed, their sums kept), then the same shrinkage
+    smooth = B.smooth_taps(bake, pts, 1.0)
+    i, j = B._neighbourhoods(pts, 1.0)
+    mean = np.zeros((120, 3))
+    np.add.at(mean, i, bake.total[j])
+    np.testing.assert_allclose(smooth.total, mean / np.bincount(i)[:, None], atol=1e-5)
+    assert np.mean(B.denoise(bake, pts).total == 0.0) > 0.8
+    # a thin sheet (1 mean free path: most same-side light leaves through the back) keeps its net whole
+    p, nn, uv, t = slab(size=14.0, thickness=0.5, n=14)
+    thin = SimpleNamespace(positions=p, normals=nn, indices=t, uvs=uv, texture_space_uvs=None)
+    c = thin.positions[thin.indices].mean(1)
+    front = (c[:, 2] > 0.249) & (np.abs(c[:, :2]) < 3).all(1)
+    pb, tb, nb, _ = _area_points(thin, MeshWalk(p, t), rng, 120, front)
+    pts = B.BakePoints(np.zeros((120, 2)), pb, tb, nb)
+    bake = B.bake_transfer(thin, 1.0, _profile(), (0.5, 0.5, 0.5), walks=32, points=pts, media=[MEDIUM] * 3, kernels=[kernel] * 3)
+    shrunk = B.shrink_insignificant(bake, pts)
+    assert bake.total.mean() < -0.1, bake.total.mean(0)
+    whole = np.all(shrunk.tap_weight == bake.tap_weight, axis=(1, 2))
+    assert whole.mean() > 0.9 and abs(shrunk.total.mean() / bake.total.mean() - 1.0) < 0.02, (whole.mean(), shrunk.total.mean())
 
 
 def test_gl_gather_is_its_numpy_twin(gl_ctx):
@@ -225,8 +257,21 @@ def test_bake_is_found_for_the_head_only(head_bake, monkeypatch):
         assert len(bake.point_uv) == 64 * 64 and np.isfinite(bake.tap_weight).all()
     sc.profile = dataclasses.replace(sc.profile, variances_mm2=np.asarray(sc.profile.variances_mm2) * 1.5)
     assert find(sc) is None  # another medium (a wider profile: a longer mean free path): the bake does not hold
+    # a bake of another format (round 10's, without the per-point variance) is ignored with a warning
+    # naming the file and the fix, never read as this format
+    from dermis.subsurface_transfer import store
+
+    sc = dermis.load_scene(REPO / "examples" / "lee-perry-smith.toml")
+    old = store.load(head_bake)
+    store.FORMAT, current = 1, store.FORMAT
+    try:
+        store.save(old, head_bake, store.mesh_key(sc.mesh), sc.mm_per_unit)
+    finally:
+        store.FORMAT = current
+    with pytest.warns(UserWarning, match="format 1, expected 2.*rebuild it"):
+        assert find(sc) is None
     monkeypatch.setenv("DERMIS_CACHE_DIR", "off")  # the disk cache off: nothing is looked up
-    assert find(dermis.load_scene(REPO / "examples" / "lee-perry-smith.toml")) is None
+    assert find(sc) is None
 
 
 def test_no_bake_renders_as_without_the_hook_and_the_head_gains_red(monkeypatch, box_toml, head_bake):

@@ -21,7 +21,7 @@ from dermis.errors import DermisError
 from dermis.subsurface_transfer.bake import TransferBake
 
 CACHE_SUBFOLDER = "subsurface_transfer"
-FORMAT = 1
+FORMAT = 2  # 2 (round 11): per-point excess and its covariance; taps denoised (bake.denoise)
 MEDIUM_TOLERANCE = 0.02  # relative: the scene's mean free path and mean albedo against the bake's
 
 
@@ -55,20 +55,30 @@ def save(bake: TransferBake, path: Path, mesh_key_: str, mm_per_unit: float) -> 
     tmp = path.with_suffix(".tmp.npz")
     np.savez_compressed(tmp, point_uv=bake.point_uv.astype(np.float32), tap_uv=bake.tap_uv.astype(np.float32),
                         tap_weight=bake.tap_weight.astype(np.float16), kept=bake.kept.astype(np.float32),
-                        subtracted=bake.subtracted.astype(np.float32), meta=np.array(json.dumps(meta)))
+                        subtracted=bake.subtracted.astype(np.float32), excess=_or_empty(bake.excess, 2),
+                        excess_cov=_or_empty(bake.excess_cov, 3), meta=np.array(json.dumps(meta)))
     tmp.replace(path)
+
+
+def _or_empty(a, width: int) -> np.ndarray:
+    return np.zeros((0, 3, width), np.float32) if a is None else np.asarray(a, np.float32)
+
+
+class StaleBake(DermisError):
+    """A bake written by another version of the format (:data:`FORMAT`): rebuild it."""
 
 
 def load(path: Path) -> TransferBake:
     try:
         with np.load(path) as z:
             meta = json.loads(str(z["meta"]))
+            if meta.get("format") != FORMAT:
+                raise StaleBake(f"{path}: subsurface transfer bake format {meta.get('format')}, expected {FORMAT} "
+                                f"(rebuild it: make subsurface-transfer, or python -m dermis.subsurface_transfer SCENE.toml)")
             bake = TransferBake(z["point_uv"], z["tap_uv"], z["tap_weight"].astype(np.float32), z["kept"],
-                                z["subtracted"], meta)
+                                z["subtracted"], meta, *(None if len(z[k]) == 0 else z[k] for k in ("excess", "excess_cov")))
     except (OSError, ValueError, KeyError) as e:
         raise DermisError(f"{path}: not a subsurface transfer bake ({e})") from None
-    if meta.get("format") != FORMAT:
-        raise DermisError(f"{path}: subsurface transfer bake format {meta.get('format')}, expected {FORMAT}")
     return bake
 
 
@@ -101,7 +111,13 @@ def find(scene, folder: Path | None = None) -> TransferBake | None:
     p = path_for(scene.mesh, folder)
     if p is None or not p.is_file():
         return None
-    bake = load(p)
+    try:
+        bake = load(p)
+    except StaleBake as e:  # an older dermis's bake: never misread, the scene renders without it
+        import warnings
+
+        warnings.warn(f"dermis: ignoring {e}", stacklevel=2)
+        return None
     return bake if matches(bake, scene) else None
 
 
@@ -109,7 +125,7 @@ def bake_scene(scene, folder: Path | None = None, progress=print, **options) -> 
     """Bake ``scene``'s mesh with its medium and write it where :func:`find` looks."""
     from dermis.scene.model import mean_skin_albedo
     from dermis.subsurface_transfer.bake import (DEFAULT_GRID, NEAR_MM, THIN_MM, bake_points, bake_transfer,
-                                                 smooth_own_taps)
+                                                 denoise)
 
     p = path_for(scene.mesh, folder)
     if p is None:  # before minutes of walks, not after
@@ -118,6 +134,6 @@ def bake_scene(scene, folder: Path | None = None, progress=print, **options) -> 
     points = bake_points(scene.mesh, scene.mm_per_unit, options.get("grid", DEFAULT_GRID), options.get("thin_mm", THIN_MM),
                          options.get("near_mm", NEAR_MM))
     bake = bake_transfer(scene.mesh, scene.mm_per_unit, scene.profile, albedo, points=points, progress=progress, **options)
-    bake = smooth_own_taps(bake, points)
+    bake = denoise(bake, points)
     save(bake, p, mesh_key(scene.mesh), scene.mm_per_unit)
     return p
