@@ -52,10 +52,10 @@ mottle (benchmarks/RESULTS.md, round 10 merged). The bake keeps, per point and c
 estimates less the flat share (within / beyond MIN_SURFACE_MM) and their covariance from the per-walk
 tallies (:func:`_tally_moments`); :func:`significance` pools them over the same-facing points within
 POOL_MM (a chi-square statistic, 6 degrees of freedom where the expectation is 0). :func:`denoise`
-then (1) averages each point's transfer with its same-facing neighbours' (:func:`smooth_taps`: the
-taps of all of them, recompressed; SMOOTH_MM at thin points and where the transfer is strong,
-SMOOTH_WEAK_MM elsewhere)
-and (2) scales the taps of each point of the band (not thin itself) by the firm shrinkage of its
+then (1) averages each thin point's transfer with its same-facing neighbours' over SMOOTH_MM
+(:func:`smooth_taps`: the taps of all of them, recompressed) and each band point's own tap alone
+(:func:`smooth_own_taps`; SMOOTH_MM where the transfer is strong, SMOOTH_WEAK_MM elsewhere; its far
+taps as walked: pooling them biased the back-lit ear, benchmarks/RESULTS.md round 11 mottle11b) and (2) scales the taps of each point of the band (not thin itself) by the firm shrinkage of its
 statistic (:func:`shrink_factor`): 0 where the pooled transfer is within ~2 standard errors of 0,
 whole where it is 4x beyond, continuous between; a thin point's transfer is kept.
 """
@@ -381,8 +381,8 @@ def _compress(pos, c, taps):
 
 
 SMOOTH_OWN_MM = 1.0
-SMOOTH_MM = 2.0  # the neighbourhood whose transfers are averaged (:func:`smooth_taps`) at thin points and strong ones
-SMOOTH_WEAK_MM = 4.0  # and elsewhere (thick skin beside the thin parts: a small, smooth transfer)
+SMOOTH_MM = 2.0  # the neighbourhood averaged at thin points (all taps, :func:`smooth_taps`) and strong band ones (own tap)
+SMOOTH_WEAK_MM = 4.0  # and at the band's other points (own tap: thick skin beside the thin parts, a small, smooth transfer)
 POOL_MM = 3.0  # the neighbourhood whose pooled walks decide whether a point's transfer is significant
 SIGNIFICANCE_Z = 2.0  # kept in full only well beyond this many standard errors (the 2-sigma level, 95.4 %)
 
