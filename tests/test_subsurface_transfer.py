@@ -173,6 +173,19 @@ def test_flat_slab_transfer_vanishes_in_expectation():
     np.add.at(mean, i, bake.total[j])
     np.testing.assert_allclose(smooth.total, mean / np.bincount(i)[:, None], atol=1e-5)
     assert np.mean(B.denoise(bake, pts).total == 0.0) > 0.8
+    # denoise pools the far taps of thin points only: a band point's (points.thin None: every point's)
+    # far taps are the walked ones times its shrink factor (pooling them biased the back-lit ear:
+    # RESULTS.md round 11 mottle11b), its own tap the neighbourhood's mean times the same factor
+    den = B.denoise(bake, pts)
+    s = B.shrink_factor(B.significance(bake, pts))
+    np.testing.assert_allclose(den.tap_weight[:, 1:], bake.tap_weight[:, 1:] * s[:, None, None], atol=1e-6)
+    np.testing.assert_array_equal(den.tap_uv, bake.tap_uv)
+    own = B.smooth_own_taps(bake, pts, np.where(s >= 1.0, B.SMOOTH_MM, B.SMOOTH_WEAK_MM)).tap_weight[:, 0]
+    np.testing.assert_allclose(den.tap_weight[:, 0], own * s[:, None], atol=1e-6)
+    # a thin point's taps are all pooled (smooth_taps over SMOOTH_MM) and kept whole
+    pts.thin = np.arange(120) < 60
+    np.testing.assert_allclose(B.denoise(bake, pts).total[:60], B.smooth_taps(bake, pts, B.SMOOTH_MM).total[:60], atol=1e-5)
+    pts.thin = None
     # a thin sheet (1 mean free path: most same-side light leaves through the back) keeps its net whole
     p, nn, uv, t = slab(size=14.0, thickness=0.5, n=14)
     thin = SimpleNamespace(positions=p, normals=nn, indices=t, uvs=uv, texture_space_uvs=None)

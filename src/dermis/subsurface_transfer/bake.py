@@ -52,10 +52,10 @@ mottle (benchmarks/RESULTS.md, round 10 merged). The bake keeps, per point and c
 estimates less the flat share (within / beyond MIN_SURFACE_MM) and their covariance from the per-walk
 tallies (:func:`_tally_moments`); :func:`significance` pools them over the same-facing points within
 POOL_MM (a chi-square statistic, 6 degrees of freedom where the expectation is 0). :func:`denoise`
-then (1) averages each point's transfer with its same-facing neighbours' (:func:`smooth_taps`: the
-taps of all of them, recompressed; SMOOTH_MM at thin points and where the transfer is strong,
-SMOOTH_WEAK_MM elsewhere)
-and (2) scales the taps of each point of the band (not thin itself) by the firm shrinkage of its
+then (1) averages each thin point's transfer with its same-facing neighbours' over SMOOTH_MM
+(:func:`smooth_taps`: the taps of all of them, recompressed) and each band point's own tap alone
+(:func:`smooth_own_taps`; SMOOTH_MM where the transfer is strong, SMOOTH_WEAK_MM elsewhere; its far
+taps as walked: pooling them biased the back-lit ear, benchmarks/RESULTS.md round 11 mottle11b) and (2) scales the taps of each point of the band (not thin itself) by the firm shrinkage of its
 statistic (:func:`shrink_factor`): 0 where the pooled transfer is within ~2 standard errors of 0,
 whole where it is 4x beyond, continuous between; a thin point's transfer is kept.
 """
@@ -381,8 +381,8 @@ def _compress(pos, c, taps):
 
 
 SMOOTH_OWN_MM = 1.0
-SMOOTH_MM = 2.0  # the neighbourhood whose transfers are averaged (:func:`smooth_taps`) at thin points and strong ones
-SMOOTH_WEAK_MM = 4.0  # and elsewhere (thick skin beside the thin parts: a small, smooth transfer)
+SMOOTH_MM = 2.0  # the neighbourhood averaged at thin points (all taps, :func:`smooth_taps`) and strong band ones (own tap)
+SMOOTH_WEAK_MM = 4.0  # and at the band's other points (own tap: thick skin beside the thin parts, a small, smooth transfer)
 POOL_MM = 3.0  # the neighbourhood whose pooled walks decide whether a point's transfer is significant
 SIGNIFICANCE_Z = 2.0  # kept in full only well beyond this many standard errors (the 2-sigma level, 95.4 %)
 
@@ -405,13 +405,14 @@ def _neighbourhoods(points: BakePoints, radius_mm) -> tuple[np.ndarray, np.ndarr
     return np.r_[np.arange(n), i[keep]], np.r_[np.arange(n), j[keep]]
 
 
-def smooth_own_taps(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOTH_OWN_MM) -> TransferBake:
+def smooth_own_taps(bake: TransferBake, points: BakePoints, radius_mm=SMOOTH_OWN_MM) -> TransferBake:
     """Each point's own tap (the near-field excess, a sum over ~60% of its walks: a few % Monte Carlo
     noise per point, which a 1 mm bake grid would show as speckle) replaced by its mean over the
     same-facing points within ``radius_mm`` (3-D). The quantity varies with the sheet's thickness
     and curvature over millimetres; the averaging keeps its mean over any region wider than the
-    radius (a box filter), and the far taps are left as they are. Returns a new TransferBake. Round 10's
-    shipped smoothing (benchmarks/transfer_noise.py's "before"); :func:`denoise` replaced it."""
+    radius (a box filter), and the far taps are left as they are. ``radius_mm``: a number or per point.
+    Returns a new TransferBake. Round 10's shipped smoothing at 1 mm everywhere (benchmarks/transfer_noise.py's
+    "before"); :func:`denoise` runs it on the band's points."""
     import dataclasses
 
     own = bake.tap_weight[:, 0].astype(np.float64)
@@ -421,10 +422,11 @@ def smooth_own_taps(bake: TransferBake, points: BakePoints, radius_mm: float = S
     count = np.bincount(i, minlength=len(own))[:, None]
     w = bake.tap_weight.copy()
     w[:, 0] = sums / count
-    return dataclasses.replace(bake, tap_weight=w, meta=dict(bake.meta, smooth_own_mm=float(radius_mm)))
+    return dataclasses.replace(bake, tap_weight=w, meta=dict(
+        bake.meta, smooth_own_mm=sorted(set(np.ravel(radius_mm).astype(float).tolist()))))
 
 
-def smooth_taps(bake: TransferBake, points: BakePoints, radius_mm=SMOOTH_MM) -> TransferBake:
+def smooth_taps(bake: TransferBake, points: BakePoints, radius_mm=SMOOTH_MM, only=None) -> TransferBake:
     """Each point's transfer replaced by the mean of its neighbourhood's (:func:`_neighbourhoods`,
     ``radius_mm``: a number or per point): the own taps averaged at the point (as :func:`smooth_own_taps`), the far taps of
     all the neighbours, each / N, compressed again to ``taps - 1`` by the bake's weighted k-means on
@@ -434,7 +436,8 @@ def smooth_taps(bake: TransferBake, points: BakePoints, radius_mm=SMOOTH_MM) -> 
     thickness, its curvature); the mean of N ~ 10-15 neighbours' independent walks has 1 / sqrt(N)
     of the noise, and a neighbour's far taps stand for light entering 1-15 mm away, where a shift of
     <= ``radius_mm`` is a fraction of the distance. A fold's other sheet is never a neighbour (the
-    normals' test), so an ear's helix keeps its own transfer. Returns a new TransferBake."""
+    normals' test), so an ear's helix keeps its own transfer. ``only`` (n,) bool: smooth these points
+    (their neighbours may be any), leave the others' taps as they are. Returns a new TransferBake."""
     import dataclasses
 
     if bake.tap_position is None:
@@ -444,10 +447,10 @@ def smooth_taps(bake: TransferBake, points: BakePoints, radius_mm=SMOOTH_MM) -> 
     order = np.argsort(i, kind="stable")
     i, j = i[order], j[order]
     start = np.searchsorted(i, np.arange(n + 1))
-    w = np.zeros_like(bake.tap_weight)
+    w = bake.tap_weight.copy()
     uv = bake.tap_uv.copy()
     pos = bake.tap_position.copy()
-    for p in range(n):
+    for p in range(n) if only is None else np.flatnonzero(only):
         js = j[start[p]:start[p + 1]]
         w[p, 0] = bake.tap_weight[js, 0].mean(0)
         fw = bake.tap_weight[js, 1:].reshape(-1, 3).astype(np.float64) / len(js)
@@ -530,18 +533,29 @@ def shrink_insignificant(bake: TransferBake, points: BakePoints, pool_mm: float 
 
 def denoise(bake: TransferBake, points: BakePoints, pool_mm: float = POOL_MM, z: float = SIGNIFICANCE_Z,
             radius_mm: float = SMOOTH_MM, weak_radius_mm: float = SMOOTH_WEAK_MM) -> TransferBake:
-    """The bake as shipped (:func:`dermis.subsurface_transfer.store.bake_scene`): :func:`smooth_taps`
-    over ``radius_mm`` at a thin point and where the pooled transfer is kept whole
-    (:func:`shrink_factor` 1: many standard errors from 0), over ``weak_radius_mm`` elsewhere (thick
-    skin beside the thin parts, a transfer within a few standard errors of 0: smooth on the scale of
-    the skin's curvature), then :func:`shrink_insignificant`. Measured on the head (benchmarks/RESULTS.md,
-    round 11 mottle11; validate's back_lit_ear red, the share of round 10's gain kept): 2 mm everywhere
-    0.991, 4 mm everywhere 0.968, 4 mm except where strong 0.983 (the helix's RMS error against an 8x
-    reference worse than round 10's), this split 0.986 (the helix's better, the cheek's 4 mm)."""
-    fine = shrink_factor(significance(bake, points, pool_mm), z) >= 1.0
-    if points.thin is not None:
-        fine |= np.asarray(points.thin, bool)
-    return shrink_insignificant(smooth_taps(bake, points, np.where(fine, radius_mm, weak_radius_mm)), points, pool_mm, z)
+    """The bake as shipped (:func:`dermis.subsurface_transfer.store.bake_scene`): at a thin point
+    :func:`smooth_taps` over ``radius_mm`` (all its taps); at a band point (``points.thin`` False; every
+    point where it is None) only its own tap averaged (:func:`smooth_own_taps`), over ``radius_mm``
+    where the pooled transfer is kept whole (:func:`shrink_factor` 1: many standard errors from 0),
+    ``weak_radius_mm`` elsewhere (thick skin beside the thin parts), its far taps left as walked; then
+    :func:`shrink_insignificant`. Why the band's far taps are not pooled: the recompression of the
+    neighbours' far taps (k-means, each cluster's sum at one representative tap) moves light entry
+    on the ear's folds and beside shadows, where the irradiance varies within a cluster, and so
+    biased the back-lit ear against Cycles (benchmarks/RESULTS.md, round 11 mottle11b: validate's
+    back-ears back_lit_ear FLIP 0.1255 round 10, 0.1268 with the band's far taps pooled at 2 / 4 mm,
+    0.1257 with them as walked; front-key's seed-difference high-pass of the mottle 0.83% round 10,
+    0.35% pooled, 0.39% this). Measured before on the head (round 11 mottle11; back_lit_ear red, the
+    share of round 10's gain kept): all taps 2 mm everywhere 0.991, 4 mm everywhere 0.968."""
+    thin = np.zeros(len(points.position), bool) if points.thin is None else np.asarray(points.thin, bool)
+    fine = (shrink_factor(significance(bake, points, pool_mm), z) >= 1.0) | thin
+    import dataclasses
+
+    own = smooth_own_taps(bake, points, np.where(thin, 0.0, np.where(fine, radius_mm, weak_radius_mm)))
+    sm = smooth_taps(bake, points, radius_mm, only=thin)  # both from the walks' taps: neither sees the other's
+    w = sm.tap_weight.copy()
+    w[~thin, 0] = own.tap_weight[~thin, 0]
+    return shrink_insignificant(dataclasses.replace(sm, tap_weight=w, meta=dict(sm.meta, smooth_own_mm=own.meta["smooth_own_mm"])),
+                                points, pool_mm, z)
 
 
 def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFAULT_GRID, walks: int = DEFAULT_WALKS,
