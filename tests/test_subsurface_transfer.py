@@ -224,7 +224,7 @@ def test_flat_slab_transfer_vanishes_in_expectation(slab_kernel):
 def _slab_points(thickness, n, rng):
     from dermis.scene.builtin import slab
 
-    p, nn, uv, t = slab(size=14.0, thickness=thickness, n=14)
+    p, nn, uv, t = slab(size=14.0, thickness=thickness, n=8)
     mesh = SimpleNamespace(positions=p, normals=nn, indices=t, uvs=uv, texture_space_uvs=None)
     c = mesh.positions[mesh.indices].mean(1)
     front = (c[:, 2] > thickness / 2 - 1e-3) & (np.abs(c[:, :2]) < 3).all(1)
@@ -272,7 +272,7 @@ def test_flat_twin_is_a_control_variate_with_common_random_numbers(slab_kernel):
     # (3) thick and thin slabs, the same points, both estimators
     rng = np.random.default_rng(2)
     for thickness in (6.0, 0.5):
-        mesh, pts = _slab_points(thickness, 120, rng)
+        mesh, pts = _slab_points(thickness, 60, rng)
         plain, crn = (B.bake_transfer(mesh, 1.0, _profile(), (0.5, 0.5, 0.5), walks=32, points=pts, media=[MEDIUM] * 3,
                                       kernels=[kernel] * 3, crn=c) for c in (False, True))
         tp, tc = plain.total[:, 0], crn.total[:, 0]
