@@ -63,7 +63,7 @@ twins: within the kernel's own 0.2-0.6 % error, benchmarks/RESULTS.md round 12 c
 expectation is the deterministic one's: unbiased. Where the head is locally flat and thick the walk and
 its twin are one walk until it strays beyond the curvature (or a discrete choice differs by rounding),
 so the per-walk difference is mostly exactly 0: on the head the per-point standard error falls 3x
-(red) to 20x (blue) on the cheek and 1.6-5x on the helix (RESULTS.md round 12). ``crn=False`` keeps
+(red) to 20x (blue) on the cheek and 1.6-5.7x on the helix (RESULTS.md round 12). ``crn=False`` keeps
 round 11's estimator (the deterministic share alone).
 
 The bake keeps, per point and channel, its two parts' estimates (within / beyond MIN_SURFACE_MM, each
@@ -232,7 +232,7 @@ class FlatKernel:
         return float((mass * inner).sum())
 
 
-def flat_kernel(medium: WalkMedium, walks: int = None, seed: int = None) -> FlatKernel:
+def flat_kernel(medium: WalkMedium, walks: int | None = None, seed: int | None = None) -> FlatKernel:
     """:class:`FlatKernel` of ``medium`` by ``walks`` walks (default FLAT_KERNEL_WALKS, seed FLAT_KERNEL_SEED)."""
     walks = FLAT_KERNEL_WALKS if walks is None else int(walks)
     seed = FLAT_KERNEL_SEED if seed is None else int(seed)
