@@ -14,6 +14,9 @@ ratio-front-key-768.npz: the no-bake image and round 10's, whose changed pixels 
     PYTHONPATH=src python benchmarks/transfer_crn.py mottle OUT --m11 M11 NAME
         front-key 768 px tsd with NAME's seed 0 and seed 1 bakes: the std of the two luminance ratios'
         difference / sqrt 2 (all scales, Gaussian-6 px high-pass) over the lit changed skin, the band, the ears
+    PYTHONPATH=src python benchmarks/transfer_crn.py rms OUT --m11 M11 BAKE.npz...
+        per patch, the RMS over interior points of (each bake's per-point total - reference net), the
+        reference's own noise out in quadrature, against M11's plain reference and OUT/patch-1536-101-crn.npz
     PYTHONPATH=src python benchmarks/transfer_crn.py flat
         the flat twin's expectation against the flat kernel's shares, per channel (200,000 twins)
 """
@@ -175,17 +178,41 @@ def cmd_flat(a):
                           "twin within 1 mm": [near.mean(), se(near)], "kernel F(1 mm)": k.within(B.MIN_SURFACE_MM)}))
 
 
+def cmd_rms(a):
+    import dermis
+    from dermis.subsurface_transfer import store
+    from transfer_noise import _load_points, interior, patch_mask
+
+    sc = dermis.load_scene(HEAD)
+    pts = _load_points(Path(a.m11) / "points.npz")
+    plain = np.load(Path(a.m11) / "reference.npz")
+    sel = plain["index"]
+    crn = np.load(Path(a.out) / "patch-1536-101-crn.npz")
+    refs = {"plain 1536": (plain["excess"].sum(2), _se(plain["excess_cov"])), "CRN 1536": (crn["net"], crn["se"])}
+    masks = patch_mask(sc, pts)
+    for rn, (rnet, rse) in refs.items():
+        for f in a.names:
+            tot = store.load(Path(f)).total.astype(np.float64)[sel]
+            row = {"reference": rn, "bake": f}
+            for name, m in masks.items():
+                mm = (m & interior(pts, m, 1.5))[sel]
+                d2 = ((tot[mm] - rnet[mm]) ** 2).mean(0) - (rse[mm] ** 2).mean(0)
+                row[name + " RGB"] = np.sqrt(np.maximum(d2, 0)).round(3).tolist()
+            print(json.dumps(row))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("cmd", choices=("raw", "patch", "variant", "mottle", "flat"))
+    ap.add_argument("cmd", choices=("raw", "patch", "variant", "mottle", "flat", "rms"))
     ap.add_argument("out", nargs="?", default=".")
     ap.add_argument("names", nargs="*")
     ap.add_argument("--m11", default=None)
     ap.add_argument("--walks", type=int, default=192)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--plain", action="store_true")
-    a = ap.parse_args(argv)
-    {"raw": cmd_raw, "patch": cmd_patch, "variant": cmd_variant, "mottle": cmd_mottle, "flat": cmd_flat}[a.cmd](a)
+    a = ap.parse_intermixed_args(argv)
+    {"raw": cmd_raw, "patch": cmd_patch, "variant": cmd_variant, "mottle": cmd_mottle, "flat": cmd_flat,
+     "rms": cmd_rms}[a.cmd](a)
 
 
 if __name__ == "__main__":
