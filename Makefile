@@ -61,10 +61,11 @@ mc-tables: install
 	nice -n 10 $(PY) -m dermis.profiles.monte_carlo_tables $(PRESETS)
 
 # tsd's baked subsurface transfer of the example head's thin parts (generated data, not in git: about
-# 16 min on 2 cores, seeded, written to dermis's cache folder, found there by the mesh's content).
+# 12 min of one core, 33 min wall on 2 shared cores under load; seeded, written to dermis's cache folder,
+# found there by the mesh's content).
 # Without it tsd renders the head without the transfer (benchmarks/RESULTS.md, round 10: the back-lit
-# ear's red 0.77 instead of 0.88 of Cycles'). A bake of an older format (round 10's, before the
-# denoising of round 11) is ignored with a warning: run this again. About 2.8 MB.
+# ear's red 0.77 instead of 0.88 of Cycles'). A bake of an older format or recipe (round 11's, before
+# round 12's control variate) is ignored with a warning: run this again. About 2.9 MB.
 # TRANSFER_SCENE to bake another scene's mesh and medium.
 TRANSFER_SCENE ?= examples/lee-perry-smith.toml
 subsurface-transfer: sysdeps install

@@ -56,7 +56,7 @@ def cmd_bake(a):
     import dermis
     from dermis.scene.model import mean_skin_albedo
     from dermis.subsurface_transfer import store
-    from dermis.subsurface_transfer.bake import bake_transfer, denoise, smooth_own_taps
+    from dermis.subsurface_transfer.bake import bake_transfer, denoise, recipe_key, smooth_own_taps
 
     sc = dermis.load_scene(a.scene)
     out = Path(a.out)
@@ -69,6 +69,7 @@ def cmd_bake(a):
     raw = smooth_own_taps(bake, pts)  # round 10's bake
     store.save(raw, out / "raw.npz", store.mesh_key(sc.mesh), sc.mm_per_unit)
     final = denoise(bake, pts)  # as store.bake_scene
+    final.meta["recipe"] = recipe_key()  # what store.find checks
     p = store.path_for(sc.mesh, out / "cache" / store.CACHE_SUBFOLDER)
     store.save(final, p, store.mesh_key(sc.mesh), sc.mm_per_unit)
     print(f"{time.perf_counter() - t0:.1f} s; {p} {p.stat().st_size / 1e6:.2f} MB; {json.dumps(final.meta)}")

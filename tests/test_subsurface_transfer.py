@@ -9,6 +9,10 @@
   standard errors.
 - On a flat thick slab the transfer (the walk less the flat kernel) is 0 within its standard error:
   the split adds nothing where tsd's blur is the whole answer.
+- The control variate (round 12): the walk's flat twin on common random numbers is the same walk on a
+  large slab, its expectation the flat kernel's share; on a thick slab the net's spread falls > 10x,
+  on a thin one its mean is the plain estimator's.
+- A bake of another recipe (estimator, denoising constants) is stale, as one of another format.
 - The GL gather against its numpy twin (the same taps, a random premultiplied irradiance).
 - The shipped bake is found for the head (back-ears and the example scene) and not for another
   medium; a mesh without a bake renders exactly as tsd without the hook; on the head the pass runs,
@@ -105,7 +109,7 @@ def test_transfer_is_the_forward_walk_on_a_folded_sheet():
     pb, tb, nb, area_b = _area_points(mesh, walker, rng, 200, in_b)
     pts = B.BakePoints(np.zeros((len(pb), 2)), pb, tb, nb)
     bake = B.bake_transfer(mesh, 1.0, _profile(), (0.5, 0.5, 0.5), walks=16, points=pts, media=[MEDIUM] * 3,
-                           kernels=[_unit_kernel()] * 3, seed=3)
+                           kernels=[_unit_kernel()] * 3, seed=3, crn=False)
     own, far = bake.tap_weight[:, 0, 0], bake.tap_weight[:, 1:, 0].sum(1)  # g <= MIN_SURFACE_MM, beyond
     np.testing.assert_allclose(own + far, bake.kept[:, 0], rtol=1e-5)  # compression keeps the total
     # forward: walks from everywhere on the surface; the same-facing exits landing in B, split by the
@@ -135,7 +139,12 @@ def _profile():
     return deon_skin()
 
 
-def test_flat_slab_transfer_vanishes_in_expectation():
+@pytest.fixture(scope="module")
+def slab_kernel():
+    return B.flat_kernel(MEDIUM, 20_000)
+
+
+def test_flat_slab_transfer_vanishes_in_expectation(slab_kernel):
     """On a flat thick slab the walk's transport IS the flat kernel: the bake's total (its own tap less
     F_flat(1 mm), its far taps less K_flat(g) A_v) is 0 within its standard error."""
     from dermis.scene.builtin import slab
@@ -147,9 +156,10 @@ def test_flat_slab_transfer_vanishes_in_expectation():
     c = mesh.positions[mesh.indices].mean(1)
     front = (c[:, 2] > 2.99) & (np.abs(c[:, :2]) < 3).all(1)
     pb, tb, nb, _ = _area_points(mesh, walker, rng, 120, front)
-    kernel = B.flat_kernel(MEDIUM, 20_000)
+    kernel = slab_kernel
     pts = B.BakePoints(np.zeros((120, 2)), pb, tb, nb)
-    bake = B.bake_transfer(mesh, 1.0, _profile(), (0.5, 0.5, 0.5), walks=32, points=pts, media=[MEDIUM] * 3, kernels=[kernel] * 3)
+    bake = B.bake_transfer(mesh, 1.0, _profile(), (0.5, 0.5, 0.5), walks=32, points=pts, media=[MEDIUM] * 3, kernels=[kernel] * 3,
+                           crn=False)
     tot = bake.total[:, 0]
     assert bake.subtracted[:, 0].mean() > 0.9  # nearly all of the flat transport is within reach
     assert abs(tot.mean()) < 4.0 * tot.std() / np.sqrt(len(tot)) + 0.01, (tot.mean(), tot.std())
@@ -172,11 +182,11 @@ def test_flat_slab_transfer_vanishes_in_expectation():
     mean = np.zeros((120, 3))
     np.add.at(mean, i, bake.total[j])
     np.testing.assert_allclose(smooth.total, mean / np.bincount(i)[:, None], atol=1e-5)
-    assert np.mean(B.denoise(bake, pts).total == 0.0) > 0.8
-    # denoise pools the far taps of thin points only: a band point's (points.thin None: every point's)
-    # far taps are the walked ones times its shrink factor (pooling them biased the back-lit ear:
-    # RESULTS.md round 11 mottle11b), its own tap the neighbourhood's mean times the same factor
-    den = B.denoise(bake, pts)
+    assert np.mean(B.denoise_round11(bake, pts).total == 0.0) > 0.8
+    # round 11's denoising pools the far taps of thin points only: a band point's (points.thin None: every
+    # point's) far taps are the walked ones times its shrink factor (pooling them biased the back-lit
+    # ear: RESULTS.md round 11 mottle11b), its own tap the neighbourhood's mean times the same factor
+    den = B.denoise_round11(bake, pts)
     s = B.shrink_factor(B.significance(bake, pts))
     np.testing.assert_allclose(den.tap_weight[:, 1:], bake.tap_weight[:, 1:] * s[:, None, None], atol=1e-6)
     np.testing.assert_array_equal(den.tap_uv, bake.tap_uv)
@@ -184,7 +194,17 @@ def test_flat_slab_transfer_vanishes_in_expectation():
     np.testing.assert_allclose(den.tap_weight[:, 0], own * s[:, None], atol=1e-6)
     # a thin point's taps are all pooled (smooth_taps over SMOOTH_MM) and kept whole
     pts.thin = np.arange(120) < 60
-    np.testing.assert_allclose(B.denoise(bake, pts).total[:60], B.smooth_taps(bake, pts, B.SMOOTH_MM).total[:60], atol=1e-5)
+    np.testing.assert_allclose(B.denoise_round11(bake, pts).total[:60], B.smooth_taps(bake, pts, B.SMOOTH_MM).total[:60],
+                               atol=1e-5)
+    # round 12's shipped denoising (for the control variate's walks): the own tap averaged over
+    # SMOOTH_OWN_MM at every point, thin or not (the neighbourhood's mean), the far taps as walked, nothing shrunk
+    den = B.denoise(bake, pts)
+    i, j = B._neighbourhoods(pts, B.SMOOTH_OWN_MM)
+    mean = np.zeros((120, 3))
+    np.add.at(mean, i, bake.tap_weight[j, 0])
+    np.testing.assert_allclose(den.tap_weight[:, 0], mean / np.bincount(i)[:, None], atol=1e-6)
+    np.testing.assert_array_equal(den.tap_weight[:, 1:], bake.tap_weight[:, 1:])
+    np.testing.assert_array_equal(den.tap_uv, bake.tap_uv)
     pts.thin = None
     # a thin sheet (1 mean free path: most same-side light leaves through the back) keeps its net whole
     p, nn, uv, t = slab(size=14.0, thickness=0.5, n=14)
@@ -193,11 +213,76 @@ def test_flat_slab_transfer_vanishes_in_expectation():
     front = (c[:, 2] > 0.249) & (np.abs(c[:, :2]) < 3).all(1)
     pb, tb, nb, _ = _area_points(thin, MeshWalk(p, t), rng, 120, front)
     pts = B.BakePoints(np.zeros((120, 2)), pb, tb, nb)
-    bake = B.bake_transfer(thin, 1.0, _profile(), (0.5, 0.5, 0.5), walks=32, points=pts, media=[MEDIUM] * 3, kernels=[kernel] * 3)
+    bake = B.bake_transfer(thin, 1.0, _profile(), (0.5, 0.5, 0.5), walks=32, points=pts, media=[MEDIUM] * 3, kernels=[kernel] * 3,
+                           crn=False)
     shrunk = B.shrink_insignificant(bake, pts)
     assert bake.total.mean() < -0.1, bake.total.mean(0)
     whole = np.all(shrunk.tap_weight == bake.tap_weight, axis=(1, 2))
     assert whole.mean() > 0.9 and abs(shrunk.total.mean() / bake.total.mean() - 1.0) < 0.02, (whole.mean(), shrunk.total.mean())
+
+
+def _slab_points(thickness, n, rng):
+    from dermis.scene.builtin import slab
+
+    p, nn, uv, t = slab(size=14.0, thickness=thickness, n=8)
+    mesh = SimpleNamespace(positions=p, normals=nn, indices=t, uvs=uv, texture_space_uvs=None)
+    c = mesh.positions[mesh.indices].mean(1)
+    front = (c[:, 2] > thickness / 2 - 1e-3) & (np.abs(c[:, :2]) < 3).all(1)
+    pb, tb, nb, _ = _area_points(mesh, MeshWalk(p, t), rng, n, front)
+    return mesh, B.BakePoints(np.zeros((n, 2)), pb, tb, nb)
+
+
+def test_flat_twin_is_a_control_variate_with_common_random_numbers(slab_kernel):
+    """The control variate (round 12): each walk less its flat twin, the same walk in the half-space
+    tangent at its start driven by the same random numbers (CounterUniforms). (1) On a large flat
+    slab the mesh walk and its twin ARE the same walk: the same exits. (2) The twin's expectation is
+    the flat kernel's (independent walks on the slab mesh, dermis.subsurface_transfer.bake.flat_kernel):
+    total 1 and F_flat(1 mm) within 4 standard errors. (3) On a thick slab the per-point net is 0
+    within 4 s.e. of the mean and its spread is < 1/10 of the plain estimator's (the mottle's cause
+    removed at its source); on a thin slab (1 mean free path, net about -0.19) both estimators have the
+    same mean within 4 combined s.e. (unbiased where the twin does not follow the walk)."""
+    from dermis.reference.random_walk import CounterUniforms, halfspace_exits
+    from dermis.scene.builtin import slab
+
+    u = CounterUniforms(5)
+    a, b = u(np.arange(20_000), 3, 0), u(np.arange(20_000), 3, 1)
+    assert abs(a.mean() - 0.5) < 0.01 and abs(a.var() - 1 / 12) < 0.004 and abs(np.corrcoef(a, b)[0, 1]) < 0.03
+    np.testing.assert_array_equal(a, CounterUniforms(5)(np.arange(20_000), 3, 0))  # a function of its counters
+    # (1) the same walk: a slab 200 mm wide and 60 thick is the half-space for these walks
+    p, nn, _, t = slab(size=200.0, thickness=60.0, n=2)
+    mw = MeshWalk(p, t)
+    n = 4000
+    pts = np.tile([0.0, 0.0, 30.0], (n, 1))
+    _, tri, _ = mw.caster.closest_hit(pts + [0, 0, 1.0], np.tile([0, 0, -1.0], (n, 1)))
+    views = B.diffuse_views(np.tile([0, 0, 1.0], (n, 1)), np.random.default_rng(1))
+    ex = {}
+    mw.radiance(pts, tri, views, MEDIUM, exits=ex, uniforms=CounterUniforms(9))
+    tw = halfspace_exits(pts, np.tile([0, 0, 1.0], (n, 1)), views, MEDIUM, CounterUniforms(9))
+    both, i, j = np.intersect1d(ex["walk"], tw["walk"], return_indices=True)
+    same = np.all(np.abs(ex["point"][i] - tw["point"][j]) < 1e-3, axis=1) & np.isclose(ex["weight"][i], tw["weight"][j])
+    assert len(both) > 0.9 * max(len(ex["walk"]), len(tw["walk"])) and same.mean() > 0.97, (len(both), same.mean())
+    # (2) the twin's expectation is the flat kernel's share
+    kernel, m = slab_kernel, 20_000
+    tw = halfspace_exits(np.zeros((m, 3)), np.tile([0, 0, 1.0], (m, 1)), B.diffuse_views(np.tile([0, 0, 1.0], (m, 1)),
+                         np.random.default_rng(2)), MEDIUM, CounterUniforms(3))
+    per = np.bincount(tw["walk"], weights=tw["weight"], minlength=m) / kernel.reflectance
+    near = np.bincount(tw["walk"], weights=tw["weight"] * (tw["radius"] <= B.MIN_SURFACE_MM), minlength=m) / kernel.reflectance
+    se = lambda x: np.hypot(x.std() / np.sqrt(len(x)), kernel.reflectance_se / kernel.reflectance)
+    assert abs(per.mean() - 1.0) < 4 * se(per) and abs(near.mean() - kernel.within(B.MIN_SURFACE_MM)) < 4 * se(near)
+    # (3) thick and thin slabs, the same points, both estimators
+    rng = np.random.default_rng(2)
+    for thickness in (6.0, 0.5):
+        mesh, pts = _slab_points(thickness, 60, rng)
+        plain, crn = (B.bake_transfer(mesh, 1.0, _profile(), (0.5, 0.5, 0.5), walks=32, points=pts, media=[MEDIUM] * 3,
+                                      kernels=[kernel] * 3, crn=c) for c in (False, True))
+        tp, tc = plain.total[:, 0], crn.total[:, 0]
+        np.testing.assert_allclose(crn.excess.sum(2), crn.total, atol=1e-4)  # the taps hold the estimator's net
+        if thickness > 1.0:
+            assert abs(tc.mean()) < 4.0 * tc.std() / np.sqrt(len(tc)) + 1e-3, (tc.mean(), tc.std())
+            assert tc.std() < 0.1 * tp.std(), (tc.std(), tp.std())
+        else:
+            assert tp.mean() < -0.1
+            assert abs(tc.mean() - tp.mean()) < 4.0 * np.hypot(tc.std(), tp.std()) / np.sqrt(len(tc)), (tc.mean(), tp.mean())
 
 
 def test_gl_gather_is_its_numpy_twin(gl_ctx):
@@ -250,7 +335,8 @@ def head_bake(tmp_path, monkeypatch):
     w[:, 0] = (0.2, 0.05, 0.02)
     mfp, albedo = store.scene_medium(sc)
     bake = B.TransferBake(uv, taps, w, w.sum(1), np.zeros((len(uv), 3), np.float32),
-                          {"grid": g, "walks": 1, "taps": 2, "mean_free_path_mm": mfp.tolist(), "albedo": albedo.tolist()})
+                          {"grid": g, "walks": 1, "taps": 2, "mean_free_path_mm": mfp.tolist(), "albedo": albedo.tolist(),
+                           "recipe": B.recipe_key()})
     path = store.path_for(sc.mesh)
     assert path is not None and path.parent.parent == tmp_path
     store.save(bake, path, store.mesh_key(sc.mesh), sc.mm_per_unit)
@@ -283,6 +369,21 @@ def test_bake_is_found_for_the_head_only(head_bake, monkeypatch):
         store.FORMAT = current
     with pytest.warns(UserWarning, match="format 1, expected 2.*rebuild it"):
         assert find(sc) is None
+    # a bake made by another recipe (the denoising's or the estimator's constants: here a round-11 bake,
+    # which has none, and one whose smoothing radius has since changed) is stale in the same way: the
+    # file's name is the mesh's alone, so it would otherwise be reused silently
+    for recipe in (None, B.recipe_key()):
+        meta = dict(old.meta, format=2)
+        meta.pop("recipe")
+        if recipe is not None:
+            meta["recipe"] = recipe
+        store.save(dataclasses.replace(old, meta=meta), head_bake, store.mesh_key(sc.mesh), sc.mm_per_unit)
+        with monkeypatch.context() as m:
+            if recipe is not None:
+                assert find(sc) is not None  # this code's recipe: found
+                m.setattr(B, "SMOOTH_MM", B.SMOOTH_MM + 0.5)
+            with pytest.warns(UserWarning, match=f"recipe {recipe}, expected [0-9a-f]{{16}}.*rebuild it"):
+                assert find(sc) is None
     monkeypatch.setenv("DERMIS_CACHE_DIR", "off")  # the disk cache off: nothing is looked up
     assert find(sc) is None
 

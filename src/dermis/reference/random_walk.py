@@ -115,6 +115,114 @@ def _unit_sphere(rng, n):
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], 1)
 
 
+_MIX1, _MIX2, _GOLDEN = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB), np.uint64(0x9E3779B97F4A7C15)
+# what a walk's event draws from its stream (CounterUniforms' ``purpose``)
+U_STEP, U_FRESNEL, U_PHI, U_Z, U_ROULETTE = range(5)
+
+
+def _splitmix(x):
+    """SplitMix64's finaliser (Steele, Lea & Flood 2014, "Fast splittable pseudorandom number
+    generators"): a bijection of uint64 that scrambles every bit (products modulo 2^64)."""
+    with np.errstate(over="ignore"):
+        x = x ^ (x >> np.uint64(30))
+        x = x * _MIX1
+        x = x ^ (x >> np.uint64(27))
+        x = x * _MIX2
+        return x ^ (x >> np.uint64(31))
+
+
+class CounterUniforms:
+    """Uniforms in [0, 1) that are a function of (seed, walk, event, purpose) alone (a counter-based
+    generator: SplitMix64's finaliser of the walk's key plus the event's counter): two walks given the
+    same walk index draw the same numbers at the same event whatever else is walked beside them, and
+    different walks or events independent ones. What common random numbers need (a walk in the mesh
+    and its twin in the flat half-space, :func:`halfspace_exits`): the vectorised walk otherwise draws
+    per alive set, so two geometries would never share a stream. 53-bit uniforms."""
+
+    def __init__(self, seed: int):
+        with np.errstate(over="ignore"):
+            self.key = _splitmix(np.uint64(int(seed) & 0xFFFFFFFFFFFFFFFF) * _GOLDEN + _GOLDEN)
+
+    def __call__(self, walks, event: int, purpose: int) -> np.ndarray:
+        with np.errstate(over="ignore"):
+            k = _splitmix(self.key + np.asarray(walks, np.uint64) * _GOLDEN)
+            x = _splitmix(k + np.uint64((int(event) << 3) | int(purpose)))
+        return (x >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+
+
+def _sphere_from(u_z, u_phi):
+    """Unit directions uniform on the sphere from two uniforms (as _unit_sphere)."""
+    z = 2.0 * u_z - 1.0
+    phi = 2.0 * np.pi * u_phi
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], 1)
+
+
+def halfspace_exits(origins, normals, view_dirs, medium: WalkMedium, uniforms: CounterUniforms, walk_ids=None) -> dict:
+    """The fresnel walk of :meth:`MeshWalk.radiance` from ``origins`` (n, 3) along ``view_dirs``, in the
+    semi-infinite half-space below the plane through each origin with outward normal ``normals``
+    (n, 3): no ray casting (the boundary is the plane). Driven by ``uniforms`` at ``walk_ids`` (default
+    0..n-1) with the mesh walk's event counter and purposes, so a mesh walk given the same uniforms and
+    ids follows the same path for as long as the mesh is the plane there (common random numbers: its
+    flat twin). Returns the exits: "walk", "point" (mm), "radius" (mm from the origin, in the plane),
+    "weight" (w n^2)."""
+    if medium.boundary != "fresnel":
+        raise DermisError("random walk: the half-space twin is the fresnel walk's")
+    o = np.asarray(origins, np.float64).reshape(-1, 3)
+    nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+    v = np.asarray(view_dirs, np.float64).reshape(-1, 3)
+    n = len(o)
+    ids = np.arange(n, dtype=np.uint64) if walk_ids is None else np.asarray(walk_ids, np.uint64)
+    eta = medium.index
+    sigma_t = 1.0 / medium.mean_free_path_mm
+    alpha = medium.single_scattering_albedo
+    cos_o = -np.einsum("ij,ij->i", v, nrm)
+    F, _ = fresnel_unpolarised(cos_o, 1.0, eta)
+    w = (1.0 - F) / eta ** 2
+    d = refract(v, nrm, 1.0 / eta)
+    p = o.copy()
+    alive = np.arange(n)
+    out = {"walk": [], "point": [], "weight": []}
+    for it in range(MAX_STEPS):
+        if len(alive) == 0:
+            break
+        s = -np.log(1.0 - uniforms(ids[alive], it, U_STEP)) / sigma_t
+        pa, da, na = p[alive], d[alive], nrm[alive]
+        dn = np.einsum("ij,ij->i", da, na)
+        depth = np.einsum("ij,ij->i", o[alive] - pa, na)  # >= 0 inside
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(dn > 0.0, np.maximum(depth, 0.0) / dn, np.inf)
+        hit = t < s
+        hi = alive[hit]
+        if len(hi):
+            pb = pa[hit] + da[hit] * t[hit, None]
+            F, _ = fresnel_unpolarised(dn[hit], eta, 1.0)
+            refl = uniforms(ids[hi], it, U_FRESNEL) <= F
+            r = hi[refl]
+            d[r] = da[hit][refl] - 2.0 * dn[hit][refl, None] * na[hit][refl]
+            p[r] = pb[refl]
+            o_ = hi[~refl]
+            if len(o_):
+                out["walk"].append(o_)
+                out["point"].append(pb[~refl])
+                out["weight"].append(w[o_] * eta ** 2)
+            w[o_] = 0.0
+        sc = alive[~hit]
+        if len(sc):
+            p[sc] = pa[~hit] + da[~hit] * s[~hit, None]
+            w[sc] *= alpha
+            d[sc] = _sphere_from(uniforms(ids[sc], it, U_Z), uniforms(ids[sc], it, U_PHI))
+            low = sc[w[sc] < ROULETTE_WEIGHT]
+            if len(low):
+                keep = uniforms(ids[low], it, U_ROULETTE) < ROULETTE_SURVIVAL
+                w[low] = np.where(keep, w[low] / ROULETTE_SURVIVAL, 0.0)
+        alive = alive[w[alive] > 0.0]
+    ex = {k: (np.concatenate(val) if val else np.zeros((0, 3) if k == "point" else 0, np.int64 if k == "walk" else np.float64))
+          for k, val in out.items()}
+    ex["radius"] = np.linalg.norm(ex["point"] - o[ex["walk"]], axis=1)
+    return ex
+
+
 class MeshWalk:
     """A closed triangle mesh (positions in mm) to walk inside. ``vertex_normals``: the smooth
     normals the Lambertian closure shades with (default: the facets')."""
@@ -234,7 +342,8 @@ class MeshWalk:
 
     def radiance(self, points, triangles, view_dirs, medium: WalkMedium, lights=(), environment: float = 0.0,
                  seed: int = 0, stats: dict | None = None, check_fraction: float = 0.0, check_radius_mm: float = 4.0,
-                 bounce=None, paths: bool = False, nee: str = "search", exits: dict | None = None):
+                 bounce=None, paths: bool = False, nee: str = "search", exits: dict | None = None,
+                 uniforms: CounterUniforms | None = None, walk_ids=None):
         """Radiance leaving each surface point towards the camera, one walk per point (average walks
         per pixel yourself). ``points`` (n, 3) mm on ``triangles`` (n,), ``view_dirs`` (n, 3) unit
         camera-ray directions (towards the surface). Returns (n,) radiance.
@@ -261,11 +370,17 @@ class MeshWalk:
         normal) and "weight" (w n^2: the walk's estimate of the radiance at its start per unit
         radiance arriving at the exit point along the reversed exit ray). By reciprocity these are
         samples of the transport from light entering at the exit points (the adjoint walk; Jensen
-        et al. 2001's S(x_i, w_i; x_o, w_o) = S(x_o, -w_o; x_i, -w_i)): dermis.subsurface_transfer."""
+        et al. 2001's S(x_i, w_i; x_o, w_o) = S(x_o, -w_o; x_i, -w_i)): dermis.subsurface_transfer.
+
+        ``uniforms`` (fresnel): a :class:`CounterUniforms` that draws the walk's step lengths, Fresnel
+        choices, scattering directions and roulette at ``walk_ids`` (default 0..n-1) instead of
+        ``seed``'s generator: the stream :func:`halfspace_exits` shares (common random numbers)."""
         if nee not in ("search", "exhaustive"):
             raise DermisError(f"random walk: nee must be 'search' or 'exhaustive', got {nee!r}")
         if nee == "exhaustive" and (paths or check_fraction):
             raise DermisError("random walk: paths and check_fraction need nee='search'")
+        if uniforms is not None and medium.boundary != "fresnel":
+            raise DermisError("random walk: uniforms (common random numbers) are for the fresnel walk")
         rng = np.random.default_rng(seed)
         p = np.asarray(points, np.float64).reshape(-1, 3).copy()
         v = np.asarray(view_dirs, np.float64).reshape(-1, 3)
@@ -292,11 +407,15 @@ class MeshWalk:
         p0, n0 = p.copy(), out_n.copy()
         path_sums = {k: np.zeros(n) for k in ("light", "far", "opposite", "distance")}
         counters = {"steps": 0, "nee": 0, "nee_found": 0, "nee_search": 0.0, "nee_exhaustive": 0.0}
-        for _ in range(MAX_STEPS):
+        ids = None if uniforms is None else (np.arange(n, dtype=np.uint64) if walk_ids is None
+                                             else np.asarray(walk_ids, np.uint64))
+        draw = (lambda which, purpose, it: rng.random(len(which))) if uniforms is None else \
+            (lambda which, purpose, it: uniforms(ids[which], it, purpose))
+        for it in range(MAX_STEPS):
             if len(alive) == 0:
                 break
             counters["steps"] += len(alive)
-            s = -np.log(1.0 - rng.random(len(alive))) / sigma_t
+            s = -np.log(1.0 - draw(alive, U_STEP, it)) / sigma_t
             pa, da = p[alive], d[alive]
             t, tri, bary = self.caster.closest_hit(pa, da, tmin[alive], s)
             hit = (tri >= 0) & (t < s)
@@ -320,7 +439,7 @@ class MeshWalk:
                 else:
                     cos_i = np.einsum("ij,ij->i", da[hit], nb)
                     F, _ = fresnel_unpolarised(cos_i, eta, 1.0)
-                    refl = rng.random(len(hi)) <= F
+                    refl = draw(hi, U_FRESNEL, it) <= F
                     r = hi[refl]
                     d[r] = da[hit][refl] - 2.0 * cos_i[refl, None] * nb[refl]
                     p[r] = pb[refl]
@@ -368,11 +487,12 @@ class MeshWalk:
                                 counters["nee_search"] += float((w[sc[chk]] * src[chk]).sum())
                                 counters["nee_exhaustive"] += float((w[sc[chk]] * ex).sum())
                 w[sc] *= alpha
-                d[sc] = _unit_sphere(rng, len(sc))
+                d[sc] = _unit_sphere(rng, len(sc)) if uniforms is None else \
+                    _sphere_from(draw(sc, U_Z, it), draw(sc, U_PHI, it))
                 tmin[sc] = 0.0
                 low = sc[w[sc] < ROULETTE_WEIGHT]
                 if len(low):
-                    keep = rng.random(len(low)) < ROULETTE_SURVIVAL
+                    keep = draw(low, U_ROULETTE, it) < ROULETTE_SURVIVAL
                     w[low] = np.where(keep, w[low] / ROULETTE_SURVIVAL, 0.0)
             alive = alive[w[alive] > 0.0]
         if exits is not None:

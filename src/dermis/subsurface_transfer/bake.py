@@ -44,20 +44,42 @@ exactly). Geodesic distance: Dijkstra on a graph joining all vertices of each gi
 subdivision lattice by straight lines (exact within a triangle), a lower bound
 max(r, path - both points' distances to their vertices) between two surface points.
 
-Where it is kept (the Monte Carlo noise; round 11). The net is the difference of two ~1 totals (the
-walk's same-facing transport and the flat kernel's share), so with 192 walks a point it carries a
-+-5 % Monte Carlo error per point where its expectation is ~0: on the thick skin of the 6 mm band
-beside every thin part (cheeks under the eyes, around the nose and lips), which tsd showed as a
-mottle (benchmarks/RESULTS.md, round 10 merged). The bake keeps, per point and channel, its two parts'
-estimates less the flat share (within / beyond MIN_SURFACE_MM) and their covariance from the per-walk
-tallies (:func:`_tally_moments`); :func:`significance` pools them over the same-facing points within
-POOL_MM (a chi-square statistic, 6 degrees of freedom where the expectation is 0). :func:`denoise`
-then (1) averages each thin point's transfer with its same-facing neighbours' over SMOOTH_MM
-(:func:`smooth_taps`: the taps of all of them, recompressed) and each band point's own tap alone
-(:func:`smooth_own_taps`; SMOOTH_MM where the transfer is strong, SMOOTH_WEAK_MM elsewhere; its far
-taps as walked: pooling them biased the back-lit ear, benchmarks/RESULTS.md round 11 mottle11b) and (2) scales the taps of each point of the band (not thin itself) by the firm shrinkage of its
-statistic (:func:`shrink_factor`): 0 where the pooled transfer is within ~2 standard errors of 0,
-whole where it is 4x beyond, continuous between; a thin point's transfer is kept.
+Where it is kept (the Monte Carlo noise; rounds 11-12). The net is the difference of two ~1 totals (the
+walk's same-facing transport and the flat kernel's share), so with 192 walks a point and the flat share
+subtracted as its deterministic expectation it carries a +-5 % Monte Carlo error per point where its
+expectation is ~0: on the thick skin of the 6 mm band beside every thin part (cheeks under the eyes,
+around the nose and lips), which tsd showed as a mottle (benchmarks/RESULTS.md, round 10 merged).
+
+The control variate (round 12). Each walk is paired with its flat twin (:func:`walk_exits` ``twin``;
+dermis.reference.random_walk.halfspace_exits): the same walk (the same view, the same random numbers per
+walk and event: random_walk.CounterUniforms, common random numbers) in the semi-infinite half-space
+below the plane of the facet it enters by. Per walk, the twin's tally within MIN_SURFACE_MM (its
+exit's distance in the plane) is subtracted from the walk's own tally within, and its tally beyond
+times S_b / (1 - F_flat(MIN_SURFACE_MM)) from the walk's beyond (S_b = sum K_flat(g_v) A_v, the
+deterministic share the far taps subtract: its spatial shape is kept, scaled by the twins' far
+transport over its expectation). The twin's expectations are F_flat(MIN_SURFACE_MM) and
+1 - F_flat(MIN_SURFACE_MM) (it IS the flat kernel's walk; measured for the head's media with 200,000
+twins: within the kernel's own 0.2-0.6 % error, benchmarks/RESULTS.md round 12 cv12), so the estimator's
+expectation is the deterministic one's: unbiased. Where the head is locally flat and thick the walk and
+its twin are one walk until it strays beyond the curvature (or a discrete choice differs by rounding),
+so the per-walk difference is mostly exactly 0: on the head the per-point standard error falls 3x
+(red) to 20x (blue) on the cheek and 1.6-5.7x on the helix (RESULTS.md round 12). ``crn=False`` keeps
+round 11's estimator (the deterministic share alone).
+
+The bake keeps, per point and channel, its two parts' estimates (within / beyond MIN_SURFACE_MM, each
+less its flat share or twin) and their covariance from the per-walk tallies (:func:`_walk_moments`);
+:func:`significance` pools them over the same-facing points within POOL_MM (a chi-square statistic,
+6 degrees of freedom where the expectation is 0). :func:`denoise` (shipped) averages each point's own
+tap over SMOOTH_OWN_MM and leaves its far taps as walked (round 10's treatment: with the control
+variate the mottle is within round 11's limits without more). Round 11's :func:`denoise_round11`, for
+a bake without the control variate: (1) averages each thin point's transfer with its same-facing
+neighbours' over SMOOTH_MM (:func:`smooth_taps`: the taps of all of them, recompressed) and each band
+point's own tap alone (:func:`smooth_own_taps`; SMOOTH_MM where the transfer is strong, SMOOTH_WEAK_MM
+elsewhere; its far taps as walked: pooling them biased the back-lit ear, benchmarks/RESULTS.md round 11
+mottle11b) and (2) scales the taps of each point of the band (not thin itself) by the firm shrinkage
+of its statistic (:func:`shrink_factor`): 0 where the pooled transfer is within ~2 standard errors of
+0, whole where it is 4x beyond, continuous between; a thin point's transfer is kept. It cost the
+eyelids against Cycles (round 11 mottle11b), which round 12's estimator recovers.
 """
 
 from __future__ import annotations
@@ -144,23 +166,43 @@ def diffuse_views(normals, rng) -> np.ndarray:
     return -cosine_directions(np.asarray(normals, np.float64), rng.random((n, 1)), rng.random((n, 1)))[:, 0]
 
 
-def walk_exits(walker: MeshWalk, position, triangle, normal, medium: WalkMedium, walks: int, seed: int = 0) -> dict:
+def walk_exits(walker: MeshWalk, position, triangle, normal, medium: WalkMedium, walks: int, seed: int = 0,
+               twin: bool = False) -> dict:
     """``walks`` adjoint walks from each point, diffuse views: the exits (random_walk's ``exits``)
-    with "point_index" (which start point) added."""
+    with "point_index" (which start point) and "sample" (which of its point's walks) added.
+    ``twin``: the walks draw from a :class:`CounterUniforms` stream (``seed``) at their global index,
+    and each walk's flat twin (:func:`dermis.reference.random_walk.halfspace_exits`: the same view,
+    the same random numbers, the half-space tangent at the point, i.e. below the plane through it
+    with the normal of the facet it enters by) is walked too: its exits under "twin" ("point_index", "sample",
+    "radius" mm in the plane, "weight")."""
+    from dermis.reference.random_walk import CounterUniforms, halfspace_exits
+
     position = np.asarray(position, np.float64)
+    normal = np.asarray(normal, np.float64)
     n = len(position)
     total = n * int(walks)
-    parts = []
+    parts, twins = [], []
     rng = np.random.default_rng(seed)
+    stream = CounterUniforms(seed) if twin else None
     for start in range(0, total, CHUNK_WALKS):
-        idx = np.arange(start, min(start + CHUNK_WALKS, total)) // int(walks)
+        gid = np.arange(start, min(start + CHUNK_WALKS, total))
+        idx = gid // int(walks)
+        views = diffuse_views(normal[idx], rng)
         ex = {}
-        walker.radiance(position[idx], np.asarray(triangle)[idx], diffuse_views(np.asarray(normal)[idx], rng), medium,
-                        seed=int(rng.integers(2 ** 31)), exits=ex)
+        walker.radiance(position[idx], np.asarray(triangle)[idx], views, medium,
+                        seed=int(rng.integers(2 ** 31)), exits=ex, uniforms=stream, walk_ids=gid)
         ex["point_index"] = idx[ex["walk"]]
         ex["sample"] = (start + ex["walk"]) % int(walks)  # which of its point's walks: per-walk tallies
         parts.append(ex)
-    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if parts else {}
+        if twin:
+            # the plane of the facet the walk enters by, turned to the viewer (as the walk's entry)
+            tw = halfspace_exits(position[idx], walker._outward(np.asarray(triangle)[idx], -views), views, medium, stream, gid)
+            twins.append({"point_index": idx[tw["walk"]], "sample": (start + tw["walk"]) % int(walks),
+                          "radius": tw["radius"], "weight": tw["weight"]})
+    out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if parts else {}
+    if twin and twins:
+        out["twin"] = {k: np.concatenate([t[k] for t in twins]) for k in twins[0]}
+    return out
 
 
 FLAT_EDGES_MM = np.r_[np.arange(0.0, 5.0, 0.1), np.arange(5.0, 25.5, 0.5)]
@@ -190,8 +232,10 @@ class FlatKernel:
         return float((mass * inner).sum())
 
 
-def flat_kernel(medium: WalkMedium, walks: int = 40_000, seed: int = 7) -> FlatKernel:
-    """:class:`FlatKernel` of ``medium`` by ``walks`` walks."""
+def flat_kernel(medium: WalkMedium, walks: int | None = None, seed: int | None = None) -> FlatKernel:
+    """:class:`FlatKernel` of ``medium`` by ``walks`` walks (default FLAT_KERNEL_WALKS, seed FLAT_KERNEL_SEED)."""
+    walks = FLAT_KERNEL_WALKS if walks is None else int(walks)
+    seed = FLAT_KERNEL_SEED if seed is None else int(seed)
     from dermis.scene.builtin import slab
 
     p, nn, _, t = slab(size=200.0, thickness=60.0, n=2)
@@ -380,11 +424,35 @@ def _compress(pos, c, taps):
     return lab, rep
 
 
-SMOOTH_OWN_MM = 1.0
+SMOOTH_OWN_MM = 1.0  # the shipped denoise: each point's own tap averaged over this (round 10's, again in round 12)
+# round 11's denoise_round11 (a bake without the control variate):
 SMOOTH_MM = 2.0  # the neighbourhood averaged at thin points (all taps, :func:`smooth_taps`) and strong band ones (own tap)
 SMOOTH_WEAK_MM = 4.0  # and at the band's other points (own tap: thick skin beside the thin parts, a small, smooth transfer)
 POOL_MM = 3.0  # the neighbourhood whose pooled walks decide whether a point's transfer is significant
 SIGNIFICANCE_Z = 2.0  # kept in full only well beyond this many standard errors (the 2-sigma level, 95.4 %)
+
+
+RECIPE_VERSION = 3  # bump with any change to how the walks, tallies or denoising shape a bake's taps (3: round 12's CRN)
+FLAT_KERNEL_WALKS, FLAT_KERNEL_SEED = 40_000, 7
+
+
+def recipe() -> dict:
+    """What shapes a bake beyond its mesh, scale, medium and options (walks, grid, taps, seed: in the
+    meta as they were given): the estimator and the denoising's constants, with RECIPE_VERSION for the
+    code's logic. store.find treats a bake made by another recipe as stale (a change to the recipe must
+    never silently reuse an older bake)."""
+    return {"version": RECIPE_VERSION, "estimator": "crn", "min_surface_mm": MIN_SURFACE_MM, "max_surface_mm": MAX_SURFACE_MM,
+            "graph_subdivisions": 2, "flat_kernel": [FLAT_KERNEL_WALKS, FLAT_KERNEL_SEED, FLAT_EDGES_MM.tolist()],
+            "denoise": "own tap over smooth_own_mm", "smooth_own_mm": SMOOTH_OWN_MM, "smooth_mm": SMOOTH_MM,
+            "smooth_weak_mm": SMOOTH_WEAK_MM, "pool_mm": POOL_MM, "significance_z": SIGNIFICANCE_Z}
+
+
+def recipe_key() -> str:
+    """A short hash of :func:`recipe` (what a bake's meta stores as "recipe")."""
+    import hashlib
+    import json
+
+    return hashlib.sha256(json.dumps(recipe(), sort_keys=True).encode()).hexdigest()[:16]
 
 
 def _neighbourhoods(points: BakePoints, radius_mm) -> tuple[np.ndarray, np.ndarray]:
@@ -531,9 +599,24 @@ def shrink_insignificant(bake: TransferBake, points: BakePoints, pool_mm: float 
                                          shrunk_to_zero=float(np.mean(s == 0.0)), kept_whole=float(np.mean(s > 0.9))))
 
 
-def denoise(bake: TransferBake, points: BakePoints, pool_mm: float = POOL_MM, z: float = SIGNIFICANCE_Z,
-            radius_mm: float = SMOOTH_MM, weak_radius_mm: float = SMOOTH_WEAK_MM) -> TransferBake:
-    """The bake as shipped (:func:`dermis.subsurface_transfer.store.bake_scene`): at a thin point
+def denoise(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOTH_OWN_MM) -> TransferBake:
+    """The bake as shipped (:func:`dermis.subsurface_transfer.store.bake_scene`, round 12): every point's
+    own tap averaged over ``radius_mm`` (:func:`smooth_own_taps`: the near-field excess, a sum over ~60 %
+    of the walks, at a 1 mm bake grid), its far taps as walked, nothing shrunk: round 10's treatment.
+    Why no more: with the control variate (``bake_transfer(crn=True)``) the walks' own noise is 3-20x
+    lower on thick skin, so the mottle is within round 11's limits without round 11's averaging of
+    thin points over 2 mm and shrinkage of the band, which cost the eyelids and the nose's penumbra
+    against Cycles (benchmarks/RESULTS.md round 12 cv12: front-key's seed-difference high-pass of the
+    luminance ratio 0.31 % over all the lit skin the bake changes, 0.21 % beside the thin parts; round
+    11's denoise_round11 on its plain walks 0.39 % / 0.28 %). A bake made without the control variate
+    needs :func:`denoise_round11`."""
+    return smooth_own_taps(bake, points, radius_mm)
+
+
+def denoise_round11(bake: TransferBake, points: BakePoints, pool_mm: float = POOL_MM, z: float = SIGNIFICANCE_Z,
+                    radius_mm: float = SMOOTH_MM, weak_radius_mm: float = SMOOTH_WEAK_MM) -> TransferBake:
+    """Round 11's denoising of a bake without the control variate (``crn=False``; shipped in round 11,
+    kept to reproduce it and for such bakes): at a thin point
     :func:`smooth_taps` over ``radius_mm`` (all its taps); at a band point (``points.thin`` False; every
     point where it is None) only its own tap averaged (:func:`smooth_own_taps`), over ``radius_mm``
     where the pooled transfer is kept whole (:func:`shrink_factor` 1: many standard errors from 0),
@@ -560,11 +643,12 @@ def denoise(bake: TransferBake, points: BakePoints, pool_mm: float = POOL_MM, z:
 
 def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFAULT_GRID, walks: int = DEFAULT_WALKS,
                   taps: int = DEFAULT_TAPS, thin_mm: float = THIN_MM, near_mm: float = NEAR_MM, seed: int = 0,
-                  points: BakePoints | None = None, media=None, kernels=None, progress=None) -> TransferBake:
+                  points: BakePoints | None = None, media=None, kernels=None, progress=None, crn: bool = True) -> TransferBake:
     """The transfer of the module docstring for ``mesh`` (a dermis Mesh or any object with positions,
     normals, indices, uvs, texture_space_uvs; positions x ``mm_per_unit`` = mm). ``points``: bake
     there instead of :func:`bake_points`; ``media`` / ``kernels``: per channel WalkMedium and
-    FlatKernel (default: :func:`skin_media`, :func:`flat_kernel`)."""
+    FlatKernel (default: :func:`skin_media`, :func:`flat_kernel`). ``crn``: the flat share's
+    estimate is each walk's flat twin (the module docstring's "The control variate"); False: the deterministic share alone (round 11's estimator and walks)."""
     if walks < 1 or taps < 2:
         raise DermisError("subsurface transfer: walks must be >= 1 and taps >= 2")
     mm = float(mm_per_unit)
@@ -578,9 +662,10 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
     graph = SurfaceGraph(pos, idx, mesh.normals, uv_ts)
     start_vertex = graph.nearest(pts.position, pts.triangle)
     n = len(pts.position)
-    exits = [walk_exits(walker, pts.position, pts.triangle, pts.normal, m, walks, seed * 3 + c) for c, m in enumerate(media)]
+    exits = [walk_exits(walker, pts.position, pts.triangle, pts.normal, m, walks, seed * 3 + c, twin=crn)
+             for c, m in enumerate(media)]
     if progress:
-        progress(f"walks done: {n} points x {walks} walks x 3 channels")
+        progress(f"walks done: {n} points x {walks} walks x 3 channels" + (" (and their flat twins)" if crn else ""))
     tap_uv = np.zeros((n, taps, 2), np.float32)
     tap_w = np.zeros((n, taps, 3), np.float32)
     tap_pos = np.zeros((n, taps, 3), np.float32)
@@ -591,8 +676,10 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
     moments = np.zeros((n, 3, 5))  # per channel: mean within, mean beyond, their covariance (3) of the means
     moments[..., 2:4] = np.inf  # a channel without exits at a point says nothing
     near_flat = np.array([k.within(MIN_SURFACE_MM) for k in kernels])
-    order = [np.argsort(e["point_index"], kind="stable") for e in exits]
-    starts = [np.searchsorted(e["point_index"][o], np.arange(n + 1)) for e, o in zip(exits, order)]
+    by_point = lambda e: (lambda o: (o, np.searchsorted(e["point_index"][o], np.arange(n + 1))))(
+        np.argsort(e["point_index"], kind="stable"))
+    heads = [by_point(e) for e in exits]
+    twins = [by_point(e["twin"]) if crn and "twin" in e else None for e in exits]
     chunk = 64
     for c0 in range(0, n, chunk):
         c1 = min(c0 + chunk, n)
@@ -601,12 +688,17 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
             g_row = G[i - c0]
             xo, no = pts.position[i], pts.normal[i]
             off_o = float(np.linalg.norm(graph.position[start_vertex[i]] - xo))
+            # what the flat medium carries from the same-facing surface beyond MIN_SURFACE_MM: K_flat(g_v) A_v
+            fin = np.nonzero(np.isfinite(g_row))[0]
+            rv = np.linalg.norm(graph.position[fin] - xo, axis=1)
+            gv = np.maximum(g_row[fin] - off_o, rv)
+            kv = (graph.normal[fin] @ no > 0.0) & (gv > MIN_SURFACE_MM)
+            share = np.stack([k.at(gv[kv]) for k in kernels], 1) * graph.area[fin[kv], None]
+            far_flat = share.sum(0)  # S_b per channel
+            scale = np.ones(3)  # the far share's factor: 1, or the twins' far transport / its expectation
             ids, vals = [], []
-            own = np.zeros(3)
-            for c, (e, o, s) in enumerate(zip(exits, order, starts)):
+            for c, (e, (o, s)) in enumerate(zip(exits, heads)):
                 sel = o[s[i]:s[i + 1]]
-                if len(sel) == 0:
-                    continue
                 xe, ne, we = e["point"][sel], e["normal"][sel], e["weight"][sel]
                 same = ne @ no > 0.0
                 xe, we, ve = xe[same], we[same] / (walks * kernels[c].reflectance), graph.nearest(xe[same], e["triangle"][sel][same])
@@ -614,23 +706,26 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
                 ge = np.maximum(g_row[ve] - off_o - np.linalg.norm(graph.position[ve] - xe, axis=1), r)
                 kept[i, c] = we.sum()
                 far = ge > MIN_SURFACE_MM
-                own[c] = we[~far].sum()
-                moments[i, c] = _tally_moments(e["sample"][sel][same], we * walks, far, walks)
+                a, b = _per_walk(e["sample"][sel][same], we * walks, far, walks)  # per walk, / R_flat
+                if twins[c] is None:  # the deterministic share
+                    a, b = a - near_flat[c], b - far_flat[c]
+                else:  # each walk less its flat twin's tally (common random numbers; module docstring)
+                    to, ts = twins[c]
+                    tsel = to[ts[i]:ts[i + 1]]
+                    tw = e["twin"]
+                    fa, fb = _per_walk(tw["sample"][tsel], tw["weight"][tsel] / kernels[c].reflectance,
+                                       tw["radius"][tsel] > MIN_SURFACE_MM, walks)
+                    scale[c] = fb.mean() / max(1.0 - near_flat[c], 1e-12)
+                    a, b = a - fa, b - far_flat[c] / max(1.0 - near_flat[c], 1e-12) * fb
+                moments[i, c] = _walk_moments(a, b) if len(sel) else [a.mean(), b.mean(), np.inf, np.inf, 0.0]
+                tap_w[i, 0, c] = a.mean()
+                sub[i, c] = kept[i, c] - a.mean() - b.mean()
                 v3 = np.zeros((int(far.sum()), 3))
                 v3[:, c] = we[far]
                 ids.append(ve[far])
                 vals.append(v3)
-            # what the flat medium carries from the same-facing surface beyond MIN_SURFACE_MM: K_flat(g_v) A_v
-            fin = np.nonzero(np.isfinite(g_row))[0]
-            rv = np.linalg.norm(graph.position[fin] - xo, axis=1)
-            gv = np.maximum(g_row[fin] - off_o, rv)
-            kv = (graph.normal[fin] @ no > 0.0) & (gv > MIN_SURFACE_MM)
-            share = np.stack([k.at(gv[kv]) for k in kernels], 1) * graph.area[fin[kv], None]
-            sub[i] = near_flat + share.sum(0)
-            moments[i, :, 0] -= near_flat
-            moments[i, :, 1] -= share.sum(0)
-            tap_w[i, 0] = own - near_flat
-            big = share.max(1) > 1e-7
+            share = share * scale
+            big = np.abs(share).max(1) > 1e-7
             ids.append(fin[kv][big])
             vals.append(-share[big])
             all_ids = np.concatenate(ids)
@@ -649,7 +744,7 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
         if progress and (c1 // chunk) % 16 == 0:
             progress(f"points {c1} / {n}")
     meta = {"grid": int(grid), "walks": int(walks), "taps": int(taps), "thin_mm": float(thin_mm), "near_mm": float(near_mm),
-            "seed": int(seed), "min_surface_mm": MIN_SURFACE_MM, "max_surface_mm": MAX_SURFACE_MM,
+            "seed": int(seed), "min_surface_mm": MIN_SURFACE_MM, "max_surface_mm": MAX_SURFACE_MM, "crn": bool(crn),
             "mean_free_path_mm": [m.mean_free_path_mm for m in media],
             "single_scattering_albedo": [m.single_scattering_albedo for m in media], "index": media[0].index,
             "flat_reflectance": [k.reflectance for k in kernels], "flat_within_min_surface": near_flat.tolist(),
@@ -657,12 +752,17 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
     return TransferBake(pts.uv.astype(np.float32), tap_uv, tap_w, kept, sub, meta, moments[..., :2], moments[..., 2:], tap_pos)
 
 
-def _tally_moments(sample, x, far, walks: int) -> np.ndarray:
-    """(mean within, mean beyond, var within, var beyond, covariance) of one point's walks: ``x`` the
-    exits' w n^2 / R_flat, ``sample`` which walk each exit ended (a walk exits once or never: the
-    others tally 0), ``far`` beyond MIN_SURFACE_MM. The variances are the means' (/ walks; ddof 1)."""
-    a = np.bincount(sample[~far], weights=x[~far], minlength=walks)
-    b = np.bincount(sample[far], weights=x[far], minlength=walks)
+def _per_walk(sample, x, far, walks: int) -> tuple[np.ndarray, np.ndarray]:
+    """(within, beyond) per walk of one point: ``x`` its exits' tallies, ``sample`` which walk each
+    exit ended (a walk exits once or never: the others tally 0), ``far`` beyond MIN_SURFACE_MM."""
+    far = np.asarray(far, bool)
+    return (np.bincount(sample[~far], weights=x[~far], minlength=walks),
+            np.bincount(sample[far], weights=x[far], minlength=walks))
+
+
+def _walk_moments(a, b) -> np.ndarray:
+    """(mean a, mean b, var, var, covariance of the two means) of per-walk tallies (ddof 1, / walks)."""
+    walks = len(a)
     if walks < 2:
         return np.array([a.mean(), b.mean(), np.inf, np.inf, 0.0])
     cov = np.cov(np.stack([a, b])) / walks

@@ -65,7 +65,21 @@ def _or_empty(a, width: int) -> np.ndarray:
 
 
 class StaleBake(DermisError):
-    """A bake written by another version of the format (:data:`FORMAT`): rebuild it."""
+    """A bake written by another version of the format (:data:`FORMAT`) or made by another recipe
+    (dermis.subsurface_transfer.bake.recipe_key: the estimator and denoising constants): rebuild it."""
+
+
+REBUILD = "(rebuild it: make subsurface-transfer, or python -m dermis.subsurface_transfer SCENE.toml)"
+
+
+def check_recipe(bake: TransferBake, path: Path) -> None:
+    """Raise :class:`StaleBake` unless ``bake`` was made by this code's recipe (its meta's "recipe",
+    absent in a bake older than round 12)."""
+    from dermis.subsurface_transfer.bake import recipe_key
+
+    got, want = bake.meta.get("recipe"), recipe_key()
+    if got != want:
+        raise StaleBake(f"{path}: subsurface transfer bake recipe {got}, expected {want} {REBUILD}")
 
 
 def load(path: Path) -> TransferBake:
@@ -73,8 +87,7 @@ def load(path: Path) -> TransferBake:
         with np.load(path) as z:
             meta = json.loads(str(z["meta"]))
             if meta.get("format") != FORMAT:
-                raise StaleBake(f"{path}: subsurface transfer bake format {meta.get('format')}, expected {FORMAT} "
-                                f"(rebuild it: make subsurface-transfer, or python -m dermis.subsurface_transfer SCENE.toml)")
+                raise StaleBake(f"{path}: subsurface transfer bake format {meta.get('format')}, expected {FORMAT} {REBUILD}")
             bake = TransferBake(z["point_uv"], z["tap_uv"], z["tap_weight"].astype(np.float32), z["kept"],
                                 z["subtracted"], meta, *(None if len(z[k]) == 0 else z[k] for k in ("excess", "excess_cov")))
     except (OSError, ValueError, KeyError) as e:
@@ -107,12 +120,14 @@ def matches(bake: TransferBake, scene) -> bool:
 
 def find(scene, folder: Path | None = None) -> TransferBake | None:
     """The bake for ``scene`` (its mesh's file in ``folder``, default :func:`default_folder`) when it
-    matches the scene (:func:`matches`), else None: the scene renders without it."""
+    matches the scene (:func:`matches`) and was made by this code's format and recipe
+    (:func:`check_recipe`), else None: the scene renders without it."""
     p = path_for(scene.mesh, folder)
     if p is None or not p.is_file():
         return None
     try:
         bake = load(p)
+        check_recipe(bake, p)  # a bake of another recipe: the same file name, another result
     except StaleBake as e:  # an older dermis's bake: never misread, the scene renders without it
         import warnings
 
@@ -125,7 +140,7 @@ def bake_scene(scene, folder: Path | None = None, progress=print, **options) -> 
     """Bake ``scene``'s mesh with its medium and write it where :func:`find` looks."""
     from dermis.scene.model import mean_skin_albedo
     from dermis.subsurface_transfer.bake import (DEFAULT_GRID, NEAR_MM, THIN_MM, bake_points, bake_transfer,
-                                                 denoise)
+                                                 denoise, recipe_key)
 
     p = path_for(scene.mesh, folder)
     if p is None:  # before minutes of walks, not after
@@ -135,5 +150,6 @@ def bake_scene(scene, folder: Path | None = None, progress=print, **options) -> 
                          options.get("near_mm", NEAR_MM))
     bake = bake_transfer(scene.mesh, scene.mm_per_unit, scene.profile, albedo, points=points, progress=progress, **options)
     bake = denoise(bake, points)
+    bake.meta["recipe"] = recipe_key()  # bake_transfer and denoise at this code's defaults
     save(bake, p, mesh_key(scene.mesh), scene.mm_per_unit)
     return p
