@@ -4,7 +4,7 @@
 // edge sample is covered: outside the primitive (GLSL 4.50, 4.5 "Interpolation Qualifiers"). A
 // triangle seen edge-on (the nose wing's fold in front-key: |N.V| ~ 0.03, ~0.1 px wide on screen,
 // 7 texels^2 in the 1024^2 layout) changes its UV by texels per pixel, so that UV lands 2-5 texels
-// off the triangle, on the lit outer wing or nostril rim: the sample reads 2-4x (red) and 5-11x
+// off the triangle, on the lit outer wing or nostril rim: the sample reads 2-3.5x (red) and 3-11x
 // (green) the irradiance of its own texels, and the pixel, one sample of four, shows a light
 // speck (front-key at 768 px, (x, y) = (388, 500), (378, 537), (367, 546), (355, 530): 1.0-1.2
 // stops above their 5 x 5 median). The centroid qualifier does not cure it on llvmpipe: the same
