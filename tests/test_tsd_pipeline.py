@@ -121,3 +121,61 @@ def test_bloom_conserves_energy_and_spreads():
     assert out[32, 32, 0] == pytest.approx(90.0 + 10.0 * own, rel=1e-3)
     assert out[32, 40, 0] > 0 and out[32, 32, 0] < 100.0
     np.testing.assert_array_equal(bloom(img, 0.0, 0.05), img)
+
+
+def test_uv_on_triangle_is_the_closest_point_of_the_triangle(gl_ctx):
+    """tsd/triangle_uv.glsl's uv_on_triangle (run in a compute shader) against brute force: for
+    random UV triangles (some degenerate: corners in a line, or coincident) and points around them,
+    the point returned lies on the triangle (barycentrics >= -1e-5) and is as close to the input as
+    the closest of 40k points sampled over the triangle, within that sampling's spacing; a point
+    inside a proper triangle comes back bit for bit."""
+    from dermis.gl.shaders import load_shader_source
+
+    rng = np.random.default_rng(12)
+    n = 256
+    tris = rng.uniform(0.2, 0.8, (n, 3, 2))
+    tris[:32, 2] = tris[:32, 0] + 0.37 * (tris[:32, 1] - tris[:32, 0])  # corners in a line
+    tris[32:40, 1] = tris[32:40, 2] = tris[32:40, 0]  # one point
+    centre = tris.mean(axis=1)
+    pts = centre + rng.normal(0.0, 0.12, (n, 2))
+    w = rng.dirichlet(np.ones(3), 64)
+    pts[40:104] = np.einsum("ij,ijk->ik", w, tris[40:104])  # inside proper triangles
+    src = load_shader_source("tsd/triangle_uv.glsl", {"TRIANGLE_UV_BINDING": 0}) + """
+layout(local_size_x = 64) in;
+layout(std430, binding = 1) readonly buffer Points { vec2 points[]; };
+layout(std430, binding = 2) writeonly buffer Result { vec2 result[]; };
+void main() {
+    int i = int(gl_GlobalInvocationID.x);
+    result[i] = uv_on_triangle(points[i], i);
+}
+"""
+    cs = gl_ctx.compute_shader(src)
+    bufs = [gl_ctx.buffer(np.ascontiguousarray(a, np.float32).tobytes()) for a in (tris, pts, np.zeros((n, 2)))]
+    try:
+        for binding, b in enumerate(bufs):
+            b.bind_to_storage_buffer(binding)
+        cs.run(n // 64)
+        q = np.frombuffer(bufs[2].read(), np.float32).reshape(n, 2).astype(np.float64)
+    finally:
+        for b in bufs:
+            b.release()
+        cs.release()
+    t = tris.astype(np.float32).astype(np.float64)
+    p = pts.astype(np.float32).astype(np.float64)
+    # brute force: 200 x 200 barycentric grid over each triangle (spacing <= edge / 199)
+    a, b = np.meshgrid(np.linspace(0, 1, 200), np.linspace(0, 1, 200))
+    keep = a + b <= 1.0
+    bary = np.stack([1.0 - a[keep] - b[keep], a[keep], b[keep]], 1)
+    samples = np.einsum("sj,njk->nsk", bary, t)
+    best = np.sqrt(((samples - p[:, None]) ** 2).sum(-1)).min(axis=1)
+    got = np.linalg.norm(q - p, axis=1)
+    edge = np.max(np.linalg.norm(t - np.roll(t, 1, axis=1), axis=2), axis=1)
+    assert np.all(got <= best + 1e-6), np.max(got - best)
+    assert np.all(got >= best - edge / 199.0 - 1e-6), np.min(got - best + edge / 199.0)
+    # on the triangle: the barycentrics of q in the proper ones are >= 0 (the degenerate ones' are
+    # ill-posed: their distance check above holds q to them)
+    proper = np.arange(n) >= 40
+    M = np.stack([t[proper, 1] - t[proper, 0], t[proper, 2] - t[proper, 0]], axis=2)
+    l12 = np.linalg.solve(M, (q[proper] - t[proper, 0])[..., None])[..., 0]
+    assert np.all(l12 >= -1e-5) and np.all(l12.sum(1) <= 1 + 1e-5)
+    assert np.array_equal(q[40:104], p[40:104].astype(np.float32).astype(np.float64))

@@ -29,10 +29,15 @@ VERTEX_FORMAT = "3f 3f 2f 4f 2f 4f 2f"
 VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent", "in_uv_ts", "in_visibility", "in_uv1")
 
 
+def texture_space_uvs(mesh) -> np.ndarray:
+    """(n, 2) the UV set texture space works in (in_uv_ts): the mesh's texture-space set, else its own."""
+    return mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
+
+
 def vertex_attributes(mesh) -> tuple[np.ndarray, np.ndarray]:
     """The vertex attributes of ``mesh`` before and after in_visibility (VERTEX_FORMAT order)."""
     m = mesh
-    uv_ts = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
+    uv_ts = texture_space_uvs(m)
     before = np.concatenate([m.positions, m.normals, m.uvs, m.tangents, uv_ts], axis=1).astype(np.float32)
     after = np.zeros((len(m.positions), 2), np.float32) if m.uvs1 is None else np.asarray(m.uvs1, np.float32)
     return before, after
@@ -243,6 +248,7 @@ class GpuScene:
         self.vbo = ctx.buffer(self._interleave(open_visibility(len(m.positions), m.normals)))
         self.visibility_uploaded = False  # set_visibility() not called yet: open sky
         self.ibo = ctx.buffer(np.ascontiguousarray(m.indices, np.uint32).tobytes())
+        self._triangle_uv_ts = None  # triangle_uv_ts(): made on first use (tsd's final pass)
         self._vaos = {}
         self.textures = {}
         self.upload_material()
@@ -258,6 +264,17 @@ class GpuScene:
         """Replace in_visibility ((n, 4): ambient occlusion, visible fraction RGB) in place: VAOs stay valid."""
         self.vbo.write(self._interleave(visibility))
         self.visibility_uploaded = True
+
+    def triangle_uv_ts(self):
+        """A buffer of each triangle's three texture-space UVs, float32 (u0, v0, u1, v1, u2, v2) in the
+        index buffer's order (triangle i at 24 i bytes: a std430 vec2 array, tsd/triangle_uv.glsl),
+        made on first use: a fragment of triangle gl_PrimitiveID keeps its texture-space reads on
+        that triangle's UVs."""
+        if self._triangle_uv_ts is None:
+            m = self.scene.mesh
+            uv = np.asarray(texture_space_uvs(m), np.float32)[np.asarray(m.indices, np.int64).reshape(-1)]
+            self._triangle_uv_ts = self.ctx.buffer(np.ascontiguousarray(uv).tobytes())
+        return self._triangle_uv_ts
 
     def vertex_content(self, prog) -> tuple:
         """(buffer, format, attributes...) of the vertex buffer for ``prog`` (:func:`vertex_content`)."""
@@ -338,6 +355,9 @@ class GpuScene:
 
     def release(self):
         release_mesh_objects(self)
+        if self._triangle_uv_ts is not None:
+            self._triangle_uv_ts.release()
+            self._triangle_uv_ts = None
         for surface in getattr(self, "surfaces", []):
             surface.release()
         self.surfaces = []

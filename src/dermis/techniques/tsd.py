@@ -21,7 +21,9 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
                  + where the mesh has a baked subsurface transfer (dermis.subsurface_transfer: the same-side
                  transport a thin, curled sheet adds to the flat profile), its taps gathered from I_3 and
                  added to T (gl/subsurface_transfer.py; with translucency on)
-  final (screen space): (sum_k w_k I_k + T) * albedo^(1-mix)/pi * (1 - rho_s a(N.V, m)/pi) + specular
+  final (screen space): (sum_k w_k I_k + T) * albedo^(1-mix)/pi * (1 - rho_s a(N.V, m)/pi) + specular,
+                 I_k and T read at a UV on the fragment's own triangle (tsd/triangle_uv.glsl: an MSAA edge
+                 sample of an edge-on triangle is shaded at the pixel centre, off the triangle)
 
 Everything before the final pass is view-independent and cached on the renderer's lighting key:
 a camera move re-runs only the final pass (``frame.passes_run`` says what ran).
@@ -111,6 +113,8 @@ class TsdOptions(TranslucentOptions):
 # draws the per-sample programs (a shadow-map tap per light per screen sample): a second target
 # would take the final pass to 17 samplers, past the 16 every GL 4.5 guarantees.
 STORED_SHARP_SHADOWS = 3
+# the shader storage binding of the triangles' texture-space UVs (tsd/triangle_uv.glsl)
+TRIANGLE_UV_BINDING = 0
 
 
 def stores_sharp_shadows(light_count: int) -> bool:
@@ -157,7 +161,8 @@ class TextureSpaceDiffusion(Technique):
         # no far face in the bake and write T = 0, as the cleared target held
         self.p_trans = program(ctx, "common/fullscreen.vert", "tsd/translucency.frag", defines)
         self.p_trans_tent = program(ctx, "common/fullscreen.vert", "tsd/translucency_tent.frag", defines)
-        self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag", {**defines, "SHARP_SHADOW_READ": None})
+        self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag",
+                               {**defines, "SHARP_SHADOW_READ": None, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING})
         self._programs = {}  # "per_sample" -> the final pass without the stored shadows
         self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)
         self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine, self.p_trans,
@@ -679,7 +684,8 @@ class TextureSpaceDiffusion(Technique):
         if stores_sharp_shadows(n):
             return irr, self.p_final
         if "per_sample" not in self._programs:
-            self._programs["per_sample"] = program(self.ctx, "common/mesh.vert", "tsd/final.frag", {"MAX_GAUSSIANS": MAX_GAUSSIANS})
+            self._programs["per_sample"] = program(self.ctx, "common/mesh.vert", "tsd/final.frag",
+                                                   {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING})
         return irr, self._programs["per_sample"]
 
     def _bounce_level(self, S):
@@ -749,6 +755,9 @@ class TextureSpaceDiffusion(Technique):
                 bind_sampler(prog, "uSharpShadow", self.tex["sharp_shadow"], Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
             directional_albedo_uniforms(prog, frame.scene)
+            # each triangle's texture-space UVs: a fragment reads tsd's textures on its own triangle
+            # (tsd/triangle_uv.glsl: the pixel-centre UV of an edge-on triangle's edge sample)
+            frame.gpu.triangle_uv_ts().bind_to_storage_buffer(TRIANGLE_UV_BINDING)
             draw_mesh(frame, prog)
         frame.passes_run.append("tsd_final")
         draw_surfaces(frame, output_mode)  # the non-skin surfaces, with depth testing

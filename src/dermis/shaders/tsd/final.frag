@@ -17,6 +17,7 @@
 #endif
 #include "common/skin_specular.glsl"
 #include "tsd/gaussians.glsl"
+#include "tsd/triangle_uv.glsl"
 
 uniform sampler2D uTranslucency;
 uniform float uMix;
@@ -43,15 +44,19 @@ void main() {
     vec3 Ns = pore_normal(N, v_world * uMmPerUnit, uPoreScaleMm, uPoreStrength);
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
 
+    // tsd's own textures at a point of this triangle (an edge sample's pixel-centre UV can lie
+    // texels off it, on lit skin elsewhere: tsd/triangle_uv.glsl)
+    vec2 uv_ts = uv_on_triangle(v_uv_ts, gl_PrimitiveID);
+
     vec3 albedo = albedo_at(v_uv);
     // k(N.V) is the half-space's REFLECTION (dermis.profiles.directional_albedo): the light that
     // entered on this side; the light through a thin part (translucency) is left Lambertian
-    vec3 E = diffuse_irradiance(v_uv_ts) * directional_factor(uDirectionalAlbedo * directional_c(albedo), ndv)
-           + texture(uTranslucency, v_uv_ts).rgb;
+    vec3 E = diffuse_irradiance(uv_ts) * directional_factor(uDirectionalAlbedo * directional_c(albedo), ndv)
+           + texture(uTranslucency, uv_ts).rgb;
     vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
 #ifdef SHARP_SHADOW_READ
-    load_sharp_shadows(v_uv_ts);
+    load_sharp_shadows(uv_ts);
 #endif
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility);
 
