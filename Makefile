@@ -61,7 +61,7 @@ mc-tables: install
 	nice -n 10 $(PY) -m dermis.profiles.monte_carlo_tables $(PRESETS)
 
 # tsd's baked subsurface transfer of the example head's thin parts (generated data, not in git: about
-# 12 min of one core, 33 min wall on 2 shared cores under load; seeded, written to dermis's cache folder,
+# 10 min wall on an idle 2-core machine, 28-33 min beside other work; seeded (bit-identical reruns), written to dermis's cache folder,
 # found there by the mesh's content).
 # Without it tsd renders the head without the transfer (benchmarks/RESULTS.md, round 10: the back-lit
 # ear's red 0.77 instead of 0.88 of Cycles'). A bake of an older format or recipe (round 11's, before
