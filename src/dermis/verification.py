@@ -11,6 +11,7 @@ import warnings
 import numpy as np
 from scipy.special import erf
 
+from dermis.geometry.texture_space import texture_space_uvs
 from dermis.scene.builtin import grid_mesh
 from dermis.scene.loaders import finish_mesh
 from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial
@@ -116,7 +117,7 @@ def texel_positions(mesh, S: int):
     (its texture_space_uvs, else its uvs) at S x S, row 0 = top, and the covered mask."""
     from dermis.geometry.rasterize import rasterize_uv
 
-    uv = mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
+    uv = texture_space_uvs(mesh)
     tri, bary = rasterize_uv(uv, mesh.indices, S, S)
     cov = tri >= 0
     corners = np.asarray(mesh.positions, np.float64)[np.asarray(mesh.indices, np.int64)[np.maximum(tri, 0)]]

@@ -71,6 +71,13 @@ def gutter_texels(mesh, resolution: int, mm_per_unit: float, widest_variance_mm2
     return int(min(max(math.ceil(reach), MIN_PADDING_PX), resolution // 16))
 
 
+def texture_space_uvs(mesh) -> np.ndarray:
+    """(n, 2) the UV set texture-space passes work in (the vertex attribute in_uv_ts): the mesh's
+    texture-space set where it has one (:func:`with_texture_space_uvs`), else its own UVs. Any object
+    with ``uvs`` and ``texture_space_uvs`` (a dermis Mesh, or a stand-in for the physics bakes)."""
+    return mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
+
+
 def with_texture_space_uvs(mesh, mode: str | None = None, *, resolution: int = 1024, mm_per_unit: float = 1.0,
                            widest_variance_mm2: float = 0.0, cache: bool = True):
     """``mesh`` with the UV set texture-space passes use. Returns ``mesh`` itself when its own UVs

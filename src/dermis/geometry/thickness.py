@@ -23,6 +23,7 @@ import numpy as np
 
 from dermis.geometry.rasterize import rasterize_uv
 from dermis.geometry.raycast import RayCaster
+from dermis.geometry.texture_space import texture_space_uvs
 
 RAY_TILT_DEG = 20.0  # the four rays around -N (the median rejects one slipping through a crack)
 MIN_HITS = 3  # of the five rays, at least this many must leave the tissue
@@ -33,7 +34,7 @@ MAX_THICKNESS_MM = 30.0  # thicker tissue transmits nothing: exp(-30^2 / 2 v) < 
 def _texels(mesh, S: int):
     """The layout's texel centres: uv, indices, positions, normals of the mesh; the texel -> triangle
     map; the covered texels (flat indices) and their interpolated positions and unit normals."""
-    uv_ts = np.asarray(mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs, np.float64)
+    uv_ts = np.asarray(texture_space_uvs(mesh), np.float64)
     idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
     pos = np.asarray(mesh.positions, np.float64)
     nrm = np.asarray(mesh.normals, np.float64)
@@ -181,7 +182,7 @@ def uv_islands(mesh, size: int) -> np.ndarray:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    uv_ts = mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
+    uv_ts = texture_space_uvs(mesh)
     idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
     nv = len(mesh.positions)
     rows = np.repeat(np.arange(len(idx)), 3)

@@ -11,6 +11,7 @@ import math
 import moderngl
 import numpy as np
 
+from dermis.geometry.texture_space import texture_space_uvs
 from dermis.invalidation import fingerprint
 
 ROW_TEXELS = 4096
@@ -41,7 +42,7 @@ class InterreflectionHits:
         from dermis.geometry.interreflection import mesh_hits
 
         m = frame.scene.mesh
-        uv_ts = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
+        uv_ts = texture_space_uvs(m)
         key = (frame.keys["interreflection_bake"], fingerprint(uv_ts))
         if key != self.key or self.tex is None or self.tex.size == (1, 1):
             with frame.timer("interreflection_bake"):
@@ -321,6 +322,6 @@ def layout_texels_per_mm(scene, size: int) -> float:
     from dermis.invalidation import memo_by_content, read_only
 
     m = scene.mesh
-    uv = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
+    uv = texture_space_uvs(m)
     return memo_by_content("layout_median_stretch", (m.positions, uv, m.indices), (float(scene.mm_per_unit), int(size)),
                            lambda: layout_median_stretch(m.positions, uv, m.indices, scene.mm_per_unit, size))

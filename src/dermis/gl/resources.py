@@ -15,6 +15,7 @@ import numpy as np
 from dermis.camera import light_matrices
 from dermis.environment import environment_sh
 from dermis.geometry.hull import extreme_points
+from dermis.geometry.texture_space import texture_space_uvs
 from dermis.geometry.visibility import open_visibility
 from dermis.images import as_rgb
 from dermis.invalidation import memo_by_content, read_only
@@ -27,11 +28,6 @@ VERTEX_FORMAT = "3f 3f 2f 4f 2f 4f 2f"
 # geometry/visibility.py, location 6;
 # in_uv1: the asset's second UV set (TEXCOORD_1; zeros without one), location 7
 VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent", "in_uv_ts", "in_visibility", "in_uv1")
-
-
-def texture_space_uvs(mesh) -> np.ndarray:
-    """(n, 2) the UV set texture space works in (in_uv_ts): the mesh's texture-space set, else its own."""
-    return mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
 
 
 def vertex_attributes(mesh) -> tuple[np.ndarray, np.ndarray]:

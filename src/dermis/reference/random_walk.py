@@ -108,13 +108,6 @@ def refract(d, n, eta_ratio):
     return t / np.linalg.norm(t, axis=1, keepdims=True)
 
 
-def _unit_sphere(rng, n):
-    z = 2.0 * rng.random(n) - 1.0
-    phi = 2.0 * np.pi * rng.random(n)
-    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], 1)
-
-
 _MIX1, _MIX2, _GOLDEN = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB), np.uint64(0x9E3779B97F4A7C15)
 # what a walk's event draws from its stream (CounterUniforms' ``purpose``)
 U_STEP, U_FRESNEL, U_PHI, U_Z, U_ROULETTE = range(5)
@@ -151,7 +144,8 @@ class CounterUniforms:
 
 
 def _sphere_from(u_z, u_phi):
-    """Unit directions uniform on the sphere from two uniforms (as _unit_sphere)."""
+    """Unit directions uniform on the sphere from two uniforms each (z uniform on [-1, 1], phi on
+    [0, 2 pi): Archimedes' hat-box theorem)."""
     z = 2.0 * u_z - 1.0
     phi = 2.0 * np.pi * u_phi
     r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
@@ -487,8 +481,7 @@ class MeshWalk:
                                 counters["nee_search"] += float((w[sc[chk]] * src[chk]).sum())
                                 counters["nee_exhaustive"] += float((w[sc[chk]] * ex).sum())
                 w[sc] *= alpha
-                d[sc] = _unit_sphere(rng, len(sc)) if uniforms is None else \
-                    _sphere_from(draw(sc, U_Z, it), draw(sc, U_PHI, it))
+                d[sc] = _sphere_from(draw(sc, U_Z, it), draw(sc, U_PHI, it))  # z drawn first, then phi
                 tmin[sc] = 0.0
                 low = sc[w[sc] < ROULETTE_WEIGHT]
                 if len(low):

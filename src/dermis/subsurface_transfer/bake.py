@@ -91,6 +91,7 @@ import numpy as np
 from dermis.errors import DermisError
 from dermis.geometry.rasterize import rasterize_uv
 from dermis.geometry.raycast import cosine_directions
+from dermis.geometry.texture_space import texture_space_uvs
 from dermis.reference.random_walk import MeshWalk, WalkMedium
 
 DEFAULT_GRID = 512  # bake points: texel centres of a grid x grid layout (about 1 mm apart on the head's ears)
@@ -357,7 +358,7 @@ def thin_points(mesh, mm_per_unit: float, grid: int = DEFAULT_GRID, thin_mm: flo
     from dermis.geometry.thickness import texel_thickness
 
     S = int(grid)
-    uv_ts = np.asarray(mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs, np.float64)
+    uv_ts = np.asarray(texture_space_uvs(mesh), np.float64)
     idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
     pos = np.asarray(mesh.positions, np.float64) * float(mm_per_unit)
     nrm = np.asarray(mesh.normals, np.float64)
@@ -654,7 +655,7 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
     mm = float(mm_per_unit)
     pos = np.asarray(mesh.positions, np.float64) * mm
     idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
-    uv_ts = mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
+    uv_ts = texture_space_uvs(mesh)
     pts = points if points is not None else bake_points(mesh, mm, grid, thin_mm, near_mm)
     media = media if media is not None else skin_media(profile, albedo)
     kernels = kernels if kernels is not None else [flat_kernel(m) for m in media]
@@ -676,10 +677,8 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
     moments = np.zeros((n, 3, 5))  # per channel: mean within, mean beyond, their covariance (3) of the means
     moments[..., 2:4] = np.inf  # a channel without exits at a point says nothing
     near_flat = np.array([k.within(MIN_SURFACE_MM) for k in kernels])
-    by_point = lambda e: (lambda o: (o, np.searchsorted(e["point_index"][o], np.arange(n + 1))))(
-        np.argsort(e["point_index"], kind="stable"))
-    heads = [by_point(e) for e in exits]
-    twins = [by_point(e["twin"]) if crn and "twin" in e else None for e in exits]
+    heads = [_by_point(e["point_index"], n) for e in exits]
+    twins = [_by_point(e["twin"]["point_index"], n) if crn and "twin" in e else None for e in exits]
     chunk = 64
     for c0 in range(0, n, chunk):
         c1 = min(c0 + chunk, n)
@@ -758,6 +757,12 @@ def _per_walk(sample, x, far, walks: int) -> tuple[np.ndarray, np.ndarray]:
     far = np.asarray(far, bool)
     return (np.bincount(sample[~far], weights=x[~far], minlength=walks),
             np.bincount(sample[far], weights=x[far], minlength=walks))
+
+
+def _by_point(point_index, n: int):
+    """(order, starts): the exits of point i are order[starts[i]:starts[i + 1]] (a stable sort)."""
+    order = np.argsort(point_index, kind="stable")
+    return order, np.searchsorted(point_index[order], np.arange(n + 1))
 
 
 def _walk_moments(a, b) -> np.ndarray:

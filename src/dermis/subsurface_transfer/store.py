@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.geometry.texture_space import texture_space_uvs
 from dermis.subsurface_transfer.bake import TransferBake
 
 CACHE_SUBFOLDER = "subsurface_transfer"
@@ -29,7 +30,7 @@ def mesh_key(mesh) -> str:
     """The bake's name: SHA-256 of the mesh's positions, triangles and texture-space uvs."""
     from dermis.geometry.atlas import content_hash
 
-    uv = mesh.uvs if mesh.texture_space_uvs is None else mesh.texture_space_uvs
+    uv = texture_space_uvs(mesh)
     return content_hash(mesh.positions, mesh.indices, "subsurface_transfer", np.asarray(uv, np.float32).tobytes())
 
 

@@ -49,7 +49,7 @@ import moderngl
 import numpy as np
 
 from dermis.errors import DermisError
-from dermis.geometry.texture_space import UV_RANGE_TOLERANCE
+from dermis.geometry.texture_space import UV_RANGE_TOLERANCE, texture_space_uvs
 from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
 from dermis.gl.interreflection import BounceGather, bounce_level
@@ -304,7 +304,7 @@ class TextureSpaceDiffusion(Technique):
             raise DermisError(f"{frame.scene.mesh.source}: mesh covers no texel of its UV layout (all UVs outside [0, 1]?)")
         # the count below sees only [0, 1]^2 (the viewport): UVs beyond it (REPEAT tiling) would pass it
         m = frame.scene.mesh
-        uv_ts = m.uvs if m.texture_space_uvs is None else m.texture_space_uvs
+        uv_ts = texture_space_uvs(m)
         lo, hi = float(np.min(uv_ts)), float(np.max(uv_ts))
         if lo < -UV_RANGE_TOLERANCE or hi > 1.0 + UV_RANGE_TOLERANCE:
             raise DermisError(f"{m.source}: UVs run outside [0, 1] (from {lo:.3g} to {hi:.3g}, a repeating texture?); "
