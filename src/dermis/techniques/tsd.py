@@ -52,7 +52,7 @@ from dermis.errors import DermisError
 from dermis.geometry.texture_space import UV_RANGE_TOLERANCE, texture_space_uvs
 from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
-from dermis.gl.interreflection import BounceGather, bounce_level
+from dermis.gl.interreflection import BounceGather, BounceSeries, bounce_level, read_per_vertex
 from dermis.gl.subsurface_transfer import SubsurfaceTransfer, source_index
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
@@ -189,7 +189,9 @@ class TextureSpaceDiffusion(Technique):
         self._static_filled = None  # (key, target) of the last translucency_static pass (_translucency_static)
         self._p_trans_static = None
         self.hits = renderer.interreflection_hits  # the interreflection rays' hits (one bounce; the Renderer's)
-        self._p_bounce = None  # (exitant, gather, splat, splat reading albedo^mix), compiled on first use
+        # (exitant, gather, splat, splat reading albedo^mix, the higher bounces), compiled on first use
+        self._p_bounce = None
+        self._bounce_added = None  # the per-vertex bounce the last splat added (the gather's or the series' target)
         self.bounce_level = None
 
     # ------------------------------------------------------------------ resources
@@ -706,8 +708,9 @@ class TextureSpaceDiffusion(Technique):
             self._p_bounce = (program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_exitant.frag", defines),
                               BounceGather(self.ctx),
                               program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag", splat),
-                              program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag", {**splat, "ALBEDO_MIX_TARGET": 1}))
-        p_exit, p_gather, p_splat, p_splat_mix = self._p_bounce
+                              program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag", {**splat, "ALBEDO_MIX_TARGET": 1}),
+                              BounceSeries(self.ctx))
+        p_exit, p_gather, p_splat, p_splat_mix, series = self._p_bounce
         p_splat = p_splat_mix if from_irradiance else p_splat
         per_row = self.hits.per_row
         level = self._bounce_level(irr.size[0])
@@ -723,7 +726,11 @@ class TextureSpaceDiffusion(Technique):
             for lvl in range(1, level + 1):
                 src, p = self._down(src, ("bounce_exitant", lvl), lvl)
                 self._draw(p)
-            bounce = p_gather.run(self.hits, src)
+            p_gather.run(self.hits, src)
+            # + the higher bounces (T = E_b + G E_b + ...): the splat adds their sum, which the
+            # diffusion then spreads like every other light
+            bounce = series.run(frame, self.hits, p_gather, level)
+            self._bounce_added = bounce
             bind_sampler(p_splat, "uBounce", bounce, Unit.FIRST_FREE)
             if from_irradiance:
                 bind_sampler(p_splat, "uAlbedoMix", self.tex["albedo_mix"], Unit.FIRST_FREE + 1)
@@ -736,7 +743,12 @@ class TextureSpaceDiffusion(Technique):
         frame.passes_run.append("tsd_interreflection")
 
     def bounce_per_vertex(self) -> np.ndarray:
-        """E_b of the last bounce pass per mesh vertex, (n, 3) (tsd/bounce_gather.frag's target)."""
+        """The bounce irradiance the last bounce pass added per mesh vertex, (n, 3): T, every order
+        (dermis.gl.interreflection.BounceSeries; E_b alone where it takes one)."""
+        return read_per_vertex(self._bounce_added, self.hits.vertex_count)
+
+    def first_bounce_per_vertex(self) -> np.ndarray:
+        """E_b of the last bounce pass per mesh vertex, (n, 3): the one bounce (tsd/bounce_gather.frag)."""
         return self._p_bounce[1].per_vertex(self.hits.vertex_count)
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
