@@ -164,7 +164,10 @@ class BounceSeries:
     with BOUNCE_EXITANT: the per-vertex T interpolated over the triangles times the albedo map, the
     same rho as the one bounce's rho E), SOURCE_FINER_LEVELS finer than the gather's level and
     2x2-reduced to it (tsd/downsample.frag, as the shared one bounce's rho E), then the one bounce's
-    gather over the same rays with E_b added (tsd/bounce_gather.frag with BOUNCE_BASE). T_n is
+    gather over the same rays with E_b added (tsd/bounce_gather.frag with BOUNCE_BASE); rasterised at
+    the gather's level instead (one texel one albedo sample) the head's higher orders moved by 11% of
+    their 99th percentile per vertex (front-key, irradiance 1024: benchmarks/RESULTS.md, "Round 13,
+    branch bounce13"), for 4 ms less per order on llvmpipe. T_n is
     written over T_(n-1): no pass reads the texture it writes (the raster reads T_(n-1), the gather
     the raster's reduction and E_b). Used by tsd's bounce and the shared one alike."""
 
