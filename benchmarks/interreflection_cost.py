@@ -135,6 +135,7 @@ def orders_ab(a):
     with Renderer(sc, (256, 256), irradiance_size=a.irradiance) as r:
         for t, pass_name in (("tsd", "tsd_interreflection"), ("lambert", "interreflection")):
             ms = {1: [], every: []}
+            frame = {1: [], every: []}
             for n in (1, every):  # compile, bake, warm up
                 interreflection.BOUNCE_ORDERS = n
                 r.render(t)
@@ -146,9 +147,11 @@ def orders_ab(a):
                     r.render(t)
                     assert pass_name in r.stats["passes_run"]
                     ms[n].append(r.stats["passes_ms"][pass_name])
+                    frame[n].append(sum(r.stats["passes_ms"].values()))
             level = r.technique("tsd").bounce_level if t == "tsd" else r.interreflection.level
             print(f"{t}: {pass_name} {med(ms[1]):.1f} ms (one bounce) -> {med(ms[every]):.1f} ms ({every} orders), "
-                  f"min {min(ms[1]):.1f} -> {min(ms[every]):.1f}; gather level {level}, medians of {a.frames} "
+                  f"min {min(ms[1]):.1f} -> {min(ms[every]):.1f}; the frame's passes {med(frame[1]):.0f} -> "
+                  f"{med(frame[every]):.0f} ms (min {min(frame[1]):.0f} -> {min(frame[every]):.0f}); gather level {level}, medians of {a.frames} "
                   f"alternated frames (irradiance {a.irradiance}^2, {r.info['renderer']})")
     interreflection.BOUNCE_ORDERS = every
     print(f"load average after: {os.getloadavg()}")
