@@ -10,7 +10,9 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
                                              conservation (1 - rho_s a(N.L, m)/pi)
   one diffuse bounce between skin surfaces (scene.interreflection): E_b = (1/K) sum_k rho E(y_k) over K
                  cosine-weighted rays per vertex (baked once per mesh, geometry/interreflection.py), rho E
-                 read from a ~2 mm level of I_0 albedo^(1-mix); E_b albedo^mix added to I_0
+                 read from a ~2 mm level of I_0 albedo^(1-mix); with its higher orders (BounceSeries,
+                 dermis.geometry.interreflection.BOUNCE_ORDERS = 4, as Cycles through the bridge)
+                 T = E_b + G E_b + G^2 E_b + G^3 E_b; T albedo^mix added to I_0
   dilate I_0 into the UV gutters
   for k = 1..K:  I_k = I_(k-1) * G(v_k - v_(k-1)) as a U then a V pass (chained: G(a)*G(b) = G(a+b)),
                  tap spacing from S_k, the stretch blurred by the same chain; wide Gaussians run at
@@ -696,10 +698,11 @@ class TextureSpaceDiffusion(Technique):
         return bounce_level(self.median_stretch, S)
 
     def _interreflection(self, frame, irr, from_irradiance=False):
-        """Add one diffuse bounce to the irradiance ``irr`` (I_0): rho E in texture space
+        """Add the bounce light to the irradiance ``irr`` (I_0): rho E in texture space
         (``from_irradiance``: as the irradiance pass wrote it, with albedo^mix, irradiance_defines;
         else from I_0 by tsd/bounce_exitant.frag), reduced to _bounce_level, gathered per vertex over
-        the baked rays (tsd/bounce_gather.frag) and splatted into I_0 with additive blending
+        the baked rays (tsd/bounce_gather.frag), its higher orders added (BounceSeries: T = E_b + G E_b
+        + ...) and T splatted into I_0 with additive blending
         (tsd/bounce_splat.frag). No pass reads the texture it writes."""
         self.hits.get(frame)  # the bake times itself: before this pass's timer
         if self._p_bounce is None:
