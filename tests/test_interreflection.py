@@ -146,7 +146,7 @@ def test_flat_plane_has_no_bounce_and_camera_moves_do_not_rerun_it(gl_ctx, many_
     np.testing.assert_array_equal(on, off)  # adding zero changes no bit
 
 
-def test_white_furnace_inside_a_closed_sphere_sums_the_bounces_of_rho_e(gl_ctx, many_rays):
+def test_white_furnace_inside_a_closed_sphere_sums_the_bounces_of_rho_e(gl_ctx, many_rays, monkeypatch):
     # inside a closed sphere (normals inward) under the open sky's constant radiance c: every point
     # gets E = pi c, every ray hits the sphere, so the one bounce is exactly rho pi c everywhere and
     # bounce n is rho^n pi c (G of a uniform T is rho T): BOUNCE_ORDERS of them, in tsd and in the
@@ -173,6 +173,22 @@ def test_white_furnace_inside_a_closed_sphere_sums_the_bounces_of_rho_e(gl_ctx, 
     for one, every in ((eb, total), (shared_eb, shared)):
         np.testing.assert_allclose(one[ring], RHO * np.pi * c, rtol=5e-3)
         np.testing.assert_allclose(every[ring], series * np.pi * c, rtol=5e-3)
+    # and what the techniques add is T: tsd's I_0 gains (T - E_b) albedo^mix over the one bounce alone
+    # (tsd/bounce_splat.frag), lambert's pixels albedo / pi (T - E_b) (lambert.frag)
+    images = {}
+    for orders in (1, n):
+        monkeypatch.setattr(interreflection, "BOUNCE_ORDERS", orders)
+        with Renderer(sc, (32, 32), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
+            r.render("tsd")
+            images[orders] = (r.technique("tsd").debug_buffers()["irradiance"], r.render("lambert"))
+    gain = (series - RHO) * np.pi * c
+    irr = images[n][0][..., :3] - images[1][0][..., :3]
+    covered = (images[1][0][..., 3] > 0.99) & (images[n][0][..., 3] > 0.99)
+    rows = (np.arange(S) + 0.5) / S  # texel rows by v (row 0 = v 1): away from the poles' rows
+    covered &= ((rows > 0.15) & (rows < 0.85))[:, None]
+    assert covered.sum() > 0.3 * S * S
+    np.testing.assert_allclose(irr[covered], gain * RHO ** sc.material.mix, rtol=1e-2)
+    np.testing.assert_allclose(images[n][1] - images[1][1], RHO / np.pi * gain, rtol=1e-2)
 
 
 def test_l_shape_higher_bounces_are_the_numpy_series_over_the_bake(gl_ctx, many_rays):
