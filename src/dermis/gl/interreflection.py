@@ -91,11 +91,6 @@ def read_per_vertex(target, n: int) -> np.ndarray:
     return a.reshape(-1, 4)[:n, :3].copy()
 
 
-BASE_UNIT = 8
-"""The unit of the gather's E_b with BOUNCE_BASE: dermis.techniques.shared.Unit.FIRST_FREE, past the
-material's units (the series' raster reads the albedo map at Unit.ALBEDO between two gathers)."""
-
-
 class BounceGather:
     """tsd/bounce_gather.frag on one context: E_b = (1/K) sum_k rho E(y_k) per mesh vertex, from the
     hits (:class:`InterreflectionHits`) and a texture-space rho E (premultiplied by coverage), into
@@ -124,17 +119,21 @@ class BounceGather:
         """Gather into :attr:`target` (made at the hits' layout) and return it; ``base`` (per vertex,
         this layout; only with ``base=True`` at construction) is added."""
         from dermis.gl.resources import set_uniform, use_texture
+        from dermis.techniques.shared import Unit
 
+        # E_b past the material's units: the series' raster reads the albedo map (Unit.ALBEDO)
+        # between two gathers
+        base_unit = int(Unit.FIRST_FREE)
         size = (hits.per_row, hits.tex.size[1])
         if self.target is None or self.target.size != size:
             self._make_target(size)
         for name, value in (("uRays", hits.rays), ("uVerticesPerRow", hits.per_row), ("uVertexCount", hits.vertex_count),
-                            ("uHits", 0), ("uExitant", 1), ("uBase", BASE_UNIT)):
+                            ("uHits", 0), ("uExitant", 1), ("uBase", base_unit)):
             set_uniform(self.prog, name, int(value))
         use_texture(hits.tex, 0)
         use_texture(exitant, 1)
         if self.base:
-            use_texture(base, BASE_UNIT)
+            use_texture(base, base_unit)
         self.fbo.use()
         self.fbo.viewport = (0, 0, *size)
         self.vao.render(moderngl.TRIANGLES, vertices=3)
