@@ -179,7 +179,10 @@ class BounceSeries:
                               {"INTERREFLECTION": 1, "BOUNCE_EXITANT": 1})
         self._down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag")
         self._down_vao = ctx.vertex_array(self._down, [])
-        self._levels = []  # [(texture, framebuffer)]: rho T from the raster's level to the gather's
+        # [(texture, framebuffer)]: rho T from the raster's level to the gather's; 1x1 stand-ins re-made
+        # at their sizes on first use (the count of live textures never changes; a level-0 gather uses
+        # the first alone)
+        self._levels = [self._level_texture(1) for _ in range(SOURCE_FINER_LEVELS + 1)]
 
     def _level_texture(self, n: int):
         t = self.ctx.texture((n, n), 4, dtype="f4")
@@ -201,8 +204,6 @@ class BounceSeries:
             return first.target
         S = int(frame.renderer.irradiance_size)
         sizes = [max(S >> lvl, 1) for lvl in range(max(level - SOURCE_FINER_LEVELS, 0), level + 1)]
-        while len(self._levels) < len(sizes):
-            self._levels.append(self._level_texture(1))
         for i, size in enumerate(sizes):
             if self._levels[i][0].size != (size, size):
                 for o in reversed(self._levels[i]):
