@@ -1,7 +1,7 @@
 """Cost of the one diffuse bounce (dermis.geometry.interreflection) on the head.
 
     PYTHONPATH=src python benchmarks/interreflection_cost.py [--scene examples/reference/side.toml]
-        [--irradiance 1024] [--frames 6] [--rays N] [--shared [--size 512]]
+        [--irradiance 1024] [--frames 6] [--rays N] [--shared [--size 512]] [--orders-ab]
 
 Prints: the bake's time uncached (Embree, CPU) and read back from the disk cache; then, in ONE
 Renderer, per frame whose lights changed (so every texture-space pass reruns), the times of
@@ -13,6 +13,11 @@ average. On Mesa's llvmpipe the pass timer is wall time around glFinish (dermis.
 per technique, in one Renderer, frames with the bounce on and off alternated back to back: frames
 whose lights changed (the shared pass "interreflection" reruns; its time and the frame's) and
 camera-only frames (the bounce is only read), medians over the frames of the sum of the frame's timed passes.
+
+``--orders-ab``: the higher bounces' cost (dermis.gl.interreflection.BounceSeries): in one Renderer,
+frames whose lights changed with the one bounce alone (BOUNCE_ORDERS = 1: main's passes) and with
+every order (BOUNCE_ORDERS, 4) alternated back to back, tsd's tsd_interreflection and the shared
+bounce's "interreflection" (drawn for lambert), medians over the frames.
 """
 
 from __future__ import annotations
@@ -35,9 +40,12 @@ def main():
     ap.add_argument("--rays", type=int, default=None)
     ap.add_argument("--shared", action="store_true", help="the shared bounce of ssss, preintegrated, lambert")
     ap.add_argument("--size", type=int, default=512, help="frame size of --shared")
+    ap.add_argument("--orders-ab", action="store_true", help="one bounce vs every order, alternated")
     a = ap.parse_args()
     if a.shared:
         return shared(a)
+    if a.orders_ab:
+        return orders_ab(a)
     import dermis
     from dermis.geometry import interreflection
     from dermis.renderer import Renderer
@@ -112,6 +120,40 @@ def shared(a):
                   f"(its pass {med(bounce):.1f} ms, gather level {r.interreflection.level}); camera only: passes "
                   f"{med(cam[False]):.1f} -> {med(cam[True]):.1f} ms; medians of {a.frames} ({a.size}^2, "
                   f"irradiance {a.irradiance}^2, {r.info['renderer']})")
+    print(f"load average after: {os.getloadavg()}")
+
+
+def orders_ab(a):
+    import dermis
+    from dermis.geometry import interreflection
+    from dermis.renderer import Renderer
+
+    med = statistics.median
+    every = interreflection.BOUNCE_ORDERS
+    print(f"load average before: {os.getloadavg()}")
+    sc = dermis.load_scene(a.scene)
+    with Renderer(sc, (256, 256), irradiance_size=a.irradiance) as r:
+        for t, pass_name in (("tsd", "tsd_interreflection"), ("lambert", "interreflection")):
+            ms = {1: [], every: []}
+            frame = {1: [], every: []}
+            for n in (1, every):  # compile, bake, warm up
+                interreflection.BOUNCE_ORDERS = n
+                r.render(t)
+            for i in range(a.frames):
+                for n in ((1, every) if i % 2 else (every, 1)):
+                    interreflection.BOUNCE_ORDERS = n
+                    sc.lights[0].intensity *= 1.0 + 1e-3 * (1 if i % 2 else -1)  # the lights changed
+                    r.timer.reset()
+                    r.render(t)
+                    assert pass_name in r.stats["passes_run"]
+                    ms[n].append(r.stats["passes_ms"][pass_name])
+                    frame[n].append(sum(r.stats["passes_ms"].values()))
+            level = r.technique("tsd").bounce_level if t == "tsd" else r.interreflection.level
+            print(f"{t}: {pass_name} {med(ms[1]):.1f} ms (one bounce) -> {med(ms[every]):.1f} ms ({every} orders), "
+                  f"min {min(ms[1]):.1f} -> {min(ms[every]):.1f}; the frame's passes {med(frame[1]):.0f} -> "
+                  f"{med(frame[every]):.0f} ms (min {min(frame[1]):.0f} -> {min(frame[every]):.0f}); gather level {level}, medians of {a.frames} "
+                  f"alternated frames (irradiance {a.irradiance}^2, {r.info['renderer']})")
+    interreflection.BOUNCE_ORDERS = every
     print(f"load average after: {os.getloadavg()}")
 
 

@@ -81,7 +81,13 @@ def many_rays(monkeypatch, tmp_path):
     monkeypatch.setattr(interreflection, "BAKE_RAYS", RAYS)
 
 
-def test_l_shape_bounce_equals_rho_e_times_the_form_factor(gl_ctx, many_rays):
+@pytest.fixture
+def one_bounce(monkeypatch):
+    """The one bounce alone (the form factor's closed form is for light reflected once)."""
+    monkeypatch.setattr(interreflection, "BOUNCE_ORDERS", 1)
+
+
+def test_l_shape_bounce_equals_rho_e_times_the_form_factor(gl_ctx, many_rays, one_bounce):
     sc = l_scene()
     sc.directional_albedo = False  # the form factor alone (the floor's k(N.L): test_directional_albedo)
     with Renderer(sc, (64, 64), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
@@ -140,10 +146,12 @@ def test_flat_plane_has_no_bounce_and_camera_moves_do_not_rerun_it(gl_ctx, many_
     np.testing.assert_array_equal(on, off)  # adding zero changes no bit
 
 
-def test_white_furnace_inside_a_closed_sphere_is_one_bounce_of_rho_e(gl_ctx, many_rays):
+def test_white_furnace_inside_a_closed_sphere_sums_the_bounces_of_rho_e(gl_ctx, many_rays, monkeypatch):
     # inside a closed sphere (normals inward) under the open sky's constant radiance c: every point
-    # gets E = pi c, every ray hits the sphere, so the one bounce is exactly rho pi c everywhere:
-    # bounded (the next bounces, rho^2 E + ..., are not taken), not amplified
+    # gets E = pi c, every ray hits the sphere, so the one bounce is exactly rho pi c everywhere and
+    # bounce n is rho^n pi c (G of a uniform T is rho T): BOUNCE_ORDERS of them, in tsd and in the
+    # shared bounce, T = pi c (rho + rho^2 + ... + rho^n) (0.9375 pi c at rho = 1/2, n = 4; one
+    # bounce alone is 0.5 pi c, the converged series rho / (1 - rho) = 1 pi c)
     def inside(u, v):
         th, ph = v * np.pi, u * 2 * np.pi
         d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), -np.cos(th)], -1)
@@ -154,9 +162,60 @@ def test_white_furnace_inside_a_closed_sphere_is_one_bounce_of_rho_e(gl_ctx, man
     sc.camera = Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0), fov_deg=60.0)
     with Renderer(sc, (32, 32), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
         r.render("tsd")
-        eb = r.technique("tsd").bounce_per_vertex()
+        eb = r.technique("tsd").first_bounce_per_vertex()
+        total = r.technique("tsd").bounce_per_vertex()
+        r.render("lambert")
+        shared_eb, shared = r.interreflection.first_per_vertex(), r.interreflection.per_vertex()
+    n = interreflection.BOUNCE_ORDERS
+    assert n == 4  # what Cycles renders through dermis's bridge (interreflection.BOUNCE_ORDERS)
+    series = sum(RHO ** k for k in range(1, n + 1))
     ring = np.abs(sc.mesh.normals[:, 2]) < 0.95  # away from the poles' slivers of triangles
-    np.testing.assert_allclose(eb[ring], RHO * np.pi * c, rtol=5e-3)
+    for one, every in ((eb, total), (shared_eb, shared)):
+        np.testing.assert_allclose(one[ring], RHO * np.pi * c, rtol=5e-3)
+        np.testing.assert_allclose(every[ring], series * np.pi * c, rtol=5e-3)
+    # and what the techniques add is T: tsd's I_0 gains (T - E_b) albedo^mix over the one bounce alone
+    # (tsd/bounce_splat.frag), lambert's pixels albedo / pi (T - E_b) (lambert.frag)
+    images = {}
+    for orders in (1, n):
+        monkeypatch.setattr(interreflection, "BOUNCE_ORDERS", orders)
+        with Renderer(sc, (32, 32), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
+            r.render("tsd")
+            images[orders] = (r.technique("tsd").debug_buffers()["irradiance"], r.render("lambert"))
+    gain = (series - RHO) * np.pi * c
+    irr = images[n][0][..., :3] - images[1][0][..., :3]
+    covered = (images[1][0][..., 3] > 0.99) & (images[n][0][..., 3] > 0.99)
+    rows = (np.arange(S) + 0.5) / S  # texel rows by v (row 0 = v 1): away from the poles' rows
+    covered &= ((rows > 0.15) & (rows < 0.85))[:, None]
+    assert covered.sum() > 0.3 * S * S
+    np.testing.assert_allclose(irr[covered], gain * RHO ** sc.material.mix, rtol=1e-2)
+    np.testing.assert_allclose(images[n][1] - images[1][1], RHO / np.pi * gain, rtol=1e-2)
+
+
+def test_l_shape_higher_bounces_are_the_numpy_series_over_the_bake(gl_ctx, many_rays):
+    # the floor, dark in the one bounce (it sees only the unlit wall), gets the wall's bounce light
+    # back (G E_b), the wall the floor's (G^2 E_b), ...: tsd's and the shared bounce's T against
+    # dermis.geometry.interreflection.bounce_series, G applied in numpy to the bake's hits
+    # (barycentric interpolation, no raster), from each one's own E_b. The runtime reads rho T from
+    # a raster box-filtered to ~2 mm texels (the one bounce's source): off the islands' borders
+    # (the L's edge, where the two islands meet in 3-D but not in the layout) it agrees to 3% of the
+    # higher orders' largest value
+    sc = l_scene()
+    sc.directional_albedo = False
+    with Renderer(sc, (32, 32), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
+        r.render("tsd")
+        got = {"tsd": (r.technique("tsd").first_bounce_per_vertex(), r.technique("tsd").bounce_per_vertex())}
+        r.render("lambert")
+        got["shared"] = (r.interreflection.first_per_vertex(), r.interreflection.per_vertex())
+    hits = interreflection.mesh_hits(sc.mesh)
+    pos, nrm = sc.mesh.positions, sc.mesh.normals
+    floor = nrm[:, 2] > 0.5
+    inner = np.where(floor, pos[:, 0] > 0.1, pos[:, 2] > 0.1) & (pos[:, 1] > 0.05) & (pos[:, 1] < 0.95)
+    for name, (eb, total) in got.items():
+        ref = interreflection.bounce_series(hits, sc.mesh.indices, eb, RHO)
+        higher = ref - eb
+        assert higher[inner & floor, 0].mean() > 0.01  # the floor's light is all higher-order
+        assert np.abs(eb[floor]).max() == 0.0
+        assert np.abs(total - ref)[inner].max() <= 0.03 * higher[inner].max(), (name, np.abs(total - ref)[inner].max())
 
 
 # the scene key itself (default, off, a bad value): tests/test_tsd_scenes.py
@@ -182,7 +241,7 @@ def _wall_points(frame, size):
     return a + t[..., None] * (b - a)
 
 
-def test_l_shape_bounce_of_ssss_preintegrated_and_lambert_is_tsds_and_the_form_factor(gl_ctx, many_rays):
+def test_l_shape_bounce_of_ssss_preintegrated_and_lambert_is_tsds_and_the_form_factor(gl_ctx, many_rays, one_bounce):
     sc = l_scene()
     sc.directional_albedo = False
     # the camera faces the wall (normal +x) from x = 3: every wall pixel's point on x = 0 is known

@@ -147,6 +147,13 @@ def measure_floors(renderer, irradiance_size: int | None = None, repeats: int = 
     return out
 
 
+def _higher_orders() -> int:
+    """The bounce light's orders past the one bounce (dermis.geometry.interreflection.BOUNCE_ORDERS - 1)."""
+    from dermis.geometry.interreflection import BOUNCE_ORDERS
+
+    return max(int(BOUNCE_ORDERS) - 1, 0)
+
+
 # Which floor bounds each pass of each technique, and how many floor units the pass holds at
 # least. Blur chains: two passes (U, V) per Gaussian of the profile, each at least one copy.
 def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
@@ -165,13 +172,17 @@ def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
     # one UV-space raster of the mesh (the splat; rho E comes from the irradiance pass since round 10)
     # and one copy for the 2x2 reductions of rho E and the per-vertex gather (a low bound: on the head
     # the gather alone reads 2 texels per ray, 9279 x 128 x 2 = 2.4M, where a 1024^2 copy reads 1M)
+    # + the higher bounces (gl/interreflection.py BounceSeries): per order past the first one UV-space
+    # raster of rho T one level finer than the gather's (half resolution on the head at 1024)
     if pass_name == "tsd_interreflection":
-        return floors["uv_raster"] + floors["copy"]
+        return floors["uv_raster"] + floors["copy"] + _higher_orders() * floors["uv_raster_half"]
     # the shared bounce (gl/interreflection.py), per lighting change: rho E at half resolution where the
     # gather reads level 2 (the head at 1024), since round 11 one full-screen pass over its texture-space
     # inputs (cheaper than a UV raster) plus the reductions and gather; the floor is left one UV-space
     # raster at that size, as rounds 8-10 measured it against
-    if pass_name in ("interreflection", "interreflection_inputs"):  # the inputs: one UV raster, once per content
+    if pass_name == "interreflection":  # + the higher bounces, as tsd's
+        return (1 + _higher_orders()) * floors["uv_raster_half"]
+    if pass_name == "interreflection_inputs":  # one UV raster, once per content
         return floors["uv_raster_half"]
     if pass_name == "tsd_blur":
         return 2 * gaussians * floors["copy"]

@@ -31,6 +31,25 @@ rays' rho E sqrt(F (1 - F) / K) (F the fraction of the hemisphere that sees lit 
 
 Only the skin mesh takes part: non-skin surfaces (eyes, teeth) neither block nor reflect. Cached in
 memory per mesh content and on disk, like the visibility bake.
+
+Higher bounces. The same rays define a linear operator on per-vertex irradiances,
+
+    (G T)(x) = (1 / K) sum_k rho(y_k) T(y_k),
+
+T(y_k) the barycentric interpolation at the hit: the irradiance that bounce light T, reflected once
+more by the skin (diffusely, with the same total albedo rho as the one bounce), brings to x. The
+light that reached x after n reflections off the skin is G^(n-1) E_b, and the sum over the first
+BOUNCE_ORDERS of them is the truncated Neumann series of the rendering equation's diffuse
+interreflection (Kajiya 1986, eq. 6 expanded; Cohen & Wallace 1993, "Radiosity and Realistic Image
+Synthesis", sec. 2.6 and 5.3: the Jacobi iteration B <- E + rho F B):
+
+    T_n = E_b + G T_(n-1),  T_1 = E_b,  so  T_n = E_b + G E_b + ... + G^(n-1) E_b.
+
+G's rows sum to at most max(rho) times the fraction of rays that hit skin (< 1), so the series
+converges; inside a closed sphere of uniform albedo rho under a uniform sky, E_b = rho E and
+T_n = E (rho + rho^2 + ... + rho^n) (tests/test_interreflection.py). Runtime: one more raster of
+rho T in texture space and one more gather per order (dermis.gl.interreflection.BounceSeries);
+:func:`bounce_series` is its numpy twin.
 """
 
 from __future__ import annotations
@@ -49,6 +68,18 @@ BAKE_RAYS = 128
 hemisphere would get a standard error of rho E sqrt(F (1 - F) / K) <= 0.044 rho E; the Latin
 hypercube lowers it, and the vertices' interpolation and the diffusion's blur average several
 vertices. Cost on the head (9279 vertices): 1.2 M closest-hit rays, about a second."""
+BOUNCE_ORDERS = 4
+"""Reflections off the skin that the bounce light counts (T_4 = E_b + G E_b + G^2 E_b + G^3 E_b):
+what Cycles renders through dermis's bridge. dermis.blender.export sets max_bounces = 12 and leaves
+Blender's default diffuse_bounces = 4, which Cycles' kernel takes as a limit of 5
+(scene/integrator.cpp: "plus one so that a bounce of 0 indicates ... only direct illumination").
+The random walk (BSSRDF) at the camera's skin point counts no bounce (shade_surface.h,
+integrate_surface_bsdf_bssrdf_bounce returns before path_state_next); its exit is a diffuse BSDF
+that takes the lights (direct light) and whose bounce is diffuse bounce 1; skin reached after a
+diffuse bounce is a diffuse BSDF of the same colour (no second random walk: subsurface.h), and the
+path stops at the surface reached by diffuse bounce 5 (path_state.h, path_state_next: count >= limit
+marks PATH_RAY_TERMINATE_AFTER_TRANSPARENT: no light samples there). So the lights and the sky
+arrive after 0 (direct), 1, 2, 3 and 4 reflections off other skin: 4 orders of bounce light."""
 CACHE_VERSION = 2  # bump when the bake changes meaning (2: grazing rays behind a neighbouring facet are hits)
 NEAR_REL = 0.01
 """An away-facing first hit closer than this (relative to the mesh's bounding diagonal: 2.5 mm on
@@ -163,6 +194,23 @@ def bounce_irradiance(hits: VertexHits, indices, exitant) -> np.ndarray:
     interpolated at the hits; rays that bring nothing add 0."""
     at = hits.at_vertices(exitant, indices)
     return np.nansum(at, axis=1) / hits.rays
+
+
+def bounce_series(hits: VertexHits, indices, first, albedo, orders: int | None = None) -> np.ndarray:
+    """The numpy twin of the runtime's higher bounces (dermis.gl.interreflection.BounceSeries): T_n
+    per vertex, (n, c), from the one bounce ``first`` (E_b, (n, c)) and the skin's total diffuse
+    albedo ``albedo`` per vertex ((V, c) or (c,)): T_1 = E_b, T_n = E_b + G T_(n-1) with
+    (G T)(x) = (1 / K) sum_k (rho T)(y_k), rho T interpolated at the hits as the runtime's gather
+    reads it (:func:`bounce_irradiance`), ``orders`` = n (default BOUNCE_ORDERS)."""
+    n = int(BOUNCE_ORDERS if orders is None else orders)
+    if n < 1:
+        raise ValueError(f"bounce orders must be >= 1, got {n}")
+    e = np.asarray(first, np.float64)
+    rho = np.broadcast_to(np.asarray(albedo, np.float64), e.shape)
+    t = e
+    for _ in range(n - 1):
+        t = e + bounce_irradiance(hits, indices, rho * t)
+    return t
 
 
 def layout_median_stretch(positions, uvs, indices, mm_per_unit: float, size: int) -> float:

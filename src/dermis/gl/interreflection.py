@@ -84,16 +84,26 @@ def bounce_level(texels_per_mm: float | None, size: int) -> int:
     return int(max(0, min(lvl, math.log2(max(size, 16) / 16))))
 
 
+def read_per_vertex(target, n: int) -> np.ndarray:
+    """The first ``n`` vertices' rgb of a per-vertex target of the hits' layout (rgba32f, vertex v
+    at (v mod P, v div P)), (n, 3)."""
+    a = np.frombuffer(target.read(), np.float32).reshape(target.size[1], target.size[0], 4)
+    return a.reshape(-1, 4)[:n, :3].copy()
+
+
 class BounceGather:
     """tsd/bounce_gather.frag on one context: E_b = (1/K) sum_k rho E(y_k) per mesh vertex, from the
     hits (:class:`InterreflectionHits`) and a texture-space rho E (premultiplied by coverage), into
     an rgba32f target of the hits' layout (vertex v at (v mod P, v div P))."""
 
-    def __init__(self, ctx):
+    def __init__(self, ctx, base: bool = False):
         from dermis.gl.shaders import program
 
         self.ctx = ctx
-        self.prog = program(ctx, "common/fullscreen.vert", "tsd/bounce_gather.frag")
+        # base: a step of the higher bounces, T_n = E_b + G T_(n-1) (BOUNCE_BASE; BounceSeries)
+        self.base = bool(base)
+        self.prog = program(ctx, "common/fullscreen.vert", "tsd/bounce_gather.frag",
+                            {"BOUNCE_BASE": 1} if self.base else None)
         self.vao = ctx.vertex_array(self.prog, [])
         self.target = None
         self.fbo = None
@@ -105,18 +115,25 @@ class BounceGather:
         self.target.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.fbo = self.ctx.framebuffer(color_attachments=[self.target])
 
-    def run(self, hits: InterreflectionHits, exitant):
-        """Gather into :attr:`target` (made at the hits' layout) and return it."""
+    def run(self, hits: InterreflectionHits, exitant, base=None):
+        """Gather into :attr:`target` (made at the hits' layout) and return it; ``base`` (per vertex,
+        this layout; only with ``base=True`` at construction) is added."""
         from dermis.gl.resources import set_uniform, use_texture
+        from dermis.techniques.shared import Unit
 
+        # E_b past the material's units: the series' raster reads the albedo map (Unit.ALBEDO)
+        # between two gathers
+        base_unit = int(Unit.FIRST_FREE)
         size = (hits.per_row, hits.tex.size[1])
         if self.target is None or self.target.size != size:
             self._make_target(size)
         for name, value in (("uRays", hits.rays), ("uVerticesPerRow", hits.per_row), ("uVertexCount", hits.vertex_count),
-                            ("uHits", 0), ("uExitant", 1)):
+                            ("uHits", 0), ("uExitant", 1), ("uBase", base_unit)):
             set_uniform(self.prog, name, int(value))
         use_texture(hits.tex, 0)
         use_texture(exitant, 1)
+        if self.base:
+            use_texture(base, base_unit)
         self.fbo.use()
         self.fbo.viewport = (0, 0, *size)
         self.vao.render(moderngl.TRIANGLES, vertices=3)
@@ -124,9 +141,7 @@ class BounceGather:
 
     def per_vertex(self, n: int) -> np.ndarray:
         """E_b of the last gather per mesh vertex, (n, 3)."""
-        t = self.target
-        a = np.frombuffer(t.read(), np.float32).reshape(t.size[1], t.size[0], 4)
-        return a.reshape(-1, 4)[:n, :3].copy()
+        return read_per_vertex(self.target, n)
 
     def _release_target(self):
         for o in (self.fbo, self.target):
@@ -138,6 +153,99 @@ class BounceGather:
         self._release_target()
         self.vao.release()
         self.prog.release()
+
+
+# ---------------------------------------------------------------------- the higher bounces
+class BounceSeries:
+    """The bounce light's higher orders on one context (dermis.geometry.interreflection, "Higher
+    bounces"): from the one bounce E_b per vertex (a :class:`BounceGather`'s target), ``orders`` - 1
+    steps T_n = E_b + G T_(n-1), each one raster of rho T_(n-1) in texture space (tsd/bounce_splat.frag
+    with BOUNCE_EXITANT: the per-vertex T interpolated over the triangles times the albedo map, the
+    same rho as the one bounce's rho E), SOURCE_FINER_LEVELS finer than the gather's level and
+    2x2-reduced to it (tsd/downsample.frag, as the shared one bounce's rho E), then the one bounce's
+    gather over the same rays with E_b added (tsd/bounce_gather.frag with BOUNCE_BASE); rasterised at
+    the gather's level instead (one texel one albedo sample) the head's higher orders moved by 11% of
+    their 99th percentile per vertex (front-key, irradiance 1024: benchmarks/RESULTS.md, "Round 13,
+    branch bounce13"), for 4 ms less per order on llvmpipe. T_n is
+    written over T_(n-1): no pass reads the texture it writes (the raster reads T_(n-1), the gather
+    the raster's reduction and E_b). Used by tsd's bounce and the shared one alike."""
+
+    def __init__(self, ctx):
+        from dermis.gl.shaders import program
+
+        self.ctx = ctx
+        self._gather = BounceGather(ctx, base=True)
+        self._splat = program(ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag",
+                              {"INTERREFLECTION": 1, "BOUNCE_EXITANT": 1})
+        self._down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag")
+        self._down_vao = ctx.vertex_array(self._down, [])
+        # [(texture, framebuffer)]: rho T from the raster's level to the gather's; 1x1 stand-ins re-made
+        # at their sizes on first use (the count of live textures never changes; a level-0 gather uses
+        # the first alone)
+        self._levels = [self._level_texture(1) for _ in range(SOURCE_FINER_LEVELS + 1)]
+
+    def _level_texture(self, n: int):
+        t = self.ctx.texture((n, n), 4, dtype="f4")
+        t.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        t.repeat_x = t.repeat_y = False
+        return t, self.ctx.framebuffer(color_attachments=[t])
+
+    def run(self, frame, hits: InterreflectionHits, first: BounceGather, level: int, orders: int | None = None):
+        """T_orders per vertex (default BOUNCE_ORDERS) from ``first`` (the one bounce, gathered at
+        ``level`` of the irradiance size): ``first.target`` itself when ``orders`` is 1, else this
+        series' target."""
+        from dermis.geometry.interreflection import BOUNCE_ORDERS
+        from dermis.gl.resources import maps_without_anisotropy, set_uniform, use_texture
+        from dermis.techniques.base import bind_scene
+        from dermis.techniques.shared import Unit
+
+        n = int(BOUNCE_ORDERS if orders is None else orders)
+        if n <= 1:
+            return first.target
+        S = int(frame.renderer.irradiance_size)
+        sizes = [max(S >> lvl, 1) for lvl in range(max(level - SOURCE_FINER_LEVELS, 0), level + 1)]
+        for i, size in enumerate(sizes):
+            if self._levels[i][0].size != (size, size):
+                for o in reversed(self._levels[i]):
+                    o.release()
+                self._levels[i] = self._level_texture(size)
+        levels = self._levels[:len(sizes)]
+        bind_scene(frame, self._splat)  # the albedo map (Unit.ALBEDO) and its uniforms
+        set_uniform(self._splat, "uVerticesPerRow", int(hits.per_row))
+        set_uniform(self._splat, "uBounce", int(Unit.FIRST_FREE))
+        set_uniform(self._down, "uSource", 0)
+        vao = frame.gpu.vao(self._splat)
+        source = first.target
+        for _ in range(n - 1):
+            tex, fbo = levels[0]
+            use_texture(source, Unit.FIRST_FREE)
+            fbo.use()
+            fbo.viewport = (0, 0, *tex.size)
+            fbo.clear(0.0, 0.0, 0.0, 0.0)  # coverage 0 off the layout
+            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+            with maps_without_anisotropy(frame.gpu, surfaces=False):
+                vao.render(moderngl.TRIANGLES)
+            for (src, _), (dst, dfbo) in zip(levels, levels[1:]):
+                use_texture(src, 0)
+                dfbo.use()
+                dfbo.viewport = (0, 0, *dst.size)
+                self._down_vao.render(moderngl.TRIANGLES, vertices=3)
+            source = self._gather.run(hits, levels[-1][0], base=first.target)
+        return source
+
+    @property
+    def target(self):
+        return self._gather.target
+
+    def release(self):
+        for t, f in self._levels:
+            f.release()
+            t.release()
+        self._levels = []
+        self._gather.release()
+        self._down_vao.release()
+        self._down.release()
+        self._splat.release()
 
 
 # ---------------------------------------------------------------------- the shared product
@@ -181,6 +289,8 @@ class SharedBounce:
         self.ctx = ctx
         self.hits = hits  # the Renderer's (Renderer.interreflection_hits), released by it
         self._gather = BounceGather(ctx)
+        self._series = BounceSeries(ctx)
+        self._out = self._gather.target  # the per-vertex bounce the techniques read (every order)
         # per light count, its lights unrolled as tsd's own irradiance pass (shared.LightCountPrograms)
         self.programs = LightCountPrograms(ctx, "common/fullscreen.vert", "tsd/irradiance.frag",
                                            {"SKIN_BOUNCE_FROM_INPUTS": 1})
@@ -243,7 +353,7 @@ class SharedBounce:
 
     @property
     def texture(self):
-        return self._gather.target
+        return self._out
 
     def get(self, frame):
         """The per-vertex E_b texture for ``frame`` (rebuilt when the product key changed); appends
@@ -251,7 +361,7 @@ class SharedBounce:
         self.hits.get(frame)  # the bake times itself, and may be rebuilt alone (a new layout)
         key = (frame.keys["interreflection"], self.hits.key)
         if key == self.key:
-            return self._gather.target
+            return self._out
         from dermis.gl.resources import set_uniform, use_texture
         from dermis.techniques.base import bind_scene
         from dermis.techniques.shared import Unit, bind_sampler_array
@@ -284,13 +394,20 @@ class SharedBounce:
                 dfbo.use()
                 dfbo.viewport = (0, 0, *dst.size)
                 self._down_vao.render(moderngl.TRIANGLES, vertices=3)
-            out = self._gather.run(self.hits, levels[-1][0])
+            self._gather.run(self.hits, levels[-1][0])
+            out = self._series.run(frame, self.hits, self._gather, level)  # + the higher bounces
+        self._out = out
         self.key = key
         frame.passes_run.append("interreflection")
         return out
 
     def per_vertex(self) -> np.ndarray:
-        """E_b of the last build per mesh vertex, (n, 3)."""
+        """The bounce irradiance of the last build per mesh vertex, (n, 3): T, every order
+        (:class:`BounceSeries`)."""
+        return read_per_vertex(self._out, self.hits.vertex_count)
+
+    def first_per_vertex(self) -> np.ndarray:
+        """E_b, the one bounce, of the last build per mesh vertex, (n, 3)."""
         return self._gather.per_vertex(self.hits.vertex_count)
 
     def release(self):
@@ -308,6 +425,8 @@ class SharedBounce:
             v.release()
         self._vaos = {}
         self._gather.release()
+        self._series.release()
+        self._out = None
         self.programs.release()
         self._down_vao.release()
         self._down.release()

@@ -5,8 +5,8 @@ hard and dry (sharp shadow edges, no red bleeding, no translucency). It exists a
 skin technique must visibly beat, and it exercises the shared machinery: shadow atlas with PCF soft
 shadows, normal mapping, lights, environment (SH irradiance) and the output transform.
 Inputs: the scene's albedo (linear), normal map, specular map, roughness m (mapped to a Blinn-Phong
-exponent), rho_s. With ``[scene] interreflection`` (default) it adds albedo / pi x E_b, one diffuse
-bounce between skin surfaces (the Renderer's shared pass, dermis.gl.interreflection.SharedBounce),
+exponent), rho_s. With ``[scene] interreflection`` (default) it adds albedo / pi x T, the bounce light
+between skin surfaces (E_b and its higher orders: the Renderer's shared pass, dermis.gl.interreflection.SharedBounce),
 so that it is the no-SSS counterpart of a path tracer's diffuse render, which has interreflection.
 Shader: shaders/lambert/lambert.frag.
 """

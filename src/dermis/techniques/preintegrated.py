@@ -42,7 +42,7 @@ from three local quantities looked up in tables computed at start-up from the ac
   per channel the larger of that and Penner's D S: a lit plane and a convex surface keep D S
   exactly (tests/test_preintegrated_folds.py).
 
-* interreflection: one diffuse bounce between skin surfaces, E_b per vertex (the Renderer's shared
+* interreflection: the bounce light between skin surfaces, E_b and its higher orders per vertex (the Renderer's shared
   pass, dermis.gl.interreflection.SharedBounce, once per lighting change), added as the ambient is,
   through none of the tables: the ring wraps a light's N.L past its terminator and the penumbra
   table scatters a shadow map's edge; E_b is an irradiance already integrated over the hemisphere

@@ -11,7 +11,8 @@ with each pixel's kernel scaled to millimetres by its depth:
 
   ssss_irradiance  mesh -> non-multisampled RGBA32F of the frame's size: (E + T) * albedo^mix and the
                    view depth in mm (E: lights, soft shadows, ambient, energy conservation, shared
-                   with tsd, and one diffuse bounce between skin surfaces, E_b per vertex from the
+                   with tsd, and the bounce light between skin surfaces, T per vertex (E_b and its
+                   higher orders, dermis.gl.interreflection.BounceSeries) from the
                    Renderer's shared pass, dermis.gl.interreflection.SharedBounce, once per lighting
                    change: added before the blurs, which scatter it as tsd's; T: light through thin
                    parts from the shadow map's thickness)

@@ -10,7 +10,10 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
                                              conservation (1 - rho_s a(N.L, m)/pi)
   one diffuse bounce between skin surfaces (scene.interreflection): E_b = (1/K) sum_k rho E(y_k) over K
                  cosine-weighted rays per vertex (baked once per mesh, geometry/interreflection.py), rho E
-                 read from a ~2 mm level of I_0 albedo^(1-mix); E_b albedo^mix added to I_0
+                 read from a ~2 mm level of I_0 albedo^(1-mix); with its higher orders (BounceSeries,
+                 dermis.geometry.interreflection.BOUNCE_ORDERS = 4, as Cycles through the bridge)
+                 T = E_b + B E_b + B^2 E_b + B^3 E_b (B: one more diffuse reflection off the skin over
+                 the same rays, geometry/interreflection.py's G); T albedo^mix added to I_0
   dilate I_0 into the UV gutters
   for k = 1..K:  I_k = I_(k-1) * G(v_k - v_(k-1)) as a U then a V pass (chained: G(a)*G(b) = G(a+b)),
                  tap spacing from S_k, the stretch blurred by the same chain; wide Gaussians run at
@@ -52,7 +55,7 @@ from dermis.errors import DermisError
 from dermis.geometry.texture_space import UV_RANGE_TOLERANCE, texture_space_uvs
 from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
-from dermis.gl.interreflection import BounceGather, bounce_level
+from dermis.gl.interreflection import BounceGather, BounceSeries, bounce_level, read_per_vertex
 from dermis.gl.subsurface_transfer import SubsurfaceTransfer, source_index
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
@@ -189,7 +192,9 @@ class TextureSpaceDiffusion(Technique):
         self._static_filled = None  # (key, target) of the last translucency_static pass (_translucency_static)
         self._p_trans_static = None
         self.hits = renderer.interreflection_hits  # the interreflection rays' hits (one bounce; the Renderer's)
-        self._p_bounce = None  # (exitant, gather, splat, splat reading albedo^mix), compiled on first use
+        # (exitant, gather, splat, splat reading albedo^mix, the higher bounces), compiled on first use
+        self._p_bounce = None
+        self._bounce_added = None  # the per-vertex bounce the last splat added (the gather's or the series' target)
         self.bounce_level = None
 
     # ------------------------------------------------------------------ resources
@@ -694,10 +699,11 @@ class TextureSpaceDiffusion(Technique):
         return bounce_level(self.median_stretch, S)
 
     def _interreflection(self, frame, irr, from_irradiance=False):
-        """Add one diffuse bounce to the irradiance ``irr`` (I_0): rho E in texture space
+        """Add the bounce light to the irradiance ``irr`` (I_0): rho E in texture space
         (``from_irradiance``: as the irradiance pass wrote it, with albedo^mix, irradiance_defines;
         else from I_0 by tsd/bounce_exitant.frag), reduced to _bounce_level, gathered per vertex over
-        the baked rays (tsd/bounce_gather.frag) and splatted into I_0 with additive blending
+        the baked rays (tsd/bounce_gather.frag), its higher orders added (BounceSeries: T = E_b + G E_b
+        + ...) and T splatted into I_0 with additive blending
         (tsd/bounce_splat.frag). No pass reads the texture it writes."""
         self.hits.get(frame)  # the bake times itself: before this pass's timer
         if self._p_bounce is None:
@@ -706,8 +712,9 @@ class TextureSpaceDiffusion(Technique):
             self._p_bounce = (program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_exitant.frag", defines),
                               BounceGather(self.ctx),
                               program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag", splat),
-                              program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag", {**splat, "ALBEDO_MIX_TARGET": 1}))
-        p_exit, p_gather, p_splat, p_splat_mix = self._p_bounce
+                              program(self.ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag", {**splat, "ALBEDO_MIX_TARGET": 1}),
+                              BounceSeries(self.ctx))
+        p_exit, p_gather, p_splat, p_splat_mix, series = self._p_bounce
         p_splat = p_splat_mix if from_irradiance else p_splat
         per_row = self.hits.per_row
         level = self._bounce_level(irr.size[0])
@@ -723,7 +730,11 @@ class TextureSpaceDiffusion(Technique):
             for lvl in range(1, level + 1):
                 src, p = self._down(src, ("bounce_exitant", lvl), lvl)
                 self._draw(p)
-            bounce = p_gather.run(self.hits, src)
+            p_gather.run(self.hits, src)
+            # + the higher bounces (T = E_b + G E_b + ...): the splat adds their sum, which the
+            # diffusion then spreads like every other light
+            bounce = series.run(frame, self.hits, p_gather, level)
+            self._bounce_added = bounce
             bind_sampler(p_splat, "uBounce", bounce, Unit.FIRST_FREE)
             if from_irradiance:
                 bind_sampler(p_splat, "uAlbedoMix", self.tex["albedo_mix"], Unit.FIRST_FREE + 1)
@@ -736,7 +747,12 @@ class TextureSpaceDiffusion(Technique):
         frame.passes_run.append("tsd_interreflection")
 
     def bounce_per_vertex(self) -> np.ndarray:
-        """E_b of the last bounce pass per mesh vertex, (n, 3) (tsd/bounce_gather.frag's target)."""
+        """The bounce irradiance the last bounce pass added per mesh vertex, (n, 3): T, every order
+        (dermis.gl.interreflection.BounceSeries; E_b alone where it takes one)."""
+        return read_per_vertex(self._bounce_added, self.hits.vertex_count)
+
+    def first_bounce_per_vertex(self) -> np.ndarray:
+        """E_b of the last bounce pass per mesh vertex, (n, 3): the one bounce (tsd/bounce_gather.frag)."""
         return self._p_bounce[1].per_vertex(self.hits.vertex_count)
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:

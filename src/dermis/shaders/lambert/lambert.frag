@@ -40,7 +40,7 @@ void main() {
     float ks = rho_s * 0.028 * 2.0 / (m * m * (shininess + 8.0));
     vec3 color = albedo * INV_PI * environment_irradiance_occluded(N, Ng, v_visibility);
 #ifdef DERMIS_INTERREFLECTION
-    color += albedo * INV_PI * bounce_irradiance();  // one bounce (common/interreflection.glsl)
+    color += albedo * INV_PI * bounce_irradiance();  // the bounce light, every order (common/interreflection.glsl)
 #endif
     // the environment's specular (common/environment.glsl) times the lobe's albedo, taken at
     // normal incidence for every view: ks n (n + 8) / ((n + 2)(n + 4)) (the integral of the

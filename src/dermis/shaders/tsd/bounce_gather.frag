@@ -4,11 +4,18 @@
 // reading rho E (tsd/bounce_exitant.frag, premultiplied by coverage, reduced to ~2 mm texels) at
 // each hit's texture-space (u, v). Rays that escape or hit a face turned away hold (-1, -1): they
 // add nothing (the environment's share is the ambient occlusion's).
+// With BOUNCE_BASE it is one step of the higher bounces (dermis.gl.interreflection.BounceSeries):
+// uExitant holds rho T_(n-1) (tsd/bounce_splat.frag with BOUNCE_EXITANT) and the pass writes
+//   T_n = E_b + (1 / K) sum_k rho T_(n-1)(y_k) = E_b + G T_(n-1),
+// E_b the one bounce (uBase, this layout): after n - 1 steps, E_b + G E_b + ... + G^(n-1) E_b.
 uniform sampler2D uHits;     // rg32f, K texels per vertex: the hits' texture-space (u, v)
 uniform sampler2D uExitant;  // rho E, premultiplied (rgb x coverage, coverage)
 uniform int uRays;
 uniform int uVerticesPerRow;
 uniform int uVertexCount;
+#ifdef BOUNCE_BASE
+uniform sampler2D uBase;  // E_b per vertex, the one bounce (this pass's layout)
+#endif
 out vec4 f_bounce;
 
 // a hit in a texel the layout barely covers at this level: its colour is the coverage's ratio of
@@ -26,5 +33,9 @@ void main() {
             if (c.a >= MIN_COVERAGE) sum += c.rgb / c.a;
         }
     }
-    f_bounce = vec4(sum / float(max(uRays, 1)), 1.0);
+    vec3 e = sum / float(max(uRays, 1));
+#ifdef BOUNCE_BASE
+    e += texelFetch(uBase, p, 0).rgb;
+#endif
+    f_bounce = vec4(e, 1.0);
 }

@@ -3,6 +3,10 @@
 // texture as the lights' is stored there, E_b albedo^mix (tsd/irradiance.frag), with additive
 // blending (alpha 0: the coverage stays), before the dilation and the blur chain: the diffusion
 // spreads the bounce light (and its Monte Carlo noise) as it does every other light.
+// With BOUNCE_EXITANT it writes instead the light that bounce light sends on, rho T (T the per-vertex
+// bounce irradiance, rho = albedo^1 the skin's total diffuse albedo, as tsd/bounce_exitant.frag's
+// rho E), coverage 1 into a cleared target: the source of the next bounce's gather
+// (dermis.gl.interreflection.BounceSeries).
 #include "common/surface.glsl"
 #include "common/albedo_mix.glsl"
 
@@ -18,10 +22,14 @@ uniform sampler2D uAlbedoMix;
 #endif
 
 void main() {
+#if defined(BOUNCE_EXITANT)
+    f_irradiance = vec4(max(v_bounce, vec3(0.0)) * albedo_at(v_uv), 1.0);
+#else
 #ifdef ALBEDO_MIX_TARGET
     vec3 albedo_mix = texelFetch(uAlbedoMix, ivec2(gl_FragCoord.xy), 0).rgb;
 #else
     vec3 albedo_mix = albedo_power(albedo_at(v_uv), uMix);
 #endif
     f_irradiance = vec4(max(v_bounce, vec3(0.0)) * albedo_mix, 0.0);
+#endif
 }
