@@ -22,12 +22,15 @@ vec3 environment_irradiance(vec3 n) {
 // constant environment). With environment occlusion off vis = (1, 1, 1, 1): the unoccluded terms.
 // Ng is unused (the visible fraction was baked about the vertex normal); kept for the callers.
 vec3 environment_irradiance_occluded(vec3 N, vec3 Ng, vec4 vis) {
-    return vis.yzw * environment_irradiance(N);
+    // vis is a fraction of the sky; interpolated past its triangle (an MSAA edge fragment's pixel
+    // centre: GLSL 4.50, "Interpolation Qualifiers") it can leave [0, 1] and gave negative radiance
+    return clamp(vis.yzw, 0.0, 1.0) * environment_irradiance(N);
 }
 
 // Specular occlusion from ambient occlusion (Lagarde & de Rousiers 2014, "Moving Frostbite to
 // PBR", sec. 4.10.2, listing 26), m the lobe's roughness (Beckmann m ~ GGX alpha, Walter 2007).
 float specular_occlusion(float ndv, float ao, float m) {
+    ao = clamp(ao, 0.0, 1.0);  // a fraction (see environment_irradiance_occluded)
     return clamp(pow(ndv + ao, exp2(-16.0 * m - 1.0)) - 1.0 + ao, 0.0, 1.0);
 }
 
