@@ -191,6 +191,33 @@ def test_white_furnace_inside_a_closed_sphere_sums_the_bounces_of_rho_e(gl_ctx, 
     np.testing.assert_allclose(images[n][1] - images[1][1], RHO / np.pi * gain, rtol=1e-2)
 
 
+def test_renderer_bounce_orders_cuts_the_series(gl_ctx, many_rays):
+    # Renderer.bounce_orders (the viewer's preview while a light moves takes 1: FAST_BOUNCE_ORDERS):
+    # inside the closed sphere T is then the one bounce rho pi c, in tsd and in the shared bounce,
+    # and 2 orders give (rho + rho^2) pi c
+    from dermis.viewer.progressive import FAST_BOUNCE_ORDERS
+
+    def inside(u, v):
+        th, ph = v * np.pi, u * 2 * np.pi
+        d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), -np.cos(th)], -1)
+        return d, -d
+
+    c = 0.2
+    sc = _scene([grid_mesh(32, 16, inside, (0.02, 0.02, 0.98, 0.98))], [], env=(c, c, c), occlusion=False)
+    sc.camera = Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0), fov_deg=60.0)
+    ring = np.abs(sc.mesh.normals[:, 2]) < 0.95
+    assert FAST_BOUNCE_ORDERS == 1
+    for orders in (FAST_BOUNCE_ORDERS, 2):
+        with Renderer(sc, (32, 32), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
+            r.bounce_orders = orders
+            r.render("tsd")
+            r.render("lambert")
+            got = (r.technique("tsd").bounce_per_vertex(), r.interreflection.per_vertex())
+        want = sum(RHO ** k for k in range(1, orders + 1)) * np.pi * c
+        for t in got:
+            np.testing.assert_allclose(t[ring], want, rtol=5e-3)
+
+
 def test_l_shape_higher_bounces_are_the_numpy_series_over_the_bake(gl_ctx, many_rays):
     # the floor, dark in the one bounce (it sees only the unlit wall), gets the wall's bounce light
     # back (G E_b), the wall the floor's (G^2 E_b), ...: tsd's and the shared bounce's T against

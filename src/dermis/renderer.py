@@ -54,6 +54,10 @@ class Renderer:
         self._targets_size = None
         self._target_sets = {}  # size -> targets: the previous size's, kept for reuse
         self.target_sizes_kept = 2  # frame sizes whose render targets are kept (the viewer alternates two)
+        # orders of the skin-to-skin bounce light (dermis.geometry.interreflection.BOUNCE_ORDERS when
+        # None); the viewer's preview renderer takes 1 while a light is dragged. Set it before the
+        # first frame: the lighting caches do not key on it
+        self.bounce_orders = None
         self._specular_tables = None
         self._surface_program = None
         self.program_variants = {}  # id(program) -> (program, its variant): dermis.techniques.shared.shading_program

@@ -191,14 +191,16 @@ class BounceSeries:
         return t, self.ctx.framebuffer(color_attachments=[t])
 
     def run(self, frame, hits: InterreflectionHits, first: BounceGather, level: int, orders: int | None = None):
-        """T_orders per vertex (default BOUNCE_ORDERS) from ``first`` (the one bounce, gathered at
-        ``level`` of the irradiance size): ``first.target`` itself when ``orders`` is 1, else this
-        series' target."""
+        """T_orders per vertex (default: the frame's Renderer.bounce_orders, else BOUNCE_ORDERS) from
+        ``first`` (the one bounce, gathered at ``level`` of the irradiance size): ``first.target``
+        itself when ``orders`` is 1, else this series' target."""
         from dermis.geometry.interreflection import BOUNCE_ORDERS
         from dermis.gl.resources import maps_without_anisotropy, set_uniform, use_texture
         from dermis.techniques.base import bind_scene
         from dermis.techniques.shared import Unit
 
+        if orders is None:
+            orders = getattr(frame.renderer, "bounce_orders", None)
         n = int(BOUNCE_ORDERS if orders is None else orders)
         if n <= 1:
             return first.target

@@ -30,6 +30,9 @@ SCALE_STEPS = (0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0)
 # (764 vs 1296 ms at 240x160, load 9.9; benchmarks/RESULTS.md, issue 14)
 FAST_IRRADIANCE = 128
 FAST_SHADOW = 512      # shadow tile size of the interactive renderer
+# orders of the bounce light in a preview while a light moves: the one bounce (each further order
+# costs a texture-space raster and a gather per lighting change: +50 ms a frame on llvmpipe, round 13)
+FAST_BOUNCE_ORDERS = 1
 REFINE_AFTER_S = 0.2   # an interactive session refines this long after the last input
 # ... except after a mouse drag's release, which ends the input for sure: the refine starts with the
 # next frame (input_released), 0.2 s of the wait for the full frame after a light drag saved
@@ -74,6 +77,7 @@ class ProgressiveRenderer:
             self.fast = Renderer(full.scene, full.size, ctx=full.ctx, samples=0, irradiance_size=irr,
                                  shadow_size=min(FAST_SHADOW, full.shadows.tile_size))
             self.fast.target_sizes_kept = 1  # it only ever draws the current reduced size
+            self.fast.bounce_orders = FAST_BOUNCE_ORDERS
         else:
             if self.fast.irradiance_size != irr:
                 self.fast.set_irradiance_size(irr)  # keeps its render targets and programs
