@@ -146,20 +146,27 @@ def test_flat_plane_has_no_bounce_and_camera_moves_do_not_rerun_it(gl_ctx, many_
     np.testing.assert_array_equal(on, off)  # adding zero changes no bit
 
 
+def _inside_sphere(c: float) -> Scene:
+    """A closed unit sphere seen from its centre, normals inward, under an open sky of constant
+    radiance ``c`` (no occlusion bake: every direction of the sky reaches every point as E = pi c)."""
+    def inside(u, v):
+        th, ph = v * np.pi, u * 2 * np.pi
+        d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), -np.cos(th)], -1)
+        return d, -d
+
+    sc = _scene([grid_mesh(32, 16, inside, (0.02, 0.02, 0.98, 0.98))], [], env=(c, c, c), occlusion=False)
+    sc.camera = Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0), fov_deg=60.0)
+    return sc
+
+
 def test_white_furnace_inside_a_closed_sphere_sums_the_bounces_of_rho_e(gl_ctx, many_rays, monkeypatch):
     # inside a closed sphere (normals inward) under the open sky's constant radiance c: every point
     # gets E = pi c, every ray hits the sphere, so the one bounce is exactly rho pi c everywhere and
     # bounce n is rho^n pi c (G of a uniform T is rho T): BOUNCE_ORDERS of them, in tsd and in the
     # shared bounce, T = pi c (rho + rho^2 + ... + rho^n) (0.9375 pi c at rho = 1/2, n = 4; one
     # bounce alone is 0.5 pi c, the converged series rho / (1 - rho) = 1 pi c)
-    def inside(u, v):
-        th, ph = v * np.pi, u * 2 * np.pi
-        d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), -np.cos(th)], -1)
-        return d, -d
-
     c = 0.2
-    sc = _scene([grid_mesh(32, 16, inside, (0.02, 0.02, 0.98, 0.98))], [], env=(c, c, c), occlusion=False)
-    sc.camera = Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0), fov_deg=60.0)
+    sc = _inside_sphere(c)
     with Renderer(sc, (32, 32), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
         r.render("tsd")
         eb = r.technique("tsd").first_bounce_per_vertex()
@@ -197,14 +204,8 @@ def test_renderer_bounce_orders_cuts_the_series(gl_ctx, many_rays):
     # and 2 orders give (rho + rho^2) pi c
     from dermis.viewer.progressive import FAST_BOUNCE_ORDERS
 
-    def inside(u, v):
-        th, ph = v * np.pi, u * 2 * np.pi
-        d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), -np.cos(th)], -1)
-        return d, -d
-
     c = 0.2
-    sc = _scene([grid_mesh(32, 16, inside, (0.02, 0.02, 0.98, 0.98))], [], env=(c, c, c), occlusion=False)
-    sc.camera = Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0), fov_deg=60.0)
+    sc = _inside_sphere(c)
     ring = np.abs(sc.mesh.normals[:, 2]) < 0.95
     assert FAST_BOUNCE_ORDERS == 1
     for orders in (FAST_BOUNCE_ORDERS, 2):

@@ -155,6 +155,60 @@ class BounceGather:
         self.prog.release()
 
 
+# ---------------------------------------------------------------------- the source's levels
+class LevelChain:
+    """rho E (the one bounce's source) or rho T (a higher order's) from the level it is rasterised at,
+    SOURCE_FINER_LEVELS finer than the gather's ~2 mm level (:func:`bounce_level`), 2x2-reduced to the
+    gather's (tsd/downsample.frag). The textures are made as 1x1 stand-ins and re-made at their sizes
+    on first use (the count of live GPU objects never changes; a level-0 gather uses the first alone).
+    Used by :class:`SharedBounce` and :class:`BounceSeries`."""
+
+    def __init__(self, ctx):
+        from dermis.gl.shaders import program
+
+        self.ctx = ctx
+        self._down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag")
+        self._down_vao = ctx.vertex_array(self._down, [])
+        self._levels = [self._level_texture(1) for _ in range(SOURCE_FINER_LEVELS + 1)]
+
+    def _level_texture(self, n: int):
+        t = self.ctx.texture((n, n), 4, dtype="f4")
+        t.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        t.repeat_x = t.repeat_y = False
+        return t, self.ctx.framebuffer(color_attachments=[t])
+
+    def levels(self, size: int, level: int):
+        """[(texture, framebuffer)] from the raster's level to ``level`` of a ``size``^2 layout, made
+        at their sizes when they changed."""
+        sizes = [max(size >> lvl, 1) for lvl in range(max(level - SOURCE_FINER_LEVELS, 0), level + 1)]
+        for i, n in enumerate(sizes):
+            if self._levels[i][0].size != (n, n):
+                for o in reversed(self._levels[i]):
+                    o.release()
+                self._levels[i] = self._level_texture(n)
+        return self._levels[:len(sizes)]
+
+    def reduce(self, levels):
+        """Each level 2x2-reduced into the next; returns the last (the gather's) texture."""
+        from dermis.gl.resources import set_uniform, use_texture
+
+        set_uniform(self._down, "uSource", 0)
+        for (src, _), (dst, dfbo) in zip(levels, levels[1:]):
+            use_texture(src, 0)
+            dfbo.use()
+            dfbo.viewport = (0, 0, *dst.size)
+            self._down_vao.render(moderngl.TRIANGLES, vertices=3)
+        return levels[-1][0]
+
+    def release(self):
+        for t, f in self._levels:
+            f.release()
+            t.release()
+        self._levels = []
+        self._down_vao.release()
+        self._down.release()
+
+
 # ---------------------------------------------------------------------- the higher bounces
 class BounceSeries:
     """The bounce light's higher orders on one context (dermis.geometry.interreflection, "Higher
@@ -177,18 +231,7 @@ class BounceSeries:
         self._gather = BounceGather(ctx, base=True)
         self._splat = program(ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag",
                               {"INTERREFLECTION": 1, "BOUNCE_EXITANT": 1})
-        self._down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag")
-        self._down_vao = ctx.vertex_array(self._down, [])
-        # [(texture, framebuffer)]: rho T from the raster's level to the gather's; 1x1 stand-ins re-made
-        # at their sizes on first use (the count of live textures never changes; a level-0 gather uses
-        # the first alone)
-        self._levels = [self._level_texture(1) for _ in range(SOURCE_FINER_LEVELS + 1)]
-
-    def _level_texture(self, n: int):
-        t = self.ctx.texture((n, n), 4, dtype="f4")
-        t.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        t.repeat_x = t.repeat_y = False
-        return t, self.ctx.framebuffer(color_attachments=[t])
+        self._chain = LevelChain(ctx)  # rho T from the raster's level to the gather's
 
     def run(self, frame, hits: InterreflectionHits, first: BounceGather, level: int, orders: int | None = None):
         """T_orders per vertex (default: the frame's Renderer.bounce_orders, else BOUNCE_ORDERS) from
@@ -204,18 +247,10 @@ class BounceSeries:
         n = int(BOUNCE_ORDERS if orders is None else orders)
         if n <= 1:
             return first.target
-        S = int(frame.renderer.irradiance_size)
-        sizes = [max(S >> lvl, 1) for lvl in range(max(level - SOURCE_FINER_LEVELS, 0), level + 1)]
-        for i, size in enumerate(sizes):
-            if self._levels[i][0].size != (size, size):
-                for o in reversed(self._levels[i]):
-                    o.release()
-                self._levels[i] = self._level_texture(size)
-        levels = self._levels[:len(sizes)]
+        levels = self._chain.levels(int(frame.renderer.irradiance_size), level)
         bind_scene(frame, self._splat)  # the albedo map (Unit.ALBEDO) and its uniforms
         set_uniform(self._splat, "uVerticesPerRow", int(hits.per_row))
         set_uniform(self._splat, "uBounce", int(Unit.FIRST_FREE))
-        set_uniform(self._down, "uSource", 0)
         vao = frame.gpu.vao(self._splat)
         source = first.target
         for _ in range(n - 1):
@@ -227,12 +262,7 @@ class BounceSeries:
             self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
             with maps_without_anisotropy(frame.gpu, surfaces=False):
                 vao.render(moderngl.TRIANGLES)
-            for (src, _), (dst, dfbo) in zip(levels, levels[1:]):
-                use_texture(src, 0)
-                dfbo.use()
-                dfbo.viewport = (0, 0, *dst.size)
-                self._down_vao.render(moderngl.TRIANGLES, vertices=3)
-            source = self._gather.run(hits, levels[-1][0], base=first.target)
+            source = self._gather.run(hits, self._chain.reduce(levels), base=first.target)
         return source
 
     @property
@@ -240,13 +270,8 @@ class BounceSeries:
         return self._gather.target
 
     def release(self):
-        for t, f in self._levels:
-            f.release()
-            t.release()
-        self._levels = []
+        self._chain.release()
         self._gather.release()
-        self._down_vao.release()
-        self._down.release()
         self._splat.release()
 
 
@@ -301,19 +326,9 @@ class SharedBounce:
         self._inputs_fbo = ctx.framebuffer(color_attachments=self._inputs)
         self._inputs_key = None
         self._vaos = {}  # light-pass program -> its attribute-less vertex array
-        self._down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag")
-        self._down_vao = ctx.vertex_array(self._down, [])
-        # [(texture, framebuffer)]: rho E from the raster's level to the gather's; a level-0 gather
-        # uses the first alone
-        self._levels = [self._level_texture(1) for _ in range(SOURCE_FINER_LEVELS + 1)]
+        self._chain = LevelChain(ctx)  # rho E from the raster's level to the gather's
         self.key = None
         self.level = None  # the gather's level (of the irradiance size)
-
-    def _level_texture(self, n: int):
-        t = self.ctx.texture((n, n), 4, dtype="f4")
-        t.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        t.repeat_x = t.repeat_y = False
-        return t, self.ctx.framebuffer(color_attachments=[t])
 
     def _input_texture(self, n: int):
         t = self.ctx.texture((n, n), 4, dtype="f4")
@@ -364,20 +379,13 @@ class SharedBounce:
         key = (frame.keys["interreflection"], self.hits.key)
         if key == self.key:
             return self._out
-        from dermis.gl.resources import set_uniform, use_texture
         from dermis.techniques.base import bind_scene
         from dermis.techniques.shared import Unit, bind_sampler_array
 
         S = int(frame.renderer.irradiance_size)
         level = bounce_level(layout_texels_per_mm(frame.scene, S), S)
         self.level = level
-        sizes = [max(S >> lvl, 1) for lvl in range(max(level - SOURCE_FINER_LEVELS, 0), level + 1)]
-        for i, n in enumerate(sizes):
-            if self._levels[i][0].size != (n, n):
-                for o in reversed(self._levels[i]):
-                    o.release()
-                self._levels[i] = self._level_texture(n)
-        levels = self._levels[:len(sizes)]
+        levels = self._chain.levels(S, level)
         tex, fbo = levels[0]
         self._draw_inputs(frame, tex.size)
         with frame.timer("interreflection"):
@@ -390,13 +398,7 @@ class SharedBounce:
             if prog not in self._vaos:
                 self._vaos[prog] = self.ctx.vertex_array(prog, [])
             self._vaos[prog].render(moderngl.TRIANGLES, vertices=3)
-            set_uniform(self._down, "uSource", 0)
-            for (src, _), (dst, dfbo) in zip(levels, levels[1:]):
-                use_texture(src, 0)
-                dfbo.use()
-                dfbo.viewport = (0, 0, *dst.size)
-                self._down_vao.render(moderngl.TRIANGLES, vertices=3)
-            self._gather.run(self.hits, levels[-1][0])
+            self._gather.run(self.hits, self._chain.reduce(levels))
             out = self._series.run(frame, self.hits, self._gather, level)  # + the higher bounces
         self._out = out
         self.key = key
@@ -413,10 +415,7 @@ class SharedBounce:
         return self._gather.per_vertex(self.hits.vertex_count)
 
     def release(self):
-        for t, f in self._levels:
-            f.release()
-            t.release()
-        self._levels = []
+        self._chain.release()
         self._inputs_fbo.release()
         for t in self._inputs:
             t.release()
@@ -430,8 +429,6 @@ class SharedBounce:
         self._series.release()
         self._out = None
         self.programs.release()
-        self._down_vao.release()
-        self._down.release()
         self.key = None
 
 
