@@ -54,10 +54,7 @@ class Renderer:
         self._targets_size = None
         self._target_sets = {}  # size -> targets: the previous size's, kept for reuse
         self.target_sizes_kept = 2  # frame sizes whose render targets are kept (the viewer alternates two)
-        # orders of the skin-to-skin bounce light (dermis.geometry.interreflection.BOUNCE_ORDERS when
-        # None); the viewer's preview renderer takes 1 while a light is dragged. Set it before the
-        # first frame: the lighting caches do not key on it
-        self.bounce_orders = None
+        self._bounce_orders = None  # Renderer.bounce_orders
         self._specular_tables = None
         self._surface_program = None
         self.program_variants = {}  # id(program) -> (program, its variant): dermis.techniques.shared.shading_program
@@ -191,6 +188,22 @@ class Renderer:
         for tech in self._techniques.values():
             if hasattr(tech, "release_textures"):
                 tech.release_textures()
+
+    @property
+    def bounce_orders(self) -> int | None:
+        """Orders of the skin-to-skin bounce light (None: dermis.geometry.interreflection.BOUNCE_ORDERS);
+        the viewer's preview renderer takes 1 while a light is dragged. Changing it re-runs the
+        passes that hold the bounce light (:meth:`invalidate`)."""
+        return self._bounce_orders
+
+    @bounce_orders.setter
+    def bounce_orders(self, n: int | None):
+        n = None if n is None else int(n)
+        if n is not None and n < 1:
+            raise DermisError(f"bounce_orders must be >= 1 (or None), got {n}")
+        if n != self._bounce_orders:
+            self._bounce_orders = n
+            self.invalidate()
 
     def invalidate(self):
         """Make the next frame re-run everything cached between frames (shadow maps and the
