@@ -13,6 +13,8 @@ src`` (a temporary copy, in a subprocess) beside this tree's; renders are cached
 written by ``dermis validate --against cycles --out DIR`` (skipped where absent), at any size of
 the renders' aspect (the validation's 64 x 64 included: its crops are cut from the same mm square
 and enlarged to the tile, so they are blurry; the column is labelled with the size).
+``--cycles-crops DIR`` (default benchmarks/cycles/crops): Cycles windows of the crops at the renders'
+own size (benchmarks/cycles_crops.py), a column at full resolution where they exist and are current.
 ``--cache-dir`` / ``--before-cache-dir``: DERMIS_CACHE_DIR for this tree's / the before tree's renders
 (generated data such as tsd's subsurface transfer bake is found there: an A/B of two bakes).
 
@@ -45,6 +47,7 @@ TECHNIQUES = ("tsd", "ssss", "preintegrated", "lambert")
 # the midline at ear height and depth (dermis.blender.validate: EAR_BOX_MM).
 FRONT_LANDMARKS = {"nose": ((0.0, -6.0), 6.0), "eye +x": ((31.0, 33.0), 7.0), "eye -x": ((-31.0, 33.0), 7.0),
                    "lips": ((0.0, -40.0), 6.0)}
+CROP_MM = 56.0  # the crop's side at the landmark's depth (times CROP_SCALE)
 CROP_SCALE = {"nose": 1.0, "eye +x": 1.0, "eye -x": 1.0, "lips": 1.1, "ear +x": 1.4, "ear -x": 1.4}
 
 
@@ -156,7 +159,24 @@ def old_tree(rev: str, into: Path) -> Path:
     return dest / "src"
 
 
-def sheet(scene_file: Path, columns, cycles_dir, size, crop_mm, tile):
+def cycles_crops_column(scene, scene_file: Path, crops_dir, size: int):
+    """(label, linear frame) with the stored full-resolution Cycles crops (benchmarks/cycles_crops.py)
+    of this scene pasted where they belong (black elsewhere), or None when it has none (or only
+    stale ones)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from cycles_crops import frame_boxes, load_crop, over_background
+
+    frame, spp = np.zeros((size, size, 3), np.float32), set()
+    for lm in frame_boxes(scene, size):
+        c = load_crop(Path(crops_dir), scene_file.stem, lm, scene, size)
+        if c is not None:
+            (rgba, meta), (x0, y0, x1, y1) = c, c[1]["box"]
+            frame[y0:y1, x0:x1] = over_background(scene, rgba)
+            spp.add(f"{meta['spp']}x{meta['seeds']}")
+    return (f"Cycles {size}px {'/'.join(sorted(spp))} spp", frame) if spp else None
+
+
+def sheet(scene_file: Path, columns, cycles_dir, size, crop_mm, tile, cycles_crops=None):
     """One scene's crop sheet: uint8 image and the landmarks used."""
     import dermis
     from PIL import Image, ImageDraw
@@ -180,6 +200,10 @@ def sheet(scene_file: Path, columns, cycles_dir, size, crop_mm, tile):
                 columns = list(columns) + [(f"Cycles {w}x{h}", (cyc, view0, proj0, eye0))]
             else:
                 print(f"{exr}: {w}x{h} is not the aspect of the {W}x{H} renders; no Cycles column", file=sys.stderr)
+    if cycles_crops and img0.shape[0] == img0.shape[1]:
+        col = cycles_crops_column(sc, scene_file, cycles_crops, img0.shape[0])
+        if col is not None:
+            columns = list(columns) + [(col[0], (col[1], view0, proj0, eye0))]
     rows = [(name, p) for name, (p, n) in lm.items() if visible(sc.mesh, p, n, eye0)]
     pad, band = 4, 18
     H = band + len(rows) * (tile + pad) + pad
@@ -206,7 +230,9 @@ def main(argv=None):
     ap.add_argument("--scenes", nargs="+", default=[str(s) for s in SCENES])
     ap.add_argument("--before", default=None, help="git revision to render beside this tree (e.g. aa056b3)")
     ap.add_argument("--cycles", default=None, help="a `dermis validate --against cycles --out` directory")
-    ap.add_argument("--crop-mm", type=float, default=56.0)
+    ap.add_argument("--cycles-crops", default=str(REPO / "benchmarks" / "cycles" / "crops"),
+                    help="full-resolution Cycles crops (benchmarks/cycles_crops.py); '' for none")
+    ap.add_argument("--crop-mm", type=float, default=CROP_MM)
     ap.add_argument("--tile", type=int, default=192)
     ap.add_argument("--reuse-work", action="store_true", help="reuse this tree's cached renders (e.g. another --tile)")
     ap.add_argument("--cache-dir", default=None, help="DERMIS_CACHE_DIR for this tree's renders")
@@ -235,7 +261,7 @@ def main(argv=None):
         for t in a.techniques:
             for tree, _ in trees:
                 columns.append((t if tree == "work" else f"{t} @{tree}", per_tree[tree][t]))
-        img, rows = sheet(scene_file, columns, a.cycles, a.size, a.crop_mm, a.tile)
+        img, rows = sheet(scene_file, columns, a.cycles, a.size, a.crop_mm, a.tile, a.cycles_crops)
         Image.fromarray(img).save(out / f"{scene_file.stem}.png")
         print(f"{scene_file.stem}: {', '.join(rows)} -> {out / (scene_file.stem + '.png')}")
     if tmp is not None:

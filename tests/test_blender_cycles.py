@@ -535,3 +535,23 @@ def test_supersampled_pixel_filter_matches_cycles_edges(tmp_path):
     err_native = np.abs(native[ring] - cyc[ring][..., :3]).mean() / scale
     err_fine = np.abs(fine[ring] - cyc[ring][..., :3]).mean() / scale
     assert err_fine < 0.5 * err_native and err_fine < 0.04, (err_fine, err_native)
+
+
+@needs_bpy
+def test_cycles_window_is_the_frames_pixels(tmp_path):
+    """A window rendered through Cycles' render border (dermis.blender.crop_render, the crop sheets'
+    full-resolution reference) is the full frame's pixels at the same seed, bit for bit; the window
+    read with Blender's bottom-up y instead of numpy's top-down rows is not."""
+    from dermis.blender.crop_render import render_cycles_window
+    from dermis.blender.render import render_cycles
+    from dermis.errors import DermisError
+
+    sc = _slab_scene(tmp_path, Light(kind="directional", direction=(0.3, -0.2, -0.93), intensity=3.0))
+    size, box = (48, 40), (5, 9, 30, 21)  # off-centre in y: a flipped border reads other pixels
+    full, _ = render_cycles(sc, size, spp=8, seed=4)
+    win, _ = render_cycles_window(sc, size, box, spp=8, seed=4)
+    assert win.shape == (12, 25, 3)
+    assert np.array_equal(win, full[9:21, 5:30])
+    assert np.abs(win - full[40 - 21:40 - 9, 5:30]).max() > 0.1
+    with pytest.raises(DermisError, match="not inside"):
+        render_cycles_window(sc, size, (40, 0, 50, 10))

@@ -8,8 +8,10 @@ import importlib.util
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import dermis
+from dermis.blender import bpy_available
 from dermis.images import write_exr
 from dermis.renderer import Renderer
 
@@ -52,3 +54,48 @@ def test_cycles_column_of_another_size_shows_the_same_crops(gl_ctx, tmp_path):
     assert np.all(np.diag(d) < 16.0), np.diag(d)
     for i in range(len(rows)):
         assert d[i, i] < 0.6 * np.delete(d[i], i).min(), d
+
+
+@pytest.mark.skipif(not bpy_available(), reason="bpy (Blender as a Python module) is not installed: the crops' "
+                                                "key is the Cycles stores' key, which names Blender's version")
+def test_full_resolution_cycles_crops_land_on_their_rows(gl_ctx, tmp_path):
+    """benchmarks/cycles_crops.py's stored windows (stand-in: the render's own pixels in each crop's
+    box, from cycles_crops.frame_boxes, which computes the boxes without GL) make a column whose
+    tiles ARE the render's tiles; a crop stored under another key (a changed scene) is not used."""
+    import sys
+
+    cs = _crop_sheet()
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import cycles_crops
+
+    scene_file = REPO / "examples" / "lee-perry-smith.toml"
+    S, tile = 256, 48
+    sc = dermis.load_scene(scene_file)
+    with Renderer(sc, (S, S), ctx=gl_ctx, irradiance_size=256) as r:
+        img = r.render("lambert").astype(np.float32)
+        f = r.last_frame
+        cam = (img, f.view, f.proj, np.asarray(f.eye))
+    boxes = cycles_crops.frame_boxes(sc, S)
+    assert "nose" in boxes and "eye +x" in boxes
+
+    def store(key):
+        for lm, (x0, y0, x1, y1) in boxes.items():
+            win = np.concatenate([img[y0:y1, x0:x1, :3], np.ones((y1 - y0, x1 - x0, 1), np.float32)], -1)
+            k = key or cycles_crops.crop_key(sc, S, (x0, y0, x1, y1), 4, 2)
+            cycles_crops.save_crop(tmp_path, scene_file.stem, lm, win,
+                                   {"box": [x0, y0, x1, y1], "spp": 4, "seeds": 2, "key": k})
+        return cs.sheet(scene_file, [("lambert", cam)], None, S, cs.CROP_MM, tile, cycles_crops=tmp_path)
+
+    plain, _ = cs.sheet(scene_file, [("lambert", cam)], None, S, cs.CROP_MM, tile)
+    stale, _ = store("another scene's key")
+    assert stale.shape == plain.shape  # no column
+    sheet_img, rows = store(None)
+    assert sheet_img.shape[1] == plain.shape[1] + tile + 4
+    band, pad, x0 = 18, 4, 70
+    for i, name in enumerate(rows):
+        y = band + i * (tile + pad)
+        ours = sheet_img[y:y + tile, x0:x0 + tile].astype(float)
+        cyc = sheet_img[y:y + tile, x0 + tile + pad:x0 + 2 * tile + pad].astype(float)
+        assert ours.std() > 5.0
+        # 7-bit mantissa storage (0.4 %): a grey level at most here and there
+        assert np.abs(ours - cyc).mean() < 1.0, name
