@@ -40,7 +40,8 @@ SCENES = {s.stem: s for s in crop_sheet.SCENES}
 PRIORITY = [("front-key", "nose"), ("back-ears", "ear +x"), ("back-ears", "ear -x"), ("side", "eye +x"),
             ("side", "nose"), ("environment", "lips"), ("front-key", "eye +x"), ("front-key", "lips"),
             ("front-key", "eye -x"), ("side", "lips"), ("side", "ear +x"), ("environment", "nose"),
-            ("lee-perry-smith", "nose")]
+            ("lee-perry-smith", "nose"), ("side", "eye -x"), ("environment", "eye +x"), ("environment", "eye -x"),
+            ("lee-perry-smith", "eye +x"), ("lee-perry-smith", "eye -x"), ("lee-perry-smith", "lips")]
 
 
 def frame_boxes(scene, size: int) -> dict:
