@@ -4,7 +4,7 @@ sheets have a full-resolution reference beside the techniques, and the per-crop 
 
     PYTHONPATH=src python benchmarks/cycles_crops.py render [--size 768] [--spp 128] [--seeds 2]
         [--only SCENE:LANDMARK ...] [--budget-s 2100] [--threads 2] [--out benchmarks/cycles/crops]
-    PYTHONPATH=src python benchmarks/cycles_crops.py score [--size 768] [--json OUT.json]
+    PYTHONPATH=src python benchmarks/cycles_crops.py score [--size 768] [--json OUT.json]   (--nospec: rho_s 0)
 
 ``render`` renders, in the order of PRIORITY (most telling crops first) until the budget is spent,
 each crop's pixel window (dermis.blender.crop_render: Cycles' render border of the same frame, so its
@@ -63,34 +63,34 @@ def frame_boxes(scene, size: int) -> dict:
     return out
 
 
-def crop_path(out: Path, stem: str, landmark: str) -> Path:
-    return out / f"{stem}--{landmark.replace(' ', '')}.npz"
+def crop_path(out: Path, stem: str, landmark: str, specular: bool = True) -> Path:
+    return out / f"{stem}--{landmark.replace(' ', '')}{'' if specular else '-nospec'}.npz"
 
 
-def crop_key(scene, size: int, box, spp: int, seeds: int) -> str:
+def crop_key(scene, size: int, box, spp: int, seeds: int, specular: bool = True) -> str:
     from dermis.blender.validate import _accumulator_key
 
-    base = _accumulator_key(scene, (size, size), True, True)
+    base = _accumulator_key(scene, (size, size), True, specular)
     return hashlib.sha1(repr((base, tuple(box), spp, seeds)).encode()).hexdigest()
 
 
-def load_crop(out: Path, stem: str, landmark: str, scene=None, size: int | None = None):
+def load_crop(out: Path, stem: str, landmark: str, scene=None, size: int | None = None, specular: bool = True):
     """(mean over the seeds (h, w, 4) float32: linear RGB and coverage, metadata) of a stored crop,
     or None; with ``scene`` and ``size``, None also when its key is stale (the scene or the Cycles
-    set-up changed)."""
-    p = crop_path(out, stem, landmark)
+    set-up changed). ``specular`` False: the crop rendered with rho_s 0 on both sides (``--nospec``)."""
+    p = crop_path(out, stem, landmark, specular)
     if not p.is_file():
         return None
     with np.load(p) as z:
         meta = json.loads(str(z["meta"]))
         rgba = np.concatenate([z["rgb"].view(np.float16).astype(np.float32),
                                z["coverage"][..., None].astype(np.float32) / 255.0], -1)
-    if scene is not None and meta["key"] != crop_key(scene, size, meta["box"], meta["spp"], meta["seeds"]):
+    if scene is not None and meta["key"] != crop_key(scene, size, meta["box"], meta["spp"], meta["seeds"], specular):
         return None
     return rgba, meta
 
 
-def save_crop(out: Path, stem: str, landmark: str, rgba, meta: dict) -> None:
+def save_crop(out: Path, stem: str, landmark: str, rgba, meta: dict, specular: bool = True) -> None:
     """The seeds' mean window (h, w, 4) and its metadata, written atomically. RGB as float16 rounded
     to 7 mantissa bits (relative step 2^-8, 0.4 %: under the noise of a few hundred samples, and what
     lets zlib shrink noisy data: 3.6 bytes a pixel instead of 4.9), coverage in 1/255."""
@@ -105,7 +105,7 @@ def save_crop(out: Path, stem: str, landmark: str, rgba, meta: dict) -> None:
         with open(tmp, "wb") as f:
             np.savez_compressed(f, rgb=rgb, coverage=cov, meta=json.dumps(meta))
 
-    atomic_write(crop_path(out, stem, landmark), write)
+    atomic_write(crop_path(out, stem, landmark, specular), write)
 
 
 def render(a) -> None:
@@ -119,13 +119,15 @@ def render(a) -> None:
     t_start = time.perf_counter()
     for stem, landmark in todo:
         sc = dermis.load_scene(SCENES[stem])
+        if a.nospec:
+            sc.material.rho_s = 0.0
         boxes = frame_boxes(sc, a.size)
         if landmark not in boxes:
             print(f"{stem}:{landmark}: not seen by the camera; skipped")
             continue
         box = boxes[landmark]
-        key = crop_key(sc, a.size, box, a.spp, a.seeds)
-        old = load_crop(out, stem, landmark)
+        key = crop_key(sc, a.size, box, a.spp, a.seeds, not a.nospec)
+        old = load_crop(out, stem, landmark, specular=not a.nospec)
         if old is not None and old[1]["key"] == key:
             print(f"{stem}:{landmark}: stored ({old[1]['spp']} spp x {old[1]['seeds']} seeds)")
             continue
@@ -135,7 +137,7 @@ def render(a) -> None:
         imgs, secs = [], 0.0
         for s in range(a.seeds):
             img, st = render_cycles_window(sc, (a.size, a.size), box, spp=a.spp, seed=1000 + s, threads=a.threads,
-                                           alpha=True)
+                                           specular=not a.nospec, alpha=True)
             imgs.append(img)
             secs += st["build_s"] + st["render_s"]
         import bpy
@@ -145,9 +147,10 @@ def render(a) -> None:
             if a.seeds > 1 and skin.any() else None
         meta = {"scene": stem, "landmark": landmark, "size": a.size, "box": list(box), "spp": a.spp,
                 "seeds": a.seeds, "seed_values": [1000 + s for s in range(a.seeds)], "key": key,
+                "specular": not a.nospec,
                 "floor_flip": None if floor is None else round(floor, 4), "blender": bpy.app.version_string,
                 "cycles_s": round(secs, 1), "load": round(os.getloadavg()[0], 1)}
-        save_crop(out, stem, landmark, np.mean(imgs, 0), meta)
+        save_crop(out, stem, landmark, np.mean(imgs, 0), meta, not a.nospec)
         print(f"{stem}:{landmark}: {box[2] - box[0]}x{box[3] - box[1]} px, {a.spp} spp x {a.seeds} seeds, "
               f"{secs:.0f} s (load {meta['load']})", flush=True)
 
@@ -166,9 +169,15 @@ def score(a) -> dict:
     report = {"size": a.size, "crops": {}}
     for stem, path in SCENES.items():
         sc = dermis.load_scene(path)
-        crops = {lm: c for lm in frame_boxes(sc, a.size) if (c := load_crop(Path(a.out), stem, lm, sc, a.size))}
+        if a.nospec:
+            sc.material.rho_s = 0.0
+        crops = {lm: c for lm in frame_boxes(sc, a.size)
+                 if (c := load_crop(Path(a.out), stem, lm, sc, a.size, not a.nospec))}
         if not crops:
             continue
+        # Cycles has no pore detail (the export does not carry dermis's procedural pores; validate
+        # compares with pore_strength 0 on both sides): so do the techniques here
+        sc.material.pore_strength = 0.0
         with Renderer(sc, (a.size, a.size), irradiance_size=1024) as r:
             imgs = {t: r.render(t) for t in a.techniques}
         for lm, (rgba, meta) in crops.items():
@@ -181,7 +190,7 @@ def score(a) -> dict:
                 win = img[y0:y1, x0:x1, :3]
                 row[t] = {"flip": round(metrics(sc, ref, win, skin)[0]["flip"], 4),
                           "ratio_rgb": [round(float(v), 3) for v in win[skin].mean(0) / ref[skin].mean(0)]}
-            report["crops"][f"{stem}:{lm}"] = row
+            report["crops"][f"{stem}:{lm}{'' if not a.nospec else ':nospec'}"] = row
             print(f"{stem}:{lm} floor {row['floor_flip']} " + "  ".join(
                 f"{t} {row[t]['flip']:.4f} {'/'.join(f'{v:.3f}' for v in row[t]['ratio_rgb'])}" for t in imgs),
                 flush=True)
@@ -202,6 +211,7 @@ def main(argv=None):
     ap.add_argument("--out", default=str(OUT))
     ap.add_argument("--techniques", nargs="+", default=list(crop_sheet.TECHNIQUES))
     ap.add_argument("--json", default=None)
+    ap.add_argument("--nospec", action="store_true", help="rho_s 0 on both sides (files <crop>-nospec.npz)")
     a = ap.parse_args(argv)
     return render(a) if a.mode == "render" else score(a)
 
