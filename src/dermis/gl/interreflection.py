@@ -230,7 +230,7 @@ class BounceSeries:
         self.ctx = ctx
         self._gather = BounceGather(ctx, base=True)
         self._splat = program(ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag",
-                              {"INTERREFLECTION": 1, "BOUNCE_EXITANT": 1, "RHO_TARGET": 1})
+                              {"INTERREFLECTION": 1, "BOUNCE_EXITANT": 1})
         # rho at the orders' raster level, drawn once per (material, layout, size) (BOUNCE_RHO) and
         # read back per order with one texel fetch: the albedo map's sample in every order's raster
         # was ~a third of the series on llvmpipe (benchmarks/RESULTS.md, "Round 14, branch perf14c")
