@@ -215,7 +215,8 @@ class BounceSeries:
     bounces"): from the one bounce E_b per vertex (a :class:`BounceGather`'s target), ``orders`` - 1
     steps T_n = E_b + G T_(n-1), each one raster of rho T_(n-1) in texture space (tsd/bounce_splat.frag
     with BOUNCE_EXITANT: the per-vertex T interpolated over the triangles times the albedo map, the
-    same rho as the one bounce's rho E), SOURCE_FINER_LEVELS finer than the gather's level and
+    same rho as the one bounce's rho E, sampled once per material and layout into a texture of the
+    raster's size (BOUNCE_RHO) and read back per order with one texel fetch), SOURCE_FINER_LEVELS finer than the gather's level and
     2x2-reduced to it (tsd/downsample.frag, as the shared one bounce's rho E), then the one bounce's
     gather over the same rays with E_b added (tsd/bounce_gather.frag with BOUNCE_BASE); rasterised at
     the gather's level instead (one texel one albedo sample) the head's higher orders moved by 11% of
