@@ -224,6 +224,27 @@ def test_renderer_bounce_orders_cuts_the_series(gl_ctx, many_rays):
             r.bounce_orders = 0
 
 
+def test_higher_bounces_follow_a_new_albedo_in_one_renderer(gl_ctx, many_rays):
+    # the higher orders' rho is rastered once per material and layout (BounceSeries, BOUNCE_RHO) and
+    # read back per order: a new albedo between frames of one Renderer must reach every order, inside
+    # the closed sphere T = pi c (rho + rho^2 + rho^3 + rho^4) at the new rho (0.25: 0.332 pi c; a
+    # stale rho of 1/2 in orders 2-4 would give 0.25 (1 + 0.5 + 0.25 + 0.125) = 0.469 pi c), in tsd
+    # and in the shared bounce
+    import dataclasses
+
+    c = 0.2
+    sc = _inside_sphere(c)
+    ring = np.abs(sc.mesh.normals[:, 2]) < 0.95
+    with Renderer(sc, (32, 32), ctx=gl_ctx, irradiance_size=S, shadow_size=256) as r:
+        for rho in (RHO, 0.25):
+            sc.material = dataclasses.replace(sc.material, albedo_color=(rho,) * 3)
+            r.render("tsd")
+            r.render("lambert")
+            want = sum(rho ** k for k in range(1, interreflection.BOUNCE_ORDERS + 1)) * np.pi * c
+            for t in (r.technique("tsd").bounce_per_vertex(), r.interreflection.per_vertex()):
+                np.testing.assert_allclose(t[ring], want, rtol=5e-3)
+
+
 def test_l_shape_higher_bounces_are_the_numpy_series_over_the_bake(gl_ctx, many_rays):
     # the floor, dark in the one bounce (it sees only the unlit wall), gets the wall's bounce light
     # back (G E_b), the wall the floor's (G^2 E_b), ...: tsd's and the shared bounce's T against

@@ -215,7 +215,8 @@ class BounceSeries:
     bounces"): from the one bounce E_b per vertex (a :class:`BounceGather`'s target), ``orders`` - 1
     steps T_n = E_b + G T_(n-1), each one raster of rho T_(n-1) in texture space (tsd/bounce_splat.frag
     with BOUNCE_EXITANT: the per-vertex T interpolated over the triangles times the albedo map, the
-    same rho as the one bounce's rho E), SOURCE_FINER_LEVELS finer than the gather's level and
+    same rho as the one bounce's rho E, sampled once per material and layout into a texture of the
+    raster's size (BOUNCE_RHO) and read back per order with one texel fetch), SOURCE_FINER_LEVELS finer than the gather's level and
     2x2-reduced to it (tsd/downsample.frag, as the shared one bounce's rho E), then the one bounce's
     gather over the same rays with E_b added (tsd/bounce_gather.frag with BOUNCE_BASE); rasterised at
     the gather's level instead (one texel one albedo sample) the head's higher orders moved by 11% of
@@ -231,7 +232,46 @@ class BounceSeries:
         self._gather = BounceGather(ctx, base=True)
         self._splat = program(ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag",
                               {"INTERREFLECTION": 1, "BOUNCE_EXITANT": 1})
+        # rho at the orders' raster level, drawn once per (material, layout, size) (BOUNCE_RHO) and
+        # read back per order with one texel fetch: the albedo map's sample in every order's raster
+        # was ~a third of the series on llvmpipe (benchmarks/RESULTS.md, "Round 14, branch perf14c")
+        self._rho_prog = program(ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag",
+                                 {"INTERREFLECTION": 1, "BOUNCE_RHO": 1})
+        self._rho = None
+        self._rho_fbo = None
+        self._rho_key = None
+        self._make_rho((1, 1))  # a stand-in, re-made at the raster's size on first use
         self._chain = LevelChain(ctx)  # rho T from the raster's level to the gather's
+
+    def _make_rho(self, size):
+        for o in (self._rho_fbo, self._rho):
+            if o is not None:
+                o.release()
+        self._rho = self.ctx.texture(size, 4, dtype="f4")
+        self._rho.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self._rho_fbo = self.ctx.framebuffer(color_attachments=[self._rho])
+        self._rho_key = None
+
+    def _draw_rho(self, frame, size):
+        """rho (albedo_at: tsd/bounce_splat.frag with BOUNCE_RHO) at ``size``, when its key changed:
+        the raster the orders' rasters repeat, with the same state (bind_scene, no anisotropy)."""
+        from dermis.gl.resources import maps_without_anisotropy
+        from dermis.techniques.base import bind_scene
+
+        # "interreflection_inputs": the mesh, its layout, the material (and more: never stale)
+        key = (frame.keys["interreflection_inputs"], tuple(size))
+        if key == self._rho_key:
+            return
+        if self._rho.size != tuple(size):
+            self._make_rho(tuple(size))
+        bind_scene(frame, self._rho_prog)
+        self._rho_fbo.use()
+        self._rho_fbo.viewport = (0, 0, *size)
+        self._rho_fbo.clear(0.0, 0.0, 0.0, 0.0)
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+        with maps_without_anisotropy(frame.gpu, surfaces=False):
+            frame.gpu.vao(self._rho_prog).render(moderngl.TRIANGLES)
+        self._rho_key = key
 
     def run(self, frame, hits: InterreflectionHits, first: BounceGather, level: int, orders: int | None = None):
         """T_orders per vertex (default: the frame's Renderer.bounce_orders, else BOUNCE_ORDERS) from
@@ -248,9 +288,16 @@ class BounceSeries:
         if n <= 1:
             return first.target
         levels = self._chain.levels(int(frame.renderer.irradiance_size), level)
-        bind_scene(frame, self._splat)  # the albedo map (Unit.ALBEDO) and its uniforms
+        rho_unit = int(Unit.FIRST_FREE) + 1
+        set_uniform(self._rho_prog, "uVerticesPerRow", int(hits.per_row))
+        set_uniform(self._rho_prog, "uBounce", int(Unit.FIRST_FREE))
+        use_texture(first.target, Unit.FIRST_FREE)  # read by no fragment of BOUNCE_RHO, bound all the same
+        self._draw_rho(frame, levels[0][0].size)
+        bind_scene(frame, self._splat)  # the material's uniforms (rho itself from uRho)
         set_uniform(self._splat, "uVerticesPerRow", int(hits.per_row))
         set_uniform(self._splat, "uBounce", int(Unit.FIRST_FREE))
+        set_uniform(self._splat, "uRho", rho_unit)
+        use_texture(self._rho, rho_unit)
         vao = frame.gpu.vao(self._splat)
         source = first.target
         for _ in range(n - 1):
@@ -273,6 +320,10 @@ class BounceSeries:
         self._chain.release()
         self._gather.release()
         self._splat.release()
+        self._rho_fbo.release()
+        self._rho.release()
+        self._rho_prog.release()
+        self._rho_key = None
 
 
 # ---------------------------------------------------------------------- the shared product
