@@ -16,7 +16,7 @@ import moderngl
 
 import dermis
 from dermis.bench import HEAD_TOML
-from dermis.gl.resources import maps_without_anisotropy, set_uniform, use_texture
+from dermis.gl.resources import maps_without_anisotropy, set_uniform
 from dermis.gl.shaders import load_shader_source
 from dermis.renderer import Renderer
 from dermis.techniques.base import bind_scene
@@ -58,7 +58,7 @@ def main(argv=None):
         r.render("lambert")
         frame, ctx = r.last_frame, r.ctx
         sb = r.interreflection
-        levels = sb._levels
+        levels = sb._chain.levels(a.irradiance_size, sb.level)  # the textures the frame drew into
         n = len(sc.lights)
         d = {LIGHT_COUNT_DEFINE: n}
         fns = {}
@@ -101,18 +101,10 @@ def main(argv=None):
             for k, f in light_pass_variants(fs0, n).items():
                 fns[k] = light_pass(ctx.program(vertex_shader=vs, fragment_shader=f))
 
-        def downs():
-            set_uniform(sb._down, "uSource", 0)
-            for (src, _), (dst, dfbo) in zip(levels, levels[1:]):
-                use_texture(src, 0)
-                dfbo.use()
-                dfbo.viewport = (0, 0, *dst.size)
-                sb._down_vao.render(moderngl.TRIANGLES, vertices=3)
-
         def whole():
             sb.key = None
             sb.get(frame)
-        fns["reductions"] = downs
+        fns["reductions"] = lambda: sb._chain.reduce(levels)
         fns["gather"] = lambda: sb._gather.run(sb.hits, levels[-1][0])
         fns["whole SharedBounce.get per lighting change (this tree)"] = whole
         res = timed_all(ctx, fns, a.repeats)

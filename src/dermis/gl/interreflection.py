@@ -252,11 +252,12 @@ class BounceSeries:
         self._rho_fbo = self.ctx.framebuffer(color_attachments=[self._rho])
         self._rho_key = None
 
-    def _draw_rho(self, frame, size):
+    def _draw_rho(self, frame, size, hits: InterreflectionHits, first: BounceGather):
         """rho (albedo_at: tsd/bounce_splat.frag with BOUNCE_RHO) at ``size``, when its key changed:
         the raster the orders' rasters repeat, with the same state (bind_scene, no anisotropy)."""
-        from dermis.gl.resources import maps_without_anisotropy
+        from dermis.gl.resources import maps_without_anisotropy, set_uniform, use_texture
         from dermis.techniques.base import bind_scene
+        from dermis.techniques.shared import Unit
 
         # "interreflection_inputs": the mesh, its layout, the material (and more: never stale)
         key = (frame.keys["interreflection_inputs"], tuple(size))
@@ -264,6 +265,10 @@ class BounceSeries:
             return
         if self._rho.size != tuple(size):
             self._make_rho(tuple(size))
+        # uv_space.vert with INTERREFLECTION reads the per-vertex bounce: bound, though BOUNCE_RHO ignores it
+        set_uniform(self._rho_prog, "uVerticesPerRow", int(hits.per_row))
+        set_uniform(self._rho_prog, "uBounce", int(Unit.FIRST_FREE))
+        use_texture(first.target, Unit.FIRST_FREE)
         bind_scene(frame, self._rho_prog)
         self._rho_fbo.use()
         self._rho_fbo.viewport = (0, 0, *size)
@@ -289,10 +294,7 @@ class BounceSeries:
             return first.target
         levels = self._chain.levels(int(frame.renderer.irradiance_size), level)
         rho_unit = int(Unit.FIRST_FREE) + 1
-        set_uniform(self._rho_prog, "uVerticesPerRow", int(hits.per_row))
-        set_uniform(self._rho_prog, "uBounce", int(Unit.FIRST_FREE))
-        use_texture(first.target, Unit.FIRST_FREE)  # read by no fragment of BOUNCE_RHO, bound all the same
-        self._draw_rho(frame, levels[0][0].size)
+        self._draw_rho(frame, levels[0][0].size, hits, first)
         bind_scene(frame, self._splat)  # the material's uniforms (rho itself from uRho)
         set_uniform(self._splat, "uVerticesPerRow", int(hits.per_row))
         set_uniform(self._splat, "uBounce", int(Unit.FIRST_FREE))
