@@ -67,6 +67,9 @@ def test_mesh_at_one_point_is_refused(gl_ctx):
     (dict(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, 0.0)), ["position and target coincide"]),
     (dict(position=(0.0, 5.0, 0.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0)), ["up", "parallel"]),
     (dict(fov_deg=0.0), ["fov_deg"]),
+    # round 15's fuzz (seed 1515): a positive but underflowing field of view gave a ValueError from
+    # perspective() (the fitted camera's near plane at infinity)
+    (dict(fov_deg=3.529751289066385e-193, fit=True), ["fov_deg", "[0.001, 170)"]),
 ])
 def test_degenerate_cameras_are_refused(change, tokens, gl_ctx):
     sc = plane_scene()
@@ -163,6 +166,21 @@ def test_texture_os_errors(tmp_path, texture, tokens):
     p = tmp_path / "s.toml"
     p.write_text(PLANE_TOML + f'\n[material]\nalbedo = "{texture}"\n')
     one_line_error(lambda: dermis.load_scene(p), *tokens)
+
+
+@pytest.mark.parametrize("extra, tokens", [
+    # round 15's fuzz (seed 1515): os.stat's "embedded null byte" ValueError escaped as a traceback
+    ('[material]\nnormal_map = "\\u0000"\n', ["[material] normal_map", "control characters"]),
+    ('[environment]\nimage = "a\\u0000.hdr"\n', ["[environment] image", "control characters"]),
+    ('[skin]\nprofile = "p\\u0000.json"\n', ["[skin] profile", "\\x00"]),
+])
+def test_nul_bytes_in_file_names_are_refused(tmp_path, extra, tokens):
+    p = tmp_path / "s.toml"
+    p.write_text(PLANE_TOML + "\n" + extra)
+    one_line_error(lambda: dermis.load_scene(p), "s.toml", *tokens)
+    from dermis.fileio import regular_file  # the one place every read goes through, for any other caller
+
+    one_line_error(lambda: regular_file(tmp_path / "a\x00b", "texture"), "NUL byte")
 
 
 @pytest.mark.parametrize("extra, tokens", [

@@ -126,10 +126,16 @@ def light_matrices(light, lo, hi, points=None):
     return perspective(fov, 1.0, near, far) @ look_at(eye, target, (0, 1, 0)), eye, half
 
 
+# The field of view a camera may have, degrees, [min, max). Below 0.001 degree the fitted camera
+# (dermis.framing) stands more than 1e5 scene radii away and tan(fov / 2) underflows long before
+# float64 does (a fov of 1e-193 gave an infinite near plane); above 170 the perspective is degenerate.
+FOV_MIN_DEG, FOV_MAX_DEG = 1e-3, 170.0
+
+
 def check_camera(camera, where: str, center, radius: float):
     """Refuse a camera that cannot give an image (one-line DermisError, ``where`` names it):
     non-finite values, position == target, ``up`` along the view direction, field of view outside
-    (0, 170) degrees, near <= 0, far <= near, or a near/far range that does not reach the scene."""
+    [FOV_MIN_DEG, FOV_MAX_DEG) degrees, near <= 0, far <= near, or a near/far range that does not reach the scene."""
     from dermis.errors import DermisError
 
     vals = {}
@@ -150,8 +156,8 @@ def check_camera(camera, where: str, center, radius: float):
     if np.linalg.norm(up) == 0 or abs(np.dot(normalize(view), normalize(up))) > 1 - 1e-9:
         raise DermisError(f"{where} up must not be zero or parallel to the view direction (target - position)")
     fov = camera.fov_deg
-    if isinstance(fov, bool) or not isinstance(fov, (int, float, np.floating)) or not 0 < fov < 170:
-        raise DermisError(f"{where} fov_deg must be in (0, 170) degrees, got {fov!r}")
+    if isinstance(fov, bool) or not isinstance(fov, (int, float, np.floating)) or not FOV_MIN_DEG <= fov < FOV_MAX_DEG:
+        raise DermisError(f"{where} fov_deg must be in [{FOV_MIN_DEG:g}, {FOV_MAX_DEG:g}) degrees, got {fov!r}")
     for k in ("near", "far"):
         v = getattr(camera, k)
         if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) or not np.isfinite(v)

@@ -36,6 +36,8 @@ def regular_file(path, what: str = "file") -> Path:
         raise DermisError(f"{p}: {what} not found") from None
     except OSError as exc:
         raise DermisError(f"{p}: cannot open {what} ({os_error_text(exc)})") from None
+    except ValueError:  # os.stat refuses a NUL byte: no file can have that name
+        raise DermisError(f"{str(p).replace(chr(0), '<NUL>')}: {what} path contains a NUL byte") from None
     if not stat.S_ISREG(st.st_mode):
         kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file"
         raise DermisError(f"{p}: {what} is {kind}")

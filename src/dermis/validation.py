@@ -15,6 +15,7 @@ import threading
 
 import numpy as np
 
+from dermis.camera import FOV_MAX_DEG, FOV_MIN_DEG
 from dermis.errors import DermisError
 
 MAX_SIZE = 8192  # output, texture-space and shadow-map resolutions (GL_MAX_TEXTURE_SIZE class)
@@ -250,7 +251,7 @@ def _camera_clearly_valid(camera, centre, radius) -> bool:
     try:
         vals = [_frozen(getattr(camera, k)) for k in ("position", "target", "up")]
         fov = camera.fov_deg
-        if camera.near is not None or camera.far is not None or type(fov) not in (float, int) or not 0 < fov < 170:
+        if camera.near is not None or camera.far is not None or type(fov) not in (float, int) or not FOV_MIN_DEG <= fov < FOV_MAX_DEG:
             return False
         if not all(type(v) is tuple and len(v) == 3 for v in vals):
             return False

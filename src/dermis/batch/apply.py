@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from dermis.camera import FOV_MAX_DEG, FOV_MIN_DEG
 from dermis.errors import DermisError
 
 SKIN_PREFIX = "skin."
@@ -52,8 +53,8 @@ def place_camera(camera, azimuth_deg=None, elevation_deg=None, distance=None, fo
         # its direction to frame the head) would override it; a turned camera alone is still fitted
         camera.fit = False
     if fov_deg is not None:
-        if not 0.0 < fov_deg <= 170.0:
-            raise DermisError(f"camera.fov_deg must be in (0, 170], got {fov_deg}")
+        if not FOV_MIN_DEG <= fov_deg < FOV_MAX_DEG:
+            raise DermisError(f"camera.fov_deg must be in [{FOV_MIN_DEG:g}, {FOV_MAX_DEG:g}) degrees, got {fov_deg}")
         camera.fov_deg = float(fov_deg)
 
 

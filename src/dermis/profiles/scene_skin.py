@@ -211,8 +211,9 @@ def resolve_skin_profile(section: dict, base_dir: Path, source: str) -> SumOfGau
         if key not in SKIN_KEYS:
             raise DermisError(f"{source}: unknown key '{key}' in [skin] (known: {', '.join(SKIN_KEYS)})")
     profile = section.get("profile", "deon")
-    if not isinstance(profile, str) or not profile.strip():
-        raise DermisError(f"{source}: [skin] profile must be a name or a file, got {profile!r}")
+    if not isinstance(profile, str) or not profile.strip() or any(c < " " for c in profile):  # a NUL names no file
+        shown = profile[:200] if isinstance(profile, str) else profile
+        raise DermisError(f"{source}: [skin] profile must be a name or a file, got {shown!r}")
     k = section.get("gaussians")
     if k is not None and (isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= 16):
         raise DermisError(f"{source}: [skin] gaussians must be an integer in 1..16, got {k!r}")

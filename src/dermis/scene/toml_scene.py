@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dermis.camera import FOV_MAX_DEG, FOV_MIN_DEG
 from dermis.errors import DermisError
 from dermis.fileio import read_text, regular_file
 from dermis.images import MAX_IMAGE_PIXELS, as_rgb, read_image
@@ -64,6 +65,8 @@ def _check(table: dict, section: str, source) -> dict:
             value = tuple(float(x) for x in value)
         elif not isinstance(value, kind):
             raise DermisError(f"{where} must be a {kind.__name__}, got {value!r}")
+        elif kind is str and any(c < " " for c in value):  # a NUL or newline names no file and breaks a message
+            raise DermisError(f"{where} must not contain control characters, got {value[:200]!r}")
         out[key] = value
     return out
 
@@ -183,7 +186,8 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
         raise DermisError(f"{path}: at most {MAX_LIGHTS} lights are supported, got {len(lights)}")
 
     cam = Camera(**_check(doc.get("camera", {}), "camera", path))
-    _positive(cam.fov_deg, "[camera] fov_deg", path, 0.0, 170.0)
+    if not FOV_MIN_DEG <= cam.fov_deg < FOV_MAX_DEG:
+        raise DermisError(f"{path}: [camera] fov_deg must be in [{FOV_MIN_DEG:g}, {FOV_MAX_DEG:g}) degrees, got {cam.fov_deg}")
     env_t = _check(doc.get("environment", {}), "environment", path)
     env = Environment(color=env_t.get("color", Environment.color), intensity=env_t.get("intensity", 1.0),
                       occlusion=env_t.get("occlusion", True), rotation_deg=env_t.get("rotation", 0.0))
