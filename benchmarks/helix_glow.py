@@ -28,8 +28,9 @@ predicts it:
 
     PYTHONPATH=src python benchmarks/helix_glow.py [--walks 128] [--photons 100000] [--save DIR]
 
-About 2 min on 2 cores at load ~1 (renders ~15 s, walks ~1 min). Needs the stored crop (nothing is
-rendered in Cycles) and, for the image users see, the head's subsurface transfer bake in ~/.cache/dermis.
+About 2.5 min on 2 cores at load 1-2, 5.5 min at load 5 (the renders 11 s; the walks most of it). Needs the
+stored crop (nothing is rendered in Cycles) and, for the image users see, the head's subsurface transfer bake in
+~/.cache/dermis.
 """
 
 from __future__ import annotations
