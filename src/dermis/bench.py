@@ -122,20 +122,28 @@ def pipelined(renderer, technique: str, step, frames: int) -> dict:
             "gpu_clock": "llvmpipe rasteriser threads" if clock.software else "GL_TIME_ELAPSED per frame"}
 
 
+# floor samples per sampling point (before the first technique, after every workload's frames)
+FLOOR_REPEATS = 2
+
+
 def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames=5, progress=None, device=None,
               floors: bool = True, pipelined_frames: int = 10):
     """Median frame and pass times per technique and workload; with ``floors``, also the floors of
-    dermis.bench_floors measured on the same renderer (``info["floors_ms"]``); with
-    ``pipelined_frames``, also each workload's frames back to back (:func:`pipelined`:
-    ``results[technique]["pipelined"][workload]``)."""
-    from dermis.bench_floors import measure_floors
+    dermis.bench_floors measured on the same renderer, sampled ``FLOOR_REPEATS`` times before the
+    first technique and again after every workload's frames (so the samples span the run's load):
+    ``info["floors_ms"]`` is each floor's minimum (the divisor; dermis.bench_floors.floor_summary
+    says why), ``info["floors_spread"]`` its min/median/max/n/spread and ``info["floor_samples_ms"]``
+    the samples; with ``pipelined_frames``, also each workload's frames back to back
+    (:func:`pipelined`: ``results[technique]["pipelined"][workload]``)."""
+    from dermis.bench_floors import FloorSampler, floor_summary, stable_floors
     from dermis.renderer import Renderer
 
     results = {}
     with Renderer(scene, size, irradiance_size=irradiance_size, device=device) as r:
         info = dict(r.info)
-        if floors:
-            info["floors_ms"] = measure_floors(r, irradiance_size, repeats=frames)
+        sampler = FloorSampler(r, irradiance_size) if floors else None
+        sample_floors = sampler.sample if sampler else (lambda repeats: None)
+        sample_floors(FLOOR_REPEATS)
         base_light = [tuple(L.direction) for L in scene.lights]
         base_cam = tuple(scene.camera.position)
         target = np.asarray(scene.camera.target, float)
@@ -160,6 +168,7 @@ def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames
                         passes.setdefault(k, []).append(v)
                     if progress:
                         progress()
+                sample_floors(FLOOR_REPEATS)  # after this workload's frames (= before the next's)
                 for L, d in zip(scene.lights, base_light):
                     L.direction = d
                 scene.camera.position = base_cam
@@ -172,6 +181,11 @@ def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames
                         L.direction = d
                     scene.camera.position = base_cam
             results[name] = res
+        if sampler:
+            info["floors_ms"] = stable_floors(sampler.samples_ms)
+            info["floors_spread"] = floor_summary(sampler.samples_ms)
+            info["floor_samples_ms"] = {k: list(v) for k, v in sampler.samples_ms.items()}
+            sampler.release()
     return info, results
 
 
@@ -204,8 +218,11 @@ def markdown_table(info, results, size, irradiance_size, gaussians: int = 6):
                          f"{cell(cm, 'throughput_ms')} | {cell(lm or cm, 'readback_ms')} |")
     floors = info.get("floors_ms")
     if floors:
-        lines += ["", "Floors (ms, same run; dermis.bench_floors): " +
-                  ", ".join(f"{k} {v:.1f}" for k, v in floors.items()), "",
+        spread = info.get("floors_spread") or {}
+        lines += ["", "Floors (ms, same run, dermis.bench_floors; each the minimum of its samples interleaved with the "
+                  "techniques [median, max, samples]; the multiples divide by the minimum): " +
+                  ", ".join(f"{k} {v:.2f}" + (f" [{spread[k]['median']:.2f}, {spread[k]['max']:.2f}, n={spread[k]['n']}]"
+                                              if k in spread else "") for k, v in floors.items()), "",
                   "| technique | pass | ms (lights moving) | floor (ms) | multiple of floor |", "|---|---|---|---|---|"]
         for name, res in results.items():
             for k, v in floor_ratios(res["lights"]["passes_ms"], floors, gaussians).items():
