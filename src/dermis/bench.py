@@ -130,7 +130,8 @@ def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames
               floors: bool = True, pipelined_frames: int = 10):
     """Median frame and pass times per technique and workload; with ``floors``, also the floors of
     dermis.bench_floors measured on the same renderer, sampled ``FLOOR_REPEATS`` times before the
-    first technique and again after every workload's frames (so the samples span the run's load):
+    first technique and after every workload's frames, and once after every timed frame (so the
+    samples span the run's load; a frame's own pass times are taken before its floor sample):
     ``info["floors_ms"]`` is each floor's minimum (the divisor; dermis.bench_floors.floor_summary
     says why), ``info["floors_spread"]`` its min/median/max/n/spread and ``info["floor_samples_ms"]``
     the samples; with ``pipelined_frames``, also each workload's frames back to back
@@ -166,6 +167,7 @@ def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames
                     times.append(r.stats["frame_ms"])
                     for k, v in r.stats["passes_ms"].items():
                         passes.setdefault(k, []).append(v)
+                    sample_floors(1)  # after every frame too: more chances at a quiet moment for the minimum
                     if progress:
                         progress()
                 sample_floors(FLOOR_REPEATS)  # after this workload's frames (= before the next's)
