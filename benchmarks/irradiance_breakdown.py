@@ -17,6 +17,7 @@ import os, statistics, sys
 import dermis
 from dermis.bench import HEAD_TOML, _rotate
 from dermis.gl.shaders import load_shader_source
+from dermis.bench_floors import FloorSampler, floor_summary, pass_floor
 from dermis.renderer import Renderer
 
 S = int(sys.argv[1]) if len(sys.argv) > 1 else 1024
@@ -56,6 +57,7 @@ with Renderer(sc, (512, 512), irradiance_size=S) as r:
             fs = fs.replace(a, b)
         else:
             progs[k] = r.ctx.program(vertex_shader=vs, fragment_shader=fs)
+    floors = FloorSampler(r, S)  # the pass's floor (uv_raster + copy), sampled after every frame
     orig = t._irradiance_programs
     base = [tuple(L.direction) for L in sc.lights]
     res = {k: [] for k in progs}
@@ -70,8 +72,15 @@ with Renderer(sc, (512, 512), irradiance_size=S) as r:
                 r.render("tsd")
                 if rep:
                     res[k].append(r.stats["passes_ms"]["tsd_irradiance"])
+                    floors.sample(1)
     finally:
         t._irradiance_programs = orig
+        summary = floor_summary(floors.samples_ms)
+        floor = pass_floor("tsd_irradiance", {k: v["min"] for k, v in summary.items()}, sc.profile.k)
+        floors.release()
 print(f"S={S} load {os.getloadavg()}")
+print(f"floor uv_raster + copy: {floor:.1f} ms (minimum of {summary['copy']['n']} samples; medians "
+      f"{summary['uv_raster']['median']:.1f} + {summary['copy']['median']:.1f})")
 for k, v in res.items():
-    print(f"{k:28s} median {statistics.median(v):7.1f} ms  min {min(v):7.1f}  ({', '.join(f'{x:.0f}' for x in v)})")
+    print(f"{k:28s} median {statistics.median(v):7.1f} ms  min {min(v):7.1f}  = {statistics.median(v) / floor:5.1f}x floor  "
+          f"({', '.join(f'{x:.0f}' for x in v)})")

@@ -41,6 +41,11 @@ def test_floors_and_ratios_on_a_small_scene(box_toml):
         2 * scene.profile.k * floors["copy_screen"]
     table = markdown_table(info, results, (64, 64), 128, scene.profile.k)
     assert "| tsd | tsd_blur |" in table and f"{multiple:.2f}x" in table
+    # beside it the pass's fastest frame over the same floor (one frame here: its minimum is its median)
+    fastest = floor_ratios(results["tsd"]["lights"]["passes_min_ms"], floors, scene.profile.k)["tsd_blur"]
+    assert fastest == (ms, floor, multiple)
+    row = next(l for l in table.splitlines() if l.startswith("| tsd | tsd_blur |"))
+    assert row.endswith(f"| {multiple:.2f}x | {fastest[0]:.1f} | {fastest[2]:.2f}x |"), row
     s = spread["copy"]
     assert f"copy {floors['copy']:.2f} [{s['median']:.2f}, {s['max']:.2f}, n={s['n']}]" in table
     # pipelined frames: every technique and workload, positive, and on llvmpipe the rasteriser's

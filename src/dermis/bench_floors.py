@@ -36,7 +36,10 @@ from dermis.techniques.base import PassTimer
 # quiet re-measure"), so a median floor made the multiples swing with the load. The minimum of many
 # samples taken across the whole run (before and after every technique's frames) is the stable
 # denominator; the passes keep their median (their own time under the same load), so a multiple can
-# only err high, never be made small by an inflated floor. The spread (median, max) is reported beside.
+# only err high, never be made small by an inflated floor. The spread (median, max) is reported beside,
+# and dermis bench also gives each pass's minimum over the same floor (like with like: under a load
+# that lasts the whole run the median multiple rises while that one stays; round 15, perf15, measured
+# both over alternated runs in benchmarks/RESULTS.md).
 def floor_summary(samples_ms: dict) -> dict:
     """{floor: {"min", "median", "max", "n", "spread"}} of each floor's samples (ms); ``spread`` is
     max / min (None where the floor is 0, i.e. no shadowed light)."""
