@@ -74,6 +74,7 @@ class FloorSampler:
         gpu = renderer.gpu
         S = int(irradiance_size or renderer.irradiance_size)
         self.timer = PassTimer(ctx, True)
+        self.timer.cpu = not self.timer.use_queries  # llvmpipe: the CPU-time clock beside the wall clock
         self._made = made = []
 
         def keep(o):
@@ -162,6 +163,7 @@ class FloorSampler:
         fns["depth_only"] = depth_only if shadowed else None
         self._fns = fns
         self.samples_ms = {name: [] for name in fns}
+        self.samples_cpu_ms = {name: [] for name in fns}  # on llvmpipe only (dermis.gl.context.cpu_busy_ns)
         for fn in fns.values():  # warm-up: shader compile, first allocation (not a sample)
             if fn is not None:
                 fn()
@@ -174,11 +176,15 @@ class FloorSampler:
             for name, fn in self._fns.items():
                 if fn is None:
                     self.samples_ms[name].append(0.0)
+                    if self.timer.cpu:
+                        self.samples_cpu_ms[name].append(0.0)
                     continue
                 self.timer.reset()
                 with self.timer(name):
                     fn()
                 self.samples_ms[name].append(self.timer.times_ms[name])
+                if self.timer.cpu:
+                    self.samples_cpu_ms[name].append(self.timer.cpu_times_ms[name])
         self.ctx.enable(moderngl.DEPTH_TEST)
 
     def release(self):
