@@ -11,7 +11,9 @@ longer applied).
 
 Variants that change the image (timing only): "sharp-only (no PCF)" the soft shadow replaced by the
 sharp tap, "PCF grid 2x2" 4 taps per light instead of 9 (a box of stride > 1 at softness 1.5: not the
-tested disc filter), "skip PCF where sharp is 0/1" (whether llvmpipe skips a branch no lane takes).
+tested disc filter), "skip PCF where sharp is 0/1" (whether llvmpipe skips a branch no lane takes),
+"PCF by textureGather" (the 4 texels of each tap compared by one gather and weighted in the shader: the same
+per-texel weights where the grid's stride is 1, not for the fill light's stride > 1 at softness 3).
 """
 import os, statistics, sys
 import dermis
@@ -31,6 +33,14 @@ V = {
  "PCF grid 2x2 (4 taps)": [("const int PCF_GRID = 3;", "const int PCF_GRID = 2;")],
  "no sharp tap (PCF kept)": [("    sharp = shadow_sharp_at(i, c, dz);\n", "    sharp = 1.0;\n")],
  "receiver solve only (no taps)": [("return want_soft ? shadow_pcf_at(i, c, dz, T, false, unused) : 1.0;", "return want_soft ? 1.0 + 1e-9 * (c.x + dz.x + T[0][0]) : 1.0;"), ("    sharp = shadow_sharp_at(i, c, dz);\n", "    sharp = 1.0 - 1e-9 * c.y;\n")],
+ "PCF by textureGather (same per-texel weights)": [(
+    "            float s = shadow_tap(i, c + delta, z + dot(dz, delta));",
+    "            vec2 hh = vec2(0.5 * uShadowParams[i].w);\n"
+    "            vec2 e = (vec2(t0.x + float(2 * kx), t0.y + float(2 * ky)) + 1.0) * (stride * texel);\n"
+    "            vec4 g = textureGather(uShadowAtlas, uShadowTile[i].xy + clamp(e, hh, 1.0 - hh) * uShadowTile[i].zw, z + dot(dz, delta) - uShadowParams[i].y);\n"
+    "            float s = dot(g, vec4(wa[kx].x * wb[ky].y, wb[kx].x * wb[ky].y, wb[kx].x * wa[ky].y, wa[kx].x * wa[ky].y)) / max(wk, 1e-12);"),
+    ("    vec2 pos[n], w[n];", "    vec2 pos[n], w[n], wa[n], wb[n];"),
+    ("        w[k] = hi - lo;", "        w[k] = hi - lo;\n        wa[k] = mid - lo;\n        wb[k] = hi - mid;")],
  "no shadows": [("float s = shadow_soft_and_sharp(i, P, Ng, ndl > 0.0, sharp);", "float s = 1.0; sharp = 1.0;")],
  "no receiver solve (c only)": [("    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;\n    sharp = shadow_sharp_at",
                                  "    {mat3 Jx; if (uLightRadiance[i].w < 0.5 || !shadow_coords_jacobian(i, P, c, Jx)) return 1.0;} dz = vec2(0.0); T = mat2(1.0);\n    sharp = shadow_sharp_at")],
