@@ -53,16 +53,9 @@ class GpuBusyClock:
     @staticmethod
     def _rasteriser_ns() -> tuple[int, int]:
         """(summed run time in ns, thread count) of llvmpipe's threads in this process."""
-        total, n = 0, 0
-        for task in Path("/proc/self/task").iterdir():
-            try:
-                if not (task / "comm").read_text().startswith("llvmpipe"):
-                    continue
-                total += int((task / "schedstat").read_text().split()[0])
-                n += 1
-            except (OSError, ValueError, IndexError):
-                continue
-        return total, n
+        from dermis.gl.context import rasteriser_ns
+
+        return rasteriser_ns()
 
     def start(self):
         if self.software:
@@ -122,20 +115,30 @@ def pipelined(renderer, technique: str, step, frames: int) -> dict:
             "gpu_clock": "llvmpipe rasteriser threads" if clock.software else "GL_TIME_ELAPSED per frame"}
 
 
+# floor samples per sampling point (before the first technique, after every workload's frames)
+FLOOR_REPEATS = 2
+
+
 def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames=5, progress=None, device=None,
               floors: bool = True, pipelined_frames: int = 10):
     """Median frame and pass times per technique and workload; with ``floors``, also the floors of
-    dermis.bench_floors measured on the same renderer (``info["floors_ms"]``); with
-    ``pipelined_frames``, also each workload's frames back to back (:func:`pipelined`:
-    ``results[technique]["pipelined"][workload]``)."""
-    from dermis.bench_floors import measure_floors
+    dermis.bench_floors measured on the same renderer, sampled ``FLOOR_REPEATS`` times before the
+    first technique and after every workload's frames, and once after every timed frame (so the
+    samples span the run's load; a frame's own pass times are taken before its floor sample):
+    ``info["floors_ms"]`` is each floor's minimum (the divisor; dermis.bench_floors.floor_summary
+    says why), ``info["floors_spread"]`` its min/median/max/n/spread and ``info["floor_samples_ms"]``
+    the samples; with ``pipelined_frames``, also each workload's frames back to back
+    (:func:`pipelined`: ``results[technique]["pipelined"][workload]``)."""
+    from dermis.bench_floors import FloorSampler, floor_summary, stable_floors
     from dermis.renderer import Renderer
 
     results = {}
     with Renderer(scene, size, irradiance_size=irradiance_size, device=device) as r:
         info = dict(r.info)
-        if floors:
-            info["floors_ms"] = measure_floors(r, irradiance_size, repeats=frames)
+        r.timer.cpu = True  # on llvmpipe each pass's CPU-time clock too (passes_cpu_ms); nothing on a GPU
+        sampler = FloorSampler(r, irradiance_size) if floors else None
+        sample_floors = sampler.sample if sampler else (lambda repeats: None)
+        sample_floors(FLOOR_REPEATS)
         base_light = [tuple(L.direction) for L in scene.lights]
         base_cam = tuple(scene.camera.position)
         target = np.asarray(scene.camera.target, float)
@@ -143,7 +146,7 @@ def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames
             r.render(name)  # compile, first-frame work (stretch map etc.)
             res = {}
             for mode in ("lights", "camera"):
-                times, passes = [], {}
+                times, passes, cpu = [], {}, {}
 
                 def step(f, mode=mode):
                     if mode == "lights":
@@ -158,13 +161,20 @@ def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames
                     times.append(r.stats["frame_ms"])
                     for k, v in r.stats["passes_ms"].items():
                         passes.setdefault(k, []).append(v)
+                    for k, v in r.stats.get("passes_cpu_ms", {}).items():
+                        cpu.setdefault(k, []).append(v)
+                    sample_floors(1)  # after every frame too: more chances at a quiet moment for the minimum
                     if progress:
                         progress()
+                sample_floors(FLOOR_REPEATS)  # after this workload's frames (= before the next's)
                 for L, d in zip(scene.lights, base_light):
                     L.direction = d
                 scene.camera.position = base_cam
                 res[mode] = {"frame_ms": statistics.median(times),
                              "passes_ms": {k: statistics.median(v) for k, v in passes.items()},
+                             # each pass's fastest frame: like with like against the floors' minimum
+                             "passes_min_ms": {k: min(v) for k, v in passes.items()},
+                             **({"passes_cpu_ms": {k: statistics.median(v) for k, v in cpu.items()}} if cpu else {}),
                              "passes_run": list(r.stats["passes_run"])}
                 if pipelined_frames > 0:
                     res.setdefault("pipelined", {})[mode] = pipelined(r, name, step, pipelined_frames)
@@ -172,6 +182,15 @@ def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames
                         L.direction = d
                     scene.camera.position = base_cam
             results[name] = res
+        if sampler:
+            info["floors_ms"] = stable_floors(sampler.samples_ms)
+            info["floors_spread"] = floor_summary(sampler.samples_ms)
+            info["floor_samples_ms"] = {k: list(v) for k, v in sampler.samples_ms.items()}
+            if sampler.timer.cpu:  # the same samples on the CPU-time clock (llvmpipe)
+                info["floors_cpu_ms"] = stable_floors(sampler.samples_cpu_ms)
+                info["floors_cpu_spread"] = floor_summary(sampler.samples_cpu_ms)
+                info["floor_samples_cpu_ms"] = {k: list(v) for k, v in sampler.samples_cpu_ms.items()}
+            sampler.release()
     return info, results
 
 
@@ -204,12 +223,26 @@ def markdown_table(info, results, size, irradiance_size, gaussians: int = 6):
                          f"{cell(cm, 'throughput_ms')} | {cell(lm or cm, 'readback_ms')} |")
     floors = info.get("floors_ms")
     if floors:
-        lines += ["", "Floors (ms, same run; dermis.bench_floors): " +
-                  ", ".join(f"{k} {v:.1f}" for k, v in floors.items()), "",
-                  "| technique | pass | ms (lights moving) | floor (ms) | multiple of floor |", "|---|---|---|---|---|"]
+        spread = info.get("floors_spread") or {}
+        lines += ["", "Floors (ms, same run, dermis.bench_floors; each the minimum of its samples interleaved with the "
+                  "techniques [median, max, samples]; the multiples divide by the minimum): " +
+                  ", ".join(f"{k} {v:.2f}" + (f" [{spread[k]['median']:.2f}, {spread[k]['max']:.2f}, n={spread[k]['n']}]"
+                                              if k in spread else "") for k, v in floors.items()), "",
+                  "| technique | pass | ms (lights moving) | floor (ms) | multiple of floor | "
+                  "pass minimum (ms) | minimum / floor | CPU ms | CPU floor (ms) | CPU multiple |",
+                  "|---|---|---|---|---|---|---|---|---|---|"]
+        cpu_floors = info.get("floors_cpu_ms")
         for name, res in results.items():
+            fastest = floor_ratios(res["lights"].get("passes_min_ms", {}), floors, gaussians)
+            on_cpu = floor_ratios(res["lights"].get("passes_cpu_ms", {}), cpu_floors, gaussians) if cpu_floors else {}
             for k, v in floor_ratios(res["lights"]["passes_ms"], floors, gaussians).items():
-                lines.append(f"| {name} | {k} | {v[0]:.1f} | {v[1]:.1f} | {v[2]:.2f}x |")
+                lo = f"{fastest[k][0]:.1f} | {fastest[k][2]:.2f}x" if k in fastest else "- | -"
+                c = f"{on_cpu[k][0]:.1f} | {on_cpu[k][1]:.1f} | {on_cpu[k][2]:.2f}x" if k in on_cpu else "- | - | -"
+                lines.append(f"| {name} | {k} | {v[0]:.1f} | {v[1]:.1f} | {v[2]:.2f}x | {lo} | {c} |")
+        if cpu_floors:
+            lines += ["", "CPU ms (llvmpipe): the rasteriser threads' run time / their number + the calling thread's "
+                      "CPU time (dermis.gl.context.cpu_busy_ns), which does not grow while another process holds a "
+                      "core; CPU floors are the same samples' minima on that clock."]
     return "\n".join(lines)
 
 

@@ -408,6 +408,8 @@ class Renderer:
                       "irradiance_size": self.irradiance_size, "shadow_size": self.shadows.tile_size,
                       "passes_ms": dict(self.timer.times_ms), "passes_run": list(frame.passes_run),
                       "frame_ms": total}
+        if self.timer.cpu and self.timer.cpu_times_ms:  # dermis bench on llvmpipe: each pass's CPU-time clock too
+            self.stats["passes_cpu_ms"] = dict(self.timer.cpu_times_ms)
         self.last_frame = frame
         return img
 
