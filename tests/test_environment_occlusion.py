@@ -115,12 +115,29 @@ def test_visibility_is_a_declared_product():
     assert k0["texture_space"] != k1["texture_space"] and k0["gpu_mesh"] == k1["gpu_mesh"]
 
 
-def test_specular_occlusion_formula():
-    # Lagarde & de Rousiers 2014, listing 26: open (A = 1) leaves the specular, A = 0 removes it,
-    # and for a rough lobe it tends to A itself
-    assert visibility.specular_occlusion(0.7, 1.0, 0.3) == 1.0
-    assert visibility.specular_occlusion(0.7, 0.0, 0.3) == pytest.approx(0.0, abs=0.02)
-    assert visibility.specular_occlusion(0.5, 0.4, 0.6) == pytest.approx(0.4, abs=0.01)
+def test_specular_occlusion_cone_closed_forms():
+    """dermis.geometry.visibility.specular_occlusion_cone (Jimenez et al. 2016 with Oat & Sander's cap
+    intersection): an open point (A = 1, B = N) keeps its specular for every lobe direction; a lobe
+    inside the visibility cone keeps it; a lobe pointing away from a narrow visibility cone (at a
+    blocked direction) loses it; and the caps' intersection is exact where one holds the other
+    (2 pi (1 - cos) of the smaller) or they are apart (0)."""
+    rng = np.random.default_rng(3)
+    N = np.array([0.0, 0.0, 1.0])
+    R = rng.normal(size=(500, 3))
+    R[:, 2] = np.abs(R[:, 2])
+    R /= np.linalg.norm(R, axis=1, keepdims=True)
+    for m in (0.15, 0.3, 0.6):
+        assert np.allclose(visibility.specular_occlusion_cone(R, N, N, 1.0, m), 1.0)
+    B = np.array([0.6, 0.0, 0.8])
+    assert visibility.specular_occlusion_cone(B, N, B, 0.5, 0.3) == pytest.approx(1.0)  # R along B, cone 45 deg
+    away = np.array([-0.8, 0.0, 0.6])  # 90 deg from B: beyond its 45 deg cone plus the lobe's 33 deg
+    assert visibility.specular_occlusion_cone(away, N, B, 0.5, 0.3) == pytest.approx(0.0, abs=1e-9)
+    # same A, same N.V: only the direction differs (Lagarde's listing 26 gave both the same value)
+    toward = np.array([0.8, 0.0, 0.6])
+    assert visibility.specular_occlusion_cone(toward, N, B, 0.5, 0.3) > 0.9
+    c = np.cos(0.3)
+    assert visibility.cap_intersection(0.0, c, 1.0) == pytest.approx(2 * np.pi * (1 - c))
+    assert visibility.cap_intersection(np.cos(0.2), c, np.cos(0.6)) == pytest.approx(0.0)
 
 
 def test_head_cavities_darker_open_cheek_unchanged(gl_ctx):
@@ -224,7 +241,8 @@ def test_constant_image_gives_the_ambient_occlusion():
     frac = v.environment_fraction(env)
     # O = pi c (1 - A) exactly; E_sh = pi c up to the SH projection's quadrature
     np.testing.assert_allclose(frac, np.repeat(v.ao[:, None], 3, 1), atol=2e-3)
-    assert np.all(v.attribute(None)[:, 1:] == v.ao[:, None])  # no environment: (A, A, A, A)
+    assert np.all(v.attribute(None)[:, 1:4] == v.ao[:, None])  # no environment: (A, A, A, A)
+    assert np.array_equal(v.attribute(None)[:, 4:], v.bent_normal)  # and the bent normal
 
 
 def test_lambert_on_the_well_floor_under_a_lamp_behind_the_wall(gl_ctx):
@@ -258,3 +276,40 @@ def test_lambert_on_the_well_floor_under_a_lamp_behind_the_wall(gl_ctx):
         exp2 = ALBEDO / np.pi * (e2 - blocked_light_quadrature(scene.environment, depth))
         got2 = img2[h // 2 - 3:h // 2 + 3, w // 2 - 3:w // 2 + 3, :3].reshape(-1, 3).mean(0)
         np.testing.assert_allclose(got2, exp2, rtol=0.07)
+
+
+def test_environment_specular_is_occluded_where_the_mirror_ray_meets_the_head(gl_ctx):
+    """The environment scene at 128 px, tsd's specular output. Pixels in one band of ambient occlusion
+    (an independent ray cast at each pixel's visible point: 0.75 < A < 0.95, facing the camera) split
+    by whether the mirror direction about the interpolated normal meets the mesh (a ray cast): the
+    nose's flank reflecting the cheek, against skin reflecting the open studio. The directional
+    specular occlusion (common/environment.glsl specular_occlusion_cone) gives the blocked pixels less
+    environment specular than the open ones; Lagarde's listing 26, which sees A and N.V only, gave them
+    1.66x the open pixels' (they face the studio's lamps) and a studio reflected through the cheek."""
+    from dermis.reference.render import camera_rays
+    from dermis.techniques.shared import OutputMode
+
+    scene = dermis.load_scene("examples/reference/environment.toml")
+    size = (128, 128)
+    with Renderer(scene, size, ctx=gl_ctx, shadow_size=256, irradiance_size=256) as r:
+        spec = r.render("tsd", output_mode=OutputMode.SPECULAR).mean(axis=2).reshape(-1)
+    mesh = scene.mesh
+    caster = RayCaster(mesh.positions, mesh.indices)
+    o, d, tmax, eye = camera_rays(scene, size)
+    t, tri, bary = caster.closest_hit(o, d, 0.0, tmax)
+    hit = tri >= 0
+    idx = mesh.indices[tri[hit]]
+    b = np.concatenate([1 - bary[hit].sum(1, keepdims=True), bary[hit]], 1)
+    p = o[hit] + d[hit] * t[hit, None]
+    n = (mesh.normals[idx] * b[:, :, None]).sum(1)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    diag = float(np.linalg.norm(np.ptp(mesh.positions, axis=0)))
+    ao, _ = caster.ambient_occlusion(p, n, 128, offset=1e-5 * diag, seed=7)
+    R = d[hit] - 2.0 * (d[hit] * n).sum(1, keepdims=True) * n
+    blocked = caster.occluded(p + n * 1e-4 * diag, R, 0.0)
+    band = (ao > 0.75) & (ao < 0.95) & (-(n * d[hit]).sum(1) > 0.3)
+    s = spec[hit]
+    assert (band & blocked).sum() > 100 and (band & ~blocked).sum() > 1000
+    ratio = s[band & blocked].mean() / s[band & ~blocked].mean()
+    print(f"blocked / open environment specular: {ratio:.3f}")
+    assert ratio < 0.9  # measured 0.71 (Lagarde's: 1.66)

@@ -24,10 +24,11 @@ the 256 stratified rays by 7.4 %, 4.7 % and 2.2 % (benchmarks/environment_bands.
 "Environment against Cycles (round 7, branch env7)"). The rest is the SH's truncation of the open
 part and the rays' noise.
 
-The environment's specular is multiplied by the specular occlusion of Lagarde & de Rousiers 2014
-("Moving Frostbite to Physically Based Rendering 3.0", sec. 4.10.2, listing 26):
-    S = saturate((N.V + A)^exp2(-16 m - 1) - 1 + A),
-with the lobe's roughness m (Beckmann; Walter et al. 2007 equate it with GGX's alpha).
+The environment's specular is multiplied by a directional specular occlusion (specular_occlusion_cone:
+Jimenez et al. 2016, the lobe's cone about the mirror direction against the visibility cone about the
+bent normal B). Lagarde & de Rousiers 2014's S = saturate((N.V + A)^exp2(-16 m - 1) - 1 + A), used
+before round 14, sees how much of the sky a point sees but not where: it let the studio reflect on the
+nose's flank through the cheek (benchmarks/RESULTS.md, round 14).
 
 The bake casts cosine-weighted rays from each vertex (dermis.geometry.raycast.RayCaster, Embree)
 with no distance limit: visibility is a property of the mesh's shape alone (no scale input), and
@@ -105,10 +106,11 @@ class VertexVisibility:
             fraction)
 
     def attribute(self, env=None) -> np.ndarray:
-        """(n, 4) float32 vertex attribute (location 6, in_visibility): (A, r) with r the visible
-        fraction of ``env``'s SH irradiance per channel (A, A, A without an environment image)."""
+        """(n, 7) float32 vertex attributes: in_visibility (location 6) = (A, r) with r the visible
+        fraction of ``env``'s SH irradiance per channel (A, A, A without an environment image), and
+        in_bent_normal (location 8) = B, the specular occlusion's visibility cone axis."""
         frac = np.repeat(self.ao[:, None], 3, axis=1) if env is None else self.environment_fraction(env)
-        return np.ascontiguousarray(np.concatenate([self.ao[:, None], frac], axis=1), np.float32)
+        return np.ascontiguousarray(np.concatenate([self.ao[:, None], frac, self.bent_normal], axis=1), np.float32)
 
 
 def environment_radiance(env) -> np.ndarray:
@@ -153,8 +155,9 @@ _MEMORY_MAX = 8
 
 
 def open_visibility(n_vertices: int, normals) -> np.ndarray:
-    """The attribute of an unoccluded mesh (A = 1, r = 1): environment occlusion off."""
-    return np.ones((n_vertices, 4), np.float32)
+    """The attributes of an unoccluded mesh (A = 1, r = 1, B = the normal): environment occlusion off."""
+    return np.ascontiguousarray(np.concatenate([np.ones((n_vertices, 4)), np.asarray(normals, np.float64)
+                                                .reshape(n_vertices, 3)], axis=1), np.float32)
 
 
 def bake_vertex_visibility(positions, normals, indices, *, rays: int = BAKE_RAYS, seed: int = 0,
@@ -199,7 +202,37 @@ def occluded_irradiance(sh, n, fraction):
     return np.asarray(fraction, np.float64) * irradiance_sh_eval(sh, _normalize(np.asarray(n, np.float64)))
 
 
-def specular_occlusion(ndv, ao, m):
-    """Lagarde & de Rousiers 2014, listing 26: saturate((N.V + A)^exp2(-16 m - 1) - 1 + A)."""
-    ndv, ao = np.asarray(ndv, np.float64), np.asarray(ao, np.float64)
-    return np.clip((ndv + ao) ** np.exp2(-16.0 * m - 1.0) - 1.0 + ao, 0.0, 1.0)
+def cap_intersection(cos_a, cos_b, cos_d):
+    """Solid angle (sr) shared by two spherical caps of half-angles a, b whose axes are d apart, in
+    Oat & Sander's approximation (2007, "Ambient Aperture Lighting", sec. 4: exact when one cap holds
+    the other or they are apart, a smoothstep between; as Jimenez et al. 2016 use it)."""
+    cos_a, cos_b, cos_d = (np.clip(np.asarray(x, np.float64), -1.0, 1.0) for x in (cos_a, cos_b, cos_d))
+    a, b, d = np.arccos(cos_a), np.arccos(cos_b), np.arccos(cos_d)
+    small = 2.0 * np.pi * (1.0 - np.maximum(cos_a, cos_b))  # the smaller cap
+    diff = np.abs(a - b)
+    x = 1.0 - np.clip((d - diff) / np.maximum(a + b - diff, 1e-6), 0.0, 1.0)
+    return small * x * x * (3.0 - 2.0 * x)
+
+
+def specular_lobe_cos(m):
+    """cos of the half-angle of the cone about the mirror direction that stands for the skin's
+    Beckmann lobe of roughness m: twice the half-vector angle atan(m) (tan^2 theta_h = m^2 at
+    1 - 1/e of the lobe's mass, Walter et al. 2007 eq. 28), at least 0.05 rad."""
+    return np.cos(np.clip(2.0 * np.arctan(np.asarray(m, np.float64)), 0.05, 0.5 * np.pi))
+
+
+def specular_occlusion_cone(R, N, B, ao, m):
+    """Directional specular occlusion (Jimenez et al. 2016, "Practical Real-Time Strategies for Accurate
+    Indirect Occlusion", sec. 6): the share of the lobe's cone about the mirror direction R that lies
+    in the visibility cone (axis the bent normal B, half-angle acos sqrt(1 - A) for a cosine-weighted
+    A), over the share that lies in the open hemisphere about the normal N the bake was cast about
+    (the split sum's rho_dt already holds the horizon, so only what the MESH blocks is removed: an
+    open point, A = 1 and B = N, gets exactly 1). Unlike Lagarde's listing 26, which sees how much
+    of the sky a point sees but not where, a lobe that points at the cheek from the nose's flank is
+    occluded and one that points at the open sky from a crease is not. R, N, B (..., 3) unit."""
+    R, N, B = (np.asarray(x, np.float64) for x in (R, N, B))
+    cs = specular_lobe_cos(m)
+    cv = np.sqrt(np.clip(1.0 - np.asarray(ao, np.float64), 0.0, 1.0))
+    seen = cap_intersection(cv, cs, np.sum(R * B, axis=-1))
+    open_ = cap_intersection(0.0, cs, np.sum(R * N, axis=-1))
+    return np.where(open_ > 1e-9, np.clip(seen / np.maximum(open_, 1e-9), 0.0, 1.0), 1.0)

@@ -27,11 +27,29 @@ vec3 environment_irradiance_occluded(vec3 N, vec3 Ng, vec4 vis) {
     return clamp(vis.yzw, 0.0, 1.0) * environment_irradiance(N);
 }
 
-// Specular occlusion from ambient occlusion (Lagarde & de Rousiers 2014, "Moving Frostbite to
-// PBR", sec. 4.10.2, listing 26), m the lobe's roughness (Beckmann m ~ GGX alpha, Walter 2007).
-float specular_occlusion(float ndv, float ao, float m) {
-    ao = clamp(ao, 0.0, 1.0);  // a fraction (see environment_irradiance_occluded)
-    return clamp(pow(ndv + ao, exp2(-16.0 * m - 1.0)) - 1.0 + ao, 0.0, 1.0);
+// Directional specular occlusion (Jimenez et al. 2016, "Practical Real-Time Strategies for Accurate
+// Indirect Occlusion", sec. 6), the numpy twin dermis.geometry.visibility.specular_occlusion_cone: the
+// share of the lobe's cone about the mirror direction R inside the visibility cone (axis the bent
+// normal B, cos of its half-angle sqrt(1 - A) for a cosine-weighted A), over its share inside the open
+// hemisphere about the normal N the bake was cast about (the split sum's rho_dt already holds the
+// horizon; an open point, A = 1 and B = N, gets exactly 1). Caps intersected in Oat & Sander's 2007
+// approximation. Lagarde & de Rousiers 2014's listing 26 (used before round 14) sees how much sky a
+// point sees, not where: it let the studio reflect on the nose's flank through the cheek
+// (benchmarks/RESULTS.md, round 14). m: the lobe's Beckmann roughness.
+float cap_intersection(float cos_a, float cos_b, float cos_d) {
+    float a = acos(clamp(cos_a, -1.0, 1.0)), b = acos(clamp(cos_b, -1.0, 1.0)), d = acos(clamp(cos_d, -1.0, 1.0));
+    float diff = abs(a - b);
+    float x = 1.0 - clamp((d - diff) / max(a + b - diff, 1e-6), 0.0, 1.0);
+    return 6.283185307 * (1.0 - max(cos_a, cos_b)) * x * x * (3.0 - 2.0 * x);
+}
+
+float specular_occlusion_cone(vec3 R, vec3 N, vec3 B, float ao, float m) {
+    // the lobe's cone: twice the half-vector angle atan(m), at least 0.05 rad (specular_lobe_cos)
+    float cs = cos(clamp(2.0 * atan(m), 0.05, 1.570796327));
+    float cv = sqrt(clamp(1.0 - ao, 0.0, 1.0));
+    float seen = cap_intersection(cv, cs, dot(R, normalize(B)));
+    float open_ = cap_intersection(0.0, cs, dot(R, normalize(N)));
+    return open_ > 1e-9 ? clamp(seen / open_, 0.0, 1.0) : 1.0;
 }
 
 // The environment's specular radiance along R for a lobe of Beckmann roughness m: the equirect

@@ -32,6 +32,7 @@ in vec2 v_uv;
 in vec2 v_uv_ts;  // texture-space UVs: tsd's own textures; v_uv: the material maps
 in vec4 v_tangent;
 in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
+in vec3 v_bent_normal;  // the bake's bent normal: the specular occlusion's cone axis
 out vec4 f_color;
 
 
@@ -58,7 +59,8 @@ void main() {
 #ifdef SHARP_SHADOW_READ
     load_sharp_shadows(uv_ts);
 #endif
-    vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility);
+    vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility,
+                                       v_bent_normal);
 
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec : diffuse + spec;
     f_color = vec4(color, 1.0);

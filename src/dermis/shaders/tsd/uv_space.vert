@@ -7,6 +7,7 @@ layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec4 in_tangent;
 layout(location = 5) in vec2 in_uv_ts;  // the texture-space UV set (the mesh's own when unique)
 layout(location = 6) in vec4 in_visibility;  // (ambient occlusion, visible fraction RGB): geometry/visibility.py
+layout(location = 8) in vec3 in_bent_normal;  // its bent normal (the specular occlusion's cone axis)
 layout(location = 7) in vec2 in_uv1;  // TEXCOORD_1 (maps whose texCoord is 1)
 out vec3 v_world;
 out vec3 v_normal;
@@ -14,6 +15,7 @@ out vec2 v_uv;
 out vec2 v_uv1;
 out vec4 v_tangent;
 out vec4 v_visibility;
+out vec3 v_bent_normal;
 #ifdef INTERREFLECTION
 // tsd/bounce_splat.frag: the bounce irradiance gathered per vertex (tsd/bounce_gather.frag), vertex
 // v at texel (v mod P, v div P); gl_VertexID is the index buffer's value, the vertex's number
@@ -31,5 +33,6 @@ void main() {
     v_uv1 = in_uv1;
     v_tangent = in_tangent;
     v_visibility = in_visibility;
+    v_bent_normal = in_bent_normal;
     gl_Position = vec4(in_uv_ts * 2.0 - 1.0, 0.0, 1.0);
 }
