@@ -27,6 +27,13 @@ vec3 environment_irradiance_occluded(vec3 N, vec3 Ng, vec4 vis) {
     return clamp(vis.yzw, 0.0, 1.0) * environment_irradiance(N);
 }
 
+// Specular occlusion from ambient occlusion (Lagarde & de Rousiers 2014, "Moving Frostbite to
+// PBR", sec. 4.10.2, listing 26), m the lobe's roughness (Beckmann m ~ GGX alpha, Walter 2007).
+float specular_occlusion(float ndv, float ao, float m) {
+    ao = clamp(ao, 0.0, 1.0);  // a fraction (see environment_irradiance_occluded)
+    return clamp(pow(ndv + ao, exp2(-16.0 * m - 1.0)) - 1.0 + ao, 0.0, 1.0);
+}
+
 // Directional specular occlusion (Jimenez et al. 2016, "Practical Real-Time Strategies for Accurate
 // Indirect Occlusion", sec. 6), the numpy twin dermis.geometry.visibility.specular_occlusion_cone: the
 // share of the lobe's cone about the mirror direction R inside the visibility cone (axis the bent

@@ -38,6 +38,7 @@ vec3 skin_specular_radiance(vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho
     DERMIS_FOR_EACH_LIGHT(spec += skin_specular_light(light_i, P, Ng, Ns, V, m, rho_s, beckmannTex);)
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
     spec += skin_environment_specular(Ns, V, m) * rho_s * rho_dt_lookup(uSpecularTables, ndv, m) * INV_PI
-            * specular_occlusion_cone(reflect(-V, Ns), Ng, bent, clamp(vis.x, 0.0, 1.0), m);
+            * min(specular_occlusion(ndv, vis.x, m),
+                  specular_occlusion_cone(reflect(-V, Ns), Ng, bent, clamp(vis.x, 0.0, 1.0), m));
     return spec;
 }

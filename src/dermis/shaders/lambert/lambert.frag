@@ -49,7 +49,8 @@ void main() {
     float ndv = clamp(dot(N, V), 0.0, 1.0);
     float albedo_bp = ks * shininess * (shininess + 8.0) / ((shininess + 2.0) * (shininess + 4.0));
     color += albedo_bp * environment_specular(specular_dominant_direction(N, reflect(-V, N), m), m)
-             * specular_occlusion_cone(reflect(-V, N), Ng, v_bent_normal, clamp(v_visibility.x, 0.0, 1.0), m);
+             * min(specular_occlusion(ndv, v_visibility.x, m),
+                   specular_occlusion_cone(reflect(-V, N), Ng, v_bent_normal, clamp(v_visibility.x, 0.0, 1.0), m));
     DERMIS_FOR_EACH_LIGHT(color += lambert_light(light_i, Ng, N, V, albedo, shininess, ks);)  // common/lights.glsl
     f_color = vec4(color, 1.0);
 }
