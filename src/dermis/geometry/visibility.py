@@ -24,11 +24,13 @@ the 256 stratified rays by 7.4 %, 4.7 % and 2.2 % (benchmarks/environment_bands.
 "Environment against Cycles (round 7, branch env7)"). The rest is the SH's truncation of the open
 part and the rays' noise.
 
-The environment's specular is multiplied by a directional specular occlusion (specular_occlusion_cone:
-Jimenez et al. 2016, the lobe's cone about the mirror direction against the visibility cone about the
-bent normal B). Lagarde & de Rousiers 2014's S = saturate((N.V + A)^exp2(-16 m - 1) - 1 + A), used
-before round 14, sees how much of the sky a point sees but not where: it let the studio reflect on the
-nose's flank through the cheek (benchmarks/RESULTS.md, round 14).
+The environment's specular is multiplied by a directional specular occlusion (specular_occlusion_sh:
+the per-vertex L2 spherical harmonics of the directions the mesh blocks, projected from the bake's own
+rays, over the open hemisphere's, at the mirror direction). Lagarde & de Rousiers 2014's
+S = saturate((N.V + A)^exp2(-16 m - 1) - 1 + A), used before round 14, sees how much of the sky a point
+sees but not where: it let the studio reflect on the nose's flank through the cheek (benchmarks/RESULTS.md,
+round 14); Jimenez et al. 2016's cone about the bent normal (rounds 14-15, branches spec14/spec15) knew
+where but over-occluded grazing lobes 2-3x (round 15).
 
 The bake casts cosine-weighted rays from each vertex (dermis.geometry.raycast.RayCaster, Embree)
 with no distance limit: visibility is a property of the mesh's shape alone (no scale input), and
@@ -105,12 +107,33 @@ class VertexVisibility:
             "environment_fraction", (env.image.data,), (self.key, float(env.rotation_deg)),
             fraction)
 
+    def blocked_sh(self) -> np.ndarray:
+        """(n, 9) float32: the L2 spherical harmonics of the directions the mesh blocks at each vertex,
+        c_lm = integral over the sphere of (1 - V(w)) H(n.w) Y_lm(w) dw (H: the hemisphere about the
+        bake's normal; below it is the surface's own business, the split sum's rho_dt), projected from
+        the bake's own rays: they are cosine-distributed (pdf (n.w) / pi), so
+        c_lm ~ (pi / K) sum_k occluded_k Y_lm(w_k) / (n.w_k). No new ray cast: the occluded bits are
+        kept and the directions regenerate from the seed. Zero at an open vertex. See
+        :func:`specular_occlusion_sh` for what it is for and how well it does."""
+        if self.occluded is None:
+            return np.zeros((len(self.ao), 9), np.float32)
+        from dermis.invalidation import memo_by_content, read_only
+
+        def project():
+            from dermis.geometry.raycast import ambient_directions
+
+            occ = np.unpackbits(self.occluded, axis=1, count=self.rays).astype(bool)
+            c = blocked_sh_of_rays(self.normals, ambient_directions(self.normals, self.rays, self.seed), occ)
+            return read_only(c[self.inverse].astype(np.float32) if self.inverse is not None else c.astype(np.float32))
+
+        return memo_by_content("visibility.blocked_sh", (self.occluded,), (self.key, self.rays, self.seed), project)
+
     def attribute(self, env=None) -> np.ndarray:
-        """(n, 7) float32 vertex attributes: in_visibility (location 6) = (A, r) with r the visible
+        """(n, 13) float32 vertex attributes: in_visibility (location 6) = (A, r) with r the visible
         fraction of ``env``'s SH irradiance per channel (A, A, A without an environment image), and
-        in_bent_normal (location 8) = B, the specular occlusion's visibility cone axis."""
+        in_blocked_sh0..2 (locations 8-10) = :meth:`blocked_sh`, the specular occlusion's directions."""
         frac = np.repeat(self.ao[:, None], 3, axis=1) if env is None else self.environment_fraction(env)
-        return np.ascontiguousarray(np.concatenate([self.ao[:, None], frac, self.bent_normal], axis=1), np.float32)
+        return np.ascontiguousarray(np.concatenate([self.ao[:, None], frac, self.blocked_sh()], axis=1), np.float32)
 
 
 def environment_radiance(env) -> np.ndarray:
@@ -155,9 +178,9 @@ _MEMORY_MAX = 8
 
 
 def open_visibility(n_vertices: int, normals) -> np.ndarray:
-    """The attributes of an unoccluded mesh (A = 1, r = 1, B = the normal): environment occlusion off."""
-    return np.ascontiguousarray(np.concatenate([np.ones((n_vertices, 4)), np.asarray(normals, np.float64)
-                                                .reshape(n_vertices, 3)], axis=1), np.float32)
+    """The attributes of an unoccluded mesh (A = 1, r = 1, nothing blocked): environment occlusion off."""
+    return np.ascontiguousarray(np.concatenate([np.ones((n_vertices, 4)), np.zeros((n_vertices, 9))], axis=1),
+                                np.float32)
 
 
 def bake_vertex_visibility(positions, normals, indices, *, rays: int = BAKE_RAYS, seed: int = 0,
@@ -202,37 +225,47 @@ def occluded_irradiance(sh, n, fraction):
     return np.asarray(fraction, np.float64) * irradiance_sh_eval(sh, _normalize(np.asarray(n, np.float64)))
 
 
-def cap_intersection(cos_a, cos_b, cos_d):
-    """Solid angle (sr) shared by two spherical caps of half-angles a, b whose axes are d apart, in
-    Oat & Sander's approximation (2007, "Ambient Aperture Lighting", sec. 4: exact when one cap holds
-    the other or they are apart, a smoothstep between; as Jimenez et al. 2016 use it)."""
-    cos_a, cos_b, cos_d = (np.clip(np.asarray(x, np.float64), -1.0, 1.0) for x in (cos_a, cos_b, cos_d))
-    a, b, d = np.arccos(cos_a), np.arccos(cos_b), np.arccos(cos_d)
-    small = 2.0 * np.pi * (1.0 - np.maximum(cos_a, cos_b))  # the smaller cap
-    diff = np.abs(a - b)
-    x = 1.0 - np.clip((d - diff) / np.maximum(a + b - diff, 1e-6), 0.0, 1.0)
-    return small * x * x * (3.0 - 2.0 * x)
+BLOCKED_SH_MIN_COS = 0.05
+"""The floor on n.w in :meth:`VertexVisibility.blocked_sh`'s 1 / (n.w) weights (the GLSL has no twin: the
+projection is done once per mesh on the CPU)."""
 
 
-def specular_lobe_cos(m):
-    """cos of the half-angle of the cone about the mirror direction that stands for the skin's
-    Beckmann lobe of roughness m: twice the half-vector angle atan(m) (tan^2 theta_h = m^2 at
-    1 - 1/e of the lobe's mass, Walter et al. 2007 eq. 28), at least 0.05 rad."""
-    return np.cos(np.clip(2.0 * np.arctan(np.asarray(m, np.float64)), 0.05, 0.5 * np.pi))
+def blocked_sh_of_rays(normals, dirs, occ) -> np.ndarray:
+    """(n, 9) the L2 SH of the blocked directions (VertexVisibility.blocked_sh) from K cosine-
+    distributed rays per point: normals (n, 3) unit, dirs (n, K, 3), occ (n, K) bool;
+    c_lm ~ (pi / K) sum_k occ_k Y_lm(w_k) / (n.w_k)."""
+    from dermis.environment import sh9_basis
+
+    nrm = np.asarray(normals, np.float64)
+    owner, ray = np.nonzero(np.asarray(occ, bool))
+    d = np.asarray(dirs, np.float64)[owner, ray]
+    # the strata reach the horizon: a floor on n.w keeps one grazing ray from weighing 1000x
+    w = np.pi / np.asarray(occ).shape[1] / np.maximum(np.sum(d * nrm[owner], axis=-1), BLOCKED_SH_MIN_COS)
+    y = sh9_basis(d) * w[:, None]
+    return np.stack([np.bincount(owner, weights=y[:, j], minlength=len(nrm)) for j in range(9)], 1)
 
 
-def specular_occlusion_cone(R, N, B, ao, m):
-    """Directional specular occlusion (Jimenez et al. 2016, "Practical Real-Time Strategies for Accurate
-    Indirect Occlusion", sec. 6): the share of the lobe's cone about the mirror direction R that lies
-    in the visibility cone (axis the bent normal B, half-angle acos sqrt(1 - A) for a cosine-weighted
-    A), over the share that lies in the open hemisphere about the normal N the bake was cast about
-    (the split sum's rho_dt already holds the horizon, so only what the MESH blocks is removed: an
-    open point, A = 1 and B = N, gets exactly 1). Unlike Lagarde's listing 26, which sees how much
-    of the sky a point sees but not where, a lobe that points at the cheek from the nose's flank is
-    occluded and one that points at the open sky from a crease is not. R, N, B (..., 3) unit."""
-    R, N, B = (np.asarray(x, np.float64) for x in (R, N, B))
-    cs = specular_lobe_cos(m)
-    cv = np.sqrt(np.clip(1.0 - np.asarray(ao, np.float64), 0.0, 1.0))
-    seen = cap_intersection(cv, cs, np.sum(R * B, axis=-1))
-    open_ = cap_intersection(0.0, cs, np.sum(R * N, axis=-1))
-    return np.where(open_ > 1e-9, np.clip(seen / np.maximum(open_, 1e-9), 0.0, 1.0), 1.0)
+def specular_occlusion_sh(R, N, blocked_sh):
+    """Directional specular occlusion from the per-vertex L2 SH of the blocked directions
+    (:meth:`VertexVisibility.blocked_sh`; common/environment.glsl specular_occlusion_sh, whose numpy twin
+    this is): the visible share of the lobe about the mirror direction R is 1 - B(R) / H(R), with B the
+    blocked directions' SH and H the open hemisphere's about the bake's normal N, whose L2 projection
+    in closed form is H(R) = 1/2 + 3/4 (R.N) (band 2 of a hemisphere step vanishes; Sloan 2008,
+    "Stupid Spherical Harmonics Tricks", zonal projection): a ratio of two equally truncated
+    projections, exactly 1 at an open vertex. The lobe (Beckmann m 0.3: ~17 degrees) is narrower than
+    what L2 resolves, so it is evaluated at R (the band-limited visibility is its own blur).
+    Against a ray cast of the lobe on the head (front-key camera, 3364 vertices; benchmarks/RESULTS.md
+    round 15): mean |error| of the blocked share 0.053, at N.V <= 0.2 0.071 with bias +0.02, where
+    Jimenez et al. 2016's cone about the bent normal (spec14/15) errs by 0.094 and 0.150 (+0.13: it
+    models the blocked part as a ring round the horizon, which a grazing lobe crosses)."""
+    from dermis.environment import sh9_basis
+
+    R, N = np.asarray(R, np.float64), np.asarray(N, np.float64)
+    b = np.sum(np.asarray(blocked_sh, np.float64) * sh9_basis(R), axis=-1)
+    h = np.maximum(0.5 + 0.75 * np.sum(R * N, axis=-1), BLOCKED_SH_MIN_HEMISPHERE)
+    return 1.0 - np.clip(b / h, 0.0, 1.0)
+
+
+BLOCKED_SH_MIN_HEMISPHERE = 0.05
+"""The floor on H(R) in :func:`specular_occlusion_sh` (R below the bake normal's horizon by more than
+~36 degrees, where the normal map bent the lobe: the ratio means nothing; the GLSL's same constant)."""

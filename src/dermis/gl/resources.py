@@ -22,13 +22,14 @@ from dermis.invalidation import memo_by_content, read_only
 from dermis.scene.model import mean_skin_albedo, skin_albedo_scale
 from dermis.techniques.shared import LIGHT_TYPES, MAX_LIGHTS, SHARED_SAMPLERS
 
-VERTEX_FORMAT = "3f 3f 2f 4f 2f 4f 3f 2f"
+VERTEX_FORMAT = "3f 3f 2f 4f 2f 4f 3f 3f 3f 2f"
 # in_uv: the asset's UVs (material maps); in_uv_ts: the texture-space set (geometry/texture_space.py);
 # in_visibility: (ambient occlusion, visible fraction of the environment irradiance RGB) of
-# geometry/visibility.py, location 6, and in_bent_normal, its bent normal (the specular occlusion's
-# visibility cone), location 8: the two are one block of 7 floats (VertexVisibility.attribute);
+# geometry/visibility.py, location 6, and in_blocked_sh0..2, the L2 SH of the directions the mesh blocks
+# (the specular occlusion), locations 8-10: one block of 13 floats (VertexVisibility.attribute);
 # in_uv1: the asset's second UV set (TEXCOORD_1; zeros without one), location 7
-VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent", "in_uv_ts", "in_visibility", "in_bent_normal",
+VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_tangent", "in_uv_ts", "in_visibility", "in_blocked_sh0",
+                "in_blocked_sh1", "in_blocked_sh2",
                 "in_uv1")
 
 
@@ -259,8 +260,8 @@ class GpuScene:
         return interleave(self._attributes, visibility)
 
     def set_visibility(self, visibility):
-        """Replace in_visibility and in_bent_normal ((n, 7): ambient occlusion, visible fraction RGB, bent
-        normal; VertexVisibility.attribute) in place: VAOs stay valid."""
+        """Replace in_visibility and in_blocked_sh0..2 ((n, 13): ambient occlusion, visible fraction RGB, the
+        blocked directions' L2 SH; VertexVisibility.attribute) in place: VAOs stay valid."""
         self.vbo.write(self._interleave(visibility))
         self.visibility_uploaded = True
 

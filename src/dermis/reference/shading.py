@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dermis.geometry.visibility import (OFFSET_REL, environment_radiance, occluded_fraction, occluded_irradiance,
-                                        specular_occlusion_cone)
+from dermis.geometry.visibility import (OFFSET_REL, blocked_sh_of_rays, environment_radiance, occluded_fraction,
+                                        occluded_irradiance, specular_occlusion_sh)
 from dermis.specular import ksk_specular
 from dermis.techniques.shared import INV_PI, MAX_LIGHTS
 SHADOW_EPSILON_REL = 1e-6
@@ -81,10 +81,11 @@ class LightRig:
         cosine-weighted rays about the interpolated normal from the shadow-ray origin
         (RayCaster.ambient_rays), the light they block integrated against the environment image
         (dermis.geometry.visibility.occluded_fraction), or (1, 1) with environment occlusion off.
-        Cached in ``attrs``, with the rays' bent normal (``attrs["bent_normal"]``; the normal when off)."""
+        Cached in ``attrs``, with the L2 SH of the directions the rays found blocked (``attrs["blocked_sh"]``,
+        dermis.geometry.visibility.blocked_sh_of_rays; 0 when off): the specular occlusion's."""
         if "ambient_occlusion" not in attrs:
             ng = attrs["normal_geo"]
-            bent = ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-300)
+            blocked = np.zeros((len(ng), 9))
             if not self.occlusion:
                 ao, frac = np.ones(len(ng)), np.ones((len(ng), 3))
             else:
@@ -93,16 +94,18 @@ class LightRig:
                 for c0 in range(0, len(ng), AMBIENT_CHUNK):
                     c1 = min(len(ng), c0 + AMBIENT_CHUNK)
                     self._ambient_batches += 1
-                    ao[c0:c1], bent[c0:c1], dirs, occ = self.ambient_bvh.ambient_rays(o[c0:c1], ng[c0:c1], AMBIENT_RAYS,
+                    ao[c0:c1], _, dirs, occ = self.ambient_bvh.ambient_rays(o[c0:c1], ng[c0:c1], AMBIENT_RAYS,
                                                                             offset=self.ambient_offset_mm,
                                                                             seed=self._ambient_batches)
+                    n_unit = ng[c0:c1] / np.maximum(np.linalg.norm(ng[c0:c1], axis=1, keepdims=True), 1e-300)
+                    blocked[c0:c1] = blocked_sh_of_rays(n_unit, dirs, occ)
                     if self.env_radiance is None:  # a constant environment: r = A exactly
                         frac[c0:c1] = ao[c0:c1, None]
                     else:
                         n = ng[c0:c1] / np.maximum(np.linalg.norm(ng[c0:c1], axis=1, keepdims=True), 1e-300)
                         frac[c0:c1] = occluded_fraction(self.surface.env_sh, self.env_radiance, n, ao[c0:c1],
                                                         dirs, occ)
-            attrs["ambient_occlusion"], attrs["visible_fraction"], attrs["bent_normal"] = ao, frac, bent
+            attrs["ambient_occlusion"], attrs["visible_fraction"], attrs["blocked_sh"] = ao, frac, blocked
         return attrs["ambient_occlusion"], attrs["visible_fraction"]
 
     def incident(self, i, p_mm):
@@ -194,13 +197,13 @@ def specular_and_exit(surface, rig, attrs, eye_mm):
         vis = rig.visibility(i, attrs, L, dist, origins)
         ks = ksk_specular(n_map, L, V, m, rho_s)
         spec += Ei * (np.where(front, vis * ks, 0.0) * INV_PI)[:, None]
-    # the environment's specular times the directional specular occlusion (Jimenez et al. 2016;
-    # dermis.geometry.visibility.specular_occlusion_cone) of the ray-cast ambient occlusion and bent
-    # normal: an HDR's by Monte Carlo; a constant c's is c rho_s a / pi (surface.ambient(R) / pi = c exactly)
-    ao, _ = rig.ambient_visibility(attrs)
+    # the environment's specular times the directional specular occlusion of the ray-cast blocked
+    # directions' L2 SH (dermis.geometry.visibility.specular_occlusion_sh, as the techniques'): an HDR's
+    # by Monte Carlo; a constant c's is c rho_s a / pi (surface.ambient(R) / pi = c exactly)
+    rig.ambient_visibility(attrs)  # fills attrs["blocked_sh"]
     n_geo = ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-300)
     R_mirror = 2.0 * np.sum(n_map * V, axis=1, keepdims=True) * n_map - V
-    so = specular_occlusion_cone(R_mirror, n_geo, attrs["bent_normal"], ao, m)
+    so = specular_occlusion_sh(R_mirror, n_geo, attrs["blocked_sh"])
     if surface.env_image is not None:
         spec += environment_specular_mc(surface.env_image, n_map, V, m, rho_s) * so[:, None]
     else:

@@ -27,36 +27,25 @@ vec3 environment_irradiance_occluded(vec3 N, vec3 Ng, vec4 vis) {
     return clamp(vis.yzw, 0.0, 1.0) * environment_irradiance(N);
 }
 
-// Specular occlusion from ambient occlusion (Lagarde & de Rousiers 2014, "Moving Frostbite to
-// PBR", sec. 4.10.2, listing 26), m the lobe's roughness (Beckmann m ~ GGX alpha, Walter 2007).
-float specular_occlusion(float ndv, float ao, float m) {
-    ao = clamp(ao, 0.0, 1.0);  // a fraction (see environment_irradiance_occluded)
-    return clamp(pow(ndv + ao, exp2(-16.0 * m - 1.0)) - 1.0 + ao, 0.0, 1.0);
-}
-
-// Directional specular occlusion (Jimenez et al. 2016, "Practical Real-Time Strategies for Accurate
-// Indirect Occlusion", sec. 6), the numpy twin dermis.geometry.visibility.specular_occlusion_cone: the
-// share of the lobe's cone about the mirror direction R inside the visibility cone (axis the bent
-// normal B, cos of its half-angle sqrt(1 - A) for a cosine-weighted A), over its share inside the open
-// hemisphere about the normal N the bake was cast about (the split sum's rho_dt already holds the
-// horizon; an open point, A = 1 and B = N, gets exactly 1). Caps intersected in Oat & Sander's 2007
-// approximation. Lagarde & de Rousiers 2014's listing 26 (used before round 14) sees how much sky a
-// point sees, not where: it let the studio reflect on the nose's flank through the cheek
-// (benchmarks/RESULTS.md, round 14). m: the lobe's Beckmann roughness.
-float cap_intersection(float cos_a, float cos_b, float cos_d) {
-    float a = acos(clamp(cos_a, -1.0, 1.0)), b = acos(clamp(cos_b, -1.0, 1.0)), d = acos(clamp(cos_d, -1.0, 1.0));
-    float diff = abs(a - b);
-    float x = 1.0 - clamp((d - diff) / max(a + b - diff, 1e-6), 0.0, 1.0);
-    return 6.283185307 * (1.0 - max(cos_a, cos_b)) * x * x * (3.0 - 2.0 * x);
-}
-
-float specular_occlusion_cone(vec3 R, vec3 N, vec3 B, float ao, float m) {
-    // the lobe's cone: twice the half-vector angle atan(m), at least 0.05 rad (specular_lobe_cos)
-    float cs = cos(clamp(2.0 * atan(m), 0.05, 1.570796327));
-    float cv = sqrt(clamp(1.0 - ao, 0.0, 1.0));
-    float seen = cap_intersection(cv, cs, dot(R, normalize(B)));
-    float open_ = cap_intersection(0.0, cs, dot(R, normalize(N)));
-    return open_ > 1e-9 ? clamp(seen / open_, 0.0, 1.0) : 1.0;
+// Directional specular occlusion from the per-vertex L2 spherical harmonics of the directions the
+// mesh blocks (dermis.geometry.visibility.VertexVisibility.blocked_sh, projected on the CPU from the
+// visibility bake's own rays; the numpy twin is dermis.geometry.visibility.specular_occlusion_sh):
+// the visible share of the lobe about the mirror direction R is 1 - B(R) / H(R), B the blocked
+// directions' SH (b0..b2: coefficients 0-2, 3-5, 6-8), H the open hemisphere's about the bake's
+// normal N in closed form, 1/2 + 3/4 (R.N) (its band 2 vanishes; Sloan 2008, "Stupid Spherical
+// Harmonics Tricks"): two equally truncated projections, exactly 1 at an open vertex. Against a ray
+// cast of the lobe on the head (benchmarks/RESULTS.md, round 15): mean |error| 0.053 of the blocked
+// share, 0.071 at N.V <= 0.2, where Jimenez et al. 2016's cone about the bent normal (rounds 14-15)
+// erred by 0.094 and 0.150 (+0.13 at grazing: a ring round the horizon, which a grazing lobe crosses).
+// Lagarde & de Rousiers 2014's listing 26 (before round 14) sees how much sky, not where: it let the
+// studio reflect on the nose's flank through the cheek (round 14).
+const float BLOCKED_SH_MIN_HEMISPHERE = 0.05;  // R far below the bake normal's horizon (a bent normal map)
+float specular_occlusion_sh(vec3 R, vec3 N, vec3 b0, vec3 b1, vec3 b2) {
+    float b = b0.x * 0.282095 + b0.y * 0.488603 * R.y + b0.z * 0.488603 * R.z + b1.x * 0.488603 * R.x
+            + b1.y * 1.092548 * R.x * R.y + b1.z * 1.092548 * R.y * R.z + b2.x * 0.315392 * (3.0 * R.z * R.z - 1.0)
+            + b2.y * 1.092548 * R.x * R.z + b2.z * 0.546274 * (R.x * R.x - R.y * R.y);
+    float h = max(0.5 + 0.75 * dot(R, N), BLOCKED_SH_MIN_HEMISPHERE);
+    return 1.0 - clamp(b / h, 0.0, 1.0);
 }
 
 // The environment's specular radiance along R for a lobe of Beckmann roughness m: the equirect

@@ -5,7 +5,9 @@ layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec4 in_tangent;
 layout(location = 5) in vec2 in_uv_ts;  // texture-space UV set (tsd's textures); in_uv: material maps
 layout(location = 6) in vec4 in_visibility;  // (ambient occlusion, visible fraction RGB): geometry/visibility.py
-layout(location = 8) in vec3 in_bent_normal;  // its bent normal (the specular occlusion's cone axis)
+layout(location = 8) in vec3 in_blocked_sh0;  // the L2 SH of the directions the mesh blocks (geometry/visibility.py
+layout(location = 9) in vec3 in_blocked_sh1;  // VertexVisibility.blocked_sh, coefficients 0-2, 3-5, 6-8): the
+layout(location = 10) in vec3 in_blocked_sh2;  // specular occlusion (common/environment.glsl)
 layout(location = 7) in vec2 in_uv1;  // TEXCOORD_1 (maps whose texCoord is 1; zeros when absent)
 #ifdef DERMIS_VERTEX_CURVATURE
 layout(location = 4) in float in_curvature;  // a technique's own per-vertex scalar (preintegrated: 1/mm)
@@ -26,11 +28,15 @@ out vec2 v_uv1;
 out vec4 v_tangent;
 out vec2 v_uv_ts;
 out vec4 v_visibility;
-out vec3 v_bent_normal;
+out vec3 v_blocked_sh0;
+out vec3 v_blocked_sh1;
+out vec3 v_blocked_sh2;
 void main() {
     v_uv_ts = in_uv_ts;
     v_visibility = in_visibility;
-    v_bent_normal = in_bent_normal;
+    v_blocked_sh0 = in_blocked_sh0;
+    v_blocked_sh1 = in_blocked_sh1;
+    v_blocked_sh2 = in_blocked_sh2;
     v_world = in_position;
     v_normal = in_normal;
     v_uv = in_uv;

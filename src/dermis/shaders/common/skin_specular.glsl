@@ -30,15 +30,14 @@ vec3 skin_specular_light(int i, vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float
 // the programs compiled per light count (SKIN_LIGHT_COUNT; preintegrated's: its pass -8% on llvmpipe,
 // benchmarks/RESULTS.md, round 11, perf11), the loop over uLightCount elsewhere; the same sum in the
 // same order.
-// vis, bent: the interpolated in_visibility and in_bent_normal (common/environment.glsl); Ng the
+// vis, b0..b2: the interpolated in_visibility and in_blocked_sh0..2 (common/environment.glsl); Ng the
 // interpolated vertex normal (the bake's), Ns the shading normal.
 vec3 skin_specular_radiance(vec3 P, vec3 Ng, vec3 Ns, vec3 V, float m, float rho_s, sampler2D beckmannTex, vec4 vis,
-                            vec3 bent) {
+                            vec3 b0, vec3 b1, vec3 b2) {
     vec3 spec = vec3(0.0);
     DERMIS_FOR_EACH_LIGHT(spec += skin_specular_light(light_i, P, Ng, Ns, V, m, rho_s, beckmannTex);)
     float ndv = clamp(dot(Ns, V), 0.0, 1.0);
     spec += skin_environment_specular(Ns, V, m) * rho_s * rho_dt_lookup(uSpecularTables, ndv, m) * INV_PI
-            * min(specular_occlusion(ndv, vis.x, m),
-                  specular_occlusion_cone(reflect(-V, Ns), Ng, bent, clamp(vis.x, 0.0, 1.0), m));
+            * specular_occlusion_sh(reflect(-V, Ns), normalize(Ng), b0, b1, b2);
     return spec;
 }

@@ -13,7 +13,9 @@ in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
 in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
-in vec3 v_bent_normal;  // the bake's bent normal: the specular occlusion's cone axis
+in vec3 v_blocked_sh0;  // the L2 SH of the directions the mesh blocks: the specular occlusion
+in vec3 v_blocked_sh1;
+in vec3 v_blocked_sh2;
 out vec4 f_color;
 
 // Light i's diffuse and specular radiance at v_world (0 where it does not reach the surface).
@@ -49,8 +51,7 @@ void main() {
     float ndv = clamp(dot(N, V), 0.0, 1.0);
     float albedo_bp = ks * shininess * (shininess + 8.0) / ((shininess + 2.0) * (shininess + 4.0));
     color += albedo_bp * environment_specular(specular_dominant_direction(N, reflect(-V, N), m), m)
-             * min(specular_occlusion(ndv, v_visibility.x, m),
-                   specular_occlusion_cone(reflect(-V, N), Ng, v_bent_normal, clamp(v_visibility.x, 0.0, 1.0), m));
+             * specular_occlusion_sh(reflect(-V, N), Ng, v_blocked_sh0, v_blocked_sh1, v_blocked_sh2);
     DERMIS_FOR_EACH_LIGHT(color += lambert_light(light_i, Ng, N, V, albedo, shininess, ks);)  // common/lights.glsl
     f_color = vec4(color, 1.0);
 }

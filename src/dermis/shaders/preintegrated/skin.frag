@@ -40,7 +40,9 @@ in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
 in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
-in vec3 v_bent_normal;  // the bake's bent normal: the specular occlusion's cone axis
+in vec3 v_blocked_sh0;  // the L2 SH of the directions the mesh blocks: the specular occlusion
+in vec3 v_blocked_sh1;
+in vec3 v_blocked_sh2;
 in vec2 v_uv_ts;  // texture-space UVs: the thickness bake
 in float v_curvature;
 out vec4 f_color;
@@ -309,7 +311,7 @@ void main() {
 
     vec3 diffuse = E * albedo * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uSpecularTables, v_visibility,
-                                       v_bent_normal);
+                                       v_blocked_sh0, v_blocked_sh1, v_blocked_sh2);
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec
                 : uOutputMode == OUTPUT_CURVATURE ? vec3(curvature) : diffuse + spec;
     f_color = vec4(color, 1.0);

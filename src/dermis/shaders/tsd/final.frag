@@ -32,7 +32,9 @@ in vec2 v_uv;
 in vec2 v_uv_ts;  // texture-space UVs: tsd's own textures; v_uv: the material maps
 in vec4 v_tangent;
 in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
-in vec3 v_bent_normal;  // the bake's bent normal: the specular occlusion's cone axis
+in vec3 v_blocked_sh0;  // the L2 SH of the directions the mesh blocks: the specular occlusion
+in vec3 v_blocked_sh1;
+in vec3 v_blocked_sh2;
 out vec4 f_color;
 
 
@@ -60,7 +62,7 @@ void main() {
     load_sharp_shadows(uv_ts);
 #endif
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility,
-                                       v_bent_normal);
+                                       v_blocked_sh0, v_blocked_sh1, v_blocked_sh2);
 
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec : diffuse + spec;
     f_color = vec4(color, 1.0);
