@@ -370,4 +370,4 @@ def test_environment_specular_is_occluded_where_the_mirror_ray_meets_the_head(gl
     assert (band & blocked).sum() > 100 and (band & ~blocked).sum() > 1000
     ratio = s[band & blocked].mean() / s[band & ~blocked].mean()
     print(f"blocked / open environment specular: {ratio:.3f}")
-    assert ratio < 0.9  # measured 0.71 (Lagarde's: 1.66)
+    assert ratio < 0.8  # measured 0.53 (spec14's cone: 0.71; Lagarde's listing 26: 1.66)
