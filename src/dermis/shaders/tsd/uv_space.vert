@@ -7,9 +7,6 @@ layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec4 in_tangent;
 layout(location = 5) in vec2 in_uv_ts;  // the texture-space UV set (the mesh's own when unique)
 layout(location = 6) in vec4 in_visibility;  // (ambient occlusion, visible fraction RGB): geometry/visibility.py
-layout(location = 8) in vec3 in_blocked_sh0;  // the L2 SH of the directions the mesh blocks (geometry/visibility.py
-layout(location = 9) in vec3 in_blocked_sh1;  // VertexVisibility.blocked_sh, coefficients 0-2, 3-5, 6-8): the
-layout(location = 10) in vec3 in_blocked_sh2;  // specular occlusion (common/environment.glsl)
 layout(location = 7) in vec2 in_uv1;  // TEXCOORD_1 (maps whose texCoord is 1)
 out vec3 v_world;
 out vec3 v_normal;
@@ -17,9 +14,6 @@ out vec2 v_uv;
 out vec2 v_uv1;
 out vec4 v_tangent;
 out vec4 v_visibility;
-out vec3 v_blocked_sh0;
-out vec3 v_blocked_sh1;
-out vec3 v_blocked_sh2;
 #ifdef INTERREFLECTION
 // tsd/bounce_splat.frag: the bounce irradiance gathered per vertex (tsd/bounce_gather.frag), vertex
 // v at texel (v mod P, v div P); gl_VertexID is the index buffer's value, the vertex's number
@@ -37,8 +31,5 @@ void main() {
     v_uv1 = in_uv1;
     v_tangent = in_tangent;
     v_visibility = in_visibility;
-    v_blocked_sh0 = in_blocked_sh0;
-    v_blocked_sh1 = in_blocked_sh1;
-    v_blocked_sh2 = in_blocked_sh2;
     gl_Position = vec4(in_uv_ts * 2.0 - 1.0, 0.0, 1.0);
 }
