@@ -235,40 +235,34 @@ class BounceSeries:
         # rho at the orders' raster level, drawn once per (material, layout, size) (BOUNCE_RHO) and
         # read back per order with one texel fetch: the albedo map's sample in every order's raster
         # was ~a third of the series on llvmpipe (benchmarks/RESULTS.md, "Round 14, branch perf14c")
-        self._rho_prog = program(ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag",
-                                 {"INTERREFLECTION": 1, "BOUNCE_RHO": 1})
-        self._rho = None
+        # without INTERREFLECTION: the raster of rho alone reads no per-vertex bounce
+        self._rho_prog = program(ctx, "tsd/uv_space.vert", "tsd/bounce_splat.frag", {"BOUNCE_RHO": 1})
+        self._rho = None  # made at the raster's size on first use (_draw_rho)
         self._rho_fbo = None
         self._rho_key = None
-        self._make_rho((1, 1))  # a stand-in, re-made at the raster's size on first use
         self._chain = LevelChain(ctx)  # rho T from the raster's level to the gather's
 
-    def _make_rho(self, size):
+    def _release_rho(self):
         for o in (self._rho_fbo, self._rho):
             if o is not None:
                 o.release()
-        self._rho = self.ctx.texture(size, 4, dtype="f4")
-        self._rho.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self._rho_fbo = self.ctx.framebuffer(color_attachments=[self._rho])
-        self._rho_key = None
+        self._rho = self._rho_fbo = self._rho_key = None
 
-    def _draw_rho(self, frame, size, hits: InterreflectionHits, first: BounceGather):
+    def _draw_rho(self, frame, size):
         """rho (albedo_at: tsd/bounce_splat.frag with BOUNCE_RHO) at ``size``, when its key changed:
         the raster the orders' rasters repeat, with the same state (bind_scene, no anisotropy)."""
-        from dermis.gl.resources import maps_without_anisotropy, set_uniform, use_texture
+        from dermis.gl.resources import maps_without_anisotropy
         from dermis.techniques.base import bind_scene
-        from dermis.techniques.shared import Unit
 
         # "interreflection_inputs": the mesh, its layout, the material (and more: never stale)
         key = (frame.keys["interreflection_inputs"], tuple(size))
         if key == self._rho_key:
             return
-        if self._rho.size != tuple(size):
-            self._make_rho(tuple(size))
-        # uv_space.vert with INTERREFLECTION reads the per-vertex bounce: bound, though BOUNCE_RHO ignores it
-        set_uniform(self._rho_prog, "uVerticesPerRow", int(hits.per_row))
-        set_uniform(self._rho_prog, "uBounce", int(Unit.FIRST_FREE))
-        use_texture(first.target, Unit.FIRST_FREE)
+        if self._rho is None or self._rho.size != tuple(size):
+            self._release_rho()
+            self._rho = self.ctx.texture(tuple(size), 4, dtype="f4")
+            self._rho.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self._rho_fbo = self.ctx.framebuffer(color_attachments=[self._rho])
         bind_scene(frame, self._rho_prog)
         self._rho_fbo.use()
         self._rho_fbo.viewport = (0, 0, *size)
@@ -294,7 +288,7 @@ class BounceSeries:
             return first.target
         levels = self._chain.levels(int(frame.renderer.irradiance_size), level)
         rho_unit = int(Unit.FIRST_FREE) + 1
-        self._draw_rho(frame, levels[0][0].size, hits, first)
+        self._draw_rho(frame, levels[0][0].size)
         bind_scene(frame, self._splat)  # the material's uniforms (rho itself from uRho)
         set_uniform(self._splat, "uVerticesPerRow", int(hits.per_row))
         set_uniform(self._splat, "uBounce", int(Unit.FIRST_FREE))
@@ -322,10 +316,8 @@ class BounceSeries:
         self._chain.release()
         self._gather.release()
         self._splat.release()
-        self._rho_fbo.release()
-        self._rho.release()
+        self._release_rho()
         self._rho_prog.release()
-        self._rho_key = None
 
 
 # ---------------------------------------------------------------------- the shared product

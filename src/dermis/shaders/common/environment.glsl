@@ -5,12 +5,20 @@
 uniform vec3 uEnvSH[9];
 uniform sampler3D uEnvSpecular;  // the prefiltered environment (dermis.gl.environment)
 
+// The real SH basis Y_lm, l <= 2, at the unit direction n, in dermis.environment.sh9_basis's order
+// (its numpy twin): the one basis the irradiance below and specular_occlusion_sh evaluate.
+void sh9_basis(vec3 n, out float y[9]) {
+    y[0] = 0.282095;
+    y[1] = 0.488603 * n.y; y[2] = 0.488603 * n.z; y[3] = 0.488603 * n.x;
+    y[4] = 1.092548 * n.x * n.y; y[5] = 1.092548 * n.y * n.z; y[6] = 0.315392 * (3.0 * n.z * n.z - 1.0);
+    y[7] = 1.092548 * n.x * n.z; y[8] = 0.546274 * (n.x * n.x - n.y * n.y);
+}
+
 vec3 environment_irradiance(vec3 n) {
-    vec3 e = uEnvSH[0] * 0.282095
-           + uEnvSH[1] * 0.488603 * n.y + uEnvSH[2] * 0.488603 * n.z + uEnvSH[3] * 0.488603 * n.x
-           + uEnvSH[4] * 1.092548 * n.x * n.y + uEnvSH[5] * 1.092548 * n.y * n.z
-           + uEnvSH[6] * 0.315392 * (3.0 * n.z * n.z - 1.0)
-           + uEnvSH[7] * 1.092548 * n.x * n.z + uEnvSH[8] * 0.546274 * (n.x * n.x - n.y * n.y);
+    float y[9];
+    sh9_basis(n, y);
+    vec3 e = vec3(0.0);
+    for (int i = 0; i < 9; ++i) e += uEnvSH[i] * y[i];
     return max(e, vec3(0.0));
 }
 
@@ -41,9 +49,9 @@ vec3 environment_irradiance_occluded(vec3 N, vec3 Ng, vec4 vis) {
 // studio reflect on the nose's flank through the cheek (round 14).
 const float BLOCKED_SH_MIN_HEMISPHERE = 0.05;  // R far below the bake normal's horizon (a bent normal map)
 float specular_occlusion_sh(vec3 R, vec3 N, vec3 b0, vec3 b1, vec3 b2) {
-    float b = b0.x * 0.282095 + b0.y * 0.488603 * R.y + b0.z * 0.488603 * R.z + b1.x * 0.488603 * R.x
-            + b1.y * 1.092548 * R.x * R.y + b1.z * 1.092548 * R.y * R.z + b2.x * 0.315392 * (3.0 * R.z * R.z - 1.0)
-            + b2.y * 1.092548 * R.x * R.z + b2.z * 0.546274 * (R.x * R.x - R.y * R.y);
+    float y[9];
+    sh9_basis(R, y);
+    float b = dot(b0, vec3(y[0], y[1], y[2])) + dot(b1, vec3(y[3], y[4], y[5])) + dot(b2, vec3(y[6], y[7], y[8]));
     float h = max(0.5 + 0.75 * dot(R, N), BLOCKED_SH_MIN_HEMISPHERE);
     return 1.0 - clamp(b / h, 0.0, 1.0);
 }

@@ -13,7 +13,9 @@
 
 uniform float uMix;
 in vec2 v_uv;
-in vec3 v_bounce;
+#ifndef BOUNCE_RHO
+in vec3 v_bounce;  // tsd/uv_space.vert with INTERREFLECTION
+#endif
 out vec4 f_irradiance;
 #ifdef ALBEDO_MIX_TARGET
 // albedo^mix as tsd/irradiance.frag wrote it at this texel (SKIN_ALBEDO_MIX_LOCATION): the same
