@@ -321,6 +321,14 @@ CYCLES_STORE = Path("/work/wt/notes/cycles-conv/back-ears")
 # path radius / 4 pi and its albedo remap of the mean albedo 0.535 / 0.321; red reproduces Cycles' own
 # back-lit slab render within 1-5%)
 CYCLES_WALK_MEDIUM = {0: (0.735, 0.930), 1: (0.247, 0.782)}
+
+
+def chiang_alpha(A):
+    """Cycles' subsurface_random_walk_remap at anisotropy 0 (Chiang et al. 2016): the single-scattering
+    albedo of its walk for a base colour A."""
+    blend = A ** 0.25
+    return ((1 - blend) * 1.8260523782 * np.arctan(5.11246790329 * A) ** 1.09686102424
+            + blend * 0.496310210422 * np.arctan(4.23500903650 * A) ** 2.40602999408)
 WALK_FACTOR = 4  # supersampling of the walk's film (validate's)
 
 
@@ -396,11 +404,6 @@ def walk_study(walks=16, channels=(0,), seed=0, bounce=False, paths_only=False, 
 
     def ears(img):  # (H, W) supersampled per-ray means -> the 64 x 64 pixels, Cycles' filter
         return reconstruct(np.repeat(img[..., None], 3, 2), f)[..., 0]
-
-    def chiang_alpha(A):  # Cycles' subsurface_random_walk_remap at anisotropy 0 (Chiang et al. 2016)
-        blend = A ** 0.25
-        return ((1 - blend) * 1.8260523782 * np.arctan(5.11246790329 * A) ** 1.09686102424
-                + blend * 0.496310210422 * np.arctan(4.23500903650 * A) ** 2.40602999408)
 
     # a diffuse (no subsurface) surface, direct light only, at each ray: the check of the camera, light,
     # filter and shadows against Cycles' own render without SSS (the control)

@@ -45,7 +45,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cycles_crops  # noqa: E402
-from ear_translucency import CYCLES_WALK_MEDIUM, EAR_FRACTION, _cycles_walk  # noqa: E402
+from ear_translucency import CYCLES_WALK_MEDIUM, EAR_FRACTION, _cycles_walk, chiang_alpha  # noqa: E402
 
 SIZE = 768
 CHANNEL = 0  # red: green and blue carry nothing through millimetres of tissue
@@ -85,53 +85,27 @@ def render_terms(box):
 
 
 def camera_hits(sc, box):
-    """Per crop pixel (pixel centre ray): eye, ray direction, hit point, triangle, interpolated unit normal."""
-    from dermis.camera import camera_matrices
+    """Per crop pixel (pixel centre ray, dermis.reference.render.camera_rays of the frame): the ray
+    caster, ray direction, hit point, triangle, barycentrics, interpolated unit normal, (normals, indices)."""
     from dermis.framing import framed_camera
     from dermis.geometry.raycast import RayCaster
+    from dermis.reference.render import camera_rays
 
     x0, y0, x1, y1 = box
-    cam = framed_camera(sc.camera, sc.mesh, 1.0)
-    lo, hi = sc.bounds()
-    view, proj, eye, _, _ = camera_matrices(cam, 1.0, lo, hi)
+    o, d, tmax, _ = camera_rays(sc, (SIZE, SIZE), camera=framed_camera(sc.camera, sc.mesh, 1.0))
     ys, xs = np.mgrid[y0:y1, x0:x1]
-    ndc = np.stack([(xs + 0.5) / SIZE * 2 - 1, 1 - (ys + 0.5) / SIZE * 2, np.ones(xs.shape), np.ones(xs.shape)], -1)
-    far = ndc.reshape(-1, 4) @ np.linalg.inv(proj @ view).T
-    d = far[:, :3] / far[:, 3:] - eye
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    sel = (ys * SIZE + xs).reshape(-1)
+    o, d, tmax = o[sel], d[sel], tmax[sel]
     P = np.asarray(sc.mesh.positions, np.float64)
     I = np.asarray(sc.mesh.indices, np.int64).reshape(-1, 3)
     N = np.asarray(sc.mesh.normals, np.float64)
     rc = RayCaster(P, I)
-    t, tri, b = rc.closest_hit(np.broadcast_to(eye, d.shape), d)
-    p = eye + d * np.where(tri >= 0, t, 0.0)[:, None]
+    t, tri, b = rc.closest_hit(o, d, 0.0, tmax)
+    p = o + d * np.where(tri >= 0, t, 0.0)[:, None]
     w = np.stack([1 - b[:, 0] - b[:, 1], b[:, 0], b[:, 1]], 1)
     n = np.einsum("ij,ijk->ik", w, N[I[np.maximum(tri, 0)]])
     n /= np.linalg.norm(n, axis=1, keepdims=True)
-    return rc, eye, d, p, tri, n, (N, I)
-
-
-def chiang_alpha(A):
-    """Cycles' subsurface_random_walk_remap at anisotropy 0 (Chiang et al. 2016): the single-scattering
-    albedo of its walk for a base colour A (ear_translucency.py --walk's own copy lives inside walk_study)."""
-    blend = A ** 0.25
-    return ((1 - blend) * 1.8260523782 * np.arctan(5.11246790329 * A) ** 1.09686102424
-            + blend * 0.496310210422 * np.arctan(4.23500903650 * A) ** 2.40602999408)
-
-
-def albedo_map_at(sc, rc, eye, d):
-    """(n, 3) the scene's albedo map (linear) under each camera ray's hit, nearest texel."""
-    from dermis.images import as_rgb
-
-    _, tri, b = rc.closest_hit(np.broadcast_to(eye, d.shape), d)
-    uv = np.asarray(sc.mesh.uvs, np.float64)
-    I = np.asarray(sc.mesh.indices, np.int64).reshape(-1, 3)
-    t = np.maximum(tri, 0)
-    b1, b2 = b[:, :1], b[:, 1:]
-    q = uv[I[t, 0]] * (1 - b1 - b2) + uv[I[t, 1]] * b1 + uv[I[t, 2]] * b2
-    alb = as_rgb(sc.material.albedo.data).astype(np.float64)
-    ah, aw = alb.shape[:2]
-    return alb[np.clip(((1 - q[:, 1]) * ah).astype(int), 0, ah - 1), np.clip((q[:, 0] * aw).astype(int), 0, aw - 1)]
+    return rc, d, p, tri, b, n, (N, I)
 
 
 def classes(sc, cycles_red, p, shape):
@@ -171,6 +145,7 @@ def main(argv=None):
     ap.add_argument("--save", type=Path, help="write the crop's images, classes and term maps here (.npz)")
     a = ap.parse_args(argv)
     from dermis.blender.sss import cycles_subsurface
+    from dermis.blender.validate import _albedo_at
     from dermis.profiles.medium import Layer, Medium
     from dermis.profiles.monte_carlo import monte_carlo_reflectance
     from dermis.profiles.thin_slab import slab_law
@@ -189,7 +164,7 @@ def main(argv=None):
     img = render_terms(box)
     print(f"tsd x 4 variants at {SIZE} px: {time.perf_counter() - t0:.0f} s (load {os.getloadavg()[0]:.2f})")
     h, w = cyc.shape[:2]
-    rc, eye, d, p, tri, n, (N, I) = camera_hits(sc, box)
+    rc, d, p, tri, bary, n, (N, I) = camera_hits(sc, box)
     to_light = -np.asarray(sc.lights[0].direction, np.float64)
     to_light /= np.linalg.norm(to_light)
     mm = float(sc.mm_per_unit)
@@ -263,7 +238,7 @@ def main(argv=None):
              "Cycles' walk, refracted entry": WalkMedium(m0, a0, "lambertian", 1.4, "refracted"),
              "Cycles' walk, cosine entry": WalkMedium(m0, a0, "lambertian", 1.4, "cosine")}
     mw = MeshWalk(np.asarray(sc.mesh.positions, np.float64) * mm, sc.mesh.indices, sc.mesh.normals)
-    local = albedo_map_at(sc, rc, eye, d)[:, CHANNEL]  # the albedo map under each pixel's ray
+    local = _albedo_at(sc, tri, bary)[:, CHANNEL]  # the albedo map under each pixel's ray (nearest texel)
     print(f"\n5. random walks in the head's geometry, red, {a.walks} walks a pixel (direct light and environment, "
           f"no bounce, no specular; +- half the difference of the two halves of the walks)")
     print("(at the class's albedo map mean: both media's albedo moved to it, Cycles' by its remap's difference, "

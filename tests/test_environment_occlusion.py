@@ -198,22 +198,15 @@ def test_specular_occlusion_sh_against_a_ray_cast_of_the_lobe(lee_perry_smith):
     assert abs(err[grazing].mean()) < 0.06, err[grazing].mean()  # the cone: +0.13
 
 
-def test_head_cavities_darker_open_cheek_unchanged(gl_ctx):
-    """The environment scene at 128 px, lambert, occlusion on and off. Regions from an independent
-    ray cast at each pixel's visible point (128 cosine-weighted rays from that point, not the
-    per-vertex bake): cavities (nostrils, eye creases, ear folds: A < 0.5) and open skin facing the
-    camera (A > 0.97, the cheeks and forehead)."""
+def visible_points(scene, size):
+    """At each pixel centre of ``scene``'s camera (an independent Embree ray cast, not the renderer):
+    (hit mask over the pixels, the ray caster, the visible point, the interpolated unit normal, the
+    view ray's direction, the ray-cast ambient occlusion there (128 cosine rays), the mesh's diagonal)."""
     from dermis.reference.render import camera_rays
 
-    scene = dermis.load_scene("examples/reference/environment.toml")
-    size = (128, 128)
-    with Renderer(scene, size, ctx=gl_ctx, shadow_size=256, irradiance_size=256) as r:
-        on = r.render("lambert").mean(axis=2)
-        scene.environment.occlusion = False
-        off = r.render("lambert").mean(axis=2)
-        mesh = scene.mesh
+    mesh = scene.mesh
     caster = RayCaster(mesh.positions, mesh.indices)
-    o, d, tmax, eye = camera_rays(scene, size)
+    o, d, tmax, _ = camera_rays(scene, size)
     t, tri, bary = caster.closest_hit(o, d, 0.0, tmax)
     hit = tri >= 0
     idx = mesh.indices[tri[hit]]
@@ -223,8 +216,23 @@ def test_head_cavities_darker_open_cheek_unchanged(gl_ctx):
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     diag = float(np.linalg.norm(np.ptp(mesh.positions, axis=0)))
     ao, _ = caster.ambient_occlusion(p, n, 128, offset=1e-5 * diag, seed=7)
+    return hit, caster, p, n, d[hit], ao, diag
+
+
+def test_head_cavities_darker_open_cheek_unchanged(gl_ctx):
+    """The environment scene at 128 px, lambert, occlusion on and off. Regions from an independent
+    ray cast at each pixel's visible point (128 cosine-weighted rays from that point, not the
+    per-vertex bake): cavities (nostrils, eye creases, ear folds: A < 0.5) and open skin facing the
+    camera (A > 0.97, the cheeks and forehead)."""
+    scene = dermis.load_scene("examples/reference/environment.toml")
+    size = (128, 128)
+    with Renderer(scene, size, ctx=gl_ctx, shadow_size=256, irradiance_size=256) as r:
+        on = r.render("lambert").mean(axis=2)
+        scene.environment.occlusion = False
+        off = r.render("lambert").mean(axis=2)
+    hit, _, _, n, d, ao, _ = visible_points(scene, size)
     ratio = (on.reshape(-1)[hit] / np.maximum(off.reshape(-1)[hit], 1e-6))
-    facing = -(n * d[hit]).sum(1) > 0.5
+    facing = -(n * d).sum(1) > 0.5
     cavity = ao < 0.5
     open_skin = (ao > 0.97) & facing
     assert cavity.sum() > 30 and open_skin.sum() > 500
@@ -344,28 +352,16 @@ def test_environment_specular_is_occluded_where_the_mirror_ray_meets_the_head(gl
     specular occlusion (common/environment.glsl specular_occlusion_sh) gives the blocked pixels less
     environment specular than the open ones; Lagarde's listing 26, which sees A and N.V only, gave them
     1.66x the open pixels' (they face the studio's lamps) and a studio reflected through the cheek."""
-    from dermis.reference.render import camera_rays
     from dermis.techniques.shared import OutputMode
 
     scene = dermis.load_scene("examples/reference/environment.toml")
     size = (128, 128)
     with Renderer(scene, size, ctx=gl_ctx, shadow_size=256, irradiance_size=256) as r:
         spec = r.render("tsd", output_mode=OutputMode.SPECULAR).mean(axis=2).reshape(-1)
-    mesh = scene.mesh
-    caster = RayCaster(mesh.positions, mesh.indices)
-    o, d, tmax, eye = camera_rays(scene, size)
-    t, tri, bary = caster.closest_hit(o, d, 0.0, tmax)
-    hit = tri >= 0
-    idx = mesh.indices[tri[hit]]
-    b = np.concatenate([1 - bary[hit].sum(1, keepdims=True), bary[hit]], 1)
-    p = o[hit] + d[hit] * t[hit, None]
-    n = (mesh.normals[idx] * b[:, :, None]).sum(1)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    diag = float(np.linalg.norm(np.ptp(mesh.positions, axis=0)))
-    ao, _ = caster.ambient_occlusion(p, n, 128, offset=1e-5 * diag, seed=7)
-    R = d[hit] - 2.0 * (d[hit] * n).sum(1, keepdims=True) * n
+    hit, caster, p, n, d, ao, diag = visible_points(scene, size)
+    R = d - 2.0 * (d * n).sum(1, keepdims=True) * n
     blocked = caster.occluded(p + n * 1e-4 * diag, R, 0.0)
-    band = (ao > 0.75) & (ao < 0.95) & (-(n * d[hit]).sum(1) > 0.3)
+    band = (ao > 0.75) & (ao < 0.95) & (-(n * d).sum(1) > 0.3)
     s = spec[hit]
     assert (band & blocked).sum() > 100 and (band & ~blocked).sum() > 1000
     ratio = s[band & blocked].mean() / s[band & ~blocked].mean()

@@ -20,6 +20,7 @@ import click
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.gl.context import rasteriser_ns
 
 HEAD_TOML = Path(__file__).resolve().parents[2] / "examples" / "lee-perry-smith.toml"
 
@@ -50,16 +51,9 @@ class GpuBusyClock:
         self.queries = [] if self.software else [ctx.query(time=True) for _ in range(frames)]
         self._start = None
 
-    @staticmethod
-    def _rasteriser_ns() -> tuple[int, int]:
-        """(summed run time in ns, thread count) of llvmpipe's threads in this process."""
-        from dermis.gl.context import rasteriser_ns
-
-        return rasteriser_ns()
-
     def start(self):
         if self.software:
-            self._start = self._rasteriser_ns()[0]
+            self._start = rasteriser_ns()[0]
 
     def frame(self, i: int):
         """Context manager around frame i's submission (a query on a GPU; nothing on llvmpipe)."""
@@ -72,7 +66,7 @@ class GpuBusyClock:
     def ms_per_frame(self, frames: int) -> float:
         """After ctx.finish(): the GPU ms per frame (mean)."""
         if self.software:
-            total, n = self._rasteriser_ns()
+            total, n = rasteriser_ns()
             return (total - self._start) / 1e6 / max(n, 1) / frames
         ms = [q.elapsed / 1e6 for q in self.queries[:frames]]
         return sum(ms) / len(ms)
@@ -183,13 +177,12 @@ def run_bench(scene, techniques, size=(1024, 1024), irradiance_size=1024, frames
                     scene.camera.position = base_cam
             results[name] = res
         if sampler:
-            info["floors_ms"] = stable_floors(sampler.samples_ms)
-            info["floors_spread"] = floor_summary(sampler.samples_ms)
-            info["floor_samples_ms"] = {k: list(v) for k, v in sampler.samples_ms.items()}
-            if sampler.timer.cpu:  # the same samples on the CPU-time clock (llvmpipe)
-                info["floors_cpu_ms"] = stable_floors(sampler.samples_cpu_ms)
-                info["floors_cpu_spread"] = floor_summary(sampler.samples_cpu_ms)
-                info["floor_samples_cpu_ms"] = {k: list(v) for k, v in sampler.samples_cpu_ms.items()}
+            # the wall clock's samples, and on llvmpipe the same samples on the CPU-time clock ("_cpu")
+            clocks = [("", sampler.samples_ms)] + ([("_cpu", sampler.samples_cpu_ms)] if sampler.timer.cpu else [])
+            for c, samples in clocks:
+                info[f"floors{c}_ms"] = stable_floors(samples)
+                info[f"floors{c}_spread"] = floor_summary(samples)
+                info[f"floor_samples{c}_ms"] = {k: list(v) for k, v in samples.items()}
             sampler.release()
     return info, results
 

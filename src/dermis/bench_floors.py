@@ -174,17 +174,13 @@ class FloorSampler:
         as the renderer expects."""
         for _ in range(repeats):
             for name, fn in self._fns.items():
-                if fn is None:
-                    self.samples_ms[name].append(0.0)
-                    if self.timer.cpu:
-                        self.samples_cpu_ms[name].append(0.0)
-                    continue
                 self.timer.reset()
-                with self.timer(name):
-                    fn()
-                self.samples_ms[name].append(self.timer.times_ms[name])
+                if fn is not None:  # None: no shadowed light, a floor of 0
+                    with self.timer(name):
+                        fn()
+                self.samples_ms[name].append(self.timer.times_ms.get(name, 0.0))
                 if self.timer.cpu:
-                    self.samples_cpu_ms[name].append(self.timer.cpu_times_ms[name])
+                    self.samples_cpu_ms[name].append(self.timer.cpu_times_ms.get(name, 0.0))
         self.ctx.enable(moderngl.DEPTH_TEST)
 
     def release(self):
