@@ -70,12 +70,26 @@ def test_mesh_at_one_point_is_refused(gl_ctx):
     # round 15's fuzz (seed 1515): a positive but underflowing field of view gave a ValueError from
     # perspective() (the fitted camera's near plane at infinity)
     (dict(fov_deg=3.529751289066385e-193, fit=True), ["fov_deg", "[0.001, 170)"]),
+    # round 16's fuzz (seed 1616): a near plane of 3e38 rendered an empty image (every triangle
+    # clipped; the projection overflowed float32), and a far plane before the mesh does the same
+    (dict(near=3e38), ["[camera] near", "beyond the whole scene"]),
+    (dict(far=1e-6), ["[camera] far", "ends before the scene"]),
 ])
 def test_degenerate_cameras_are_refused(change, tokens, gl_ctx):
     sc = plane_scene()
     for k, v in change.items():
         setattr(sc.camera, k, v)
     one_line_error(lambda: render(sc, gl_ctx=gl_ctx), "test-scene", *tokens)
+
+
+def test_a_clip_range_through_the_mesh_is_allowed(gl_ctx):
+    """The refusal above is for a range that misses the mesh's bounding sphere; a near plane
+    through the mesh (a cross-section) renders, and clips what is nearer."""
+    sc = plane_scene()
+    d = float(np.linalg.norm(np.asarray(sc.camera.target, float) - np.asarray(sc.camera.position, float)))
+    full = render(sc, gl_ctx=gl_ctx)
+    sc.camera.near, sc.camera.far = 0.5 * d, 2.0 * d
+    assert np.array_equal(render(sc, gl_ctx=gl_ctx), full)  # the plane lies at distance d: inside
 
 
 def test_degenerate_camera_in_a_scene_file_names_the_file(tmp_path):

@@ -165,3 +165,14 @@ def check_camera(camera, where: str, center, radius: float):
             raise DermisError(f"{where} {k} must be a positive finite distance, got {v!r}")
     if camera.near is not None and camera.far is not None and not camera.far > camera.near * (1 + 1e-6):
         raise DermisError(f"{where} far ({camera.far}) must be greater than near ({camera.near})")
+    # a clip range that misses the mesh's bounding sphere entirely clips every triangle: an empty
+    # image (and a near of 3e38 overflowed the float32 projection, fuzz seed 1616). A range that
+    # cuts through the mesh (a cross-section) is the user's choice and stays allowed.
+    d = float(np.linalg.norm(np.asarray(center, np.float64) - vals["position"]))
+    r = float(radius)
+    if camera.near is not None and camera.near >= d + r:
+        raise DermisError(f"{where} near ({camera.near:g}) lies beyond the whole scene (its farthest point is "
+                          f"{d + r:g} from the camera): nothing would be drawn")
+    if camera.far is not None and camera.far <= d - r:
+        raise DermisError(f"{where} far ({camera.far:g}) ends before the scene (its nearest point is "
+                          f"{d - r:g} from the camera): nothing would be drawn")
