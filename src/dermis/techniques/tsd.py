@@ -7,7 +7,9 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
   shadow atlas (depth only)                (shared, gl/shadows.py)
   stretch map S_0 (texels per mm)           once per mesh / scale / resolution
   irradiance I_0 = E * albedo^mix           E from all lights with soft shadows, ambient, energy
-                                             conservation (1 - rho_s a(N.L, m)/pi)
+                                             conservation (1 - rho_s a(N.L, m)/pi); what depends on no
+                                             light rasterised once per content, the lights added by one
+                                             full-screen pass (dermis.gl.irradiance_inputs, SPLIT_IRRADIANCE)
   one diffuse bounce between skin surfaces (scene.interreflection): E_b = (1/K) sum_k rho E(y_k) over K
                  cosine-weighted rays per vertex (baked once per mesh, geometry/interreflection.py), rho E
                  read from a ~2 mm level of I_0 albedo^(1-mix); with its higher orders (BounceSeries,
