@@ -5,7 +5,10 @@ technique's own program into the same targets; lights moving (every pass re-runs
 lights-moving workload), the variants interleaved frame by frame; the first round is a warm-up.
 Prints each variant's median and minimum ``tsd_irradiance`` (wall ms: the UV raster and the dilation)
 and the load average. Round 15 (perf15) rewrote it for the round-10+ shader (the round-9 variants no
-longer applied).
+longer applied). Since round 16 (perf16) the technique's pass is the full-screen light pass over its
+light-independent inputs (tsd.SPLIT_IRRADIANCE, dermis.gl.irradiance_inputs): the variants are made from
+that program (those of the one raster's code alone, "no normal map" and "const", print "did not apply";
+"const (split)" is its constant fragment); ``RASTER=1`` in the environment times the one raster as before.
 
     PYTHONPATH=src python benchmarks/irradiance_breakdown.py [S=1024] [frames=3] [variant,variant,...]
 
@@ -47,14 +50,19 @@ V = {
  "no normal map": [("vec3 N = perturb_normal(v_normal, v_tangent, v_uv);", "vec3 N = Ng;")],
  "no ambient/env": [("    E += skin_ambient(N, Ng, rho_s, m, vis);\n    return E;", "    return E;")],
  "no lights": [("    DERMIS_FOR_EACH_LIGHT(E += skin_light_entry(light_i, P, Ng, N, rho_s, m, c);)", "")],
+ "const (split)": [("    vec3 E = skin_lights_directional(p.xyz, ng.xyz, n.xyz, p.w, n.w, c.rgb);", "    vec3 E = vec3(1.0);")],
  "const": [("    f_irradiance = vec4(E * albedo_mix, 1.0);", "    f_irradiance = vec4(1.0);"),
            ("    vec3 E = skin_irradiance_directional(v_world, Ng, N, rho_s, m, v_visibility, c);", "    vec3 E = vec3(1.0);")],
 }
 if only: V = {k: v for k, v in V.items() if k in only or k == "full"}
+if os.environ.get("RASTER") == "1":
+    import dermis.techniques.tsd as _tsd
+    _tsd.SPLIT_IRRADIANCE = False
 with Renderer(sc, (512, 512), irradiance_size=S) as r:
     r.render("tsd")
     t = r.technique("tsd")
-    own = t._irradiance_programs(len(sc.lights))
+    attr = "_light_programs" if t._split_irradiance() else "_irradiance_programs"
+    own = getattr(t, attr)(len(sc.lights))
     vert, frag, defines, geom = own.extra["sources"]
     vs = load_shader_source(vert, defines)
     fs0 = load_shader_source(frag, defines)
@@ -68,14 +76,14 @@ with Renderer(sc, (512, 512), irradiance_size=S) as r:
         else:
             progs[k] = r.ctx.program(vertex_shader=vs, fragment_shader=fs)
     floors = FloorSampler(r, S)  # the pass's floor (uv_raster + copy), sampled after every frame
-    orig = t._irradiance_programs
+    orig = getattr(t, attr)
     base = [tuple(L.direction) for L in sc.lights]
     res = {k: [] for k in progs}
     f = 0
     try:
         for rep in range(frames + 1):
             for k, p in progs.items():
-                t._irradiance_programs = lambda n, p=p: p
+                setattr(t, attr, lambda n, p=p: p)
                 f += 1
                 for L, dd in zip(sc.lights, base):
                     L.direction = _rotate(dd, 0.02 * f)
@@ -84,7 +92,7 @@ with Renderer(sc, (512, 512), irradiance_size=S) as r:
                     res[k].append(r.stats["passes_ms"]["tsd_irradiance"])
                     floors.sample(1)
     finally:
-        t._irradiance_programs = orig
+        setattr(t, attr, orig)
         summary = floor_summary(floors.samples_ms)
         floor = pass_floor("tsd_irradiance", {k: v["min"] for k, v in summary.items()}, sc.profile.k)
         floors.release()

@@ -20,7 +20,7 @@ from dermis.gl.resources import maps_without_anisotropy, set_uniform
 from dermis.gl.shaders import load_shader_source
 from dermis.renderer import Renderer
 from dermis.techniques.base import bind_scene
-from dermis.techniques.shared import LIGHT_COUNT_DEFINE, Unit, bind_sampler_array, directional_albedo_uniforms
+from dermis.techniques.shared import LIGHT_COUNT_DEFINE, Unit, directional_albedo_uniforms
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from pass_breakdown import source_at, timed_all  # noqa: E402
@@ -82,7 +82,7 @@ def main(argv=None):
         def light_pass(prog):
             def fn():
                 bind_scene(frame, prog)
-                bind_sampler_array(prog, "uBounceInputs", sb._inputs, Unit.FIRST_FREE)
+                sb.inputs.bind(prog, Unit.FIRST_FREE)
                 tex, fbo = levels[0]
                 fbo.use()
                 fbo.viewport = (0, 0, *tex.size)
@@ -92,8 +92,8 @@ def main(argv=None):
         fns["rho E, this tree: light pass (full-screen, per lighting change)"] = light_pass(sb.programs(n))
 
         def inputs():
-            sb._inputs_key = None
-            sb._draw_inputs(frame, levels[0][0].size)
+            sb.inputs.forget()
+            sb.inputs.draw(frame, levels[0][0].size, mix=1.0)
         fns["rho E, this tree: inputs raster (once per content)"] = inputs
         if a.variants:
             vs = load_shader_source("common/fullscreen.vert", d)

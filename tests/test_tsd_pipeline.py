@@ -179,3 +179,72 @@ void main() {
     l12 = np.linalg.solve(M, (q[proper] - t[proper, 0])[..., None])[..., 0]
     assert np.all(l12 >= -1e-5) and np.all(l12.sum(1) <= 1 + 1e-5)
     assert np.array_equal(q[40:104], p[40:104].astype(np.float32).astype(np.float64))
+
+
+@pytest.mark.parametrize("extra_light", [False, True], ids=["3 lights, stored sharp shadows", "4 lights, per sample"])
+def test_split_irradiance_equals_the_one_raster_and_keeps_its_inputs_while_only_the_lights_change(
+        example_head_toml, gl_ctx, monkeypatch, extra_light):
+    # tsd's irradiance pass in two parts (dermis.gl.irradiance_inputs; tsd.SPLIT_IRRADIANCE): the
+    # light-independent inputs once per content, a full-screen pass adding the lights per lighting
+    # change. Every output the one mesh raster gives (I_0 with the bounce, its dilation into the gutters,
+    # the stored sharp shadows, rho E for the bounce) must be the raster's to float rounding on the head
+    # (its maps, normal map, 3-4 shadowed lights, environment, seams); a light move must reuse the inputs,
+    # a material change must redraw them, and either way the result is a fresh Renderer's to the bit.
+    import dermis
+    import dermis.techniques.tsd as tsd_module
+    from dermis.scene.model import Light
+
+    sc = dermis.load_scene(example_head_toml)
+    if extra_light:
+        sc.lights.append(Light(kind="directional", direction=(0.3, 0.8, -0.5), color=(1.0, 0.9, 0.8), intensity=0.8))
+    keys = ["irradiance", "irradiance_dilated", ("bounce_exitant", 0)] + ([] if extra_light else ["sharp_shadow"])
+
+    def textures(r):
+        t = r.technique("tsd")
+
+        def read(tex):  # the sharp shadows are RGBA8 (read_texture reads float targets)
+            if tex.dtype == "f1":
+                return np.frombuffer(tex.read(), np.uint8).reshape(tex.size[1], tex.size[0], 4) / 255.0
+            return t.read_texture(tex).astype(np.float64)
+        return {k: read(t.tex[k]) for k in keys}
+
+    def fresh(split):
+        monkeypatch.setattr(tsd_module, "SPLIT_IRRADIANCE", split)
+        with Renderer(sc, (64, 64), irradiance_size=128, shadow_size=512, ctx=gl_ctx, samples=0) as f:
+            img = f.render("tsd")
+            return img, textures(f), list(f.stats["passes_run"])
+
+    img_r, raster, ran_r = fresh(False)
+    img_s, split, ran_s = fresh(True)
+    assert "tsd_irradiance_inputs" in ran_s and "tsd_irradiance_inputs" not in ran_r
+    for k in keys:
+        a, b = raster[k], split[k]
+        assert a.max() > 0.05, k  # something was drawn
+        np.testing.assert_array_equal(a[..., 3] > 0, b[..., 3] > 0, err_msg=str(k))  # the same coverage
+        np.testing.assert_allclose(b, a, rtol=0, atol=(1.5 / 255 if k == "sharp_shadow" else 1e-3 * a.max()), err_msg=str(k))
+        # mean |difference| / max: I_0 ~1.3e-6 (float rounding of the same sums); rho E ~5.5e-5 (its
+        # albedo^(1 - mix) input is 16-bit: tsd.INPUT_DTYPES)
+        assert np.abs(b - a).mean() < (1e-4 if k == ("bounce_exitant", 0) else 1e-5) * a.max(), k
+    np.testing.assert_allclose(img_s, img_r, rtol=0, atol=1e-3 * img_r.max())
+    if extra_light:  # the inputs' invalidation does not depend on the light count: checked once
+        return
+
+    monkeypatch.setattr(tsd_module, "SPLIT_IRRADIANCE", True)
+    with Renderer(sc, (64, 64), irradiance_size=128, shadow_size=512, ctx=gl_ctx, samples=0) as r:
+        r.render("tsd")
+        before = textures(r)["irradiance"]
+        sc.lights[0].direction = (-0.55, -0.45, -0.70)  # the key light to the other side
+        r.render("tsd")
+        assert "tsd_irradiance" in r.stats["passes_run"]
+        assert "tsd_irradiance_inputs" not in r.stats["passes_run"]
+        moved = textures(r)
+        assert np.abs(moved["irradiance"] - before).max() > 0.1 * before.max()  # the move shows
+        for k, v in fresh(True)[1].items():
+            np.testing.assert_array_equal(moved[k], v, err_msg=str(k))
+        sc.material.mix = 0.7  # albedo^mix in I_0, albedo^(1 - mix) in rho E: both inputs
+        r.render("tsd")
+        assert "tsd_irradiance_inputs" in r.stats["passes_run"]
+        recoloured = textures(r)
+        assert np.abs(recoloured["irradiance"] - moved["irradiance"]).max() > 0.05 * before.max()
+        for k, v in fresh(True)[1].items():
+            np.testing.assert_array_equal(recoloured[k], v, err_msg=str(k))

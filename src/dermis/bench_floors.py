@@ -215,8 +215,13 @@ def _higher_orders() -> int:
 def pass_floor(pass_name: str, floors: dict, gaussians: int) -> float | None:
     if pass_name == "shadow":
         return floors["depth_only"] or None
-    if pass_name == "tsd_irradiance":  # the UV-space raster, then the dilation into the gutters (one copy)
+    # the UV-space raster, then the dilation into the gutters (one copy). Since round 16 the lights are
+    # added by a full-screen pass over the inputs (dermis.gl.irradiance_inputs) in place of the raster;
+    # the floor is left as rounds 9-15 measured against
+    if pass_name == "tsd_irradiance":
         return floors["uv_raster"] + floors["copy"]
+    if pass_name == "tsd_irradiance_inputs":  # one UV raster into 6 targets, once per content
+        return floors["uv_raster"]
     if pass_name == "ssss_irradiance":
         return floors["screen_raster"]
     if pass_name == "tsd_translucency":

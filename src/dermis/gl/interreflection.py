@@ -12,6 +12,7 @@ import moderngl
 import numpy as np
 
 from dermis.geometry.texture_space import texture_space_uvs
+from dermis.gl.irradiance_inputs import IrradianceInputs, light_pass
 from dermis.invalidation import fingerprint
 
 ROW_TEXELS = 4096
@@ -328,10 +329,6 @@ one of all its level-0 texels. Chosen by measurement against tsd's bounce on the
 (benchmarks/RESULTS.md, "Round 8, branch bounce8")."""
 
 
-BOUNCE_INPUTS = 5
-"""rgba32f targets of the shared bounce's light-independent inputs (tsd/irradiance.frag, SKIN_BOUNCE_INPUTS)."""
-
-
 class SharedBounce:
     """The one-bounce irradiance E_b per mesh vertex for the techniques without a texture-space
     irradiance of their own (ssss, preintegrated, lambert), one per Renderer, built once per product
@@ -355,7 +352,6 @@ class SharedBounce:
         # everything is made here, when the first technique that reads the bounce is built (as the
         # techniques compile their programs up front: the viewer switches techniques mid-drag), the
         # textures as 1x1 stand-ins re-made at their sizes on first use
-        from dermis.gl.shaders import program
         from dermis.techniques.shared import LightCountPrograms
 
         self.ctx = ctx
@@ -366,52 +362,11 @@ class SharedBounce:
         # per light count, its lights unrolled as tsd's own irradiance pass (shared.LightCountPrograms)
         self.programs = LightCountPrograms(ctx, "common/fullscreen.vert", "tsd/irradiance.frag",
                                            {"SKIN_BOUNCE_FROM_INPUTS": 1})
-        self._inputs_prog = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", {"SKIN_BOUNCE_INPUTS": 1})
-        self._inputs = [self._input_texture(1) for _ in range(BOUNCE_INPUTS)]
-        self._inputs_fbo = ctx.framebuffer(color_attachments=self._inputs)
-        self._inputs_key = None
+        self.inputs = IrradianceInputs(ctx)  # rho E's light-independent inputs (dermis.gl.irradiance_inputs)
         self._vaos = {}  # light-pass program -> its attribute-less vertex array
         self._chain = LevelChain(ctx)  # rho E from the raster's level to the gather's
         self.key = None
         self.level = None  # the gather's level (of the irradiance size)
-
-    def _input_texture(self, n: int):
-        t = self.ctx.texture((n, n), 4, dtype="f4")
-        t.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        return t
-
-    def _draw_inputs(self, frame, size):
-        """The light-independent inputs of rho E at ``size`` (the raster's level), when their key or
-        size changed; appends "interreflection_inputs" to frame.passes_run when drawn."""
-        key = (frame.keys["interreflection_inputs"], size)
-        if key == self._inputs_key:
-            return
-        with frame.timer("interreflection_inputs"):
-            self._raster_inputs(frame, size)
-        self._inputs_key = key
-        frame.passes_run.append("interreflection_inputs")
-
-    def _raster_inputs(self, frame, size):
-        from dermis.gl.resources import maps_without_anisotropy, set_uniform
-        from dermis.techniques.base import bind_scene
-        from dermis.techniques.shared import directional_albedo_uniforms
-
-        if self._inputs[0].size != size:
-            self._inputs_fbo.release()
-            for t in self._inputs:
-                t.release()
-            self._inputs = [self._input_texture(size[0]) for _ in range(BOUNCE_INPUTS)]
-            self._inputs_fbo = self.ctx.framebuffer(color_attachments=self._inputs)
-        prog = self._inputs_prog
-        bind_scene(frame, prog)
-        directional_albedo_uniforms(prog, frame.scene)
-        set_uniform(prog, "uMix", 1.0)  # after bind_scene's material uniforms: E albedo = rho E
-        self._inputs_fbo.use()
-        self._inputs_fbo.viewport = (0, 0, *size)
-        self._inputs_fbo.clear(0.0, 0.0, 0.0, 0.0)  # Ng = 0 off the layout: coverage 0
-        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-        with maps_without_anisotropy(frame.gpu, surfaces=False):
-            frame.gpu.vao(prog).render(moderngl.TRIANGLES)
 
     @property
     def texture(self):
@@ -425,24 +380,20 @@ class SharedBounce:
         if key == self.key:
             return self._out
         from dermis.techniques.base import bind_scene
-        from dermis.techniques.shared import Unit, bind_sampler_array
+        from dermis.techniques.shared import Unit
 
         S = int(frame.renderer.irradiance_size)
         level = bounce_level(layout_texels_per_mm(frame.scene, S), S)
         self.level = level
         levels = self._chain.levels(S, level)
         tex, fbo = levels[0]
-        self._draw_inputs(frame, tex.size)
+        # mix = 1: E albedo^1 = rho E
+        self.inputs.draw(frame, tex.size, mix=1.0, pass_name="interreflection_inputs")
         with frame.timer("interreflection"):
             prog = self.programs(frame.lights.count)
             bind_scene(frame, prog)
-            bind_sampler_array(prog, "uBounceInputs", self._inputs, Unit.FIRST_FREE)
-            fbo.use()
-            fbo.viewport = (0, 0, *tex.size)  # every texel written: 0 off the layout, as a clear
-            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-            if prog not in self._vaos:
-                self._vaos[prog] = self.ctx.vertex_array(prog, [])
-            self._vaos[prog].render(moderngl.TRIANGLES, vertices=3)
+            self.inputs.bind(prog, Unit.FIRST_FREE)
+            light_pass(self.ctx, self._vaos, prog, fbo, tex.size)
             self._gather.run(self.hits, self._chain.reduce(levels))
             out = self._series.run(frame, self.hits, self._gather, level)  # + the higher bounces
         self._out = out
@@ -461,12 +412,7 @@ class SharedBounce:
 
     def release(self):
         self._chain.release()
-        self._inputs_fbo.release()
-        for t in self._inputs:
-            t.release()
-        self._inputs = []
-        self._inputs_key = None
-        self._inputs_prog.release()
+        self.inputs.release()
         for v in self._vaos.values():
             v.release()
         self._vaos = {}

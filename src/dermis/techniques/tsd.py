@@ -7,7 +7,9 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
   shadow atlas (depth only)                (shared, gl/shadows.py)
   stretch map S_0 (texels per mm)           once per mesh / scale / resolution
   irradiance I_0 = E * albedo^mix           E from all lights with soft shadows, ambient, energy
-                                             conservation (1 - rho_s a(N.L, m)/pi)
+                                             conservation (1 - rho_s a(N.L, m)/pi); what depends on no
+                                             light rasterised once per content, the lights added by one
+                                             full-screen pass (dermis.gl.irradiance_inputs, SPLIT_IRRADIANCE)
   one diffuse bounce between skin surfaces (scene.interreflection): E_b = (1/K) sum_k rho E(y_k) over K
                  cosine-weighted rays per vertex (baked once per mesh, geometry/interreflection.py), rho E
                  read from a ~2 mm level of I_0 albedo^(1-mix); with its higher orders (BounceSeries,
@@ -56,6 +58,7 @@ from dermis.geometry.texture_space import UV_RANGE_TOLERANCE, texture_space_uvs
 from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
 from dermis.gl.interreflection import BounceGather, BounceSeries, bounce_level, read_per_vertex
+from dermis.gl.irradiance_inputs import BOUNCE_INPUTS, IrradianceInputs, light_pass
 from dermis.gl.subsurface_transfer import SubsurfaceTransfer, source_index
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
@@ -125,6 +128,21 @@ def stores_sharp_shadows(light_count: int) -> bool:
     return int(light_count) <= STORED_SHARP_SHADOWS
 
 
+# The irradiance pass in two parts (dermis.gl.irradiance_inputs, as the shared bounce's rho E since
+# round 11): the light-independent inputs rasterised once per content (product key
+# "interreflection_inputs": mesh, layout, material, environment, directional albedo, size), then per
+# lighting change one full-screen pass adding the lights. False: the one mesh raster per lighting
+# change (tsd/irradiance.frag without SKIN_BOUNCE_*), kept as the reference the split is tested against
+# (tests/test_tsd_pipeline.py) and drawn wherever p_irradiance is set (benchmarks swap shaders in).
+SPLIT_IRRADIANCE = True
+# the inputs' formats (IrradianceInputs order: P rho_s, N m, Ng E_a.b, c E_a.r, albedo^mix E_a.g,
+# albedo^(1-mix)): 32-bit but albedo^(1-mix), which only scales rho E for the bounce's ~2 mm gather.
+# Measured against main's one raster (5 scenes, 512 px, irradiance 1024^2, max |difference| / image
+# max): these 4.2e-4..7.2e-4 (mean 4-8e-7: float rounding); targets 3-5 at 16 bits (c, the ambient,
+# albedo^mix: 24 B/texel less) 8.5e-4..1.45e-3 (mean 3-15e-5). benchmarks/RESULTS.md, "Round 16, branch perf16"
+INPUT_DTYPES = ("f4", "f4", "f4", "f4", "f4", "f2")
+
+
 def irradiance_defines(light_count: int) -> dict:
     """tsd/irradiance.frag's defines for ``light_count`` lights: the stored sharp shadows at location
     1 where stores_sharp_shadows, then rho E and albedo^mix for the one bounce (SKIN_EXITANT_LOCATION,
@@ -135,6 +153,14 @@ def irradiance_defines(light_count: int) -> dict:
     first = 2 if sharp else 1
     return {**({"SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS} if sharp else {}),
             "SKIN_EXITANT_LOCATION": first, "SKIN_ALBEDO_MIX_LOCATION": first + 1}
+
+
+def light_pass_defines(light_count: int) -> dict:
+    """The split pass's (SKIN_BOUNCE_FROM_INPUTS) defines: irradiance_defines's outputs less albedo^mix,
+    which is an input (IrradianceInputs' fifth target) that the bounce's splat reads itself."""
+    d = irradiance_defines(light_count)
+    d.pop("SKIN_ALBEDO_MIX_LOCATION")
+    return {**d, "SKIN_BOUNCE_FROM_INPUTS": 1}
 
 
 class TextureSpaceDiffusion(Technique):
@@ -155,8 +181,13 @@ class TextureSpaceDiffusion(Technique):
         # tsd/irradiance.frag per light count, its lights unrolled (LightCountPrograms), storing the
         # sharp shadows where stores_sharp_shadows(n), and the bounce's targets (irradiance_defines)
         self._irradiance_programs = LightCountPrograms(
-            ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines, per_count=irradiance_defines
-        ).compile_for(renderer.scene)
+            ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines, per_count=irradiance_defines)
+        # the split pass (SPLIT_IRRADIANCE): the light-independent inputs, then per lighting change the
+        # full-screen light pass per light count; the program drawn is compiled up front
+        self._inputs = IrradianceInputs(ctx, albedo_rest=True, dtypes=INPUT_DTYPES)
+        self._light_programs = LightCountPrograms(
+            ctx, "common/fullscreen.vert", "tsd/irradiance.frag", defines, per_count=light_pass_defines)
+        (self._light_programs if SPLIT_IRRADIANCE else self._irradiance_programs).compile_for(renderer.scene)
         self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
         self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
         # a full-screen triangle: the pass reads only gl_FragCoord and textures, so rasterising the
@@ -239,6 +270,7 @@ class TextureSpaceDiffusion(Technique):
         self._narrow_key = None
         self._own_filled = None
         self._static_filled = None
+        self._inputs.shrink()
         self.thickness.release()
         self.transfer.release()
 
@@ -593,28 +625,40 @@ class TextureSpaceDiffusion(Technique):
         irr = self._texture("irradiance", (S, S))
         # the lights' sharp shadows, for the final pass's specular (tsd/sharp_shadow.glsl)
         prog, _ = self._shading_programs(frame)
+        split = self._split_irradiance()
+        if split:  # the light-independent inputs, once per content (timed on their own)
+            self._inputs.draw(frame, (S, S), pass_name="tsd_irradiance_inputs")
         targets = (irr, self._texture("sharp_shadow", (S, S), 4, "f1")) if stores_sharp_shadows(frame.lights.count) else (irr,)
         # the one bounce (an override is the whole irradiance: nothing is added to it); rho E and
         # albedo^mix from this pass where its program is the technique's own (irradiance_defines)
         bounce = irradiance is None and getattr(scene, "interreflection", True)
         bounce_targets = bounce and self.p_irradiance is None
         if bounce_targets:
-            targets += (self._texture(("bounce_exitant", 0), (S, S)), self._texture("albedo_mix", (S, S)))
+            targets += (self._texture(("bounce_exitant", 0), (S, S)),)
+            if not split:  # the split pass's albedo^mix is an input (IrradianceInputs)
+                targets += (self._texture("albedo_mix", (S, S)),)
         bind_scene(frame, prog)
-        directional_albedo_uniforms(prog, scene)
+        if split:
+            self._inputs.bind(prog, Unit.FIRST_FREE)
+        else:
+            directional_albedo_uniforms(prog, scene)
         if irradiance is not None:
             a = np.ascontiguousarray(np.asarray(irradiance, np.float32)[::-1])
             if a.shape != (S, S, 4):
                 raise ValueError(f"irradiance override must be {(S, S, 4)}, got {a.shape}")
         with timer("tsd_irradiance"):
-            # a texture-space raster: the maps' footprint is square, anisotropy only costs
-            with maps_without_anisotropy(frame.gpu, surfaces=False):
-                self._uv_pass(frame, prog, targets)
+            if split:  # every texel written: 0 off the layout, as the raster's clear
+                light_pass(self.ctx, self.vaos, prog, self._fbo(*targets), (S, S))
+            else:
+                # a texture-space raster: the maps' footprint is square, anisotropy only costs
+                with maps_without_anisotropy(frame.gpu, surfaces=False):
+                    self._uv_pass(frame, prog, targets)
             if irradiance is not None:  # the override replaces the irradiance; the shadows stay the raster's
                 irr.write(a.astype(np.float16).tobytes())
         # one bounce between skin surfaces, added to I_0 before the dilation and the blurs
         if bounce:
-            self._interreflection(frame, irr, bounce_targets)
+            albedo_mix = self._inputs.textures[BOUNCE_INPUTS - 1] if split else self.tex.get("albedo_mix")
+            self._interreflection(frame, irr, bounce_targets, albedo_mix)
         with timer("tsd_irradiance"):
             dil = self._texture("irradiance_dilated", (S, S))
             bind_sampler(self.p_dilate, "uSource", irr, 0)
@@ -683,9 +727,13 @@ class TextureSpaceDiffusion(Technique):
 
     def _shading_programs(self, frame):
         """(irradiance, final) programs for the frame's lights: storing and reading the sharp
-        shadows where there are at most STORED_SHARP_SHADOWS lights, else per sample."""
+        shadows where there are at most STORED_SHARP_SHADOWS lights, else per sample. The irradiance
+        program is the split's light pass where _split_irradiance, else the one raster's."""
         n = frame.lights.count
-        irr = self.p_irradiance if self.p_irradiance is not None else self._irradiance_programs(n)
+        if self.p_irradiance is not None:
+            irr = self.p_irradiance
+        else:  # the split's light pass, or the one raster (SPLIT_IRRADIANCE)
+            irr = (self._light_programs if self._split_irradiance() else self._irradiance_programs)(n)
         if stores_sharp_shadows(n):
             return irr, self.p_final
         if "per_sample" not in self._programs:
@@ -693,15 +741,21 @@ class TextureSpaceDiffusion(Technique):
                                                    {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING})
         return irr, self._programs["per_sample"]
 
+    def _split_irradiance(self) -> bool:
+        """Whether the irradiance pass is drawn from its light-independent inputs (SPLIT_IRRADIANCE),
+        not the one mesh raster: only the technique's own program is split (p_irradiance, a shader
+        swapped in by a benchmark or test, is drawn as a raster)."""
+        return SPLIT_IRRADIANCE and self.p_irradiance is None
+
     def _bounce_level(self, S):
         """The level of rho E the gather reads (dermis.gl.interreflection.bounce_level at the
         stretch map's median)."""
         return bounce_level(self.median_stretch, S)
 
-    def _interreflection(self, frame, irr, from_irradiance=False):
+    def _interreflection(self, frame, irr, from_irradiance=False, albedo_mix=None):
         """Add the bounce light to the irradiance ``irr`` (I_0): rho E in texture space
-        (``from_irradiance``: as the irradiance pass wrote it, with albedo^mix, irradiance_defines;
-        else from I_0 by tsd/bounce_exitant.frag), reduced to _bounce_level, gathered per vertex over
+        (``from_irradiance``: as the irradiance pass wrote it, with albedo^mix (``albedo_mix``, the
+        texture the splat reads it from), irradiance_defines; else from I_0 by tsd/bounce_exitant.frag), reduced to _bounce_level, gathered per vertex over
         the baked rays (tsd/bounce_gather.frag), its higher orders added (BounceSeries: T = E_b + G E_b
         + ...) and T splatted into I_0 with additive blending
         (tsd/bounce_splat.frag). No pass reads the texture it writes."""
@@ -737,7 +791,7 @@ class TextureSpaceDiffusion(Technique):
             self._bounce_added = bounce
             bind_sampler(p_splat, "uBounce", bounce, Unit.FIRST_FREE)
             if from_irradiance:
-                bind_sampler(p_splat, "uAlbedoMix", self.tex["albedo_mix"], Unit.FIRST_FREE + 1)
+                bind_sampler(p_splat, "uAlbedoMix", albedo_mix, Unit.FIRST_FREE + 1)
             set_uniform(p_splat, "uVerticesPerRow", int(per_row))
             self.ctx.enable(moderngl.BLEND)
             self.ctx.blend_func = moderngl.ONE, moderngl.ONE
@@ -824,6 +878,8 @@ class TextureSpaceDiffusion(Technique):
         for v in self.vaos.values():
             v.release()
         self._irradiance_programs.release()
+        self._light_programs.release()
+        self._inputs.release()
         for p in (self.p_stretch, self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
                   self.p_final,
                   self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else []),

@@ -36,7 +36,10 @@ in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/envi
 // P and rho_s, N and m, Ng (0 off the mesh: coverage), the directional albedo's c, albedo^mix and
 // the ambient E_a (skin_ambient), as 32-bit floats, the values this pass would compute; then per
 // lighting change SKIN_BOUNCE_FROM_INPUTS (common/fullscreen.vert over the same texels) reads them
-// back and adds the lights: (E_lights + E_a) albedo^mix, the same sums in the same order. On llvmpipe
+// back and adds the lights: (E_lights + E_a) albedo^mix, the same sums in the same order. tsd's own
+// irradiance pass is drawn the same way (dermis.gl.irradiance_inputs, "Round 16, branch perf16" in
+// benchmarks/RESULTS.md), with its sharp shadows (SKIN_SHARP_SHADOWS) and rho E (SKIN_EXITANT_LOCATION,
+// from a sixth input, SKIN_INPUTS_ALBEDO_REST: albedo^(1 - mix)). On llvmpipe
 // the mesh raster of ~18k triangles of ~14 texels each shades many half-covered blocks and fetches 4
 // filtered maps per texel; the full-screen pass shades each texel once with 5 texel fetches.
 uniform sampler2D uBounceInputs[5];
@@ -50,11 +53,21 @@ layout(location = 4) out vec4 f_albedo_mix_ambient_g;
 #else
 layout(location = 0) out vec4 f_irradiance;
 #endif
-#ifdef SKIN_SHARP_SHADOWS
+#if defined(SKIN_BOUNCE_INPUTS) && defined(SKIN_INPUTS_ALBEDO_REST)
+// tsd's inputs (dermis.gl.irradiance_inputs): albedo^(1 - mix), the factor by which the light pass
+// turns I_0 into rho E for the bounce (f_exitant below)
+layout(location = 5) out vec4 f_albedo_rest;
+#endif
+#if defined(SKIN_BOUNCE_FROM_INPUTS) && defined(SKIN_EXITANT_LOCATION)
+uniform sampler2D uAlbedoRest;  // SKIN_INPUTS_ALBEDO_REST's target
+#endif
+#if defined(SKIN_SHARP_SHADOWS) && !defined(SKIN_BOUNCE_INPUTS)
 layout(location = 1) out vec4 f_sharp;
 #endif
-#ifdef SKIN_EXITANT_LOCATION
+#if defined(SKIN_EXITANT_LOCATION) && !defined(SKIN_BOUNCE_INPUTS)
 layout(location = SKIN_EXITANT_LOCATION) out vec4 f_exitant;
+#endif
+#if defined(SKIN_ALBEDO_MIX_LOCATION) && !defined(SKIN_BOUNCE_INPUTS) && !defined(SKIN_BOUNCE_FROM_INPUTS)
 layout(location = SKIN_ALBEDO_MIX_LOCATION) out vec4 f_albedo_mix;
 #endif
 
@@ -72,6 +85,9 @@ void main() {
     f_Ng_ambient_b = vec4(Ng, Ea.b);
     f_c_ambient_r = vec4(c, Ea.r);
     f_albedo_mix_ambient_g = vec4(albedo_power(albedo, uMix), Ea.g);
+#ifdef SKIN_INPUTS_ALBEDO_REST
+    f_albedo_rest = vec4(albedo_power(albedo, 1.0 - uMix), 1.0);
+#endif
 }
 #elif defined(SKIN_BOUNCE_FROM_INPUTS)
 void main() {
@@ -79,6 +95,12 @@ void main() {
     vec4 ng = texelFetch(uBounceInputs[2], t, 0);
     if (ng.xyz == vec3(0.0)) {  // off the mesh: as the raster's clear
         f_irradiance = vec4(0.0);
+#ifdef SKIN_SHARP_SHADOWS
+        f_sharp = vec4(0.0);
+#endif
+#ifdef SKIN_EXITANT_LOCATION
+        f_exitant = vec4(0.0);
+#endif
         return;
     }
     vec4 p = texelFetch(uBounceInputs[0], t, 0), n = texelFetch(uBounceInputs[1], t, 0);
@@ -86,6 +108,14 @@ void main() {
     vec3 E = skin_lights_directional(p.xyz, ng.xyz, n.xyz, p.w, n.w, c.rgb);
     E += vec3(c.a, am.a, ng.a);
     f_irradiance = vec4(E * am.rgb, 1.0);
+    // tsd's outputs of its one-raster pass (below), but albedo^mix: a light-independent input that
+    // tsd/bounce_splat.frag reads from uBounceInputs[4] itself (dermis.techniques.tsd)
+#ifdef SKIN_SHARP_SHADOWS
+    f_sharp = vec4(1.0, skin_sharp_shadow.xyz);
+#endif
+#ifdef SKIN_EXITANT_LOCATION
+    f_exitant = vec4(f_irradiance.rgb * texelFetch(uAlbedoRest, t, 0).rgb, 1.0);
+#endif
 }
 #else
 void main() {
