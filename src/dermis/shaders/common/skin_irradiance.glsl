@@ -42,7 +42,7 @@ vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3
     if (ndl <= 0.0) return vec3(0.0);
     float s = shadow_soft(i, P, Ng);
 #endif
-    return Ei * ndl * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
+    return Ei * ndl * bump_shadowing(Ng, N, L) * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
 }
 
 // The sum over the lights, plus the ambient (left at k = 1: its average over a uniform hemisphere).

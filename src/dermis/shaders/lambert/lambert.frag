@@ -25,7 +25,7 @@ vec3 lambert_light(int i, vec3 Ng, vec3 N, vec3 V, vec3 albedo, float shininess,
     float ndl = dot(N, L);
     if (ndl <= 0.0 || dot(Ng, L) <= -0.05) return vec3(0.0);
     float s = shadow_soft(i, v_world, Ng);
-    return E * s * (albedo * INV_PI * ndl + vec3(blinn_phong_specular(N, L, V, shininess, ks)));
+    return E * s * (albedo * INV_PI * ndl * bump_shadowing(Ng, N, L) + vec3(blinn_phong_specular(N, L, V, shininess, ks)));
 }
 
 void main() {
