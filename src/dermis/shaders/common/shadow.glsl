@@ -4,6 +4,26 @@
 // face (common/transmittance.glsl), not from a translucent shadow map.
 #include "common/lights.glsl"
 
+// The shadowing a normal map's tilted facets get from the smooth surface they stand on (Conty
+// Estevez, Lecocq & Stein 2019, "A Microfacet-Based Shadowing Function to Solve the Bump Terminator
+// Problem", Ray Tracing Gems, ch. 12): the mapped normal N, tilted by theta_d from the smooth
+// (interpolated) normal Ns, is taken as one facet of a GGX microsurface about Ns whose roughness
+// gives that tilt, alpha^2 = tan^2(theta_d) / 8 (eq. 12.3, at most 1), and the light's share that
+// reaches it is Smith's G1 at theta_i, the light's angle to Ns (Walter et al. 2007, eq. 34:
+// G1 = 2 / (1 + sqrt(1 + alpha^2 tan^2 theta_i))). Light below the smooth surface's horizon
+// (Ns.L <= 0) reaches none of the microsurface the map stands for, however far N turns toward it
+// (the terminator of a normal-mapped jaw otherwise lit through the head). 1 where N = Ns. Unitless,
+// on a light's diffuse N.L; the caller has N.L > 0.
+float bump_shadowing(vec3 Ns, vec3 N, vec3 L) {
+    float cos_i = dot(Ns, L);
+    if (cos_i <= 1e-6) return 0.0;
+    float cos_d = min(dot(Ns, N), 1.0);
+    if (cos_d >= 1.0 || cos_i >= 1.0) return 1.0;
+    float alpha2 = clamp(0.125 * (1.0 / (cos_d * cos_d) - 1.0), 0.0, 1.0);
+    float tan2_i = 1.0 / (cos_i * cos_i) - 1.0;
+    return 2.0 / (1.0 + sqrt(1.0 + alpha2 * tan2_i));
+}
+
 uniform mat4 uLightViewProj[MAX_LIGHTS];
 uniform vec4 uShadowTile[MAX_LIGHTS];   // xy atlas offset, zw scale (atlas uv = off + uv * scale)
 uniform vec4 uShadowParams[MAX_LIGHTS]; // x soft radius (texels), y depth bias, z normal offset (scene units), w = 1/tile size

@@ -1,6 +1,7 @@
 // The irradiance that enters the skin, shared by the techniques that scatter it (tsd in texture
 // space, ssss in screen space): d'Eon & Luebke 2007, 14.4.1 and 14.5.2,
-//   E = sum_lights E_i max(N.L, 0) shadow_soft (1 - rho_s a(N.L, m) / pi) + ambient,
+//   E = sum_lights E_i max(N.L, 0) G_bump shadow_soft (1 - rho_s a(N.L, m) / pi) + ambient,
+// G_bump the normal map's shadowing by the smooth surface (bump_shadowing, common/shadow.glsl),
 // the ambient being the environment's irradiance less the average energy the specular takes
 // (a at cos 0.5). The caller multiplies by albedo^mix (pre-scatter colour).
 // P: world position; Ng: geometric normal (shadow lookups); N: shading (normal-mapped) normal;
@@ -20,7 +21,7 @@
 vec4 skin_sharp_shadow;
 #endif
 
-// Light i's share of E (d'Eon & Luebke 2007, 14.4.1): E_i max(N.L, 0) shadow_soft (1 - rho_s a / pi) k(N.L).
+// Light i's share of E (d'Eon & Luebke 2007, 14.4.1): E_i max(N.L, 0) G_bump shadow_soft (1 - rho_s a / pi) k(N.L).
 // c: the directional albedo's coefficients per channel (common/directional_albedo.glsl), weighting
 // each light by k(N.L) = 1 + c (2/3 - N.L); vec3(0) is the Lambertian entry.
 vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3 c) {
@@ -42,7 +43,7 @@ vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3
     if (ndl <= 0.0) return vec3(0.0);
     float s = shadow_soft(i, P, Ng);
 #endif
-    return Ei * ndl * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
+    return Ei * ndl * bump_shadowing(Ng, N, L) * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
 }
 
 // The sum over the lights, plus the ambient (left at k = 1: its average over a uniform hemisphere).

@@ -18,14 +18,16 @@ in vec3 v_blocked_sh1;
 in vec3 v_blocked_sh2;
 out vec4 f_color;
 
-// Light i's diffuse and specular radiance at v_world (0 where it does not reach the surface).
+// Light i's diffuse and specular radiance at v_world (0 where it does not reach the surface). The
+// diffuse takes the normal map's shadowing by the smooth surface (bump_shadowing, common/shadow.glsl:
+// none below the interpolated normal's horizon); the Ng.L > -0.05 gate is the specular's.
 vec3 lambert_light(int i, vec3 Ng, vec3 N, vec3 V, vec3 albedo, float shininess, float ks) {
     vec3 L;
     vec3 E = light_incident(i, v_world, L);
     float ndl = dot(N, L);
     if (ndl <= 0.0 || dot(Ng, L) <= -0.05) return vec3(0.0);
     float s = shadow_soft(i, v_world, Ng);
-    return E * s * (albedo * INV_PI * ndl + vec3(blinn_phong_specular(N, L, V, shininess, ks)));
+    return E * s * (albedo * INV_PI * ndl * bump_shadowing(Ng, N, L) + vec3(blinn_phong_specular(N, L, V, shininess, ks)));
 }
 
 void main() {
