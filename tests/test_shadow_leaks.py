@@ -173,6 +173,10 @@ def test_bump_shadowing_is_smith_g1_of_the_maps_tilt(gl_ctx):
         ref.append(1.0 if alpha == 0.0 else _smith_g1_ggx_by_quadrature(alpha, ci))
     np.testing.assert_allclose(got[20:], ref, atol=2e-4)
     assert got[20:].min() < 0.8  # the sample reaches grazing light on strongly tilted normals
+    # the offline reference's numpy twin (dermis.reference.shading.bump_shadowing) is the same function
+    from dermis.reference.shading import bump_shadowing
+
+    np.testing.assert_allclose(bump_shadowing(ns, N, L), got, atol=1e-5)
 
 
 def test_no_light_below_the_smooth_horizon(lee_perry_smith, gl_ctx):

@@ -15,8 +15,10 @@ interpolated: validate measures what the per-vertex bake loses. [environment] oc
 turns it off in both. The environment's SPECULAR is not the real-time split-sum approximation
 (a prefiltered map times the lobe's albedo, dermis.prefiltered_environment) but the integral of
 the KSK BRDF against the HDR itself, by importance-sampled Monte Carlo with a fixed seed
-(:func:`environment_specular_mc`), times the same specular occlusion (Lagarde & de Rousiers 2014)
-of the ray-cast A: validate measures the prefilter's error. For a constant environment the
+(:func:`environment_specular_mc`), times the same specular occlusion (the L2 spherical harmonics of
+the blocked directions, specular_occlusion_sh) projected from the point's own ambient rays: validate
+measures the prefilter's error. A light's diffuse takes the normal map's shadowing by the smooth
+surface as the shaders do (:func:`bump_shadowing`, common/shadow.glsl). For a constant environment the
 integral is the constant times the specular albedo (the rho_dt table), as in real time.
 """
 
@@ -42,6 +44,23 @@ ENV_SPECULAR_CHUNK = 8_000
 """Points per environment-specular batch (bounds its arrays to about 40 MB)."""
 AMBIENT_CHUNK = 20_000
 """Points per ambient-occlusion batch (bounds the ray arrays' memory to about 50 MB)."""
+
+
+def bump_shadowing(ns, n, L):
+    """common/shadow.glsl's bump_shadowing, per row: the normal map's tilted facet (mapped normal n on
+    the smooth, interpolated normal ns) shadowed by the smooth surface (Conty Estevez, Lecocq & Stein
+    2019, Ray Tracing Gems ch. 12): Smith's G1 of a GGX microsurface about ns with alpha^2 =
+    tan^2(theta_d) / 8 (at most 1) at the light's angle to ns; 0 below ns's horizon, 1 where n = ns.
+    Unitless (n, ) factor on a light's diffuse N.L."""
+    cos_i = np.sum(ns * L, axis=1)
+    cos_d = np.minimum(np.sum(ns * n, axis=1), 1.0)
+    ci = np.clip(cos_i, 1e-6, 1.0)
+    cd = np.maximum(cos_d, 1e-6)
+    alpha2 = np.clip(0.125 * (1.0 / (cd * cd) - 1.0), 0.0, 1.0)
+    tan2_i = 1.0 / (ci * ci) - 1.0
+    g = 2.0 / (1.0 + np.sqrt(1.0 + alpha2 * tan2_i))
+    g = np.where((cos_d >= 1.0) | (cos_i >= 1.0), 1.0, g)
+    return np.where(cos_i <= 1e-6, 0.0, g)
 
 
 def _smoothstep(e0, e1, x):
@@ -149,7 +168,7 @@ class LightRig:
 
 def scattered_irradiance(surface, rig, attrs):
     """tsd/irradiance.frag with exact shadows: the light that enters the skin and scatters,
-    sum_i E_i max(N.L, 0) V_i (1 - rho_s a(N.L, m)/pi) + r E_env(N) (1 - rho_s a(0.5, m)/pi),
+    sum_i E_i max(N.L, 0) G_bump V_i (1 - rho_s a(N.L, m)/pi) + r E_env(N) (1 - rho_s a(0.5, m)/pi),
     times albedo^mix. Returns (n, 3)."""
     n_map = surface.shading_normal(attrs)
     rho_s = surface.rho_s(attrs)
@@ -166,7 +185,7 @@ def scattered_irradiance(surface, rig, attrs):
             origins = surface.shadow_origin(attrs)
         vis = rig.visibility(i, attrs, L, dist, origins)
         f = np.where(lit, ndl, 0.0) * vis * surface.energy_transmitted(rho_s, np.clip(ndl, 0.0, 1.0))
-        E += Ei * f[:, None]
+        E += Ei * (f * bump_shadowing(attrs["normal_geo"], n_map, L))[:, None]
     _, frac = rig.ambient_visibility(attrs)
     E += occluded_irradiance(surface.env_sh, n_map, frac) \
         * surface.energy_transmitted(rho_s, np.full(len(rho_s), 0.5))[:, None]
