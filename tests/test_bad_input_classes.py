@@ -74,6 +74,7 @@ def test_mesh_at_one_point_is_refused(gl_ctx):
     # clipped; the projection overflowed float32), and a far plane before the mesh does the same
     (dict(near=3e38), ["[camera] near", "beyond the whole scene"]),
     (dict(far=1e-6), ["[camera] far", "ends before the scene"]),
+    (dict(position=(0.0, 0.0, 3.0), target=(0.0, 0.0, 6.0)), ["[camera] looks away", "behind the camera"]),
 ])
 def test_degenerate_cameras_are_refused(change, tokens, gl_ctx):
     sc = plane_scene()

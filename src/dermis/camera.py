@@ -135,7 +135,8 @@ FOV_MIN_DEG, FOV_MAX_DEG = 1e-3, 170.0
 def check_camera(camera, where: str, center, radius: float):
     """Refuse a camera that cannot give an image (one-line DermisError, ``where`` names it):
     non-finite values, position == target, ``up`` along the view direction, field of view outside
-    [FOV_MIN_DEG, FOV_MAX_DEG) degrees, near <= 0, far <= near, or a near/far range that does not reach the scene."""
+    [FOV_MIN_DEG, FOV_MAX_DEG) degrees, near <= 0, far <= near, a near/far range that does not reach the
+    scene, or the whole scene behind the camera."""
     from dermis.errors import DermisError
 
     vals = {}
@@ -173,6 +174,11 @@ def check_camera(camera, where: str, center, radius: float):
     if camera.near is not None and camera.near >= d + r:
         raise DermisError(f"{where} near ({camera.near:g}) lies beyond the whole scene (its farthest point is "
                           f"{d + r:g} from the camera): nothing would be drawn")
+    # the whole bounding sphere behind the camera (whatever the field of view and aspect): an empty image
+    if float(np.dot(normalize(view), np.asarray(center, np.float64) - vals["position"])) < -r:
+        raise DermisError(f"{where} looks away from the scene: the mesh lies entirely behind the camera "
+                          f"(position {tuple(float(x) for x in vals['position'])}, target "
+                          f"{tuple(float(x) for x in vals['target'])})")
     if camera.far is not None and camera.far <= d - r:
         raise DermisError(f"{where} far ({camera.far:g}) ends before the scene (its nearest point is "
                           f"{d - r:g} from the camera): nothing would be drawn")
