@@ -435,3 +435,40 @@ def test_bake_command_refuses_bad_options_in_one_line(capsys):
     assert main([str(REPO / "examples" / "reference" / "back-ears.toml"), "--walks", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("dermis: error: ") and "--walks" in err[0]
+
+
+def test_grid_mipmaps_are_rebuilt_only_where_the_add_reads_them(monkeypatch, head_bake):
+    """The add pass (tsd/transfer_add.frag) reads the bake's grid above level 0 only for a translucency
+    target coarser than the grid, so only then does a gather rebuild the grid's mipmaps (a saving per
+    lighting change). Where it does read them they must be this gather's: after a light move the image
+    equals a fresh renderer's (stale mipmaps would keep the old light's transfer)."""
+    import dataclasses
+
+    import dermis
+    from dermis.gl import subsurface_transfer as gst
+    from dermis.renderer import Renderer
+
+    calls = []
+    original = gst.SubsurfaceTransfer.gather
+    always = []  # non-empty: every gather rebuilds the mipmaps (the reference: round 15's behaviour)
+
+    def gather(self, irradiance, mipmaps=True):
+        calls.append(bool(mipmaps))
+        return original(self, irradiance, mipmaps or bool(always))
+
+    monkeypatch.setattr(gst.SubsurfaceTransfer, "gather", gather)
+    head = REPO / "examples" / "reference" / "back-ears.toml"
+    moved = None
+    for size, coarse in ((64, True), (256, False)):  # translucency target 32 (< the grid's 64) and 128
+        sc = dermis.load_scene(head)
+        calls.clear()
+        with Renderer(sc, (64, 64), irradiance_size=size) as r:
+            r.render("tsd")
+            sc.lights = [dataclasses.replace(sc.lights[0], intensity=sc.lights[0].intensity * 0.5), *sc.lights[1:]]
+            moved = r.render("tsd")
+        assert calls == [coarse, coarse], (size, calls)
+        always.append(1)
+        with Renderer(sc, (64, 64), irradiance_size=size) as fresh:
+            reference = fresh.render("tsd")
+        always.clear()
+        np.testing.assert_array_equal(moved, reference)

@@ -14,6 +14,8 @@ the one tsd gave before. The bake is looked up once per PRODUCTS key "subsurface
 
 from __future__ import annotations
 
+import math
+
 import moderngl
 import numpy as np
 
@@ -122,8 +124,18 @@ class SubsurfaceTransfer:
         self._tap_uv, self._tap_weight, self.grid_texture, self._fbo, self._vao = texs[0], texs[1], target, fbo, vao
         self._layout = (per_row, k, n)
 
-    def gather(self, irradiance) -> None:
-        """T_geo per bake point into :attr:`grid_texture` from ``irradiance`` (premultiplied)."""
+    def reads_mipmaps(self, target_size) -> bool:
+        """Whether tsd/transfer_add.frag reads the grid above level 0 for a target of ``target_size``
+        (its level = ceil(log2(max(grid / target)) - 1e-4), the same formula): only then must a gather
+        rebuild the grid's mipmaps."""
+        g = self.grid_texture.size
+        r = max(g[0] / max(int(target_size[0]), 1), g[1] / max(int(target_size[1]), 1))
+        return math.ceil(math.log2(r) - 1e-4) > 0
+
+    def gather(self, irradiance, mipmaps: bool = True) -> None:
+        """T_geo per bake point into :attr:`grid_texture` from ``irradiance`` (premultiplied);
+        ``mipmaps``: rebuild the grid's mipmaps (False where only level 0 is read: :meth:`reads_mipmaps`;
+        on llvmpipe the rebuild of the 512^2 rgba32f grid was ~1.6 ms of the pass's ~12)."""
         from dermis.gl.resources import set_uniform, use_texture
 
         gather, _, _ = self._programs()
@@ -138,7 +150,8 @@ class SubsurfaceTransfer:
         self._fbo.clear(0.0, 0.0, 0.0, 0.0)
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         self._vao.render(moderngl.POINTS, vertices=n)
-        self.grid_texture.build_mipmaps()
+        if mipmaps:
+            self.grid_texture.build_mipmaps()
 
     def add(self, frame, target_fbo, target_size, irradiance) -> bool:
         """Gather and add T_geo into ``target_fbo`` (tsd's translucency target); False (nothing drawn)
@@ -147,7 +160,7 @@ class SubsurfaceTransfer:
             return False
         from dermis.gl.resources import set_uniform, use_texture
 
-        self.gather(irradiance)
+        self.gather(irradiance, mipmaps=self.reads_mipmaps(target_size))
         _, add, vao = self._programs()
         set_uniform(add, "uTransfer", 0)
         set_uniform(add, "uTargetSize", tuple(float(s) for s in target_size))
