@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from region_terms import _render, _scene
+from region_terms import _no_bounce, _render, _scene
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 BAND = (0.87, 1.15)
@@ -37,10 +37,6 @@ def _no_lights(sc):
 def _no_shadows(sc):
     for light in sc.lights:
         light.cast_shadows = False
-
-
-def _no_bounce(sc):
-    sc.interreflection = False
 
 
 EDITS = {"no-environment": _no_env, "no-lights": _no_lights, "no-shadows": _no_shadows, "no-bounce": _no_bounce}
