@@ -7,7 +7,9 @@
 //                 + transmitted ]                                                  per channel c
 //   specular = common/skin_specular.glsl (shared by every skin technique)
 // N_c: the normal map filtered by channel c's profile, a mip level per Gaussian (Penner's blurred
-// normals, red blurriest); D: light wrapped around a ring of the local curvature; P: the soft
+// normals, red blurriest; the cosine's tilt from the smooth normal weighted by bump_shadowing, so that
+// below the smooth terminator only Penner's wrap lights); D: light wrapped around a ring of the local
+// curvature; P: the soft
 // shadow's penumbra scattered with the profile (red reaches furthest into the shadow); k: the
 // skin's directional albedo (common/directional_albedo.glsl; the ambient enters at k = 1, the light
 // through thin parts leaves Lambertian, as in tsd). Per channel, D P is raised to at least the light
@@ -219,7 +221,16 @@ vec3 preintegrated_light(int i, vec3 Ngeo, vec3 N, vec3 N_red, vec3 N_green, vec
                          float rho_s, float m, vec3 c) {
     vec3 L;
     vec3 Ei = light_incident(i, v_world, L);
-    vec3 D = diffuse_lookup(vec3(dot(N_red, L), dot(N_green, L), dot(N_blue, L)), curvature);
+    // Penner's wrap belongs to the smooth surface (Ngeo, its curvature); the normal map's detail tilts
+    // each channel's cosine only as far as the smooth surface lets light reach its facets: the tilt
+    // weighted by bump_shadowing (common/shadow.glsl, Conty Estevez et al. 2019), which fades to 0 at
+    // the smooth terminator, so below it no facet turned toward the light adds light (the jaw's underside
+    // lit through the head in the side view; lambert, tsd and ssss take the same term on their N.L)
+    float ngl = dot(Ngeo, L);
+    vec3 cos_c = vec3(dot(N_red, L), dot(N_green, L), dot(N_blue, L));
+    cos_c = ngl + vec3(bump_shadowing(Ngeo, N_red, L), bump_shadowing(Ngeo, N_green, L),
+                       bump_shadowing(Ngeo, N_blue, L)) * (cos_c - ngl);
+    vec3 D = diffuse_lookup(cos_c, curvature);
     vec3 light = vec3(0.0);  // Penner's D S, then at least what crosses a fold (G)
     if (max(D.r, max(D.g, D.b)) > 0.0) {
         float width_mm;
