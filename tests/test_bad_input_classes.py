@@ -227,6 +227,29 @@ def test_light_intensity_over_the_limit_through_the_api(gl_ctx):
     one_line_error(lambda: render(sc, gl_ctx=gl_ctx), "test-scene", "[[lights]] #1 intensity")
 
 
+
+@pytest.mark.parametrize("technique", ["lambert", "preintegrated", "tsd"])
+def test_light_direction_of_any_finite_length_is_its_unit_direction(technique, gl_ctx):
+    """A direction is only a direction: (-3.3e131, -2.57, -5.50) (fuzz seed 1701) lit with NaN (cast to
+    float32 before normalising: -inf) and was then refused as "produced NaN ... lower the light"; it
+    must render as (-1, 0, 0) does, and components past 1e154 (whose squares overflow) the same."""
+    def lit(direction):
+        sc = plane_scene()
+        sc.lights = [Light(direction=direction, intensity=3.0)]
+        return render(sc, technique, gl_ctx)
+
+    unit = lit((-0.6, -0.0, -0.8))
+    assert unit.max() > 0.01
+    for d in ((-6e131, -2.5720307293879214, -8e131), (-6e300, 0.0, -8e300)):
+        np.testing.assert_allclose(lit(d), unit, rtol=0, atol=1e-6 * unit.max())
+
+
+def test_toml_light_direction_past_the_float_range_of_its_squares(tmp_path):
+    p = tmp_path / "s.toml"
+    p.write_text(PLANE_TOML.replace("[0.3, -0.4, -1.0]", "[3e300, -4e300, -1e301]"))
+    d = np.array(dermis.load_scene(p).lights[0].direction)
+    np.testing.assert_allclose(d, np.array([0.3, -0.4, -1.0]) / np.linalg.norm([0.3, -0.4, -1.0]), atol=1e-15)
+
 # ----------------------------------------------------------------------------- API arguments
 
 @pytest.mark.parametrize("opts, tokens", [

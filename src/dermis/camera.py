@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
 def normalize(v):
     v = np.asarray(v, np.float64)
-    return v / max(np.linalg.norm(v), 1e-300)
+    n = np.linalg.norm(v)
+    if not math.isfinite(n):
+        # components past ~1e154 overflow the sum of squares (a scene may give any finite direction):
+        # scale by the largest first, which leaves the direction and every ordinary vector's rounding alone
+        v = v / np.abs(v).max()
+        n = np.linalg.norm(v)
+    return v / max(n, 1e-300)
 
 
 def cross3(a, b) -> np.ndarray:

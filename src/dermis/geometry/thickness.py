@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dermis.camera import normalize
 from dermis.geometry.rasterize import rasterize_uv
 from dermis.geometry.raycast import RayCaster
 from dermis.geometry.texture_space import texture_space_uvs
@@ -112,8 +113,7 @@ PARALLEL_COS = (0.5, 0.8)  # -N_E.N_P: 0 at 60 deg between the faces (and beyond
 def _light_directions(light, p):
     """Unit directions from the points p (n, 3), scene units, towards ``light`` (dermis.scene.model.Light)."""
     if light.kind == "directional":
-        d = -np.asarray(light.direction, np.float64)
-        return np.broadcast_to(d / np.linalg.norm(d), p.shape)
+        return np.broadcast_to(-normalize(light.direction), p.shape)
     d = np.asarray(light.position, np.float64)[None, :] - p
     return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
 

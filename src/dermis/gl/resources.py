@@ -12,7 +12,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from dermis.camera import light_matrices
+from dermis.camera import light_matrices, normalize
 from dermis.environment import environment_sh
 from dermis.geometry.hull import extreme_points
 from dermis.geometry.texture_space import texture_space_uvs
@@ -391,7 +391,7 @@ class LightUniforms:
             self.map_half_extent[i] = half
             pos = np.asarray(L.position, np.float32) if L.kind != "directional" else eye.astype(np.float32)
             self.pos_type[i] = (*pos, LIGHT_TYPES[L.kind])
-            self.direction[i, :3] = np.asarray(L.direction, np.float32) / np.linalg.norm(L.direction)
+            self.direction[i, :3] = normalize(L.direction)  # in float64: a direction past float32's range stays one
             self.radiance[i] = (*L.radiance_rgb(), 1.0 if L.cast_shadows else 0.0)
             outer = np.cos(np.radians(L.spot_angle_deg))
             inner = np.cos(np.radians(L.spot_angle_deg * (1 - L.spot_blend)))

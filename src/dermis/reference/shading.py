@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dermis.camera import normalize
 from dermis.geometry.visibility import (OFFSET_REL, blocked_sh_of_rays, environment_radiance, occluded_fraction,
                                         occluded_irradiance, specular_occlusion_sh)
 from dermis.specular import ksk_specular
@@ -80,8 +81,7 @@ class LightRig:
         mm = float(scene.mm_per_unit)
         self.lights = []
         for L in scene.lights[: self.MAX_LIGHTS]:
-            d = np.asarray(L.direction, np.float64)
-            d = d / max(np.linalg.norm(d), 1e-300)
+            d = normalize(L.direction)
             outer = np.cos(np.radians(L.spot_angle_deg))
             inner = max(np.cos(np.radians(L.spot_angle_deg * (1 - L.spot_blend))), outer + 1e-4)
             self.lights.append({"kind": L.kind, "direction": d, "position_mm": np.asarray(L.position, np.float64) * mm,

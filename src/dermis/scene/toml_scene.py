@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dermis.camera import FOV_MAX_DEG, FOV_MIN_DEG
+from dermis.camera import FOV_MAX_DEG, FOV_MIN_DEG, normalize
 from dermis.errors import DermisError
 from dermis.fileio import read_text, regular_file
 from dermis.images import MAX_IMAGE_PIXELS, as_rgb, read_image
@@ -99,10 +99,10 @@ def parse_light(d: dict, source, index: int) -> Light:
     light = Light(kind=kind, **{("shadow_softness" if k == "shadow_softness" else k): v for k, v in d.items()})
     if target is not None:
         direction = np.asarray(target) - np.asarray(light.position)
-        light.direction = tuple(direction / max(np.linalg.norm(direction), 1e-12))
+        light.direction = tuple(normalize(direction))
     if np.linalg.norm(light.direction) < 1e-9:
         raise DermisError(f"{source}: [[lights]] #{index + 1} direction must not be zero")
-    light.direction = tuple(np.asarray(light.direction) / np.linalg.norm(light.direction))
+    light.direction = tuple(normalize(light.direction))
     _positive(light.intensity, f"[[lights]] #{index + 1} intensity", source, 0.0, inclusive=True)
     return light
 
