@@ -250,6 +250,43 @@ def test_toml_light_direction_past_the_float_range_of_its_squares(tmp_path):
     d = np.array(dermis.load_scene(p).lights[0].direction)
     np.testing.assert_allclose(d, np.array([0.3, -0.4, -1.0]) / np.linalg.norm([0.3, -0.4, -1.0]), atol=1e-15)
 
+
+@pytest.mark.parametrize("via_toml", [False, True])
+def test_mesh_past_the_coordinate_limit_is_refused_before_it_is_framed(tmp_path, via_toml):
+    """Fuzz seed 1702: a glTF vertex at 2.4e35 (its accessor's min/max lying) was framed first (the camera's
+    distance overflowed to inf, its position to NaN) and refused only afterwards; the same one-line error
+    must come without any arithmetic on the coordinates."""
+    import warnings
+
+    pos, uv, idx = small_grid()
+    pos[5, 2] = 2.4e35
+    doc, binary = gltf_document(pos.astype(np.float32), uv.astype(np.float32), idx)
+    path = write_glb(tmp_path / "far.glb", doc, binary)
+    if via_toml:
+        path = tmp_path / "s.toml"
+        path.write_text('[mesh]\nfile = "far.glb"\n')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        one_line_error(lambda: dermis.load_scene(path), "far.glb", "mesh coordinates reach", "over the limit")
+
+
+def test_a_normal_past_float32s_squares_is_its_direction(tmp_path):
+    """Fuzz seed 1702: a glTF normal with a finite component of ~1e30 (its square overflows float32) was
+    divided by an infinite length and silently replaced by (0, 0, 1); only its direction counts."""
+    import warnings
+
+    pos, uv, idx = small_grid()
+    n = np.tile(np.float32([0.0, 0.6, 0.8]), (len(pos), 1))
+    loaded = []
+    for scale in (1.0, 3e30):
+        n[5] = np.float32([0.0, 0.6, 0.8]) * np.float32(scale)
+        doc, binary = gltf_document(pos.astype(np.float32), uv.astype(np.float32), idx, normals=n)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            loaded.append(dermis.load_scene(write_glb(tmp_path / f"n{scale:g}.glb", doc, binary)).mesh.normals)
+    np.testing.assert_allclose(loaded[1][5], [0.0, 0.6, 0.8], atol=1e-6)
+    np.testing.assert_array_equal(loaded[1], loaded[0])
+
 # ----------------------------------------------------------------------------- API arguments
 
 @pytest.mark.parametrize("opts, tokens", [

@@ -118,6 +118,7 @@ def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: st
     if len(normals) != len(positions):
         raise DermisError(f"{source}: mesh has {len(normals)} normals for {len(positions)} vertices")
     progress = _Progress(source, len(positions))
+    normals = _within_norm_range(normals)
     nl = np.linalg.norm(normals, axis=1, keepdims=True)
     normals = np.where(nl > 1e-12, normals / np.maximum(nl, 1e-12), vertex_normals(positions, indices)).astype(np.float32)
     # a vertex of zero-area triangles only has no normal: any unit vector (its triangles cover no
@@ -130,9 +131,26 @@ def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: st
         tangents = generate_tangents(positions, normals, uvs, indices)
     elif len(tangents) != len(positions) or not np.all(np.isfinite(tangents)):
         raise DermisError(f"{source}: mesh tangents must be {len(positions)} finite values")
+    elif np.ndim(tangents) == 2 and np.shape(tangents)[1] >= 3:
+        tangents = np.asarray(tangents, np.float32)
+        tangents = np.concatenate([_within_norm_range(tangents[:, :3]), tangents[:, 3:]], axis=1)
     progress.step("tangents")
     progress.close()
     return Mesh(positions, normals, uvs, indices, np.asarray(tangents, np.float32), source=source, uvs1=uvs1).validate()
+
+
+def _within_norm_range(v):
+    """Rows of float32 vectors whose length overflows float32 (a finite component past ~1.8e19, which a
+    file may give a normal or tangent: only its direction counts) scaled by their largest component; the
+    others untouched, so every ordinary mesh keeps its bits. Without it such a normal became (0, 0, 1)
+    (v / inf) and such a tangent NaN in the shader."""
+    v = np.asarray(v, np.float32)
+    with np.errstate(over="ignore"):
+        big = ~np.isfinite(np.linalg.norm(v, axis=1))
+    if big.any():
+        v = v.copy()
+        v[big] /= np.abs(v[big]).max(axis=1, keepdims=True)
+    return v
 
 
 class _Progress:
