@@ -61,6 +61,15 @@ def test_mesh_at_one_point_is_refused(gl_ctx):
     one_line_error(lambda: render(sc, gl_ctx=gl_ctx), "zero extent")
 
 
+@pytest.mark.parametrize("technique", ["lambert", "tsd"])
+def test_mesh_of_only_zero_area_triangles_is_refused(technique, gl_ctx):
+    """Fuzz seed 1703: the plane's vertices moved onto a line (extent along x, every triangle of zero
+    area) passed the extent check and failed with an IndexError in the shared bounce's layout stretch."""
+    sc = plane_scene()
+    sc.mesh.positions[:, 1:] = 0.0
+    one_line_error(lambda: render(sc, technique, gl_ctx), "builtin:plane", "no triangle of non-zero area")
+
+
 @pytest.mark.parametrize("change, tokens", [
     (dict(near=1.0, far=1.0), ["[camera]", "far", "near"]),
     (dict(near=-1.0), ["[camera] near", "positive"]),

@@ -283,6 +283,10 @@ def check_mesh(mesh):
     diag = float(np.linalg.norm(hi - lo))
     if not diag > 1e-6 * max(big, 1e-30):  # all vertices at (float32-)one point
         raise DermisError(f"{mesh.source}: mesh has zero extent (all vertices at one point)")
+    t = p[np.asarray(mesh.indices).reshape(-1, 3)]
+    twice_area = np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    if not twice_area.max() > 1e-12 * diag * diag:  # every triangle a line or a point: nothing to shade
+        raise DermisError(f"{mesh.source}: mesh has no triangle of non-zero area (all lie on lines or points)")
 
 
 def _check_surfaces(scene, full: bool):
