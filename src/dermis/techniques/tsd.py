@@ -781,7 +781,11 @@ class TextureSpaceDiffusion(Technique):
                 with maps_without_anisotropy(frame.gpu, surfaces=False):
                     self._uv_pass(frame, p_exit, self._texture(("bounce_exitant", 0), irr.size))
             src = self.tex[("bounce_exitant", 0)]
-            for lvl in range(1, level + 1):
+            # the one bounce reads the level the hits were merged for, as the shared bounce
+            # (gl.interreflection.first_order_size: FIRST_ORDER_FINER_LEVELS finer than the ~2 mm
+            # level of the layout's median stretch); its series reads the ~2 mm level
+            first = max(int(round(math.log2(irr.size[0] / max(self.hits.cells, 1)))), 0)
+            for lvl in range(1, first + 1):
                 src, p = self._down(src, ("bounce_exitant", lvl), lvl)
                 self._draw(p)
             p_gather.run(self.hits, src)
