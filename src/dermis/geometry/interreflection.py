@@ -16,17 +16,19 @@ nothing here. With the diffuse radiance L_o(y) = rho(y) E(y) / pi leaving y,
 
 This module casts the rays once per mesh (Embree, dermis.geometry.raycast) and keeps, per vertex and
 ray, the triangle hit and its barycentrics; tsd's runtime pass (techniques/tsd.py,
-shaders/tsd/bounce_*.frag) turns them into texture-space UVs, reads rho E there from a coarse
-level of its irradiance and adds E_b to the irradiance before the diffusion blurs it. ssss,
-preintegrated and lambert share one gather per lighting change from a small texture-space raster
-of rho E (dermis.gl.interreflection.SharedBounce) and add E_b per vertex (common/interreflection.glsl).
+shaders/tsd/bounce_*.frag) turns them into texture-space UVs, reads rho E there from a ~1 mm level
+of its irradiance (all BAKE_RAYS rays, merged per vertex and texel cell: :func:`merge_hits`) and adds
+E_b to the irradiance before the diffusion blurs it. ssss, preintegrated and lambert share one
+gather per lighting change from a small texture-space raster of rho E
+(dermis.gl.interreflection.SharedBounce) and add E_b per vertex (common/interreflection.glsl).
 
 Rays start at the vertex, lifted along its normal by OFFSET_REL of the mesh's diagonal (as the
 visibility bake). A ray whose first hit is a face turned away from it (the interpolated normal
 along the ray: the inside of an open mesh, a crack) is blocked and brings nothing: the irradiance
 texture holds the light of the outer side only; but a grazing ray that passes behind a facet next
 to its vertex is kept as a hit there (_first_front_hits). The directions are stratified per vertex (a Latin
-hypercube over Malley's unit square), which lowers the estimate's variance below the independent
+hypercube over Malley's unit square, nested so that the higher bounces' subset is one too:
+:func:`stratified_cosine_directions`), which lowers the estimate's variance below the independent
 rays' rho E sqrt(F (1 - F) / K) (F the fraction of the hemisphere that sees lit skin).
 
 Only the skin mesh takes part: non-skin surfaces (eyes, teeth) neither block nor reflect. Cached in
@@ -48,8 +50,8 @@ Synthesis", sec. 2.6 and 5.3: the Jacobi iteration B <- E + rho F B):
 G's rows sum to at most max(rho) times the fraction of rays that hit skin (< 1), so the series
 converges; inside a closed sphere of uniform albedo rho under a uniform sky, E_b = rho E and
 T_n = E (rho + rho^2 + ... + rho^n) (tests/test_interreflection.py). Runtime: one more raster of
-rho T in texture space and one more gather per order (dermis.gl.interreflection.BounceSeries);
-:func:`bounce_series` is its numpy twin.
+rho T in texture space and one more gather per order over SERIES_RAYS of the rays
+(dermis.gl.interreflection.BounceSeries); :func:`bounce_series` is its numpy twin.
 """
 
 from __future__ import annotations

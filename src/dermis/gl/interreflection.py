@@ -1,8 +1,10 @@
-"""The interreflection bake (dermis.geometry.interreflection) as a texture for tsd's bounce gather:
-rg32f, the texture-space (u, v) of each ray's first hit, (-1, -1) where the ray brings nothing.
-Vertex v's K rays are the texels (x * K + k, y) with (x, y) = (v mod P, v div P), P = vertices per
-row, so that a row is at most ROW_TEXELS wide (GL 4.5 guarantees 16384). Built once per product
-key "interreflection_bake" (dermis.invalidation: the mesh) and texture-space layout."""
+"""The interreflection bake (dermis.geometry.interreflection) as textures for the bounce gathers
+(tsd's and the shared one). The higher bounces' rays: rg32f, the texture-space (u, v) of each ray's
+first hit, (-1, -1) where the ray brings nothing; vertex v's K (SERIES_RAYS) rays are the texels
+(x * K + k, y) with (x, y) = (v mod P, v div P), P = vertices per row, so that a row is at most
+ROW_TEXELS wide (GL 4.5 guarantees 16384). The one bounce's: all the bake's rays merged per vertex
+and texel cell (InterreflectionHits). Built once per product key "interreflection_bake"
+(dermis.invalidation: the mesh), texture-space layout and the one bounce's level."""
 
 from __future__ import annotations
 
@@ -368,10 +370,11 @@ class BounceSeries:
 
 # ---------------------------------------------------------------------- the shared product
 SOURCE_FINER_LEVELS = 1
-"""The shared bounce's rho E is rasterised this many levels finer than the gather's level and
-2x2-reduced to it: each gather texel a box average of 4^SOURCE_FINER_LEVELS samples, where tsd's is
-one of all its level-0 texels. Chosen by measurement against tsd's bounce on the head
-(benchmarks/RESULTS.md, "Round 8, branch bounce8")."""
+"""The shared bounce's rho E (and the higher orders' rho T) is rasterised this many levels finer than
+the ~2 mm level (:func:`bounce_level`): the one bounce reads it there (FIRST_ORDER_FINER_LEVELS), the
+higher orders 2x2-reduced to ~2 mm, each texel a box average of 4^SOURCE_FINER_LEVELS samples.
+Chosen by measurement against tsd's bounce on the head (benchmarks/RESULTS.md, "Round 8, branch
+bounce8")."""
 
 
 FIRST_ORDER_FINER_LEVELS = 1

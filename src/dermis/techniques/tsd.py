@@ -12,10 +12,11 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
                                              full-screen pass (dermis.gl.irradiance_inputs, SPLIT_IRRADIANCE)
   one diffuse bounce between skin surfaces (scene.interreflection): E_b = (1/K) sum_k rho E(y_k) over K
                  cosine-weighted rays per vertex (baked once per mesh, geometry/interreflection.py), rho E
-                 read from a ~2 mm level of I_0 albedo^(1-mix); with its higher orders (BounceSeries,
-                 dermis.geometry.interreflection.BOUNCE_ORDERS = 4, as Cycles through the bridge)
-                 T = E_b + B E_b + B^2 E_b + B^3 E_b (B: one more diffuse reflection off the skin over
-                 the same rays, geometry/interreflection.py's G); T albedo^mix added to I_0
+                 read from a ~1 mm level of I_0 albedo^(1-mix) (K = 512, merged per texel cell); with
+                 its higher orders (BounceSeries, dermis.geometry.interreflection.BOUNCE_ORDERS = 4, as
+                 Cycles through the bridge) T = E_b + B E_b + B^2 E_b + B^3 E_b (B: one more diffuse
+                 reflection off the skin over 128 of the rays at ~2 mm, geometry/interreflection.py's
+                 G); T albedo^mix added to I_0
   dilate I_0 into the UV gutters
   for k = 1..K:  I_k = I_(k-1) * G(v_k - v_(k-1)) as a U then a V pass (chained: G(a)*G(b) = G(a+b)),
                  tap spacing from S_k, the stretch blurred by the same chain; wide Gaussians run at
