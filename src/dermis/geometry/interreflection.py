@@ -131,14 +131,15 @@ class VertexHits:
         """``values`` (per vertex of the mesh, (V, c)) interpolated at every hit: (n, K, c), NaN
         where a ray brings nothing. E.g. the texture-space UVs of the hits."""
         vals = np.asarray(values, np.float64)
+        vals = vals.reshape(len(vals), -1)
         idx = np.asarray(indices, np.int64).reshape(-1, 3)
-        tri = self.triangle.astype(np.int64)
-        hit = tri >= 0
-        b = self.barycentric.astype(np.float64)
-        w = np.stack([1.0 - b[..., 0] - b[..., 1], b[..., 0], b[..., 1]], -1)  # (n, K, 3)
-        corners = vals[idx[np.maximum(tri, 0)]]  # (n, K, 3, c)
-        out = np.einsum("nkj,nkjc->nkc", w, corners)
-        out[~hit] = np.nan
+        hit = self.triangle >= 0
+        tri = self.triangle[hit].astype(np.int64)  # the rays that hit only (a third to a half of them)
+        b = self.barycentric[hit].astype(np.float64)
+        corners = vals[idx[tri]]  # (h, 3, c)
+        out = np.full(self.triangle.shape + (vals.shape[1],), np.nan)
+        out[hit] = ((1.0 - b[:, 0] - b[:, 1])[:, None] * corners[:, 0] + b[:, :1] * corners[:, 1]
+                    + b[:, 1:] * corners[:, 2])
         return out
 
 
