@@ -185,7 +185,7 @@ def bake_vertex_hits(positions, normals, indices, *, rays: int | None = None, se
     p = np.ascontiguousarray(positions, np.float32).reshape(-1, 3)
     nrm = np.ascontiguousarray(normals, np.float32).reshape(-1, 3)
     t = np.ascontiguousarray(indices, np.uint32).reshape(-1, 3)
-    key = content_hash(p, t, CACHE_VERSION, nrm.tobytes(), rays, int(seed))
+    key = content_hash(p, t, CACHE_VERSION, nrm.tobytes(), rays, int(seed), series_step(rays))  # the nesting too
     path = bake_cache.cache_path("interreflection", key) if cache else None
     got = bake_cache.load(_MEMORY, key, path, {"triangle": (len(p), rays), "barycentric": (len(p), rays, 2)},
                           _MEMORY_MAX) if cache else None
