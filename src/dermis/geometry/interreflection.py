@@ -72,13 +72,14 @@ rho E sqrt(F (1 - F) / K) <= 0.022 rho E; the Latin hypercube lowers it, and the
 interpolation and the diffusion's blur average several vertices. 128 -> 512 took FLIP(lambert,
 Cycles' render without subsurface scattering) on back-ears 0.0237 -> 0.0212 (benchmarks/RESULTS.md,
 "Round 16, branch transport16"; "Round 17, branch bounce17"). Cost on the head (9279 vertices):
-4.8 M closest-hit rays, a few seconds once per mesh."""
+4.8 M closest-hit rays, 12.5 s once per mesh (128 rays: 2.5 s; load 3.4), cached on disk."""
 SERIES_RAYS = 128
 """Rays per vertex the higher bounces gather (G, :func:`bounce_series`): a nested subset of the
 BAKE_RAYS (every BAKE_RAYS / SERIES_RAYS-th ray, itself a Latin hypercube:
 :func:`stratified_cosine_directions`). The higher orders' light is smooth (a gather of a gather),
-so their rays cost per lighting change without moving the image: orders 2-4 over 128 rays instead
-of 512 moved FLIP(lambert, control) by <= 0.0003 ("Round 17, branch bounce17")."""
+so more rays cost per lighting change without moving the image: orders 2-4 over all 512 rays (an
+unnested bake) gave FLIP(lambert, Cycles' control) back-ears 0.0188, side 0.0095, front-key 0.0108
+against 0.0181, 0.0097, 0.0107 over these 128 (benchmarks/RESULTS.md, "Round 17, branch bounce17")."""
 
 
 def series_step(rays: int) -> int:
