@@ -113,9 +113,10 @@ def first_order_size(frame) -> int:
 
 # ---------------------------------------------------------------------- the gather, shared
 BOUNCE_TEXEL_MM = 2.0
-"""The gather reads rho E at the level whose texels are about this wide (mm, at the layout's median
-stretch): a box as wide as the profile's widest Gaussians (d'Eon's red: sigma 2.7 mm), so the light
-read is close to the diffused light that leaves the skin (tsd/bounce_exitant.frag)."""
+"""The higher bounces' gathers read rho T at the level whose texels are about this wide (mm, at the
+layout's median stretch): a box as wide as the profile's widest Gaussians (d'Eon's red: sigma 2.7 mm),
+so the light read is close to the diffused light that leaves the skin (tsd/bounce_exitant.frag); the
+one bounce reads FIRST_ORDER_FINER_LEVELS finer."""
 
 
 def bounce_level(texels_per_mm: float | None, size: int) -> int:
