@@ -171,7 +171,8 @@ def test_l_shape_bounce_equals_rho_e_times_the_form_factor(gl_ctx, many_rays, on
         assert irr[vi, col, 0] / (RHO ** 0.5 * RHO * E) == pytest.approx(f, abs=0.005 + 4 * np.sqrt(f / RAYS))
 
 
-def test_l_shape_bounce_with_the_default_rays_is_within_the_form_factors_error(gl_ctx, monkeypatch, tmp_path, one_bounce):
+def test_l_shape_bounce_with_the_default_rays_is_within_the_form_factors_error(gl_ctx, monkeypatch, tmp_path,
+                                                                                one_bounce):
     # the bake as shipped (BAKE_RAYS, merged per ~1 mm cell for the one bounce: merge_hits) against
     # the closed form over the wall's vertices: rms of E_b / (rho E) - F 0.0080 (max 0.025) at 512
     # rays; the 128 rays of round 16 gave 0.0153 (max 0.059). Bounds: rms 0.011 and max 0.04, below

@@ -274,8 +274,9 @@ def bounce_series(hits: VertexHits, indices, first, albedo, orders: int | None =
     """The numpy twin of the runtime's higher bounces (dermis.gl.interreflection.BounceSeries): T_n
     per vertex, (n, c), from the one bounce ``first`` (E_b, (n, c)) and the skin's total diffuse
     albedo ``albedo`` per vertex ((V, c) or (c,)): T_1 = E_b, T_n = E_b + G T_(n-1) with
-    (G T)(x) = (1 / K) sum_k (rho T)(y_k) over the SERIES_RAYS subset, rho T interpolated at the hits as the runtime's gather
-    reads it (:func:`bounce_irradiance`), ``orders`` = n (default BOUNCE_ORDERS)."""
+    (G T)(x) = (1 / K) sum_k (rho T)(y_k) over the SERIES_RAYS subset (VertexHits.series_subset), rho T
+    interpolated at the hits as the runtime's gather reads it (:func:`bounce_irradiance`), ``orders`` = n
+    (default BOUNCE_ORDERS)."""
     n = int(BOUNCE_ORDERS if orders is None else orders)
     if n < 1:
         raise ValueError(f"bounce orders must be >= 1, got {n}")

@@ -207,10 +207,12 @@ class BounceGather:
 # ---------------------------------------------------------------------- the source's levels
 class LevelChain:
     """rho E (the one bounce's source) or rho T (a higher order's) from the level it is rasterised at,
-    SOURCE_FINER_LEVELS finer than the gather's ~2 mm level (:func:`bounce_level`), 2x2-reduced to the
-    gather's (tsd/downsample.frag). The textures are made as 1x1 stand-ins and re-made at their sizes
-    on first use (the count of live GPU objects never changes; a level-0 gather uses the first alone).
-    Used by :class:`SharedBounce` and :class:`BounceSeries`."""
+    SOURCE_FINER_LEVELS finer than the ~2 mm level (:func:`bounce_level`), 2x2-reduced to it
+    (tsd/downsample.frag) for the higher orders' gathers; the shared one bounce reads the raster's level
+    itself (FIRST_ORDER_FINER_LEVELS: ``reduce`` of the first level alone runs no pass). The textures
+    are made as 1x1 stand-ins and re-made at their sizes on first use (the count of live GPU objects
+    never changes; a level-0 gather uses the first alone). Used by :class:`SharedBounce` and
+    :class:`BounceSeries`."""
 
     def __init__(self, ctx):
         from dermis.gl.shaders import program
@@ -398,9 +400,9 @@ class SharedBounce:
     rho E is tsd's own irradiance pass (tsd/irradiance.frag: lights, soft shadows, occluded ambient,
     energy conservation, the directional albedo at entry) with mix = 1, so that it writes
     E albedo^1 = rho E, the light leaving the skin times pi (tsd's bounce_exitant.frag reads the same
-    from I_0 albedo^(1 - mix)); rasterised small (SOURCE_FINER_LEVELS above the gather's ~2 mm level,
-    :func:`bounce_level`), reduced (tsd/downsample.frag) and gathered over the baked rays
-    (:class:`BounceGather`). It is drawn in two passes (tsd/irradiance.frag, SKIN_BOUNCE_INPUTS and
+    from I_0 albedo^(1 - mix)); rasterised small (SOURCE_FINER_LEVELS above the ~2 mm level,
+    :func:`bounce_level`: ~1 mm) and gathered there over all the baked rays, merged per texel cell
+    (:class:`BounceGather`, InterreflectionHits). It is drawn in two passes (tsd/irradiance.frag, SKIN_BOUNCE_INPUTS and
     SKIN_BOUNCE_FROM_INPUTS): the mesh raster of what depends on no light (the maps, normals, the
     directional albedo's c, albedo^mix, the occluded ambient; 5 rgba32f targets) once per product key
     "interreflection_inputs", and per lighting change a full-screen pass over those texels adding
