@@ -16,17 +16,19 @@ nothing here. With the diffuse radiance L_o(y) = rho(y) E(y) / pi leaving y,
 
 This module casts the rays once per mesh (Embree, dermis.geometry.raycast) and keeps, per vertex and
 ray, the triangle hit and its barycentrics; tsd's runtime pass (techniques/tsd.py,
-shaders/tsd/bounce_*.frag) turns them into texture-space UVs, reads rho E there from a coarse
-level of its irradiance and adds E_b to the irradiance before the diffusion blurs it. ssss,
-preintegrated and lambert share one gather per lighting change from a small texture-space raster
-of rho E (dermis.gl.interreflection.SharedBounce) and add E_b per vertex (common/interreflection.glsl).
+shaders/tsd/bounce_*.frag) turns them into texture-space UVs, reads rho E there from a ~1 mm level
+of its irradiance (all BAKE_RAYS rays, merged per vertex and texel cell: :func:`merge_hits`) and adds
+E_b to the irradiance before the diffusion blurs it. ssss, preintegrated and lambert share one
+gather per lighting change from a small texture-space raster of rho E
+(dermis.gl.interreflection.SharedBounce) and add E_b per vertex (common/interreflection.glsl).
 
 Rays start at the vertex, lifted along its normal by OFFSET_REL of the mesh's diagonal (as the
 visibility bake). A ray whose first hit is a face turned away from it (the interpolated normal
 along the ray: the inside of an open mesh, a crack) is blocked and brings nothing: the irradiance
 texture holds the light of the outer side only; but a grazing ray that passes behind a facet next
 to its vertex is kept as a hit there (_first_front_hits). The directions are stratified per vertex (a Latin
-hypercube over Malley's unit square), which lowers the estimate's variance below the independent
+hypercube over Malley's unit square, nested so that the higher bounces' subset is one too:
+:func:`stratified_cosine_directions`), which lowers the estimate's variance below the independent
 rays' rho E sqrt(F (1 - F) / K) (F the fraction of the hemisphere that sees lit skin).
 
 Only the skin mesh takes part: non-skin surfaces (eyes, teeth) neither block nor reflect. Cached in
@@ -48,8 +50,8 @@ Synthesis", sec. 2.6 and 5.3: the Jacobi iteration B <- E + rho F B):
 G's rows sum to at most max(rho) times the fraction of rays that hit skin (< 1), so the series
 converges; inside a closed sphere of uniform albedo rho under a uniform sky, E_b = rho E and
 T_n = E (rho + rho^2 + ... + rho^n) (tests/test_interreflection.py). Runtime: one more raster of
-rho T in texture space and one more gather per order (dermis.gl.interreflection.BounceSeries);
-:func:`bounce_series` is its numpy twin.
+rho T in texture space and one more gather per order over SERIES_RAYS of the rays
+(dermis.gl.interreflection.BounceSeries); :func:`bounce_series` is its numpy twin.
 """
 
 from __future__ import annotations
@@ -63,11 +65,30 @@ from dermis.geometry import bake_cache
 from dermis.geometry.atlas import content_hash
 from dermis.geometry.visibility import OFFSET_REL
 
-BAKE_RAYS = 128
-"""Rays per vertex. Unstratified, a vertex seeing lit skin over a fraction F of its cosine-weighted
-hemisphere would get a standard error of rho E sqrt(F (1 - F) / K) <= 0.044 rho E; the Latin
-hypercube lowers it, and the vertices' interpolation and the diffusion's blur average several
-vertices. Cost on the head (9279 vertices): 1.2 M closest-hit rays, about a second."""
+BAKE_RAYS = 512
+"""Rays per vertex, all of them gathered for the one bounce. Unstratified, a vertex seeing lit skin
+over a fraction F of its cosine-weighted hemisphere would get a standard error of
+rho E sqrt(F (1 - F) / K) <= 0.022 rho E; the Latin hypercube lowers it, and the vertices'
+interpolation and the diffusion's blur average several vertices. 128 -> 512 took FLIP(lambert,
+Cycles' render without subsurface scattering) on back-ears 0.0237 -> 0.0212 (benchmarks/RESULTS.md,
+"Round 16, branch transport16"; "Round 17, branch bounce17"). Cost on the head (9279 vertices):
+4.8 M closest-hit rays, 12.5 s once per mesh (128 rays: 2.5 s; load 3.4), cached on disk."""
+SERIES_RAYS = 128
+"""Rays per vertex the higher bounces gather (G, :func:`bounce_series`): a nested subset of the
+BAKE_RAYS (every BAKE_RAYS / SERIES_RAYS-th ray, itself a Latin hypercube:
+:func:`stratified_cosine_directions`). The higher orders' light is smooth (a gather of a gather),
+so more rays cost per lighting change without moving the image: orders 2-4 over all 512 rays (an
+unnested bake) gave FLIP(lambert, Cycles' control) back-ears 0.0188, side 0.0095, front-key 0.0108
+against 0.0181, 0.0097, 0.0107 over these 128 (benchmarks/RESULTS.md, "Round 17, branch bounce17")."""
+
+
+def series_step(rays: int) -> int:
+    """The stride between the higher bounces' rays in a bake of ``rays`` per vertex (SERIES_RAYS):
+    1 (every ray) where ``rays`` is not a multiple of SERIES_RAYS above it."""
+    rays = int(rays)
+    return rays // SERIES_RAYS if rays > SERIES_RAYS and rays % SERIES_RAYS == 0 else 1
+
+
 BOUNCE_ORDERS = 4
 """Reflections off the skin that the bounce light counts (T_4 = E_b + G E_b + G^2 E_b + G^3 E_b):
 what Cycles renders through dermis's bridge. dermis.blender.export sets max_bounces = 12 and leaves
@@ -80,7 +101,8 @@ diffuse bounce is a diffuse BSDF of the same colour (no second random walk: subs
 path stops at the surface reached by diffuse bounce 5 (path_state.h, path_state_next: count >= limit
 marks PATH_RAY_TERMINATE_AFTER_TRANSPARENT: no light samples there). So the lights and the sky
 arrive after 0 (direct), 1, 2, 3 and 4 reflections off other skin: 4 orders of bounce light."""
-CACHE_VERSION = 2  # bump when the bake changes meaning (2: grazing rays behind a neighbouring facet are hits)
+CACHE_VERSION = 3  # bump when the bake changes meaning (2: grazing rays behind a neighbouring facet are hits;
+# 3: nested Latin hypercubes, the higher bounces' subset stratified on its own)
 NEAR_REL = 0.01
 """An away-facing first hit closer than this (relative to the mesh's bounding diagonal: 2.5 mm on
 the head) is the ray's own neighbourhood, kept as a hit (_first_front_hits)."""
@@ -100,18 +122,25 @@ class VertexHits:
     def rays(self) -> int:
         return int(self.triangle.shape[1])
 
+    def series_subset(self) -> "VertexHits":
+        """The rays the higher bounces gather (SERIES_RAYS: every series_step-th, group 0 of the
+        nested hypercube)."""
+        step = series_step(self.rays)
+        return VertexHits(self.triangle[:, ::step], self.barycentric[:, ::step], self.seconds, self.cached)
+
     def at_vertices(self, values, indices) -> np.ndarray:
         """``values`` (per vertex of the mesh, (V, c)) interpolated at every hit: (n, K, c), NaN
         where a ray brings nothing. E.g. the texture-space UVs of the hits."""
         vals = np.asarray(values, np.float64)
+        vals = vals.reshape(len(vals), -1)
         idx = np.asarray(indices, np.int64).reshape(-1, 3)
-        tri = self.triangle.astype(np.int64)
-        hit = tri >= 0
-        b = self.barycentric.astype(np.float64)
-        w = np.stack([1.0 - b[..., 0] - b[..., 1], b[..., 0], b[..., 1]], -1)  # (n, K, 3)
-        corners = vals[idx[np.maximum(tri, 0)]]  # (n, K, 3, c)
-        out = np.einsum("nkj,nkjc->nkc", w, corners)
-        out[~hit] = np.nan
+        hit = self.triangle >= 0
+        tri = self.triangle[hit].astype(np.int64)  # the rays that hit only (a third to a half of them)
+        b = self.barycentric[hit].astype(np.float64)
+        corners = vals[idx[tri]]  # (h, 3, c)
+        out = np.full(self.triangle.shape + (vals.shape[1],), np.nan)
+        out[hit] = ((1.0 - b[:, 0] - b[:, 1])[:, None] * corners[:, 0] + b[:, :1] * corners[:, 1]
+                    + b[:, 1:] * corners[:, 2])
         return out
 
 
@@ -119,16 +148,32 @@ _MEMORY: dict[str, dict] = {}  # content key -> the bake's arrays (dermis.geomet
 _MEMORY_MAX = 4
 
 
-def stratified_cosine_directions(normals, rays: int, rng) -> np.ndarray:
+def stratified_cosine_directions(normals, rays: int, rng, groups: int = 1) -> np.ndarray:
     """(n, rays, 3) cosine-weighted directions about each normal: a Latin hypercube of (u1, u2)
     (each coordinate stratified into ``rays`` bins, paired at random per vertex) through Malley's
-    method (dermis.geometry.raycast.cosine_directions)."""
+    method (dermis.geometry.raycast.cosine_directions).
+
+    With ``groups`` g > 1 (dividing ``rays``) the hypercube is nested: ray r = j g + m (j < rays / g)
+    has u2 in fine bin j g + m and u1 in fine bin g sigma_m(j) + pi_(sigma_m(j))(m), sigma_m a random
+    permutation of the rays / g coarse bins per group m and pi_b one of the g fine bins inside coarse
+    bin b. Every ray lies in its own fine bin of each coordinate (a Latin hypercube of ``rays``), and
+    each group m (rays m, m + g, m + 2 g, ...) has one ray in every coarse bin: a Latin hypercube of
+    rays / g on its own (nested or "sliced" Latin hypercubes: Qian 2012, "Sliced Latin hypercube
+    designs", JASA 107). The higher bounces gather group 0 alone (SERIES_RAYS)."""
     from dermis.geometry.raycast import cosine_directions
 
-    n, k = len(normals), int(rays)
-    strata = np.arange(k, dtype=np.float64)
-    u1 = (np.argsort(rng.random((n, k)), axis=1) + rng.random((n, k))) / k
-    u2 = (strata[None, :] + rng.random((n, k))) / k
+    n, k, g = len(normals), int(rays), int(groups)
+    if g < 1 or k % g:
+        raise ValueError(f"{g} groups do not divide {k} rays")
+    sub = k // g
+    sigma = np.argsort(rng.random((n, g, sub)), axis=2)  # (n, m, j): coarse bin of ray (j, m)
+    pi = np.argsort(rng.random((n, sub, g)), axis=2)  # (n, coarse bin, m): fine bin inside it
+    coarse = np.swapaxes(sigma, 1, 2)  # (n, j, m)
+    m = np.arange(g)
+    u1_bin = g * coarse + pi[np.arange(n)[:, None, None], coarse, m[None, None, :]]
+    u2_bin = (g * np.arange(sub)[:, None] + m[None, :])[None].repeat(n, 0)
+    u1 = (u1_bin.reshape(n, k) + rng.random((n, k))) / k
+    u2 = (u2_bin.reshape(n, k) + rng.random((n, k))) / k
     return cosine_directions(normals, u1, u2)
 
 
@@ -141,7 +186,7 @@ def bake_vertex_hits(positions, normals, indices, *, rays: int | None = None, se
     p = np.ascontiguousarray(positions, np.float32).reshape(-1, 3)
     nrm = np.ascontiguousarray(normals, np.float32).reshape(-1, 3)
     t = np.ascontiguousarray(indices, np.uint32).reshape(-1, 3)
-    key = content_hash(p, t, CACHE_VERSION, nrm.tobytes(), rays, int(seed))
+    key = content_hash(p, t, CACHE_VERSION, nrm.tobytes(), rays, int(seed), series_step(rays))  # the nesting too
     path = bake_cache.cache_path("interreflection", key) if cache else None
     got = bake_cache.load(_MEMORY, key, path, {"triangle": (len(p), rays), "barycentric": (len(p), rays, 2)},
                           _MEMORY_MAX) if cache else None
@@ -152,7 +197,7 @@ def bake_vertex_hits(positions, normals, indices, *, rays: int | None = None, se
     p64 = p.astype(np.float64)
     caster = RayCaster(p64, t)
     po, no = p64[first], n64[first]
-    dirs = stratified_cosine_directions(no, rays, np.random.default_rng(seed)).reshape(-1, 3)
+    dirs = stratified_cosine_directions(no, rays, np.random.default_rng(seed), series_step(rays)).reshape(-1, 3)
     origins = np.repeat(po + no * (OFFSET_REL * diag), rays, axis=0)
     tri, bary = _first_front_hits(caster, origins, dirs, t.astype(np.int64), n64, NEAR_REL * diag)
     tri = tri.reshape(len(first), rays).astype(np.int32)
@@ -183,6 +228,35 @@ def _first_front_hits(caster, origins, dirs, tris, normals, near):
     return tri, bary
 
 
+def merge_hits(uv, cells: int):
+    """The one bounce's hits merged per vertex and bilinear cell of a ``cells``^2 texture-space level:
+    (offsets (n,) int32, counts (n,) int32, entries (m, 3) float32), vertex v's entries
+    ``entries[offsets[v]:offsets[v] + counts[v]]``, each (mean u, mean v, share w) of the rays of
+    ``uv`` ((n, K, 2), NaN where a ray brings nothing) whose hits fall between the same four texel
+    centres, w = their count / K. The gather's sum_k f(uv_k) / K becomes sum_e w_e f(uv_e): the same
+    for a bilinear f (texture filtering between those four texels) up to w_e cov(u, v) f_uv within
+    the cell; on the head at 1 mm texels 512 rays become 112 entries per vertex on average (misses
+    dropped, hits sharing a cell merged) and the gather's reads fall in proportion."""
+    uv = np.asarray(uv, np.float64)
+    n, k = uv.shape[:2]
+    hit = np.isfinite(uv[..., 0]) & np.isfinite(uv[..., 1])
+    vert = np.broadcast_to(np.arange(n)[:, None], (n, k))[hit]
+    u = uv[hit]
+    side = int(cells) + 2  # cells -1 .. cells (bilinear cells between texel centres, and the borders)
+    c = np.clip(np.floor(u * int(cells) - 0.5).astype(np.int64) + 1, 0, side - 1)
+    key = (vert.astype(np.int64) * side + c[:, 0]) * side + c[:, 1]
+    uniq, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
+    inv = inv.reshape(-1)
+    entries = np.empty((len(uniq), 3), np.float64)
+    entries[:, 0] = np.bincount(inv, weights=u[:, 0], minlength=len(uniq)) / cnt
+    entries[:, 1] = np.bincount(inv, weights=u[:, 1], minlength=len(uniq)) / cnt
+    entries[:, 2] = cnt / k
+    owner = uniq // (side * side)
+    counts = np.bincount(owner, minlength=n).astype(np.int32)
+    offsets = (np.cumsum(counts) - counts).astype(np.int32)
+    return offsets, counts, entries.astype(np.float32)
+
+
 def mesh_hits(mesh, *, cache: bool = True) -> VertexHits:
     """The bake of a dermis Mesh (its positions, normals, triangles)."""
     return bake_vertex_hits(mesh.positions, mesh.normals, mesh.indices, cache=cache)
@@ -200,16 +274,18 @@ def bounce_series(hits: VertexHits, indices, first, albedo, orders: int | None =
     """The numpy twin of the runtime's higher bounces (dermis.gl.interreflection.BounceSeries): T_n
     per vertex, (n, c), from the one bounce ``first`` (E_b, (n, c)) and the skin's total diffuse
     albedo ``albedo`` per vertex ((V, c) or (c,)): T_1 = E_b, T_n = E_b + G T_(n-1) with
-    (G T)(x) = (1 / K) sum_k (rho T)(y_k), rho T interpolated at the hits as the runtime's gather
-    reads it (:func:`bounce_irradiance`), ``orders`` = n (default BOUNCE_ORDERS)."""
+    (G T)(x) = (1 / K) sum_k (rho T)(y_k) over the SERIES_RAYS subset (VertexHits.series_subset), rho T
+    interpolated at the hits as the runtime's gather reads it (:func:`bounce_irradiance`), ``orders`` = n
+    (default BOUNCE_ORDERS)."""
     n = int(BOUNCE_ORDERS if orders is None else orders)
     if n < 1:
         raise ValueError(f"bounce orders must be >= 1, got {n}")
     e = np.asarray(first, np.float64)
     rho = np.broadcast_to(np.asarray(albedo, np.float64), e.shape)
     t = e
+    g = hits.series_subset()  # G over SERIES_RAYS, as the runtime's higher orders
     for _ in range(n - 1):
-        t = e + bounce_irradiance(hits, indices, rho * t)
+        t = e + bounce_irradiance(g, indices, rho * t)
     return t
 
 

@@ -1,8 +1,10 @@
-"""The interreflection bake (dermis.geometry.interreflection) as a texture for tsd's bounce gather:
-rg32f, the texture-space (u, v) of each ray's first hit, (-1, -1) where the ray brings nothing.
-Vertex v's K rays are the texels (x * K + k, y) with (x, y) = (v mod P, v div P), P = vertices per
-row, so that a row is at most ROW_TEXELS wide (GL 4.5 guarantees 16384). Built once per product
-key "interreflection_bake" (dermis.invalidation: the mesh) and texture-space layout."""
+"""The interreflection bake (dermis.geometry.interreflection) as textures for the bounce gathers
+(tsd's and the shared one). The higher bounces' rays: rg32f, the texture-space (u, v) of each ray's
+first hit, (-1, -1) where the ray brings nothing; vertex v's K (SERIES_RAYS) rays are the texels
+(x * K + k, y) with (x, y) = (v mod P, v div P), P = vertices per row, so that a row is at most
+ROW_TEXELS wide (GL 4.5 guarantees 16384). The one bounce's: all the bake's rays merged per vertex
+and texel cell (InterreflectionHits). Built once per product key "interreflection_bake"
+(dermis.invalidation: the mesh), texture-space layout and the one bounce's level."""
 
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ from dermis.gl.irradiance_inputs import IrradianceInputs, light_pass
 from dermis.invalidation import fingerprint
 
 ROW_TEXELS = 4096
+ENTRY_ROW = 4096  # entries per row of the one bounce's merged hits (InterreflectionHits.entries)
 
 
 def hit_layout(n_vertices: int, rays: int) -> tuple[int, int]:
@@ -26,55 +29,94 @@ def hit_layout(n_vertices: int, rays: int) -> tuple[int, int]:
 
 class InterreflectionHits:
     """The bake on the GPU, one per Renderer (Renderer.interreflection_hits: tsd's bounce and the
-    shared one read it); ``get`` rebuilds it when the mesh or its layout changes."""
+    shared one read it); ``get`` rebuilds it when the mesh, its layout or the one bounce's level
+    changes. Two forms of the same rays:
+
+    - :attr:`tex`, the higher bounces' rays (rg32f; dermis.geometry.interreflection.SERIES_RAYS, every
+      series_step-th of the bake, K of them per vertex as the module's docstring lays out; the
+      per-vertex targets share its layout, :attr:`per_row`);
+    - :attr:`header` and :attr:`entries`, the one bounce's: all the bake's rays merged per vertex and
+      bilinear cell of the level it reads (dermis.geometry.interreflection.merge_hits): header, rg32i
+      in the per-vertex layout, (offset, count) into entries, rgb32f (u, v, share), entry e at
+      (e mod ENTRY_ROW, e div ENTRY_ROW)."""
 
     def __init__(self, ctx, placeholder: bool = False):
         self.ctx = ctx
-        self.tex = None
+        self.tex = self.header = self.entries = None
         self.key = None
-        if placeholder:  # a 1x1 stand-in, replaced by get(): the count of live textures never changes
+        if placeholder:  # 1x1 stand-ins, replaced by get(): the count of live textures never changes
             self.tex = ctx.texture((1, 1), 2, dtype="f4")
+            self.header = ctx.texture((1, 1), 2, dtype="i4")
+            self.entries = ctx.texture((1, 1), 3, dtype="f4")
         self.per_row = 1
-        self.rays = 0
+        self.rays = 0  # the bake's rays per vertex (the one bounce's)
+        self.series_rays = 0  # the texels per vertex of tex (the higher bounces')
         self.vertex_count = 0
+        self.entry_count = 0
+        self.cells = 0  # the texels across the level the one bounce reads (first_order_size)
 
     def get(self, frame):
-        """The hits texture for ``frame``; appends "interreflection_bake" to frame.passes_run when built."""
-        from dermis.geometry.interreflection import mesh_hits
+        """The hits textures for ``frame``; appends "interreflection_bake" to frame.passes_run when built."""
+        from dermis.geometry.interreflection import merge_hits, mesh_hits, series_step
 
         m = frame.scene.mesh
         uv_ts = texture_space_uvs(m)
-        key = (frame.keys["interreflection_bake"], fingerprint(uv_ts))
+        cells = first_order_size(frame)
+        key = (frame.keys["interreflection_bake"], fingerprint(uv_ts), cells)
         if key != self.key or self.tex is None or self.tex.size == (1, 1):
             with frame.timer("interreflection_bake"):
                 hits = mesh_hits(m)
                 uv = hits.at_vertices(uv_ts, m.indices)  # (n, K, 2), NaN: nothing
-                uv = np.where(np.isfinite(uv), uv, -1.0).astype(np.float32)
-                n, k = hits.triangle.shape
+                n, rays = hits.triangle.shape
+                offsets, counts, entries = merge_hits(uv, cells)
+                sub = uv[:, ::series_step(rays)]
+                sub = np.where(np.isfinite(sub), sub, -1.0).astype(np.float32)
+                k = sub.shape[1]
                 per_row, rows = hit_layout(n, k)
                 data = np.full((rows * per_row, k, 2), -1.0, np.float32)
-                data[:n] = uv
+                data[:n] = sub
+                head = np.zeros((rows * per_row, 2), np.int32)
+                head[:n, 0], head[:n, 1] = offsets, counts
+                erows = max(1, -(-len(entries) // ENTRY_ROW))
+                ent = np.zeros((erows * ENTRY_ROW, 3), np.float32)
+                ent[:len(entries)] = entries
                 self.release()
                 self.tex = self.ctx.texture((per_row * k, rows), 2, dtype="f4")
-                self.tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
                 self.tex.write(np.ascontiguousarray(data.reshape(rows, per_row * k, 2)).tobytes())
-                self.per_row, self.rays, self.vertex_count = per_row, k, n
+                self.header = self.ctx.texture((per_row, rows), 2, dtype="i4")
+                self.header.write(np.ascontiguousarray(head).tobytes())
+                self.entries = self.ctx.texture((ENTRY_ROW, erows), 3, dtype="f4")
+                self.entries.write(np.ascontiguousarray(ent).tobytes())
+                for t in (self.tex, self.header, self.entries):
+                    t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                self.per_row, self.rays, self.series_rays, self.vertex_count = per_row, rays, k, n
+                self.entry_count, self.cells = len(entries), cells
             self.key = key
             frame.passes_run.append("interreflection_bake")
         return self.tex
 
     def release(self):
-        if self.tex is not None:
-            self.tex.release()
-        self.tex = None
+        for t in (self.tex, self.header, self.entries):
+            if t is not None:
+                t.release()
+        self.tex = self.header = self.entries = None
         self.key = None
+
+
+def first_order_size(frame) -> int:
+    """The texels across the level the one bounce reads (FIRST_ORDER_FINER_LEVELS finer than
+    :func:`bounce_level`'s, at the renderer's irradiance size): the cells its merged hits share."""
+    S = int(frame.renderer.irradiance_size)
+    level = bounce_level(layout_texels_per_mm(frame.scene, S), S)
+    return max(S >> max(level - FIRST_ORDER_FINER_LEVELS, 0), 1)
 
 
 # ---------------------------------------------------------------------- the gather, shared
 BOUNCE_TEXEL_MM = 2.0
-"""The gather reads rho E at the level whose texels are about this wide (mm, at the layout's median
-stretch): a box as wide as the profile's widest Gaussians (d'Eon's red: sigma 2.7 mm), so the light
-read is close to the diffused light that leaves the skin (tsd/bounce_exitant.frag)."""
+"""The higher bounces' gathers read rho T at the level whose texels are about this wide (mm, at the
+layout's median stretch): a box as wide as the profile's widest Gaussians (d'Eon's red: sigma 2.7 mm),
+so the light read is close to the diffused light that leaves the skin (tsd/bounce_exitant.frag); the
+one bounce reads FIRST_ORDER_FINER_LEVELS finer."""
 
 
 def bounce_level(texels_per_mm: float | None, size: int) -> int:
@@ -101,10 +143,12 @@ class BounceGather:
         from dermis.gl.shaders import program
 
         self.ctx = ctx
-        # base: a step of the higher bounces, T_n = E_b + G T_(n-1) (BOUNCE_BASE; BounceSeries)
+        # base: a step of the higher bounces, T_n = E_b + G T_(n-1) (BOUNCE_BASE; BounceSeries) over
+        # the series' rays (InterreflectionHits.tex); else the one bounce over the merged hits
+        # (BOUNCE_MERGED: InterreflectionHits.header, .entries)
         self.base = bool(base)
         self.prog = program(ctx, "common/fullscreen.vert", "tsd/bounce_gather.frag",
-                            {"BOUNCE_BASE": 1} if self.base else None)
+                            {"BOUNCE_BASE": 1} if self.base else {"BOUNCE_MERGED": 1})
         self.vao = ctx.vertex_array(self.prog, [])
         self.target = None
         self.fbo = None
@@ -128,13 +172,17 @@ class BounceGather:
         size = (hits.per_row, hits.tex.size[1])
         if self.target is None or self.target.size != size:
             self._make_target(size)
-        for name, value in (("uRays", hits.rays), ("uVerticesPerRow", hits.per_row), ("uVertexCount", hits.vertex_count),
-                            ("uHits", 0), ("uExitant", 1), ("uBase", base_unit)):
+        for name, value in (("uRays", hits.series_rays), ("uVerticesPerRow", hits.per_row),
+                            ("uVertexCount", hits.vertex_count), ("uHits", 0), ("uExitant", 1), ("uBase", base_unit),
+                            ("uHeader", 0), ("uEntries", base_unit)):
             set_uniform(self.prog, name, int(value))
-        use_texture(hits.tex, 0)
         use_texture(exitant, 1)
         if self.base:
+            use_texture(hits.tex, 0)
             use_texture(base, base_unit)
+        else:
+            use_texture(hits.header, 0)
+            use_texture(hits.entries, base_unit)
         self.fbo.use()
         self.fbo.viewport = (0, 0, *size)
         self.vao.render(moderngl.TRIANGLES, vertices=3)
@@ -159,10 +207,12 @@ class BounceGather:
 # ---------------------------------------------------------------------- the source's levels
 class LevelChain:
     """rho E (the one bounce's source) or rho T (a higher order's) from the level it is rasterised at,
-    SOURCE_FINER_LEVELS finer than the gather's ~2 mm level (:func:`bounce_level`), 2x2-reduced to the
-    gather's (tsd/downsample.frag). The textures are made as 1x1 stand-ins and re-made at their sizes
-    on first use (the count of live GPU objects never changes; a level-0 gather uses the first alone).
-    Used by :class:`SharedBounce` and :class:`BounceSeries`."""
+    SOURCE_FINER_LEVELS finer than the ~2 mm level (:func:`bounce_level`), 2x2-reduced to it
+    (tsd/downsample.frag) for the higher orders' gathers; the shared one bounce reads the raster's level
+    itself (FIRST_ORDER_FINER_LEVELS: ``reduce`` of the first level alone runs no pass). The textures
+    are made as 1x1 stand-ins and re-made at their sizes on first use (the count of live GPU objects
+    never changes; a level-0 gather uses the first alone). Used by :class:`SharedBounce` and
+    :class:`BounceSeries`."""
 
     def __init__(self, ctx):
         from dermis.gl.shaders import program
@@ -323,10 +373,21 @@ class BounceSeries:
 
 # ---------------------------------------------------------------------- the shared product
 SOURCE_FINER_LEVELS = 1
-"""The shared bounce's rho E is rasterised this many levels finer than the gather's level and
-2x2-reduced to it: each gather texel a box average of 4^SOURCE_FINER_LEVELS samples, where tsd's is
-one of all its level-0 texels. Chosen by measurement against tsd's bounce on the head
-(benchmarks/RESULTS.md, "Round 8, branch bounce8")."""
+"""The shared bounce's rho E (and the higher orders' rho T) is rasterised this many levels finer than
+the ~2 mm level (:func:`bounce_level`): the one bounce reads it there (FIRST_ORDER_FINER_LEVELS), the
+higher orders 2x2-reduced to ~2 mm, each texel a box average of 4^SOURCE_FINER_LEVELS samples.
+Chosen by measurement against tsd's bounce on the head (benchmarks/RESULTS.md, "Round 8, branch
+bounce8")."""
+
+
+FIRST_ORDER_FINER_LEVELS = 1
+"""The one bounce (the first order: tsd's and the shared one) reads rho E this many levels finer than
+:func:`bounce_level`'s ~2 mm (here ~1 mm texels: the shared raster itself, SOURCE_FINER_LEVELS, no
+reduction); the higher orders keep the ~2 mm level (their light is a gather of a gather, smooth). On
+the head against Cycles' render without subsurface scattering (lambert, 128 rays) the 1 mm read took
+FLIP back-ears 0.0237 -> 0.0222, front-key 0.0123 -> 0.0118 for no extra raster (benchmarks/RESULTS.md,
+"Round 17, branch bounce17"); the bounce light's own edges (the lit ear's back against the scalp)
+are ~1 mm sharp in Cycles."""
 
 
 class SharedBounce:
@@ -339,9 +400,9 @@ class SharedBounce:
     rho E is tsd's own irradiance pass (tsd/irradiance.frag: lights, soft shadows, occluded ambient,
     energy conservation, the directional albedo at entry) with mix = 1, so that it writes
     E albedo^1 = rho E, the light leaving the skin times pi (tsd's bounce_exitant.frag reads the same
-    from I_0 albedo^(1 - mix)); rasterised small (SOURCE_FINER_LEVELS above the gather's ~2 mm level,
-    :func:`bounce_level`), reduced (tsd/downsample.frag) and gathered over the baked rays
-    (:class:`BounceGather`). It is drawn in two passes (tsd/irradiance.frag, SKIN_BOUNCE_INPUTS and
+    from I_0 albedo^(1 - mix)); rasterised small (SOURCE_FINER_LEVELS above the ~2 mm level,
+    :func:`bounce_level`: ~1 mm) and gathered there over all the baked rays, merged per texel cell
+    (:class:`BounceGather`, InterreflectionHits). It is drawn in two passes (tsd/irradiance.frag, SKIN_BOUNCE_INPUTS and
     SKIN_BOUNCE_FROM_INPUTS): the mesh raster of what depends on no light (the maps, normals, the
     directional albedo's c, albedo^mix, the occluded ambient; 5 rgba32f targets) once per product key
     "interreflection_inputs", and per lighting change a full-screen pass over those texels adding
@@ -394,7 +455,9 @@ class SharedBounce:
             bind_scene(frame, prog)
             self.inputs.bind(prog, Unit.FIRST_FREE)
             light_pass(self.ctx, self._vaos, prog, fbo, tex.size)
-            self._gather.run(self.hits, self._chain.reduce(levels))
+            # the one bounce from the level FIRST_ORDER_FINER_LEVELS finer than the ~2 mm one
+            first = max(level - FIRST_ORDER_FINER_LEVELS, 0) - max(level - SOURCE_FINER_LEVELS, 0)
+            self._gather.run(self.hits, self._chain.reduce(levels[:max(first, 0) + 1]))
             out = self._series.run(frame, self.hits, self._gather, level)  # + the higher bounces
         self._out = out
         self.key = key

@@ -12,10 +12,11 @@ surface with a radial diffusion profile R(r), represented as a sum of Gaussians 
                                              full-screen pass (dermis.gl.irradiance_inputs, SPLIT_IRRADIANCE)
   one diffuse bounce between skin surfaces (scene.interreflection): E_b = (1/K) sum_k rho E(y_k) over K
                  cosine-weighted rays per vertex (baked once per mesh, geometry/interreflection.py), rho E
-                 read from a ~2 mm level of I_0 albedo^(1-mix); with its higher orders (BounceSeries,
-                 dermis.geometry.interreflection.BOUNCE_ORDERS = 4, as Cycles through the bridge)
-                 T = E_b + B E_b + B^2 E_b + B^3 E_b (B: one more diffuse reflection off the skin over
-                 the same rays, geometry/interreflection.py's G); T albedo^mix added to I_0
+                 read from a ~1 mm level of I_0 albedo^(1-mix) (K = 512, merged per texel cell); with
+                 its higher orders (BounceSeries, dermis.geometry.interreflection.BOUNCE_ORDERS = 4, as
+                 Cycles through the bridge) T = E_b + B E_b + B^2 E_b + B^3 E_b (B: one more diffuse
+                 reflection off the skin over 128 of the rays at ~2 mm, geometry/interreflection.py's
+                 G); T albedo^mix added to I_0
   dilate I_0 into the UV gutters
   for k = 1..K:  I_k = I_(k-1) * G(v_k - v_(k-1)) as a U then a V pass (chained: G(a)*G(b) = G(a+b)),
                  tap spacing from S_k, the stretch blurred by the same chain; wide Gaussians run at
@@ -781,7 +782,11 @@ class TextureSpaceDiffusion(Technique):
                 with maps_without_anisotropy(frame.gpu, surfaces=False):
                     self._uv_pass(frame, p_exit, self._texture(("bounce_exitant", 0), irr.size))
             src = self.tex[("bounce_exitant", 0)]
-            for lvl in range(1, level + 1):
+            # the one bounce reads the level the hits were merged for, as the shared bounce
+            # (gl.interreflection.first_order_size: FIRST_ORDER_FINER_LEVELS finer than the ~2 mm
+            # level of the layout's median stretch); its series reads the ~2 mm level
+            first = max(int(round(math.log2(irr.size[0] / max(self.hits.cells, 1)))), 0)
+            for lvl in range(1, first + 1):
                 src, p = self._down(src, ("bounce_exitant", lvl), lvl)
                 self._draw(p)
             p_gather.run(self.hits, src)

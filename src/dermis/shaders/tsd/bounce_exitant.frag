@@ -4,10 +4,11 @@
 // a cleared target), so the 2x2 reductions that follow (tsd/downsample.frag) give it premultiplied.
 //
 // Skin's exitant radiance is the diffused irradiance, albedo^(1-mix) sum_k w_k I_k / pi, not the
-// local rho E / pi: the gather reads this map at a level whose texels are ~2 mm (tsd.py,
-// BOUNCE_TEXEL_MM), a box average as wide as the profile's widest Gaussians, so what it reads is
-// close to the diffused light without waiting for the blur chain (which runs after the bounce is
-// added: the bounce must be blurred too). Bounce light is low-frequency (Dachsbacher & Stamminger
+// local rho E / pi: the higher orders read this light at ~2 mm texels (BOUNCE_TEXEL_MM), a box as
+// wide as the profile's widest Gaussians; the one bounce at ~1 mm (FIRST_ORDER_FINER_LEVELS in
+// dermis/gl/interreflection.py), as Cycles does through dermis's bridge: skin reached after a
+// diffuse bounce is a plain diffuse BSDF there, no second random walk (BOUNCE_ORDERS' docstring).
+// The blur chain runs after the bounce is added: the bounce is blurred too. Bounce light is low-frequency (Dachsbacher & Stamminger
 // 2005, "Reflective Shadow Maps", gather from a low-resolution map of the directly lit surface;
 // Ritschel et al. 2012, STAR sec. 3), so the coarse level loses nothing the bounce shows.
 #include "common/surface.glsl"

@@ -16,6 +16,12 @@ uniform int uVertexCount;
 #ifdef BOUNCE_BASE
 uniform sampler2D uBase;  // E_b per vertex, the one bounce (this pass's layout)
 #endif
+#ifdef BOUNCE_MERGED
+// the one bounce over all the bake's rays, merged per bilinear cell of uExitant
+// (dermis.geometry.interreflection.merge_hits): entries (u, v, share), share = rays merged / K
+uniform isampler2D uHeader;  // (offset, count) of this vertex's entries (this pass's layout)
+uniform sampler2D uEntries;  // rgb32f, entry e at (e mod 4096, e div 4096) (InterreflectionHits.ENTRY_ROW)
+#endif
 out vec4 f_bounce;
 
 // a hit in a texel the layout barely covers at this level: its colour is the coverage's ratio of
@@ -25,6 +31,17 @@ const float MIN_COVERAGE = 1.0 / 64.0;
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     vec3 sum = vec3(0.0);
+#ifdef BOUNCE_MERGED
+    if (p.y * uVerticesPerRow + p.x < uVertexCount) {
+        ivec2 oc = texelFetch(uHeader, p, 0).xy;
+        for (int e = oc.x; e < oc.x + oc.y; ++e) {
+            vec3 h = texelFetch(uEntries, ivec2(e & 4095, e >> 12), 0).xyz;
+            vec4 c = textureLod(uExitant, h.xy, 0.0);
+            if (c.a >= MIN_COVERAGE) sum += h.z * (c.rgb / c.a);
+        }
+    }
+    vec3 e = sum;
+#else
     if (p.y * uVerticesPerRow + p.x < uVertexCount) {
         for (int k = 0; k < uRays; ++k) {
             vec2 uv = texelFetch(uHits, ivec2(p.x * uRays + k, p.y), 0).xy;
@@ -34,6 +51,7 @@ void main() {
         }
     }
     vec3 e = sum / float(max(uRays, 1));
+#endif
 #ifdef BOUNCE_BASE
     e += texelFetch(uBase, p, 0).rgb;
 #endif
