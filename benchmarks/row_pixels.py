@@ -211,6 +211,43 @@ def _tap_irradiance(sc, pts, bk, lose, rays: int = 256, uv_grid: int = 2048):
               f"{np.mean(Tv[s, 1] / E0[s, 1]):+.4f}, ray-cast {np.mean(Tr[s, 0] / E0[s, 0]):+.4f} {np.mean(Tr[s, 1] / E0[s, 1]):+.4f}")
 
 
+def crop(name: str, mode: str, landmark: str, winner: str, size: int = 768):
+    import cycles_crops as C
+
+    import dermis
+    from dermis.reference.validate import metrics
+    from dermis.renderer import Renderer
+
+    sc = dermis.load_scene(C.SCENES[name])
+    if mode == "nospec":
+        sc.material.rho_s = 0.0  # as cycles_crops.py score --nospec
+    got = C.load_crop(C.OUT, name, landmark, sc, size, mode == "spec")
+    if got is None:
+        raise SystemExit(f"no current Cycles crop {name}:{landmark} ({mode}) at {size} px in {C.OUT}")
+    rgba, meta = got
+    sc.material.pore_strength = 0.0  # as cycles_crops.py score
+    x0, y0, x1, y1 = meta["box"]
+    skin = rgba[..., 3] >= 0.999
+    ref = C.over_background(sc, rgba)
+    imgs = {}
+    with Renderer(sc, (size, size), irradiance_size=1024) as r:
+        imgs["tsd"] = r.render("tsd")[y0:y1, x0:x1, :3]
+        if winner in ("tsd", "ssss", "preintegrated", "lambert"):
+            imgs[winner] = r.render(winner)[y0:y1, x0:x1, :3]
+    with Renderer(sc, (size, size), irradiance_size=1024) as r:  # the tweak before the first render
+        r.technique("tsd").transfer.add = lambda *a, **k: False
+        imgs["tsd-no-transfer"] = r.render("tsd")[y0:y1, x0:x1, :3]
+    tr = (imgs["tsd"] - imgs["tsd-no-transfer"])[..., 0] / np.maximum(imgs["tsd-no-transfer"][..., 0], 1e-6)
+    band, rest = skin & (tr > 0.02), skin & (np.abs(tr) <= 0.002)
+    print(f"  {size} px crop {name}:{landmark} {meta['box']}, floor {meta.get('floor_flip')}: skin {skin.sum()} px, "
+          f"band (transfer > 2 % red) {band.sum()}, rest {rest.sum()}")
+    for k, v in imgs.items():
+        f, fmap = metrics(sc, ref, v, skin)
+        q = lambda m: " ".join(f"{x:.3f}" for x in v[m].mean(0) / ref[m].mean(0)) if m.any() else "-"
+        print(f"    {k:16s} FLIP {f['flip']:.4f}, band {fmap[band].mean() if band.any() else float('nan'):.4f}, rest "
+              f"{fmap[rest].mean():.4f} | to Cycles: band {q(band)}, rest {q(rest)}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("saved", type=Path, help="region_terms.py's --save folder")
@@ -221,10 +258,13 @@ def main(argv=None):
     ap.add_argument("--walk", action="store_true")
     ap.add_argument("--view-entry", action="store_true")
     ap.add_argument("--walks", type=int, default=192)
+    ap.add_argument("--crop", help="a landmark of benchmarks/cycles/crops (e.g. lips, nose): the 768 px study")
     args = ap.parse_args(argv)
     sc, reg, dd = split(args.saved, args.scene, args.mode, args.region, args.winner)
     if args.walk:
         walk(sc, reg, dd, args.walks, args.view_entry)
+    if args.crop:
+        crop(args.scene, args.mode, args.crop, args.winner)
 
 
 if __name__ == "__main__":
