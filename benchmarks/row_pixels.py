@@ -20,7 +20,7 @@ no-SSS control, tsd and its variants without a term, ssss, preintegrated, lamber
 
     PYTHONPATH=src python benchmarks/row_pixels.py DIR environment nospec lips preintegrated [--walk] [--view-entry]
 
-About 5 s (pixels) and 20-60 s per medium (walk) at load ~1.
+About 5 s (pixels), 20-60 s per medium (walk), 15-20 s (crop) at load 1-4.
 """
 
 from __future__ import annotations
