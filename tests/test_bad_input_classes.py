@@ -279,6 +279,14 @@ def test_mesh_past_the_coordinate_limit_is_refused_before_it_is_framed(tmp_path,
         one_line_error(lambda: dermis.load_scene(path), "far.glb", "mesh coordinates reach", "over the limit")
 
 
+def test_obj_coordinate_past_float32_is_out_of_range_not_infinite(tmp_path):
+    """Fuzz seed 1704: an OBJ vertex at 1e300 (finite in the file) was cast to float32 first and refused
+    as "positions contain NaN or infinite values"; it is a coordinate over the limit."""
+    p = tmp_path / "far.obj"
+    p.write_text("v 0 0 0\nv 0.648 0.0 1e300\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
+    one_line_error(lambda: dermis.load_scene(p), "far.obj", "mesh coordinates reach 1e+300", "over the limit")
+
+
 def test_a_normal_past_float32s_squares_is_its_direction(tmp_path):
     """Fuzz seed 1702: a glTF normal with a finite component of ~1e30 (its square overflows float32) was
     divided by an infinite length and silently replaced by (0, 0, 1); only its direction counts."""

@@ -272,14 +272,22 @@ def _skip(*args, **kw):
     pass
 
 
+def check_coordinates(positions, source) -> float:
+    """The largest |coordinate| of ``positions`` (finite values; scene units), refused over
+    MAX_COORDINATE. Loaders call it on the file's own (float64) numbers before the float32 cast, which
+    would turn 1e300 into inf and the error into "NaN or infinite"."""
+    big = float(np.abs(positions).max(initial=0.0))
+    if big > MAX_COORDINATE:
+        raise DermisError(f"{source}: mesh coordinates reach {big:g}, over the limit of {MAX_COORDINATE:g} units")
+    return big
+
+
 def check_mesh(mesh):
     """Finite values, indices in range (Mesh.validate), coordinates in range, non-zero extent."""
     mesh.validate()
     p = np.asarray(mesh.positions, np.float64)
     lo, hi = p.min(axis=0), p.max(axis=0)
-    big = float(np.abs(p).max())
-    if big > MAX_COORDINATE:
-        raise DermisError(f"{mesh.source}: mesh coordinates reach {big:g}, over the limit of {MAX_COORDINATE:g} units")
+    big = check_coordinates(p, mesh.source)
     diag = float(np.linalg.norm(hi - lo))
     if not diag > 1e-6 * max(big, 1e-30):  # all vertices at (float32-)one point
         raise DermisError(f"{mesh.source}: mesh has zero extent (all vertices at one point)")

@@ -65,6 +65,11 @@ def _data_uri(uri: str, source="glTF") -> bytes | None:
 
 def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: str, tangents=None, uvs1=None) -> Mesh:
     """A checked Mesh from arrays in the file's convention; ``uvs1``: a second UV set (TEXCOORD_1)."""
+    from dermis.validation import check_coordinates
+
+    p64 = np.asarray(positions, np.float64)
+    if np.all(np.isfinite(p64)):
+        check_coordinates(p64, source)  # before the cast: an OBJ's 1e300 is out of range, not "infinite"
     positions = np.ascontiguousarray(positions, np.float32)
     indices = np.ascontiguousarray(indices, np.int64).reshape(-1, 3)
     if uvs is None and len(indices) and indices.min() >= 0 and indices.max() < len(positions) \
