@@ -210,6 +210,8 @@ def test_nul_bytes_in_file_names_are_refused(tmp_path, extra, tokens):
 @pytest.mark.parametrize("extra, tokens", [
     ("[[lights]]\ndirection = [0.0, 0.0, -1.0]\nintensity = 1e300\n", ["[[lights]] #2 intensity"]),
     ("[scene]\nmm_per_unit = 1e300\n", ["[scene] mm_per_unit"]),
+    # fuzz seed 1704: 1e-300 mm per unit underflowed the layout's stretch (an IndexError in the bounce)
+    ("[scene]\nmm_per_unit = 1e-300\n", ["[scene] mm_per_unit", "[1e-06, 1e+06]"]),
     ('[environment]\nimage = "huge.exr"\n', ["[environment] image", "huge.exr"]),
 ])
 def test_out_of_range_values_are_refused_up_front(tmp_path, extra, tokens):
@@ -217,6 +219,16 @@ def test_out_of_range_values_are_refused_up_front(tmp_path, extra, tokens):
     p = tmp_path / "s.toml"
     p.write_text(PLANE_TOML + "\n" + extra)
     one_line_error(lambda: dermis.load_scene(p), "s.toml", *tokens)
+
+
+def test_layout_stretch_of_underflowing_triangles_is_none_not_an_index_error():
+    """The bounce level's median stretch (texels per mm) over triangles whose extent in mm underflows
+    to 0 has no value: 0.0, the same answer as for a layout of degenerate UVs, never an IndexError."""
+    from dermis.geometry.interreflection import layout_median_stretch
+
+    pos, uv, idx = small_grid()
+    assert layout_median_stretch(pos, uv, idx, 1.0, 64) > 0
+    assert layout_median_stretch(pos * 1e-300, uv, idx, 1e-300, 64) == 0.0
 
 
 def test_overflowing_frame_is_an_error_not_inf():
@@ -285,6 +297,8 @@ def test_obj_coordinate_past_float32_is_out_of_range_not_infinite(tmp_path):
     p = tmp_path / "far.obj"
     p.write_text("v 0 0 0\nv 0.648 0.0 1e300\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
     one_line_error(lambda: dermis.load_scene(p), "far.obj", "mesh coordinates reach 1e+300", "over the limit")
+    p.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1e300 0\nvt 0 1\nf 1/1 2/2 3/3\n")  # and a UV
+    one_line_error(lambda: dermis.load_scene(p), "far.obj", "texture coordinates reach 1e+300")
 
 
 def test_a_normal_past_float32s_squares_is_its_direction(tmp_path):

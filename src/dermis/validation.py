@@ -25,6 +25,7 @@ MAX_SAMPLES = 64
 EXPOSURE_STOPS = (-64.0, 64.0)  # 2**64 x a half-float radiance stays finite in float32
 MAX_INTENSITY = 1e12  # light intensities and environment radiance; far above any scene (sun ~1e3)
 MAX_MM_PER_UNIT = 1e6  # 1 km per scene unit
+MIN_MM_PER_UNIT = 1e-6  # 1 nm per scene unit: far below skin's structure; smaller underflows the stretch
 MAX_COORDINATE = 1e9  # |position| in scene units; float32 keeps ~7 digits
 FRAMEBUFFER_MAX = 65504.0  # the largest half float: the frame buffer's format
 
@@ -353,7 +354,7 @@ def check_scene(scene, full: bool = True):
     _check_surfaces(scene, full)
     lo, hi = (np.asarray(b, np.float64) for b in scene.bounds())
     diag = float(np.linalg.norm(hi - lo))
-    _num(scene.mm_per_unit, f"{src}: [scene] mm_per_unit", 0.0, MAX_MM_PER_UNIT, lo_open=True)
+    _num(scene.mm_per_unit, f"{src}: [scene] mm_per_unit", MIN_MM_PER_UNIT, MAX_MM_PER_UNIT)
     m = scene.material
     _vec(m.albedo_color, f"{src}: [material] albedo_color", 3, 0.0, 1.0)
     tv = _texture_values if full else _skip  # textures: checked once, by set_scene

@@ -306,7 +306,9 @@ def layout_median_stretch(positions, uvs, indices, mm_per_unit: float, size: int
         return 0.0
     J = np.linalg.solve(duv[ok], dp[ok])  # rows: dP/du, dP/dv (mm per texel)
     lengths = np.linalg.norm(J, axis=2)
-    ok2 = np.all(lengths > 0, axis=1)
+    ok2 = np.all((lengths > 0) & np.isfinite(lengths), axis=1)
+    if not ok2.any():  # every triangle's extent underflowed or overflowed: no stretch, as above
+        return 0.0
     vals = (1.0 / lengths[ok2]).T.ravel()  # u then v
     w = np.tile(0.5 * np.abs(det[ok][ok2]), 2)
     order = np.argsort(vals)

@@ -88,6 +88,13 @@ def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: st
         indices, uvs, tangents, uv_convention = atlas.indices.astype(np.int64), atlas.uvs, None, "v-up"
     if uvs is None:
         raise DermisError(f"{source}: mesh has no texture coordinates (UVs) and no valid triangles to generate them from")
+    # the span on the file's own numbers (before the float32 cast, which makes 1e300 "infinite")
+    finite_uvs = [a for a in (np.asarray(uvs, np.float64), None if uvs1 is None else np.asarray(uvs1, np.float64))
+                  if a is not None and a.size and np.all(np.isfinite(a))]
+    span = max((float(np.abs(a).max()) for a in finite_uvs), default=0.0)
+    if span > UV_LIMIT:
+        raise DermisError(f"{source}: texture coordinates reach {span:g}; dermis needs a UV layout within "
+                          f"[-{UV_LIMIT:g}, {UV_LIMIT:g}] (the unit square, or UDIM tiles)")
     uvs = np.ascontiguousarray(uvs, np.float32).copy()
     if uvs1 is not None:
         uvs1 = np.ascontiguousarray(uvs1, np.float32).copy()
@@ -105,10 +112,6 @@ def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: st
         raise DermisError(f"{source}: triangle indices out of range")
     if len(uvs) != len(positions):
         raise DermisError(f"{source}: mesh has {len(uvs)} UVs for {len(positions)} vertices")
-    span = max(float(np.abs(a).max()) if a is not None and len(a) else 0.0 for a in (uvs, uvs1))
-    if span > UV_LIMIT:
-        raise DermisError(f"{source}: texture coordinates reach {span:g}; dermis needs a UV layout within "
-                          f"[-{UV_LIMIT:g}, {UV_LIMIT:g}] (the unit square, or UDIM tiles)")
     if uv_convention == "v-down":
         uvs[:, 1] = 1.0 - uvs[:, 1]
         if uvs1 is not None:
