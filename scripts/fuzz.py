@@ -1,6 +1,6 @@
 """``make fuzz``: run the fuzz families of tests/test_fuzz.py for >= 10,000 cases in all, count
 OK / clean error / other per family, and write them with the seed to benchmarks/RESULTS.md under
-"Reliability". Usage: python scripts/fuzz.py [--cases 10000] [--seed N] [--no-write]
+"Reliability". Usage: python scripts/fuzz.py [--cases 10000] [--seed N] [--no-write] [--warnings-as-errors]
 
 Each "other" is printed with its input (the first few per family) and makes the exit status 1.
 """
@@ -28,7 +28,14 @@ def main():
     ap.add_argument("--seed", type=int, default=None)
     ap.add_argument("--no-write", action="store_true")
     ap.add_argument("--families", default=",".join(SHARE))
+    ap.add_argument("--warnings-as-errors", action="store_true",
+                    help="numpy's RuntimeWarnings (overflow, invalid value) count as 'other': arithmetic on an "
+                         "unchecked or overflowing input, even where a clean error follows (round 17)")
     args = ap.parse_args()
+    if args.warnings_as_errors:
+        import warnings
+
+        warnings.simplefilter("error", RuntimeWarning)
     seed = args.seed if args.seed is not None else random.SystemRandom().randrange(2**32)
 
     import test_fuzz as tf

@@ -269,7 +269,8 @@ def rgbe_bytes(rgb: np.ndarray, declared=None) -> bytes:
 def write_exr(path, arr, half=False):
     from dermis.images import exr_writer
 
-    exr_writer(arr, half)(path)
+    with np.errstate(over="ignore"):  # half-float inputs past 65504 (inf in the file) are on purpose
+        exr_writer(arr, half)(path)
 
 
 def prepare_folder(d: Path):
