@@ -1,5 +1,5 @@
 """The baked subsurface transfer around curls (dermis.subsurface_transfer) and its run-time gather
-(dermis.gl.subsurface_transfer, tsd). About 40 s on 2 cores (load 2).
+(dermis.gl.subsurface_transfer, tsd). About 50 s on 2 cores (load 3).
 
 - On a folded sheet 2 mm thick (a U whose fold is a half-cylinder shell), the bake's same-facing
   transfer, within 1 mm along the surface and beyond (adjoint walks started at points of the top
@@ -15,6 +15,8 @@
 - A bake of another recipe (estimator, denoising constants) is stale, as one of another format.
 - The GL gather against its numpy twin (the same taps, a random premultiplied irradiance); the add pass
   against the numpy tent of the gathered grid, per channel (round 17).
+- Per channel (round 17): the image's added light is the add pass's delta in the translucency target times
+  albedo^(1 - mix) / pi at every pixel, the same factor in R, G, B (constant albedo, mix 0.3).
 - Per channel (round 17): on a thin slab with a different medium in each channel, each channel's net is
   its own medium's R_slab / R_inf - 1 by MCML (an independent Monte Carlo).
 - The shipped bake is found for the head (back-ears and the example scene) and not for another
@@ -564,3 +566,70 @@ def test_each_channel_is_its_own_medium_on_a_thin_slab(monkeypatch):
     se_flat = np.array([k.reflectance_se / k.reflectance for k in kernels]) * np.abs(want)
     tol = 4.0 * np.sqrt(se ** 2 + se_want ** 2 + se_flat ** 2) + 0.005
     assert np.all(np.abs(got - want) < tol), (got, want, se, se_want)
+
+
+def test_image_adds_the_targets_delta_times_albedo_after_scatter_per_channel(head_bake):
+    """The whole chain per channel (round 17 transfer17): on the head with a constant albedo A (the map's mean
+    colour, which the bake's medium matches) and no specular, the light the transfer adds to tsd's image at a
+    pixel is the add pass's delta in the translucency target (read back around the pass), bilinear at the pixel's
+    texture-space uv, times A^(1 - mix) / pi (tsd/final.frag: the exit side's share of the albedo; the entry's
+    A^mix is in the irradiance map the gather reads). A channel's albedo exponent or factor wrong in the final
+    pass (or mix and 1 - mix swapped) fails."""
+    import dermis
+    from dermis.geometry.raycast import RayCaster
+    from dermis.geometry.texture_space import texture_space_uvs
+    from dermis.reference.render import camera_rays
+    from dermis.renderer import Renderer
+    from dermis.scene.model import mean_skin_albedo
+
+    def read(t):
+        a = np.frombuffer(t.read(), np.float32 if t.dtype == "f4" else np.float16)
+        return a.reshape(t.size[1], t.size[0], t.components).astype(np.float64)
+
+    sc = dermis.load_scene(REPO / "examples" / "reference" / "back-ears.toml")
+    albedo = np.asarray(mean_skin_albedo(sc.material), np.float64)
+    sc.material.albedo, sc.material.albedo_color = None, tuple(albedo)
+    sc.material.rho_s, sc.material.pore_strength = 0.0, 0.0
+    sc.material.mix = 0.3  # not 0.5: A^mix and A^(1 - mix) differ, so their sides are told apart
+    size, grab = 128, {}
+    with Renderer(sc, (size, size), irradiance_size=256) as r:
+        st = r.technique("tsd").transfer
+        add = st.add
+
+        def spy(frame, fbo, target_size, irradiance):
+            before = read(fbo.color_attachments[0])
+            drawn = add(frame, fbo, target_size, irradiance)
+            grab["delta"] = read(fbo.color_attachments[0]) - before
+            return drawn
+
+        st.add = spy
+        img = r.render("tsd")[..., :3].astype(np.float64)
+    with Renderer(sc, (size, size), irradiance_size=256) as r:
+        r.technique("tsd").transfer.add = lambda *a, **k: False
+        no = r.render("tsd")[..., :3].astype(np.float64)
+    d = grab["delta"]
+    assert np.all(d[..., 3] == 0.0)
+    # the pixels' visible points (their centres' rays) and texture-space uv, away from silhouettes
+    o, v, tmax, _ = camera_rays(sc, (size, size), 1)
+    pos, idx = np.asarray(sc.mesh.positions, np.float64), np.asarray(sc.mesh.indices, np.int64).reshape(-1, 3)
+    from scipy.ndimage import binary_erosion
+
+    pix = np.nonzero(binary_erosion(no.sum(-1) > 0, iterations=2).reshape(-1))[0]
+    _, tri, bc = RayCaster(pos, idx).closest_hit(o[pix], v[pix], 0.0, tmax[pix])
+    keep = tri >= 0
+    pix, tri, bc = pix[keep], tri[keep], bc[keep]
+    uv = np.einsum("nk,nkc->nc", np.c_[1.0 - bc.sum(1), bc], np.asarray(texture_space_uvs(sc.mesh), np.float64)[idx[tri]])
+    h, w = d.shape[:2]
+    x, y = uv[:, 0] * w - 0.5, uv[:, 1] * h - 0.5
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    at = lambda yy, xx: d[np.clip(yy, 0, h - 1), np.clip(xx, 0, w - 1), :3]
+    T = at(y0, x0) * (1 - fx) * (1 - fy) + at(y0, x0 + 1) * fx * (1 - fy) + at(y0 + 1, x0) * (1 - fx) * fy + at(y0 + 1, x0 + 1) * fx * fy
+    want = T * albedo ** (1.0 - sc.material.mix) / np.pi
+    got = (img - no).reshape(-1, 3)[pix]
+    lit = want[:, 2] > 0.05 * want[:, 2].max()  # where the transfer adds visibly (texel edges: bilinear vs the raster)
+    assert lit.sum() > 200, lit.sum()
+    # per channel the same factor (measured 0.988 0.988 0.989: one sample per pixel centre against the rasterised
+    # uv, channel-neutral), within 3 % of 1
+    ratio = got[lit].sum(0) / want[lit].sum(0)
+    assert np.all(np.abs(ratio - 1.0) < 0.03) and ratio.max() / ratio.min() - 1.0 < 0.003, ratio
