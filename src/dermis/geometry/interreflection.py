@@ -220,11 +220,14 @@ def _first_front_hits(caster, origins, dirs, tris, normals, near):
     32 x 16 sphere). The smooth surface the facets stand for would have stopped it within a chord of
     2 R sin(elevation), close by: the hit is kept, and the light of that neighbourhood is read."""
     th, tri, bary = caster.closest_hit(origins, dirs)
-    hit = tri >= 0
-    w = np.c_[1.0 - bary.sum(1), bary]
-    hn = np.einsum("nk,nkc->nc", w, normals[tris[np.maximum(tri, 0)]])
-    away = hit & (np.einsum("nc,nc->n", hn, dirs) >= 0.0) & (th >= near)
-    tri = np.where(away, -1, tri)
+    # the rays that hit (a third to a half), and of them those beyond ``near``: the normal is
+    # interpolated there only (the same operations per ray as over all of them, so the same bits)
+    far = np.flatnonzero((tri >= 0) & (th >= near))
+    b = bary[far]
+    w = np.c_[1.0 - b.sum(1), b]
+    hn = np.einsum("nk,nkc->nc", w, normals[tris[tri[far]]])
+    tri = tri.copy()
+    tri[far[np.einsum("nc,nc->n", hn, dirs[far]) >= 0.0]] = -1
     return tri, bary
 
 
