@@ -563,15 +563,15 @@ def test_hit_arrays_are_shared_between_renderers_and_equal_a_fresh_merge(monkeyp
     m = l_scene().mesh
     hits = interreflection.bake_vertex_hits(m.positions, m.normals, m.indices, rays=64)
     uv_ts = np.array(m.uvs, np.float64)
+    uv = hits.at_vertices(uv_ts, m.indices)  # the rays' uvs, then merged (the path before bake17)
+    off, cnt, entries = interreflection.merge_hits(uv, 32)
     calls = []
-    real = interreflection.merge_hits
-    monkeypatch.setattr(interreflection, "merge_hits", lambda *a: calls.append(1) or real(*a))
+    real_hits = interreflection.merge_hit_uvs
+    monkeypatch.setattr(interreflection, "merge_hit_uvs", lambda *a: calls.append(1) or real_hits(*a))
     a = gl_ir.hit_arrays(hits, uv_ts, m.indices, 32)
     b = gl_ir.hit_arrays(hits, uv_ts, m.indices, 32)
     assert len(calls) == 1 and all(x is y for x, y in zip(a, b))
     data, head, ent, k, per_row, rows, count = a
-    uv = hits.at_vertices(uv_ts, m.indices)
-    off, cnt, entries = real(uv, 32)
     n = len(uv)
     assert count == len(entries) and np.array_equal(ent[:count], entries) and not ent[count:].any()
     assert np.array_equal(head[:n, 0], off) and np.array_equal(head[:n, 1], cnt)

@@ -132,6 +132,14 @@ class VertexHits:
     def at_vertices(self, values, indices) -> np.ndarray:
         """``values`` (per vertex of the mesh, (V, c)) interpolated at every hit: (n, K, c), NaN
         where a ray brings nothing. E.g. the texture-space UVs of the hits."""
+        hit, at = self.at_hits(values, indices)
+        out = np.full(self.triangle.shape + (at.shape[1],), np.nan)
+        out[hit] = at
+        return out
+
+    def at_hits(self, values, indices):
+        """:meth:`at_vertices` at the rays that hit alone: (the (n, K) mask of those rays, the values
+        there (h, c) in the mask's row-major order), without the (n, K, c) array of NaN misses."""
         vals = np.asarray(values, np.float64)
         vals = vals.reshape(len(vals), -1)
         idx = np.asarray(indices, np.int64).reshape(-1, 3)
@@ -139,10 +147,8 @@ class VertexHits:
         tri = self.triangle[hit].astype(np.int64)  # the rays that hit only (a third to a half of them)
         b = self.barycentric[hit].astype(np.float64)
         corners = vals[idx[tri]]  # (h, 3, c)
-        out = np.full(self.triangle.shape + (vals.shape[1],), np.nan)
-        out[hit] = ((1.0 - b[:, 0] - b[:, 1])[:, None] * corners[:, 0] + b[:, :1] * corners[:, 1]
-                    + b[:, 1:] * corners[:, 2])
-        return out
+        return hit, ((1.0 - b[:, 0] - b[:, 1])[:, None] * corners[:, 0] + b[:, :1] * corners[:, 1]
+                     + b[:, 1:] * corners[:, 2])
 
 
 _MEMORY: dict[str, dict] = {}  # content key -> the bake's arrays (dermis.geometry.bake_cache)
@@ -273,8 +279,19 @@ def merge_hits(uv, cells: int):
     uv = np.asarray(uv, np.float64)
     n, k = uv.shape[:2]
     hit = np.isfinite(uv[..., 0]) & np.isfinite(uv[..., 1])
+    return merge_hit_uvs(hit, uv[hit], cells)
+
+
+def merge_hit_uvs(hit, u, cells: int):
+    """:func:`merge_hits` from the rays that hit alone: ``hit`` the (n, K) mask of the rays whose uv
+    is finite, ``u`` (h, 2) their uvs in the mask's row-major order (VertexHits.at_hits)."""
+    n, k = hit.shape
+    ok = np.isfinite(u[:, 0]) & np.isfinite(u[:, 1])
+    if not ok.all():  # a layout with NaN: as merge_hits drops those rays
+        hit = hit.copy()
+        hit[hit] = ok
+        u = u[ok]
     vert = np.broadcast_to(np.arange(n)[:, None], (n, k))[hit]
-    u = uv[hit]
     side = int(cells) + 2  # cells -1 .. cells (bilinear cells between texel centres, and the borders)
     c = np.clip(np.floor(u * int(cells) - 0.5).astype(np.int64) + 1, 0, side - 1)
     key = (vert.astype(np.int64) * side + c[:, 0]) * side + c[:, 1]

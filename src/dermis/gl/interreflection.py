@@ -104,12 +104,11 @@ def hit_arrays(hits, uv_ts, indices, cells: int):
     from dermis.invalidation import memo_by_content, read_only
 
     def compute():
-        from dermis.geometry.interreflection import merge_hits, series_step
+        from dermis.geometry.interreflection import merge_hit_uvs
 
-        uv = hits.at_vertices(uv_ts, indices)  # (n, K, 2), NaN: nothing
         n, rays = hits.triangle.shape
-        offsets, counts, entries = merge_hits(uv, cells)
-        sub = uv[:, ::series_step(rays)]
+        offsets, counts, entries = merge_hit_uvs(*hits.at_hits(uv_ts, indices), cells)
+        sub = hits.series_subset().at_vertices(uv_ts, indices)  # (n, K, 2), NaN: nothing
         sub = np.where(np.isfinite(sub), sub, -1.0).astype(np.float32)
         k = sub.shape[1]
         per_row, rows = hit_layout(n, k)
