@@ -72,7 +72,8 @@ rho E sqrt(F (1 - F) / K) <= 0.022 rho E; the Latin hypercube lowers it, and the
 interpolation and the diffusion's blur average several vertices. 128 -> 512 took FLIP(lambert,
 Cycles' render without subsurface scattering) on back-ears 0.0237 -> 0.0212 (benchmarks/RESULTS.md,
 "Round 16, branch transport16"; "Round 17, branch bounce17"). Cost on the head (9279 vertices):
-4.8 M closest-hit rays, 12.5 s once per mesh (128 rays: 2.5 s; load 3.4), cached on disk."""
+4.8 M closest-hit rays, 12.5 s once per mesh (128 rays: 2.5 s; load 3.4), cached on disk; 3.7 s since round
+17's bake17 (the same rays in cache-sized blocks, over threads; load 2.9), its file 26 MB (the hits alone)."""
 SERIES_RAYS = 128
 """Rays per vertex the higher bounces gather (G, :func:`bounce_series`): a nested subset of the
 BAKE_RAYS (every BAKE_RAYS / SERIES_RAYS-th ray, itself a Latin hypercube:
@@ -101,9 +102,10 @@ diffuse bounce is a diffuse BSDF of the same colour (no second random walk: subs
 path stops at the surface reached by diffuse bounce 5 (path_state.h, path_state_next: count >= limit
 marks PATH_RAY_TERMINATE_AFTER_TRANSPARENT: no light samples there). So the lights and the sky
 arrive after 0 (direct), 1, 2, 3 and 4 reflections off other skin: 4 orders of bounce light."""
-CACHE_VERSION = 3  # bump when the bake changes meaning (2: grazing rays behind a neighbouring facet are hits;
-# 3: nested Latin hypercubes, the higher bounces' subset stratified on its own). Not bumped for the packed
-# file (_packed): a file of the full arrays is a miss there, re-baked and overwritten in place.
+CACHE_VERSION = 4  # bump when the bake or its file changes meaning (2: grazing rays behind a neighbouring facet
+# are hits; 3: nested Latin hypercubes, the higher bounces' subset stratified on its own; 4: the file holds the hits
+# alone, _packed: a new name, so that trees before it, sharing the cache folder, keep their files instead of
+# re-baking each other's in turn)
 NEAR_REL = 0.01
 """An away-facing first hit closer than this (relative to the mesh's bounding diagonal: 2.5 mm on
 the head) is the ray's own neighbourhood, kept as a hit (_first_front_hits)."""
@@ -277,7 +279,6 @@ def merge_hits(uv, cells: int):
     the cell; on the head at 1 mm texels 512 rays become 112 entries per vertex on average (misses
     dropped, hits sharing a cell merged) and the gather's reads fall in proportion."""
     uv = np.asarray(uv, np.float64)
-    n, k = uv.shape[:2]
     hit = np.isfinite(uv[..., 0]) & np.isfinite(uv[..., 1])
     return merge_hit_uvs(hit, uv[hit], cells)
 
