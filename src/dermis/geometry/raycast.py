@@ -72,32 +72,40 @@ class RayCaster:
         return o, d, tmin, tmax
 
     def _intersect(self, o, d, tmin, tmax):
-        """One Embree closest-hit query per ray from o + tmin d: (t from o, triangle, u, v)."""
-        start = (o - self.center) + d * tmin[:, None]
-        far = np.minimum(tmax - tmin, np.finfo(np.float32).max)
-        far = np.where(far > 0, far, 0.0)
-        r = self._run(np.ascontiguousarray(start, np.float32), np.ascontiguousarray(d, np.float32),
-                      np.ascontiguousarray(far, np.float32))
-        tri = r["primID"].astype(np.int64)
-        tri[far <= 0] = -1
-        return tmin + r["tfar"].astype(np.float64), tri, r["u"].astype(np.float64), r["v"].astype(np.float64)
+        """One Embree closest-hit query per ray from o + tmin d: (t from o, triangle, u, v).
 
-    def _run(self, start, d, far):
-        """Embree's closest hits (primID, tfar, u, v) of float32 rays. embreex traces one ray at a
-        time (rtcIntersect1) with the GIL released, so large batches are split over threads, one
-        block of rays per core: each ray's result is the same whichever thread traces it."""
-        n = len(start)
-        workers = min(_cores(), max(1, n // PARALLEL_MIN_RAYS))
+        In blocks of BLOCK_RAYS rays (the float32 rays and the results' conversions stay in the
+        cache), spread over the process's cores when there are many: embreex traces one ray at a
+        time (rtcIntersect1) with the GIL released, numpy releases it too, and each ray's result is
+        the same whichever block and thread it is in."""
+        n = len(o)
+        t, tri = np.empty(n, np.float64), np.empty(n, np.int64)
+        u, v = np.empty(n, np.float64), np.empty(n, np.float64)
+        top = np.finfo(np.float32).max
+
+        def block(s):
+            e = slice(s, min(n, s + BLOCK_RAYS))
+            lo = tmin[e]
+            start = (o[e] - self.center) + d[e] * lo[:, None]
+            far = np.minimum(tmax[e] - lo, top)
+            far = np.where(far > 0, far, 0.0)
+            r = self._scene.run(np.ascontiguousarray(start, np.float32), np.ascontiguousarray(d[e], np.float32),
+                                np.ascontiguousarray(far, np.float32), output=1)
+            k = r["primID"].astype(np.int64)
+            k[far <= 0] = -1
+            tri[e], t[e], u[e], v[e] = k, lo + r["tfar"].astype(np.float64), r["u"], r["v"]
+
+        starts = range(0, n, BLOCK_RAYS)
+        workers = min(_cores(), max(1, n // PARALLEL_MIN_RAYS), len(starts))
         if workers <= 1:
-            r = self._scene.run(start, d, far, output=1)
-            return {k: r[k] for k in ("primID", "tfar", "u", "v")}
-        from concurrent.futures import ThreadPoolExecutor
+            for s0 in starts:
+                block(s0)
+        else:
+            from concurrent.futures import ThreadPoolExecutor
 
-        edges = np.linspace(0, n, workers + 1).astype(np.int64)
-        with ThreadPoolExecutor(workers) as pool:
-            parts = list(pool.map(lambda a, b: self._scene.run(start[a:b], d[a:b], far[a:b], output=1),
-                                  edges[:-1], edges[1:]))
-        return {k: np.concatenate([r[k] for r in parts]) for k in ("primID", "tfar", "u", "v")}
+            with ThreadPoolExecutor(workers) as pool:
+                list(pool.map(block, starts))  # list(): raise a block's exception here
+        return t, tri, u, v
 
     def _refine(self, o, d, tri):
         """Distance along the ray to the plane of its hit triangle, in float64 (Embree's float32
