@@ -578,6 +578,9 @@ def test_hit_arrays_are_shared_between_renderers_and_equal_a_fresh_merge(monkeyp
     sub = uv[:, ::interreflection.series_step(64)]
     assert np.array_equal(data[:n], np.where(np.isfinite(sub), sub, -1.0).astype(np.float32))
     assert not data.flags.writeable
+    # another level merges again from the same hits' uvs (interpolated once), and equals a fresh merge there
+    d = gl_ir.hit_arrays(hits, uv_ts, m.indices, 16)
+    assert len(calls) == 2 and d[0] is a[0] and np.array_equal(d[2][:d[6]], interreflection.merge_hits(uv, 16)[2])
     uv_ts[:, 0] *= 0.5  # in place
     c = gl_ir.hit_arrays(hits, uv_ts, m.indices, 32)
-    assert len(calls) == 2 and not np.array_equal(c[2], ent)
+    assert len(calls) == 4 and not np.array_equal(c[2], ent)

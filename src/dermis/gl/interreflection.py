@@ -98,31 +98,48 @@ def hit_arrays(hits, uv_ts, indices, cells: int):
     per_row, K, 2) float32, header (rows * per_row, 2) int32, entries (rows * ENTRY_ROW, 3) float32, K,
     per_row, rows, the entries' count), read-only. A function of the bake's and the layout's content
     and ``cells`` alone, remembered by that content (dermis.invalidation.memo_by_content): every
-    Renderer of one mesh shares it (the tests' many Renderers, the viewer's reduced-size one), and
-    only the first pays the interpolation and the merge (~0.6 s on the head; benchmarks/RESULTS.md,
-    "Round 17, branch bake17")."""
+    Renderer of one mesh and irradiance size shares it (the tests' many Renderers), and what does not
+    depend on ``cells`` (the hits' uvs, the series rays: :func:`_hit_uvs`) is shared across sizes too
+    (the viewer's reduced-size renderer merges only). Benchmarks/RESULTS.md, "Round 17, branch bake17"."""
     from dermis.invalidation import memo_by_content, read_only
 
     def compute():
         from dermis.geometry.interreflection import merge_hit_uvs
 
-        n, rays = hits.triangle.shape
-        offsets, counts, entries = merge_hit_uvs(*hits.at_hits(uv_ts, indices), cells)
+        hit, u, data, k, per_row, rows = _hit_uvs(hits, uv_ts, indices)
+        offsets, counts, entries = merge_hit_uvs(hit, u, cells)
+        n = len(offsets)
+        head = np.zeros((rows * per_row, 2), np.int32)
+        head[:n, 0], head[:n, 1] = offsets, counts
+        erows = max(1, -(-len(entries) // ENTRY_ROW))
+        ent = np.zeros((erows * ENTRY_ROW, 3), np.float32)
+        ent[:len(entries)] = entries
+        return data, read_only(head), read_only(ent), k, per_row, rows, len(entries)
+
+    return memo_by_content("interreflection_hit_arrays", (hits.triangle, hits.barycentric, uv_ts, indices),
+                           int(cells), compute)
+
+
+def _hit_uvs(hits, uv_ts, indices):
+    """What :func:`hit_arrays` needs at every level: (the (n, K) mask of the rays that hit, their
+    texture-space uvs (h, 2) float64: VertexHits.at_hits, the series rays' texture (rows * per_row,
+    K_series, 2) float32, K_series, per_row, rows), read-only, remembered by content (~0.5 s of
+    interpolation on the head)."""
+    from dermis.invalidation import memo_by_content, read_only
+
+    def compute():
+        hit, u = hits.at_hits(uv_ts, indices)
+        n = hits.triangle.shape[0]
         sub = hits.series_subset().at_vertices(uv_ts, indices)  # (n, K, 2), NaN: nothing
         sub = np.where(np.isfinite(sub), sub, -1.0).astype(np.float32)
         k = sub.shape[1]
         per_row, rows = hit_layout(n, k)
         data = np.full((rows * per_row, k, 2), -1.0, np.float32)
         data[:n] = sub
-        head = np.zeros((rows * per_row, 2), np.int32)
-        head[:n, 0], head[:n, 1] = offsets, counts
-        erows = max(1, -(-len(entries) // ENTRY_ROW))
-        ent = np.zeros((erows * ENTRY_ROW, 3), np.float32)
-        ent[:len(entries)] = entries
-        return read_only(data), read_only(head), read_only(ent), k, per_row, rows, len(entries)
+        return read_only(hit), read_only(u), read_only(data), k, per_row, rows
 
-    return memo_by_content("interreflection_hit_arrays", (hits.triangle, hits.barycentric, uv_ts, indices),
-                           int(cells), compute)
+    return memo_by_content("interreflection_hit_uvs", (hits.triangle, hits.barycentric, uv_ts, indices), None,
+                           compute)
 
 
 def first_order_size(frame) -> int:
