@@ -470,3 +470,117 @@ def test_shared_bounce_keeps_its_light_free_inputs_while_only_the_lights_change(
             now = r.interreflection.per_vertex()
             assert np.abs(now - before).max() > 0.05 * np.abs(before).max()
             np.testing.assert_array_equal(now, fresh())
+
+
+def _direct_cosine_directions(nrm, u1, u2):
+    # the formula over all rays at once, as round 17's lead17 wrote it (no blocks)
+    r, phi = np.sqrt(u1), 2.0 * np.pi * u2
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(1.0 - u1, 0.0))], -1)
+    a = np.where(np.abs(nrm[:, :1]) > 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+    t1 = np.cross(a, nrm)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(nrm, t1)
+    return local[..., :1] * t1[:, None] + local[..., 1:2] * t2[:, None] + local[..., 2:] * nrm[:, None]
+
+
+def test_fast_bake_is_the_direct_bake_bit_for_bit_and_its_file_reads_back_the_same(monkeypatch, tmp_path):
+    # the bake's speed-ups (round 17, bake17) change no bit: directions in blocks, Embree over threads,
+    # the refined distances in blocks, the normal interpolated at the far hits only, against the formulas
+    # over all rays at once on one thread; the packed file reads back the same arrays
+    from dermis.geometry import raycast
+
+    monkeypatch.setenv("DERMIS_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(raycast, "BLOCK_RAYS", 257)  # many blocks, a ragged last one
+    monkeypatch.setattr(raycast, "PARALLEL_MIN_RAYS", 1000)
+    monkeypatch.setattr(raycast, "_cores", lambda: 3)
+    rng = np.random.default_rng(5)
+    nrm = rng.normal(size=(301, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    nrm[0] = (0.0, 0.0, 1.0)
+    u1, u2 = rng.random((301, 64)), rng.random((301, 64))
+    got = raycast.cosine_directions(nrm, u1, u2)
+    assert np.array_equal(got.view(np.uint64), _direct_cosine_directions(nrm, u1, u2).view(np.uint64))
+    # the per-ray uses (random walk, transfer bake): (n, 1) samples
+    assert np.array_equal(raycast.cosine_directions(nrm, u1[:, :1], u2[:, :1]),
+                          _direct_cosine_directions(nrm, u1[:, :1], u2[:, :1]))
+
+    def roof(u, v):  # above the floor, facing up: rays from the floor reach its back (away faces)
+        return np.stack([0.2 + 0.6 * u, v, 0 * u + 0.4], -1), np.broadcast_to([0.0, 0.0, 1.0], u.shape + (3,))
+
+    m = _scene([grid_mesh(12, 12, _floor, (0.0, 0.0, 0.3, 1.0)), grid_mesh(12, 12, _wall, (0.35, 0.0, 0.65, 1.0)),
+                grid_mesh(8, 8, roof, (0.7, 0.0, 1.0, 1.0))], []).mesh
+    rays = 64
+    h = interreflection.bake_vertex_hits(m.positions, m.normals, m.indices, rays=rays)
+    # the reference: the same rays (the bake's own directions and origins), one Embree call, the
+    # away-facing test over every ray
+    p = np.asarray(m.positions, np.float32)
+    n64, first, inverse, diag = interreflection.bake_cache.distinct_vertices(p, np.asarray(m.normals, np.float32))
+    t = np.asarray(m.indices, np.int64).reshape(-1, 3)
+    caster = raycast.RayCaster(p.astype(np.float64), t)
+    dirs = interreflection.stratified_cosine_directions(n64[first], rays, np.random.default_rng(0),
+                                                        interreflection.series_step(rays)).reshape(-1, 3)
+    o = np.repeat(p.astype(np.float64)[first] + n64[first] * (interreflection.OFFSET_REL * diag), rays, axis=0)
+    start = (o - caster.center).astype(np.float32)
+    r = caster._scene.run(start, dirs.astype(np.float32), np.full(len(o), np.finfo(np.float32).max, np.float32),
+                          output=1)
+    tri = r["primID"].astype(np.int64)
+    hit = tri >= 0
+    aa, bb, cc = caster.v0[tri[hit]], caster.v1[tri[hit]], caster.v2[tri[hit]]
+    nn = np.cross(bb - aa, cc - aa)
+    th = np.full(len(o), np.inf)
+    th[hit] = np.einsum("ij,ij->i", nn, aa - o[hit]) / np.einsum("ij,ij->i", nn, dirs[hit])
+    t_fast, tri_fast, _ = caster.closest_hit(o, dirs)  # over threads, refined in blocks
+    assert np.array_equal(tri_fast, tri) and np.array_equal(t_fast, th)
+    bary = np.where(hit[:, None], np.stack([r["u"], r["v"]], 1).astype(np.float64), 0.0)
+    w = np.c_[1.0 - bary.sum(1), bary]
+    hn = np.einsum("nk,nkc->nc", w, n64[t[np.maximum(tri, 0)]])
+    away = hit & (np.einsum("nc,nc->n", hn, dirs) >= 0.0) & (th >= interreflection.NEAR_REL * diag)
+    tri = np.where(away, -1, tri).reshape(len(first), rays).astype(np.int32)
+    assert 0.1 < (tri >= 0).mean() < 0.9 and away.any()  # both kinds of rays, and away faces dropped
+    bary = np.where((tri >= 0)[..., None], bary.reshape(len(first), rays, 2), 0.0).astype(np.float32)
+    assert np.array_equal(h.triangle, tri[inverse])
+    assert np.array_equal(h.barycentric.view(np.uint32), bary[inverse].view(np.uint32))
+
+    interreflection._MEMORY.clear()  # from the packed file
+    again = interreflection.bake_vertex_hits(m.positions, m.normals, m.indices, rays=rays)
+    assert again.cached and np.array_equal(again.triangle, h.triangle)
+    assert np.array_equal(again.barycentric.view(np.uint32), h.barycentric.view(np.uint32))
+    (f,) = (tmp_path / "interreflection").glob("*.npz")
+    assert f.stat().st_size < 0.75 * h.triangle.nbytes * 3  # the hits alone, not 12 bytes per ray
+    interreflection._MEMORY.clear()
+    np.savez(f, hit=np.zeros(3, np.uint8), triangle=h.triangle, barycentric=h.barycentric)  # a wrong file: re-baked
+    rebaked = interreflection.bake_vertex_hits(m.positions, m.normals, m.indices, rays=rays)
+    assert not rebaked.cached and np.array_equal(rebaked.triangle, h.triangle)
+
+
+def test_hit_arrays_are_shared_between_renderers_and_equal_a_fresh_merge(monkeypatch, tmp_path):
+    # dermis.gl.interreflection.hit_arrays, remembered by content: a second call (another Renderer)
+    # gets the same arrays without merging again; they are what merge_hits and the layout give
+    # now; an edit of the layout in place is seen
+    from dermis.gl import interreflection as gl_ir
+
+    monkeypatch.setenv("DERMIS_CACHE_DIR", str(tmp_path))
+    m = l_scene().mesh
+    hits = interreflection.bake_vertex_hits(m.positions, m.normals, m.indices, rays=64)
+    uv_ts = np.array(m.uvs, np.float64)
+    uv = hits.at_vertices(uv_ts, m.indices)  # the rays' uvs, then merged (the path before bake17)
+    off, cnt, entries = interreflection.merge_hits(uv, 32)
+    calls = []
+    real_hits = interreflection.merge_hit_uvs
+    monkeypatch.setattr(interreflection, "merge_hit_uvs", lambda *a: calls.append(1) or real_hits(*a))
+    a = gl_ir.hit_arrays(hits, uv_ts, m.indices, 32)
+    b = gl_ir.hit_arrays(hits, uv_ts, m.indices, 32)
+    assert len(calls) == 1 and all(x is y for x, y in zip(a, b))
+    data, head, ent, k, per_row, rows, count = a
+    n = len(uv)
+    assert count == len(entries) and np.array_equal(ent[:count], entries) and not ent[count:].any()
+    assert np.array_equal(head[:n, 0], off) and np.array_equal(head[:n, 1], cnt)
+    sub = uv[:, ::interreflection.series_step(64)]
+    assert np.array_equal(data[:n], np.where(np.isfinite(sub), sub, -1.0).astype(np.float32))
+    assert not data.flags.writeable
+    # another level merges again from the same hits' uvs (interpolated once), and equals a fresh merge there
+    d = gl_ir.hit_arrays(hits, uv_ts, m.indices, 16)
+    assert len(calls) == 2 and d[0] is a[0] and np.array_equal(d[2][:d[6]], interreflection.merge_hits(uv, 16)[2])
+    uv_ts[:, 0] *= 0.5  # in place
+    c = gl_ir.hit_arrays(hits, uv_ts, m.indices, 32)
+    assert len(calls) == 4 and not np.array_equal(c[2], ent)

@@ -39,7 +39,7 @@ def cache_path(folder: str, key: str) -> Path | None:
 def load(memory: dict, key: str, path: Path | None, shapes: dict, keep: int) -> dict | None:
     """The arrays of ``key`` from ``memory`` or the file at ``path`` (then remembered, at most
     ``keep`` entries), or None. ``shapes``: name -> the shape the array must have (a file with any
-    other is a miss)."""
+    other is a miss; None: any)."""
     if key in memory:
         return memory[key]
     if path is None or not path.is_file():
@@ -49,7 +49,7 @@ def load(memory: dict, key: str, path: Path | None, shapes: dict, keep: int) -> 
             arrays = {name: z[name] for name in shapes}
     except (OSError, ValueError, KeyError):
         return None
-    if any(arrays[name].shape != tuple(shape) for name, shape in shapes.items()):
+    if any(shape is not None and arrays[name].shape != tuple(shape) for name, shape in shapes.items()):
         return None
     remember(memory, key, arrays, keep)
     return arrays

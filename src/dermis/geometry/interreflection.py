@@ -72,7 +72,8 @@ rho E sqrt(F (1 - F) / K) <= 0.022 rho E; the Latin hypercube lowers it, and the
 interpolation and the diffusion's blur average several vertices. 128 -> 512 took FLIP(lambert,
 Cycles' render without subsurface scattering) on back-ears 0.0237 -> 0.0212 (benchmarks/RESULTS.md,
 "Round 16, branch transport16"; "Round 17, branch bounce17"). Cost on the head (9279 vertices):
-4.8 M closest-hit rays, 12.5 s once per mesh (128 rays: 2.5 s; load 3.4), cached on disk."""
+4.8 M closest-hit rays, 12.5 s once per mesh (128 rays: 2.5 s; load 3.4), cached on disk; 3.7 s since round
+17's bake17 (the same rays in cache-sized blocks, over threads; load 2.9), its file 26 MB (the hits alone)."""
 SERIES_RAYS = 128
 """Rays per vertex the higher bounces gather (G, :func:`bounce_series`): a nested subset of the
 BAKE_RAYS (every BAKE_RAYS / SERIES_RAYS-th ray, itself a Latin hypercube:
@@ -101,8 +102,10 @@ diffuse bounce is a diffuse BSDF of the same colour (no second random walk: subs
 path stops at the surface reached by diffuse bounce 5 (path_state.h, path_state_next: count >= limit
 marks PATH_RAY_TERMINATE_AFTER_TRANSPARENT: no light samples there). So the lights and the sky
 arrive after 0 (direct), 1, 2, 3 and 4 reflections off other skin: 4 orders of bounce light."""
-CACHE_VERSION = 3  # bump when the bake changes meaning (2: grazing rays behind a neighbouring facet are hits;
-# 3: nested Latin hypercubes, the higher bounces' subset stratified on its own)
+CACHE_VERSION = 4  # bump when the bake or its file changes meaning (2: grazing rays behind a neighbouring facet
+# are hits; 3: nested Latin hypercubes, the higher bounces' subset stratified on its own; 4: the file holds the hits
+# alone, _packed: a new name, so that trees before it, sharing the cache folder, keep their files instead of
+# re-baking each other's in turn)
 NEAR_REL = 0.01
 """An away-facing first hit closer than this (relative to the mesh's bounding diagonal: 2.5 mm on
 the head) is the ray's own neighbourhood, kept as a hit (_first_front_hits)."""
@@ -131,6 +134,14 @@ class VertexHits:
     def at_vertices(self, values, indices) -> np.ndarray:
         """``values`` (per vertex of the mesh, (V, c)) interpolated at every hit: (n, K, c), NaN
         where a ray brings nothing. E.g. the texture-space UVs of the hits."""
+        hit, at = self.at_hits(values, indices)
+        out = np.full(self.triangle.shape + (at.shape[1],), np.nan)
+        out[hit] = at
+        return out
+
+    def at_hits(self, values, indices):
+        """:meth:`at_vertices` at the rays that hit alone: (the (n, K) mask of those rays, the values
+        there (h, c) in the mask's row-major order), without the (n, K, c) array of NaN misses."""
         vals = np.asarray(values, np.float64)
         vals = vals.reshape(len(vals), -1)
         idx = np.asarray(indices, np.int64).reshape(-1, 3)
@@ -138,10 +149,8 @@ class VertexHits:
         tri = self.triangle[hit].astype(np.int64)  # the rays that hit only (a third to a half of them)
         b = self.barycentric[hit].astype(np.float64)
         corners = vals[idx[tri]]  # (h, 3, c)
-        out = np.full(self.triangle.shape + (vals.shape[1],), np.nan)
-        out[hit] = ((1.0 - b[:, 0] - b[:, 1])[:, None] * corners[:, 0] + b[:, :1] * corners[:, 1]
-                    + b[:, 1:] * corners[:, 2])
-        return out
+        return hit, ((1.0 - b[:, 0] - b[:, 1])[:, None] * corners[:, 0] + b[:, :1] * corners[:, 1]
+                     + b[:, 1:] * corners[:, 2])
 
 
 _MEMORY: dict[str, dict] = {}  # content key -> the bake's arrays (dermis.geometry.bake_cache)
@@ -188,8 +197,7 @@ def bake_vertex_hits(positions, normals, indices, *, rays: int | None = None, se
     t = np.ascontiguousarray(indices, np.uint32).reshape(-1, 3)
     key = content_hash(p, t, CACHE_VERSION, nrm.tobytes(), rays, int(seed), series_step(rays))  # the nesting too
     path = bake_cache.cache_path("interreflection", key) if cache else None
-    got = bake_cache.load(_MEMORY, key, path, {"triangle": (len(p), rays), "barycentric": (len(p), rays, 2)},
-                          _MEMORY_MAX) if cache else None
+    got = _load(key, path, len(p), rays) if cache else None
     if got is not None:
         return VertexHits(got["triangle"], got["barycentric"], 0.0, True)
     t0 = time.perf_counter()
@@ -204,10 +212,40 @@ def bake_vertex_hits(positions, normals, indices, *, rays: int | None = None, se
     bary = np.where((tri >= 0)[..., None], bary.reshape(len(first), rays, 2), 0.0).astype(np.float32)
     h = VertexHits(tri[inverse], bary[inverse], time.perf_counter() - t0, False)
     if cache:
-        arrays = {"triangle": h.triangle, "barycentric": h.barycentric}
-        bake_cache.remember(_MEMORY, key, arrays, _MEMORY_MAX)
-        bake_cache.store(path, arrays)
+        bake_cache.remember(_MEMORY, key, {"triangle": h.triangle, "barycentric": h.barycentric}, _MEMORY_MAX)
+        bake_cache.store(path, _packed(h.triangle, h.barycentric))
     return h
+
+
+def _packed(triangle, barycentric) -> dict:
+    """The bake as it is stored on disk, the rays that hit alone: which rays hit (a bit each,
+    np.packbits), their triangles and barycentrics. Lossless (a ray that brings nothing has
+    triangle -1 and barycentrics 0); 12 bytes per ray become 1/8 + 12 f (f the fraction that hits:
+    0.45 on the Lee Perry-Smith head, 0.07 on the default one): 57 -> 26 MB and 186 -> 15 MB."""
+    hit = triangle >= 0
+    return {"hit": np.packbits(hit, axis=None), "triangle": triangle[hit], "barycentric": barycentric[hit]}
+
+
+def _load(key, path, n: int, rays: int) -> dict | None:
+    """The bake of ``key`` from memory or from its packed file (:func:`_packed`), or None."""
+    if key in _MEMORY:
+        return _MEMORY[key]
+    z = bake_cache.load({}, key, path, {"hit": ((n * rays + 7) // 8,), "triangle": None, "barycentric": None}, 1)
+    if z is None:
+        return None
+    if z["hit"].dtype != np.uint8 or z["triangle"].dtype != np.int32 or z["barycentric"].dtype != np.float32:
+        return None
+    hit = np.unpackbits(z["hit"], count=n * rays).view(bool).reshape(n, rays)
+    h = int(hit.sum())
+    if z["triangle"].shape != (h,) or z["barycentric"].shape != (h, 2):
+        return None
+    tri = np.full((n, rays), -1, np.int32)
+    tri[hit] = z["triangle"]
+    bary = np.zeros((n, rays, 2), np.float32)
+    bary[hit] = z["barycentric"]
+    arrays = {"triangle": tri, "barycentric": bary}
+    bake_cache.remember(_MEMORY, key, arrays, _MEMORY_MAX)
+    return arrays
 
 
 def _first_front_hits(caster, origins, dirs, tris, normals, near):
@@ -220,11 +258,14 @@ def _first_front_hits(caster, origins, dirs, tris, normals, near):
     32 x 16 sphere). The smooth surface the facets stand for would have stopped it within a chord of
     2 R sin(elevation), close by: the hit is kept, and the light of that neighbourhood is read."""
     th, tri, bary = caster.closest_hit(origins, dirs)
-    hit = tri >= 0
-    w = np.c_[1.0 - bary.sum(1), bary]
-    hn = np.einsum("nk,nkc->nc", w, normals[tris[np.maximum(tri, 0)]])
-    away = hit & (np.einsum("nc,nc->n", hn, dirs) >= 0.0) & (th >= near)
-    tri = np.where(away, -1, tri)
+    # the rays that hit (a third to a half), and of them those beyond ``near``: the normal is
+    # interpolated there only (the same operations per ray as over all of them, so the same bits)
+    far = np.flatnonzero((tri >= 0) & (th >= near))
+    b = bary[far]
+    w = np.c_[1.0 - b.sum(1), b]
+    hn = np.einsum("nk,nkc->nc", w, normals[tris[tri[far]]])
+    tri = tri.copy()
+    tri[far[np.einsum("nc,nc->n", hn, dirs[far]) >= 0.0]] = -1
     return tri, bary
 
 
@@ -238,10 +279,20 @@ def merge_hits(uv, cells: int):
     the cell; on the head at 1 mm texels 512 rays become 112 entries per vertex on average (misses
     dropped, hits sharing a cell merged) and the gather's reads fall in proportion."""
     uv = np.asarray(uv, np.float64)
-    n, k = uv.shape[:2]
     hit = np.isfinite(uv[..., 0]) & np.isfinite(uv[..., 1])
+    return merge_hit_uvs(hit, uv[hit], cells)
+
+
+def merge_hit_uvs(hit, u, cells: int):
+    """:func:`merge_hits` from the rays that hit alone: ``hit`` the (n, K) mask of the rays whose uv
+    is finite, ``u`` (h, 2) their uvs in the mask's row-major order (VertexHits.at_hits)."""
+    n, k = hit.shape
+    ok = np.isfinite(u[:, 0]) & np.isfinite(u[:, 1])
+    if not ok.all():  # a layout with NaN: as merge_hits drops those rays
+        hit = hit.copy()
+        hit[hit] = ok
+        u = u[ok]
     vert = np.broadcast_to(np.arange(n)[:, None], (n, k))[hit]
-    u = uv[hit]
     side = int(cells) + 2  # cells -1 .. cells (bilinear cells between texel centres, and the borders)
     c = np.clip(np.floor(u * int(cells) - 0.5).astype(np.int64) + 1, 0, side - 1)
     key = (vert.astype(np.int64) * side + c[:, 0]) * side + c[:, 1]

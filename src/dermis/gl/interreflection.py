@@ -57,7 +57,7 @@ class InterreflectionHits:
 
     def get(self, frame):
         """The hits textures for ``frame``; appends "interreflection_bake" to frame.passes_run when built."""
-        from dermis.geometry.interreflection import merge_hits, mesh_hits, series_step
+        from dermis.geometry.interreflection import mesh_hits
 
         m = frame.scene.mesh
         uv_ts = texture_space_uvs(m)
@@ -66,20 +66,9 @@ class InterreflectionHits:
         if key != self.key or self.tex is None or self.tex.size == (1, 1):
             with frame.timer("interreflection_bake"):
                 hits = mesh_hits(m)
-                uv = hits.at_vertices(uv_ts, m.indices)  # (n, K, 2), NaN: nothing
+                data, head, ent, k, per_row, rows, n_entries = hit_arrays(hits, uv_ts, m.indices, cells)
                 n, rays = hits.triangle.shape
-                offsets, counts, entries = merge_hits(uv, cells)
-                sub = uv[:, ::series_step(rays)]
-                sub = np.where(np.isfinite(sub), sub, -1.0).astype(np.float32)
-                k = sub.shape[1]
-                per_row, rows = hit_layout(n, k)
-                data = np.full((rows * per_row, k, 2), -1.0, np.float32)
-                data[:n] = sub
-                head = np.zeros((rows * per_row, 2), np.int32)
-                head[:n, 0], head[:n, 1] = offsets, counts
-                erows = max(1, -(-len(entries) // ENTRY_ROW))
-                ent = np.zeros((erows * ENTRY_ROW, 3), np.float32)
-                ent[:len(entries)] = entries
+                erows = len(ent) // ENTRY_ROW
                 self.release()
                 self.tex = self.ctx.texture((per_row * k, rows), 2, dtype="f4")
                 self.tex.write(np.ascontiguousarray(data.reshape(rows, per_row * k, 2)).tobytes())
@@ -90,7 +79,7 @@ class InterreflectionHits:
                 for t in (self.tex, self.header, self.entries):
                     t.filter = (moderngl.NEAREST, moderngl.NEAREST)
                 self.per_row, self.rays, self.series_rays, self.vertex_count = per_row, rays, k, n
-                self.entry_count, self.cells = len(entries), cells
+                self.entry_count, self.cells = n_entries, cells
             self.key = key
             frame.passes_run.append("interreflection_bake")
         return self.tex
@@ -101,6 +90,56 @@ class InterreflectionHits:
                 t.release()
         self.tex = self.header = self.entries = None
         self.key = None
+
+
+def hit_arrays(hits, uv_ts, indices, cells: int):
+    """The textures' contents for a bake ``hits`` (dermis.geometry.interreflection.VertexHits) on a
+    texture-space layout ``uv_ts`` (per vertex) read at a ``cells``^2 level: (series rays (rows *
+    per_row, K, 2) float32, header (rows * per_row, 2) int32, entries (rows * ENTRY_ROW, 3) float32, K,
+    per_row, rows, the entries' count), read-only. A function of the bake's and the layout's content
+    and ``cells`` alone, remembered by that content (dermis.invalidation.memo_by_content): every
+    Renderer of one mesh and irradiance size shares it (the tests' many Renderers), and what does not
+    depend on ``cells`` (the hits' uvs, the series rays: :func:`_hit_uvs`) is shared across sizes too
+    (the viewer's reduced-size renderer merges only). Benchmarks/RESULTS.md, "Round 17, branch bake17"."""
+    from dermis.invalidation import memo_by_content, read_only
+
+    def compute():
+        from dermis.geometry.interreflection import merge_hit_uvs
+
+        hit, u, data, k, per_row, rows = _hit_uvs(hits, uv_ts, indices)
+        offsets, counts, entries = merge_hit_uvs(hit, u, cells)
+        n = len(offsets)
+        head = np.zeros((rows * per_row, 2), np.int32)
+        head[:n, 0], head[:n, 1] = offsets, counts
+        erows = max(1, -(-len(entries) // ENTRY_ROW))
+        ent = np.zeros((erows * ENTRY_ROW, 3), np.float32)
+        ent[:len(entries)] = entries
+        return data, read_only(head), read_only(ent), k, per_row, rows, len(entries)
+
+    return memo_by_content("interreflection_hit_arrays", (hits.triangle, hits.barycentric, uv_ts, indices),
+                           int(cells), compute)
+
+
+def _hit_uvs(hits, uv_ts, indices):
+    """What :func:`hit_arrays` needs at every level: (the (n, K) mask of the rays that hit, their
+    texture-space uvs (h, 2) float64: VertexHits.at_hits, the series rays' texture (rows * per_row,
+    K_series, 2) float32, K_series, per_row, rows), read-only, remembered by content (~0.5 s of
+    interpolation on the head)."""
+    from dermis.invalidation import memo_by_content, read_only
+
+    def compute():
+        hit, u = hits.at_hits(uv_ts, indices)
+        n = hits.triangle.shape[0]
+        sub = hits.series_subset().at_vertices(uv_ts, indices)  # (n, K, 2), NaN: nothing
+        sub = np.where(np.isfinite(sub), sub, -1.0).astype(np.float32)
+        k = sub.shape[1]
+        per_row, rows = hit_layout(n, k)
+        data = np.full((rows * per_row, k, 2), -1.0, np.float32)
+        data[:n] = sub
+        return read_only(hit), read_only(u), read_only(data), k, per_row, rows
+
+    return memo_by_content("interreflection_hit_uvs", (hits.triangle, hits.barycentric, uv_ts, indices), None,
+                           compute)
 
 
 def first_order_size(frame) -> int:
