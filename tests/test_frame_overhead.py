@@ -75,6 +75,22 @@ def test_memo_by_content_follows_in_place_edits_and_never_hands_out_its_values()
     assert np.array_equal(sc.mesh.bounds[1], sc.mesh.positions.max(axis=0))
 
 
+def test_memo_by_content_keeps_at_most_keep_values_of_a_name():
+    """Large remembered values (the interreflection's merged hits, ~50-80 MB per head) are bounded per
+    name: a batch of many meshes holds ``keep`` of them, not the shared memo's 64."""
+    from dermis import invalidation
+
+    arrays = [np.full(4, i, np.float32) for i in range(5)]
+    for i, a in enumerate(arrays):
+        memo_by_content("test.big", (a,), (), lambda i=i: i, keep=2)
+        memo_by_content("test.small", (a,), (), lambda i=i: i)
+    held = [slot for slot in invalidation._MEMO if slot[0] == "test.big"]
+    assert len(held) == 2 and [invalidation._MEMO[s][1] for s in held] == [3, 4]  # the newest two
+    assert sum(slot[0] == "test.small" for slot in invalidation._MEMO) == 5  # other names untouched
+    calls = []
+    assert memo_by_content("test.big", (arrays[4],), (), lambda: calls.append(1)) == 4 and not calls
+
+
 def test_framed_camera_follows_an_in_place_mesh_edit_and_a_new_up():
     sc = _scene()
     m = sc.mesh

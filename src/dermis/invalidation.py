@@ -151,14 +151,16 @@ _MEMO_KEEP = 64
 _MEMO_LOCK = threading.Lock()
 
 
-def memo_by_content(name: str, arrays: tuple, params, compute):
+def memo_by_content(name: str, arrays: tuple, params, compute, keep: int | None = None):
     """``compute()``, a function of the CONTENT of ``arrays`` (and of the hashable ``params``) only,
     remembered until that content changes: each call fingerprints the arrays (cheap: a pass of
     XXH3 over their bytes, none for immutable ones) instead of recomputing what is derived from
     them (a mesh's bounds, its head vertices, its positions in float64). The slot is chosen by the
     first array's id, but a value is returned only when the fingerprints equal those it was computed
     from, so a reused id or an in-place edit costs a recomputation, never a stale value. Values are
-    shared between callers: return them read-only or copy them."""
+    shared between callers: return them read-only or copy them. ``keep``: at most this many values
+    of ``name`` at once (the oldest dropped first), for values too large for the shared _MEMO_KEEP slots
+    (the interreflection's merged hits: ~50-80 MB each on a head)."""
     key = tuple(fingerprint(a) for a in arrays)
     slot = (name, id(arrays[0]), params)
     hit = _MEMO.get(slot)
@@ -166,6 +168,10 @@ def memo_by_content(name: str, arrays: tuple, params, compute):
         return hit[1]
     value = compute()
     with _MEMO_LOCK:  # the viewer's worker threads may call in too
+        if keep is not None:
+            same = [s for s in _MEMO if s[0] == name and s != slot]
+            for s in same[:max(len(same) - int(keep) + 1, 0)]:
+                _MEMO.pop(s)
         if slot not in _MEMO and len(_MEMO) >= _MEMO_KEEP:
             _MEMO.pop(next(iter(_MEMO)))
         _MEMO[slot] = (key, value)

@@ -92,6 +92,11 @@ class InterreflectionHits:
         self.key = None
 
 
+HIT_ARRAYS_KEEP = 2
+"""Merged hits (and hit uvs) kept in memory at once, process-wide: the viewer's two irradiance sizes
+(full and reduced) of one mesh; a batch of many meshes does not hold ~50-80 MB per head it rendered."""
+
+
 def hit_arrays(hits, uv_ts, indices, cells: int):
     """The textures' contents for a bake ``hits`` (dermis.geometry.interreflection.VertexHits) on a
     texture-space layout ``uv_ts`` (per vertex) read at a ``cells``^2 level: (series rays (rows *
@@ -117,7 +122,7 @@ def hit_arrays(hits, uv_ts, indices, cells: int):
         return data, read_only(head), read_only(ent), k, per_row, rows, len(entries)
 
     return memo_by_content("interreflection_hit_arrays", (hits.triangle, hits.barycentric, uv_ts, indices),
-                           int(cells), compute)
+                           int(cells), compute, keep=HIT_ARRAYS_KEEP)
 
 
 def _hit_uvs(hits, uv_ts, indices):
@@ -139,7 +144,7 @@ def _hit_uvs(hits, uv_ts, indices):
         return read_only(hit), read_only(u), read_only(data), k, per_row, rows
 
     return memo_by_content("interreflection_hit_uvs", (hits.triangle, hits.barycentric, uv_ts, indices), None,
-                           compute)
+                           compute, keep=HIT_ARRAYS_KEEP)
 
 
 def first_order_size(frame) -> int:
