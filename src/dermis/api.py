@@ -17,7 +17,7 @@ def load_scene(path, *, technique: str | None = None, uv_convention: str | None 
     from dermis.scene.toml_scene import load_scene_toml
 
     from dermis.scene.loaders import UV_CONVENTIONS
-    from dermis.validation import check_mesh, check_scene, check_technique_arg
+    from dermis.validation import check_scene, check_technique_arg
 
     if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
         raise DermisError(f"load_scene: path must be a str or os.PathLike, got {type(path).__name__}")
@@ -35,7 +35,6 @@ def load_scene(path, *, technique: str | None = None, uv_convention: str | None 
         if mat.get("albedo_color") is not None and material.albedo is None:
             material.albedo_color = mat["albedo_color"]
         scene = Scene(mesh=mesh, material=material, source=str(p), name=p.stem, surfaces=list(mat.get("surfaces", [])))
-        check_mesh(mesh)  # before the framing computes with its coordinates (2e35 overflowed there)
         frame_scene(scene)
     elif not os.path.lexists(p):
         raise DermisError(f"{p}: file not found")
@@ -59,7 +58,7 @@ def render(scene: Scene, technique: str | None = None, size=(512, 512), **render
 
     ``renderer_options``: those of Renderer (samples, shadow_size, irradiance_size, device, ctx)."""
     from dermis.renderer import Renderer
-    from dermis.validation import check_mesh, check_scene, check_technique_arg
+    from dermis.validation import check_scene, check_technique_arg
 
     unknown = sorted(set(renderer_options) - {"samples", "shadow_size", "irradiance_size", "device", "ctx", "timing"})
     if unknown:

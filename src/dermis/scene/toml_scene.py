@@ -21,7 +21,7 @@ from dermis.invalidation import immutable
 from dermis.output import TONEMAPS
 from dermis.scene.model import SKIN_COLORS, Camera, Environment, Light, Output, Scene, SkinMaterial, Texture
 from dermis.techniques.shared import MAX_LIGHTS
-from dermis.validation import check_exposure, check_mesh, check_scene
+from dermis.validation import check_exposure, check_scene
 
 # key -> expected python type(s); lists of numbers are checked for length
 _SCHEMA = {
@@ -208,8 +208,6 @@ def load_scene_toml(path, max_pixels: int = MAX_IMAGE_PIXELS) -> Scene:
                   interreflection=sc.get("interreflection", True),
                   translucency_light_path=sc.get("translucency_light_path", False),
                   directional_albedo=sc.get("directional_albedo", True))
-    if not doc.get("camera"):
-        check_mesh(scene.mesh)  # before the framing computes with its coordinates (2e35 overflowed there)
     if not lights_t and not doc.get("camera"):
         from dermis.scene.builtin import frame_scene
 
