@@ -26,6 +26,7 @@ About 5 s (pixels), 20-60 s per medium (walk), 15-20 s (crop) at load 1-4.
 from __future__ import annotations
 
 import argparse
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -99,6 +100,28 @@ def surface_points(sc, reg):
     return BakePoints(uv, p, tri, fn), view
 
 
+@contextmanager
+def walks_along(B, pts, view):
+    """Inside it, the transfer bake (module ``B``, dermis.subsurface_transfer.bake) starts each point's
+    walks along its camera ray ``view`` (the point's row of pts; the flat twin too: the same views), as
+    Cycles' walk enters along the view; ``view`` None: its own cosine entry."""
+    orig = B.diffuse_views
+    if view is not None:
+        lut = {tuple(np.round(nn, 9)): v for nn, v in zip(pts.normal, view)}
+
+        def views(normals, rng):
+            out = orig(normals, rng)
+            for i, nn in enumerate(np.asarray(normals)):
+                out[i] = lut.get(tuple(np.round(nn, 9)), out[i])
+            return out
+
+        B.diffuse_views = views
+    try:
+        yield
+    finally:
+        B.diffuse_views = orig
+
+
 def walk(sc, reg, dd, walks: int, view_entry: bool):
     from dermis.reference.random_walk import WalkMedium
     from dermis.scene.model import mean_skin_albedo
@@ -117,22 +140,9 @@ def walk(sc, reg, dd, walks: int, view_entry: bool):
         runs += [("skin, view entry", skin, "skin", True), ("Cycles' medium, view entry", cyc, "cycles", True)]
     skin_bake = None
     for label, media, kk, along_view in runs:
-        orig = B.diffuse_views
-        if along_view:  # each point's walks start along its camera ray (the flat twin too: same views)
-            lut = {tuple(np.round(nn, 9)): v for nn, v in zip(pts.normal, view)}
-
-            def views(normals, rng, orig=orig, lut=lut):
-                out = orig(normals, rng)
-                for i, nn in enumerate(np.asarray(normals)):
-                    out[i] = lut.get(tuple(np.round(nn, 9)), out[i])
-                return out
-
-            B.diffuse_views = views
-        try:
+        with walks_along(B, pts, view if along_view else None):
             bk = B.bake_transfer(sc.mesh, float(sc.mm_per_unit), sc.profile, albedo, points=pts, walks=walks,
                                  media=media, kernels=kernels[kk], seed=0)
-        finally:
-            B.diffuse_views = orig
         if skin_bake is None:
             skin_bake = bk
         for side, s in (("losing", lose), ("winning", ~lose)):

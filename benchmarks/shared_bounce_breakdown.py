@@ -26,6 +26,7 @@ import moderngl
 import dermis
 from dermis.bench import HEAD_TOML
 from dermis.geometry.interreflection import BOUNCE_ORDERS
+from dermis.gl.irradiance_inputs import light_pass as draw_light_pass
 from dermis.gl.resources import maps_without_anisotropy, set_uniform, use_texture
 from dermis.gl.shaders import load_shader_source
 from dermis.renderer import Renderer
@@ -105,6 +106,18 @@ def image_variants(size: int, irradiance_size: int):
                                                    for v in cells) + " |", flush=True)
 
 
+def mesh_raster(frame, prog, level):
+    """The mesh drawn in texture space with ``prog`` (its uniforms bound) into ``level`` = (texture, fbo),
+    cleared first (coverage 0 off the layout), as BounceSeries.run and the one-raster rho E draw it."""
+    tex, fbo = level
+    fbo.use()
+    fbo.viewport = (0, 0, *tex.size)
+    fbo.clear(0.0, 0.0, 0.0, 0.0)
+    frame.gpu.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+    with maps_without_anisotropy(frame.gpu, surfaces=False):
+        frame.gpu.vao(prog).render(moderngl.TRIANGLES)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--irradiance-size", type=int, default=1024)
@@ -133,13 +146,7 @@ def main(argv=None):
                 bind_scene(frame, old)
                 directional_albedo_uniforms(old, frame.scene)
                 set_uniform(old, "uMix", 1.0)
-                tex, fbo = levels[0]
-                fbo.use()
-                fbo.viewport = (0, 0, *tex.size)
-                fbo.clear(0.0, 0.0, 0.0, 0.0)
-                ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-                with maps_without_anisotropy(frame.gpu, surfaces=False):
-                    frame.gpu.vao(old).render(moderngl.TRIANGLES)
+                mesh_raster(frame, old, levels[0])
             fns[f"rho E, {a.against}: one mesh raster"] = old_raster
 
         def light_pass(prog):
@@ -147,10 +154,7 @@ def main(argv=None):
                 bind_scene(frame, prog)
                 sb.inputs.bind(prog, Unit.FIRST_FREE)
                 tex, fbo = levels[0]
-                fbo.use()
-                fbo.viewport = (0, 0, *tex.size)
-                ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-                sb._vaos.setdefault(prog, ctx.vertex_array(prog, [])).render(moderngl.TRIANGLES, vertices=3)
+                draw_light_pass(ctx, sb._vaos, prog, fbo, tex.size)  # the renderer's own
             return fn
         fns["rho E, this tree: light pass (full-screen, per lighting change)"] = light_pass(sb.programs(n))
 
@@ -179,13 +183,7 @@ def main(argv=None):
             set_uniform(se._splat, "uRho", int(Unit.FIRST_FREE) + 1)
             use_texture(se._rho, int(Unit.FIRST_FREE) + 1)
             use_texture(sb._gather.target, Unit.FIRST_FREE)
-            tex, fbo = orders[0]
-            fbo.use()
-            fbo.viewport = (0, 0, *tex.size)
-            fbo.clear(0.0, 0.0, 0.0, 0.0)
-            ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-            with maps_without_anisotropy(frame.gpu, surfaces=False):
-                frame.gpu.vao(se._splat).render(moderngl.TRIANGLES)
+            mesh_raster(frame, se._splat, orders[0])
         n_orders = int(BOUNCE_ORDERS if r.bounce_orders is None else r.bounce_orders)
         fns["higher order: raster of rho T"] = order_raster
         fns["higher order: reduction"] = lambda: se._chain.reduce(orders)

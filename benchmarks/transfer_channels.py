@@ -180,7 +180,7 @@ def _band_rest_walks(sc, albedo, skin, skin_kernels, band, rest, n, walks, seed,
     """The transfer's estimator (and the walk's same-facing transport / its flat reflectance) at n band and n rest
     pixels' visible points, in the skin walk and Cycles' medium, cosine entry and along the camera ray (Cycles'
     walk starts along the view): band over rest per channel, against the crop's band over rest."""
-    from row_pixels import surface_points
+    from row_pixels import surface_points, walks_along
 
     from dermis.subsurface_transfer import bake as B
 
@@ -200,22 +200,9 @@ def _band_rest_walks(sc, albedo, skin, skin_kernels, band, rest, n, walks, seed,
     for mlabel, media, kernels in (("skin", skin, skin_kernels), ("cycles", cyc, cyc_kernels)):
         for along_view in (False, True):
             for label, (pts, view) in sets.items():
-                orig = B.diffuse_views
-                if along_view:
-                    lut = {tuple(np.round(nn, 9)): v for nn, v in zip(pts.normal, view)}
-
-                    def views(normals, rng_, orig=orig, lut=lut):
-                        o = orig(normals, rng_)
-                        for i, nn in enumerate(np.asarray(normals)):
-                            o[i] = lut.get(tuple(np.round(nn, 9)), o[i])
-                        return o
-
-                    B.diffuse_views = views
-                try:
+                with walks_along(B, pts, view if along_view else None):
                     bk = B.bake_transfer(sc.mesh, float(sc.mm_per_unit), sc.profile, albedo, points=pts, walks=walks,
                                          media=media, kernels=kernels, seed=seed + 5)
-                finally:
-                    B.diffuse_views = orig
                 out[(mlabel, along_view, label)] = (bk.total.mean(0), bk.kept.mean(0))
             (tb, kb), (tr_, kr) = out[(mlabel, along_view, "band")], out[(mlabel, along_view, "rest")]
             print(f"    {mlabel:6s} {'view' if along_view else 'cosine'} entry: excess band {_fmt(tb)}, rest {_fmt(tr_)}, "

@@ -472,21 +472,11 @@ def test_shared_bounce_keeps_its_light_free_inputs_while_only_the_lights_change(
             np.testing.assert_array_equal(now, fresh())
 
 
-def _direct_cosine_directions(nrm, u1, u2):
-    # the formula over all rays at once, as round 17's lead17 wrote it (no blocks)
-    r, phi = np.sqrt(u1), 2.0 * np.pi * u2
-    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(1.0 - u1, 0.0))], -1)
-    a = np.where(np.abs(nrm[:, :1]) > 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
-    t1 = np.cross(a, nrm)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-    t2 = np.cross(nrm, t1)
-    return local[..., :1] * t1[:, None] + local[..., 1:2] * t2[:, None] + local[..., 2:] * nrm[:, None]
-
-
 def test_fast_bake_is_the_direct_bake_bit_for_bit_and_its_file_reads_back_the_same(monkeypatch, tmp_path):
     # the bake's speed-ups (round 17, bake17) change no bit: directions in blocks, Embree over threads,
     # the refined distances in blocks, the normal interpolated at the far hits only, against the formulas
-    # over all rays at once on one thread; the packed file reads back the same arrays
+    # over all rays at once on one thread (the directions: raycast's own formula in one block); the packed
+    # file reads back the same arrays
     from dermis.geometry import raycast
 
     monkeypatch.setenv("DERMIS_CACHE_DIR", str(tmp_path))
@@ -499,10 +489,10 @@ def test_fast_bake_is_the_direct_bake_bit_for_bit_and_its_file_reads_back_the_sa
     nrm[0] = (0.0, 0.0, 1.0)
     u1, u2 = rng.random((301, 64)), rng.random((301, 64))
     got = raycast.cosine_directions(nrm, u1, u2)
-    assert np.array_equal(got.view(np.uint64), _direct_cosine_directions(nrm, u1, u2).view(np.uint64))
+    assert np.array_equal(got.view(np.uint64), raycast._cosine_block(nrm, u1, u2).view(np.uint64))
     # the per-ray uses (random walk, transfer bake): (n, 1) samples
     assert np.array_equal(raycast.cosine_directions(nrm, u1[:, :1], u2[:, :1]),
-                          _direct_cosine_directions(nrm, u1[:, :1], u2[:, :1]))
+                          raycast._cosine_block(nrm, u1[:, :1], u2[:, :1]))
 
     def roof(u, v):  # above the floor, facing up: rays from the floor reach its back (away faces)
         return np.stack([0.2 + 0.6 * u, v, 0 * u + 0.4], -1), np.broadcast_to([0.0, 0.0, 1.0], u.shape + (3,))
