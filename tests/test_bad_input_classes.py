@@ -61,6 +61,17 @@ def test_mesh_at_one_point_is_refused(gl_ctx):
     one_line_error(lambda: render(sc, gl_ctx=gl_ctx), "zero extent")
 
 
+def test_one_triangle_with_area_past_the_first_block_is_enough():
+    from dermis.validation import _has_area
+
+    p = np.zeros((5, 3))
+    p[:, 0] = np.arange(5.0)
+    tris = np.array([[0, 1, 2], [1, 2, 3], [2, 3, 4]])
+    assert not _has_area(p, tris, 1e-12, block=1)
+    p[4, 1] = 1.0  # only the last triangle (the third block of one) has area
+    assert _has_area(p, tris, 1e-12, block=1)
+
+
 @pytest.mark.parametrize("technique", ["lambert", "tsd"])
 def test_mesh_of_only_zero_area_triangles_is_refused(technique, gl_ctx):
     """Fuzz seed 1703: the plane's vertices moved onto a line (extent along x, every triangle of zero

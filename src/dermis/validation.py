@@ -292,10 +292,20 @@ def check_mesh(mesh):
     diag = float(np.linalg.norm(hi - lo))
     if not diag > 1e-6 * max(big, 1e-30):  # all vertices at (float32-)one point
         raise DermisError(f"{mesh.source}: mesh has zero extent (all vertices at one point)")
-    t = p[np.asarray(mesh.indices).reshape(-1, 3)]
-    twice_area = np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
-    if not twice_area.max() > 1e-12 * diag * diag:  # every triangle a line or a point: nothing to shade
+    if not _has_area(p, np.asarray(mesh.indices).reshape(-1, 3), 1e-12 * diag * diag):
+        # every triangle a line or a point: nothing to shade
         raise DermisError(f"{mesh.source}: mesh has no triangle of non-zero area (all lie on lines or points)")
+
+
+def _has_area(p, tris, min_twice_area: float, block: int = 1 << 16) -> bool:
+    """Whether any triangle of ``tris`` (indices into ``p``) has twice its area above ``min_twice_area``:
+    in blocks, stopping at the first that has one (a real mesh's first block), so a 12-million-triangle
+    mesh costs one block, not a (n, 3, 3) float64 copy of its corners."""
+    for s in range(0, len(tris), block):
+        t = p[tris[s:s + block]]
+        if np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).max() > min_twice_area:
+            return True
+    return False
 
 
 def _check_surfaces(scene, full: bool):
