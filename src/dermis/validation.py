@@ -273,12 +273,19 @@ def _skip(*args, **kw):
     pass
 
 
+def max_abs(values) -> float:
+    """max |x| over ``values`` from their min and max (no |x| temporary; 0.0 when empty, NaN or inf as the
+    values give them)."""
+    a = np.asarray(values)
+    return max(abs(float(a.min())), abs(float(a.max()))) if a.size else 0.0
+
+
 def check_coordinates(positions, source) -> float:
-    """The largest |coordinate| of ``positions`` (finite values; scene units), refused over
-    MAX_COORDINATE. Loaders call it on the file's own (float64) numbers before the float32 cast, which
-    would turn 1e300 into inf and the error into "NaN or infinite"."""
-    big = float(np.abs(positions).max(initial=0.0))
-    if big > MAX_COORDINATE:
+    """The largest |coordinate| of ``positions`` (scene units), refused over MAX_COORDINATE when finite
+    (NaN and inf are the finiteness check's). Loaders call it on the file's own numbers (any dtype, no
+    copy) before the float32 cast, which would turn 1e300 into inf and the error into "NaN or infinite"."""
+    big = max_abs(positions)
+    if math.isfinite(big) and big > MAX_COORDINATE:
         raise DermisError(f"{source}: mesh coordinates reach {big:g}, over the limit of {MAX_COORDINATE:g} units")
     return big
 

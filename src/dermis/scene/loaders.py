@@ -12,6 +12,7 @@ bottom (OpenGL). ``uv_convention`` says what the FILE uses: "v-down" (glTF spec)
 from __future__ import annotations
 
 import base64
+import math
 import json
 import sys
 from pathlib import Path
@@ -65,11 +66,9 @@ def _data_uri(uri: str, source="glTF") -> bytes | None:
 
 def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: str, tangents=None, uvs1=None) -> Mesh:
     """A checked Mesh from arrays in the file's convention; ``uvs1``: a second UV set (TEXCOORD_1)."""
-    from dermis.validation import check_coordinates
+    from dermis.validation import check_coordinates, max_abs
 
-    p64 = np.asarray(positions, np.float64)
-    if np.all(np.isfinite(p64)):
-        check_coordinates(p64, source)  # before the cast: an OBJ's 1e300 is out of range, not "infinite"
+    check_coordinates(positions, source)  # before the cast: an OBJ's 1e300 is out of range, not "infinite"
     positions = np.ascontiguousarray(positions, np.float32)
     indices = np.ascontiguousarray(indices, np.int64).reshape(-1, 3)
     if uvs is None and len(indices) and indices.min() >= 0 and indices.max() < len(positions) \
@@ -89,10 +88,8 @@ def finish_mesh(positions, normals, uvs, indices, source: str, uv_convention: st
     if uvs is None:
         raise DermisError(f"{source}: mesh has no texture coordinates (UVs) and no valid triangles to generate them from")
     # the span on the file's own numbers (before the float32 cast, which makes 1e300 "infinite")
-    finite_uvs = [a for a in (np.asarray(uvs, np.float64), None if uvs1 is None else np.asarray(uvs1, np.float64))
-                  if a is not None and a.size and np.all(np.isfinite(a))]
-    span = max((float(np.abs(a).max()) for a in finite_uvs), default=0.0)
-    if span > UV_LIMIT:
+    span = max(max_abs(uvs), 0.0 if uvs1 is None else max_abs(uvs1))
+    if math.isfinite(span) and span > UV_LIMIT:
         raise DermisError(f"{source}: texture coordinates reach {span:g}; dermis needs a UV layout within "
                           f"[-{UV_LIMIT:g}, {UV_LIMIT:g}] (the unit square, or UDIM tiles)")
     uvs = np.ascontiguousarray(uvs, np.float32).copy()
