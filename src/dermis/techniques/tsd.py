@@ -108,11 +108,15 @@ NARROW_PASS = True
 class TsdOptions(TranslucentOptions):
     multires: bool = True  # wide Gaussians blurred at half or quarter resolution
     max_taps: int = 12  # taps per side of a blur at the resolution it runs at
+    # the narrow Gaussians' share of the detail I_1's texels cannot hold, from the irradiance at each
+    # pixel (tsd/final.frag with PIXEL_DETAIL, tsd/gaussians.glsl: diffuse_irradiance_detail)
+    pixel_detail: bool = True
 
     def validate(self, technique: str) -> None:
         super().validate(technique)
         check_bool(f"{technique}: multires", self.multires)
         check_int(f"{technique}: max_taps", self.max_taps, 1, 64)
+        check_bool(f"{technique}: pixel_detail", self.pixel_detail)
 
 
 # The lights whose sharp shadows (the specular's) the irradiance pass stores for the final pass
@@ -198,7 +202,8 @@ class TextureSpaceDiffusion(Technique):
         self.p_trans_tent = program(ctx, "common/fullscreen.vert", "tsd/translucency_tent.frag", defines)
         self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag",
                                {**defines, "SHARP_SHADOW_READ": None, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING})
-        self._programs = {}  # "per_sample" -> the final pass without the stored shadows
+        self._programs = {}  # "per_sample" -> the final pass without the stored shadows; ("detail", bounce) -> PIXEL_DETAIL's
+        self._detail_bounce = None  # None: no pixel detail this frame; else whether I_0 holds the bounce
         self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)
         self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine, self.p_trans,
                                                          self.p_trans_tent)}
@@ -656,6 +661,9 @@ class TextureSpaceDiffusion(Technique):
                     self._uv_pass(frame, prog, targets)
             if irradiance is not None:  # the override replaces the irradiance; the shadows stay the raster's
                 irr.write(a.astype(np.float16).tobytes())
+        # the final pass adds the narrow Gaussians' detail from I_0 at each pixel (PIXEL_DETAIL) where
+        # I_0 is the irradiance pass's own: not where an override replaced it
+        self._detail_bounce = bounce if irradiance is None and self.options.pixel_detail else None
         # one bounce between skin surfaces, added to I_0 before the dilation and the blurs
         if bounce:
             albedo_mix = self._inputs.textures[BOUNCE_INPUTS - 1] if split else self.tex.get("albedo_mix")
@@ -742,6 +750,20 @@ class TextureSpaceDiffusion(Technique):
                                                    {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING})
         return irr, self._programs["per_sample"]
 
+    def _final_program(self, frame):
+        """The final pass's program: PIXEL_DETAIL's (per bounce: its vertex stage reads the bounce the
+        splat added to I_0, common/mesh.vert) when the last texture-space pass allows it, else the one
+        _shading_programs gives."""
+        if self._detail_bounce is None:
+            return self._shading_programs(frame)[1]
+        key = ("detail", self._detail_bounce)
+        if key not in self._programs:
+            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING, "PIXEL_DETAIL": 1}
+            if self._detail_bounce:
+                defines["DERMIS_INTERREFLECTION"] = 1
+            self._programs[key] = program(self.ctx, "common/mesh.vert", "tsd/final.frag", defines)
+        return self._programs[key]
+
     def _split_irradiance(self) -> bool:
         """Whether the irradiance pass is drawn from its light-independent inputs (SPLIT_IRRADIANCE),
         not the one mesh raster: only the technique's own program is split (p_irradiance, a shader
@@ -823,11 +845,17 @@ class TextureSpaceDiffusion(Technique):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            _, prog = self._shading_programs(frame)
+            prog = self._final_program(frame)
             bind_sampler(prog, "uTranslucency", self.tex["translucency"], Unit.FIRST_FREE)
             self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE + 1, frame.keys)
             if prog is self.p_final:
                 bind_sampler(prog, "uSharpShadow", self.tex["sharp_shadow"], Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)
+            if self._detail_bounce is not None:
+                # I_1's texels across (tsd/final.frag: detail_texels_per_mm)
+                set_uniform(prog, "uDetailTexels", float(self.renderer.irradiance_size >> self.levels[0]))
+                if self._detail_bounce:
+                    bind_sampler(prog, "uBounce", self._bounce_added, Unit.INTERREFLECTION)
+                    set_uniform(prog, "uVerticesPerRow", int(self.hits.per_row))
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
             directional_albedo_uniforms(prog, frame.scene)
             # each triangle's texture-space UVs: a fragment reads tsd's textures on its own triangle

@@ -15,6 +15,17 @@
 #include "tsd/sharp_shadow.glsl"
 #define SPECULAR_SHADOW(i, P, Ng) stored_sharp_shadow(i)
 #endif
+#ifdef PIXEL_DETAIL
+// The irradiance I_0 at this pixel (PIXEL_DETAIL, below): the lights' soft shadows come from the
+// receiver solve that also gives their sharp shadows, which the specular then reads for lights 0-3
+// (common/skin_irradiance.glsl, SKIN_SHARP_SHADOWS), so no texture-space shadow is read here
+#define SKIN_SHARP_SHADOWS 4
+#define SPECULAR_SHADOW(i, P, Ng) ((i) < 4 ? skin_sharp_shadow[min(i, 3)] : shadow_sharp(i, P, Ng))
+#include "common/skin_irradiance.glsl"
+#ifdef DERMIS_INTERREFLECTION
+#include "common/interreflection.glsl"
+#endif
+#endif
 #include "common/skin_specular.glsl"
 #include "tsd/gaussians.glsl"
 #include "tsd/triangle_uv.glsl"
@@ -25,7 +36,10 @@ uniform float uDirectionalAlbedo;  // 1: the skin's directional albedo at exit (
 uniform float uPoreScaleMm;
 uniform float uPoreStrength;
 uniform vec3 uCameraPos;
-uniform int uOutputMode;  // OUTPUT_FULL, OUTPUT_DIFFUSE or OUTPUT_SPECULAR (dermis.techniques.shared.OutputMode)
+uniform int uOutputMode;
+#ifdef PIXEL_DETAIL
+uniform float uDetailTexels;  // texels across I_1's texture (the chain's first level)
+#endif  // OUTPUT_FULL, OUTPUT_DIFFUSE or OUTPUT_SPECULAR (dermis.techniques.shared.OutputMode)
 in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -36,6 +50,28 @@ in vec3 v_blocked_sh0;  // the L2 SH of the directions the mesh blocks: the spec
 in vec3 v_blocked_sh1;
 in vec3 v_blocked_sh2;
 out vec4 f_color;
+
+#ifdef PIXEL_DETAIL
+// I_1's texels per mm of surface here, along the layout's coarsest surface direction: the smaller
+// singular value of the Jacobian d(texels)/d(mm) on the tangent plane, from the screen derivatives
+// of the position (mm) and of the texture-space UV (affine per triangle). 1e6 (no detail: every a_k
+// below is 0) where the triangle is seen edge-on and the derivatives span no plane.
+float detail_texels_per_mm() {
+    vec3 px = dFdx(v_world) * uMmPerUnit, py = dFdy(v_world) * uMmPerUnit;
+    vec2 tx = dFdx(v_uv_ts) * uDetailTexels, ty = dFdy(v_uv_ts) * uDetailTexels;
+    float lx = length(px);
+    vec3 e1 = px / max(lx, 1e-20);
+    vec3 q = py - dot(py, e1) * e1;
+    float ly = length(q);
+    if (lx < 1e-12 || ly < 1e-6 * length(py) + 1e-20) return 1e6;
+    // the screen steps in the plane's basis (e1, q / |q|): columns (lx, 0) and (py.e1, ly)
+    mat2 P = mat2(lx, 0.0, dot(py, e1), ly);
+    mat2 J = mat2(tx, ty) * inverse(P);
+    float f = dot(J[0], J[0]) + dot(J[1], J[1]);
+    float d = determinant(J);
+    return sqrt(max(0.5 * (f - sqrt(max(f * f - 4.0 * d * d, 0.0))), 0.0));
+}
+#endif
 
 
 void main() {
@@ -54,7 +90,24 @@ void main() {
     vec3 albedo = albedo_at(v_uv);
     // k(N.V) is the half-space's REFLECTION (dermis.profiles.directional_albedo): the light that
     // entered on this side; the light through a thin part (translucency) is left Lambertian
-    vec3 E = diffuse_irradiance(uv_ts) * directional_factor(uDirectionalAlbedo * directional_c(albedo), ndv)
+#ifdef PIXEL_DETAIL
+    // I_0 as tsd/irradiance.frag and tsd/bounce_splat.frag put it into the irradiance texture, but
+    // at this pixel: (E_lights + E_ambient + E_bounce) albedo^mix
+    vec3 I0 = skin_irradiance_directional(v_world, Ng, N, rho_s, m, v_visibility, uDirectionalAlbedo * directional_c(albedo));
+#ifdef DERMIS_INTERREFLECTION
+    I0 += bounce_irradiance();
+#endif
+    // a sample whose pixel centre lies off its triangle (multisampling: an edge sample) has P and N
+    // extrapolated off it as far as uv_ts was moved back; a triangle seen edge-on moves them by
+    // texels per pixel (tsd/triangle_uv.glsl), lighting the sample as some other surface: its
+    // detail fades out between 1 and 2 texels off (an ordinary edge sample is within ~0.5)
+    float off = length((uv_ts - v_uv_ts) * uDetailTexels);
+    vec3 Ed = diffuse_irradiance_detail(uv_ts, I0 * albedo_power(albedo, uMix), detail_texels_per_mm(),
+                                        1.0 - smoothstep(1.0, 2.0, off));
+#else
+    vec3 Ed = diffuse_irradiance(uv_ts);
+#endif
+    vec3 E = Ed * directional_factor(uDirectionalAlbedo * directional_c(albedo), ndv)
            + texture(uTranslucency, uv_ts).rgb;
     vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
