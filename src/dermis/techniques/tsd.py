@@ -126,6 +126,12 @@ class TsdOptions(TranslucentOptions):
 STORED_SHARP_SHADOWS = 3
 # the shader storage binding of the triangles' texture-space UVs (tsd/triangle_uv.glsl)
 TRIANGLE_UV_BINDING = 0
+# the most Gaussians for which tsd/final.frag with PIXEL_DETAIL reads both the stored sharp shadows and
+# the shadow atlas within the 16 guaranteed samplers (dermis.techniques.tsd.Tsd._final_program)
+DETAIL_MAX_GAUSSIANS_STORED = 7
+# ... and of the bounce per vertex and the index buffer (tsd/final.frag with PIXEL_DETAIL_BOUNCE)
+BOUNCE_BINDING = 1
+INDEX_BINDING = 2
 
 
 def stores_sharp_shadows(light_count: int) -> bool:
@@ -204,6 +210,7 @@ class TextureSpaceDiffusion(Technique):
                                {**defines, "SHARP_SHADOW_READ": None, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING})
         self._programs = {}  # "per_sample" -> the final pass without the stored shadows; ("detail", bounce) -> PIXEL_DETAIL's
         self._detail_bounce = None  # None: no pixel detail this frame; else whether I_0 holds the bounce
+        self._detail_buffer = None  # the bounce per vertex for PIXEL_DETAIL_BOUNCE (_bounce_buffer)
         self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)
         self.vaos = {p: ctx.vertex_array(p, []) for p in (self.p_dilate, self.p_down, self.p_combine, self.p_trans,
                                                          self.p_trans_tent)}
@@ -596,10 +603,11 @@ class TextureSpaceDiffusion(Technique):
         """The profile (common/profile.glsl) and its blurred irradiances I_k (tsd/gaussians.glsl)
         from ``first_unit`` on; entries past K repeat I_K (never read: the loops stop at K)."""
         K = profile.k
-        blurs = tuple(self.tex[("blur", min(k, K - 1))] for k in range(MAX_GAUSSIANS))
+        n = prog["uBlur"].array_length if prog.get("uBlur", None) is not None else MAX_GAUSSIANS  # the program's MAX_GAUSSIANS
+        blurs = tuple(self.tex[("blur", min(k, K - 1))] for k in range(n))
 
         def setup(prog):
-            set_profile_uniforms(prog, profile, MAX_GAUSSIANS)
+            set_profile_uniforms(prog, profile, n)
             bind_sampler_array(prog, "uBlur", blurs, first_unit)
         # written when the profile's content or a blur target changes; the targets bound every frame
         prepared(prog, "profile", (frame_keys["profile_tables"], blurs, first_unit), setup)
@@ -668,6 +676,8 @@ class TextureSpaceDiffusion(Technique):
         if bounce:
             albedo_mix = self._inputs.textures[BOUNCE_INPUTS - 1] if split else self.tex.get("albedo_mix")
             self._interreflection(frame, irr, bounce_targets, albedo_mix)
+            if self._detail_bounce:
+                self._bounce_buffer()
         with timer("tsd_irradiance"):
             dil = self._texture("irradiance_dilated", (S, S))
             bind_sampler(self.p_dilate, "uSource", irr, 0)
@@ -751,18 +761,40 @@ class TextureSpaceDiffusion(Technique):
         return irr, self._programs["per_sample"]
 
     def _final_program(self, frame):
-        """The final pass's program: PIXEL_DETAIL's (per bounce: its vertex stage reads the bounce the
-        splat added to I_0, common/mesh.vert) when the last texture-space pass allows it, else the one
-        _shading_programs gives."""
+        """The final pass's program: PIXEL_DETAIL's (reading the stored sharp shadows or per sample, as
+        _shading_programs; with PIXEL_DETAIL_BOUNCE where I_0 holds the bounce) when the last
+        texture-space pass allows it, else the one _shading_programs gives."""
         if self._detail_bounce is None:
             return self._shading_programs(frame)[1]
-        key = ("detail", self._detail_bounce)
+        # with the stored sharp shadows it reads the shadow atlas as well (detail_shadow): one sampler
+        # more than p_final, so its blur array holds the profile's K textures, not MAX_GAUSSIANS
+        # (16 guaranteed samplers: 7 shared, the translucency, the stored shadows and K <= 7 blurs);
+        # a profile of 8 Gaussians or a scene of more than 3 lights takes the per-sample shadows
+        k = frame.scene.profile.k
+        stored = stores_sharp_shadows(frame.lights.count) and k <= DETAIL_MAX_GAUSSIANS_STORED
+        key = ("detail", stored, self._detail_bounce, k if stored else MAX_GAUSSIANS)
         if key not in self._programs:
-            defines = {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING, "PIXEL_DETAIL": 1}
+            defines = {"MAX_GAUSSIANS": key[3], "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING, "PIXEL_DETAIL": 1}
+            if stored:
+                defines["SHARP_SHADOW_READ"] = None
             if self._detail_bounce:
-                defines["DERMIS_INTERREFLECTION"] = 1
+                defines.update(PIXEL_DETAIL_BOUNCE=1, BOUNCE_BINDING=BOUNCE_BINDING, INDEX_BINDING=INDEX_BINDING)
             self._programs[key] = program(self.ctx, "common/mesh.vert", "tsd/final.frag", defines)
         return self._programs[key]
+
+    def _bounce_buffer(self):
+        """The bounce T per vertex that the last splat added (its target, vertex v at texel v in row
+        order), copied into a shader storage buffer for tsd/final.frag (PIXEL_DETAIL_BOUNCE): a
+        copy on the GPU, per lighting change."""
+        tex = self._bounce_added
+        nbytes = tex.width * tex.height * 16  # RGBA 32-bit float (dermis.gl.interreflection)
+        buf = self._detail_buffer
+        if buf is None or buf.size != nbytes:
+            if buf is not None:
+                buf.release()
+            buf = self._detail_buffer = self.ctx.buffer(reserve=nbytes)
+        tex.read_into(buf)
+        return buf
 
     def _split_irradiance(self) -> bool:
         """Whether the irradiance pass is drawn from its light-independent inputs (SPLIT_IRRADIANCE),
@@ -848,14 +880,14 @@ class TextureSpaceDiffusion(Technique):
             prog = self._final_program(frame)
             bind_sampler(prog, "uTranslucency", self.tex["translucency"], Unit.FIRST_FREE)
             self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE + 1, frame.keys)
-            if prog is self.p_final:
+            if prog.get("uSharpShadow", None) is not None:  # p_final and its PIXEL_DETAIL variant
                 bind_sampler(prog, "uSharpShadow", self.tex["sharp_shadow"], Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)
             if self._detail_bounce is not None:
                 # I_1's texels across (tsd/final.frag: detail_texels_per_mm)
                 set_uniform(prog, "uDetailTexels", float(self.renderer.irradiance_size >> self.levels[0]))
                 if self._detail_bounce:
-                    bind_sampler(prog, "uBounce", self._bounce_added, Unit.INTERREFLECTION)
-                    set_uniform(prog, "uVerticesPerRow", int(self.hits.per_row))
+                    self._detail_buffer.bind_to_storage_buffer(BOUNCE_BINDING)
+                    frame.gpu.ibo.bind_to_storage_buffer(INDEX_BINDING)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
             directional_albedo_uniforms(prog, frame.scene)
             # each triangle's texture-space UVs: a fragment reads tsd's textures on its own triangle
@@ -913,6 +945,9 @@ class TextureSpaceDiffusion(Technique):
         self._irradiance_programs.release()
         self._light_programs.release()
         self._inputs.release()
+        if self._detail_buffer is not None:
+            self._detail_buffer.release()
+            self._detail_buffer = None
         for p in (self.p_stretch, self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
                   self.p_final,
                   self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else []),

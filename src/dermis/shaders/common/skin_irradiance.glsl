@@ -24,6 +24,10 @@ vec4 skin_sharp_shadow;
 // Light i's share of E (d'Eon & Luebke 2007, 14.4.1): E_i max(N.L, 0) G_bump shadow_soft (1 - rho_s a / pi) k(N.L).
 // c: the directional albedo's coefficients per channel (common/directional_albedo.glsl), weighting
 // each light by k(N.L) = 1 + c (2/3 - N.L); vec3(0) is the Lambertian entry.
+vec3 skin_light_terms(vec3 Ei, vec3 L, float ndl, vec3 Ng, vec3 N, float s, float rho_s, float m, vec3 c) {
+    return Ei * ndl * bump_shadowing(Ng, N, L) * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
+}
+
 vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3 c) {
     vec3 L;
     vec3 Ei = light_incident(i, P, L);
@@ -43,7 +47,17 @@ vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3
     if (ndl <= 0.0) return vec3(0.0);
     float s = shadow_soft(i, P, Ng);
 #endif
-    return Ei * ndl * bump_shadowing(Ng, N, L) * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
+    return skin_light_terms(Ei, L, ndl, Ng, N, s, rho_s, m, c);
+}
+
+// Light i's share with its shadow s given by the caller (tsd/final.frag with PIXEL_DETAIL: the
+// sharp shadow stored in texture space), the same terms.
+vec3 skin_light_entry_shadowed(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3 c, float s) {
+    vec3 L;
+    vec3 Ei = light_incident(i, P, L);
+    float ndl = dot(N, L);
+    if (ndl <= 0.0) return vec3(0.0);
+    return skin_light_terms(Ei, L, ndl, Ng, N, s, rho_s, m, c);
 }
 
 // The sum over the lights, plus the ambient (left at k = 1: its average over a uniform hemisphere).

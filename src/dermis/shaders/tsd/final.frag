@@ -16,19 +16,35 @@
 #define SPECULAR_SHADOW(i, P, Ng) stored_sharp_shadow(i)
 #endif
 #ifdef PIXEL_DETAIL
-// The irradiance I_0 at this pixel (PIXEL_DETAIL, below): the lights' soft shadows come from the
-// receiver solve that also gives their sharp shadows, which the specular then reads for lights 0-3
-// (common/skin_irradiance.glsl, SKIN_SHARP_SHADOWS), so no texture-space shadow is read here
-#define SKIN_SHARP_SHADOWS 4
-#define SPECULAR_SHADOW(i, P, Ng) ((i) < 4 ? skin_sharp_shadow[min(i, 3)] : shadow_sharp(i, P, Ng))
 #include "common/skin_irradiance.glsl"
-#ifdef DERMIS_INTERREFLECTION
-#include "common/interreflection.glsl"
-#endif
 #endif
 #include "common/skin_specular.glsl"
 #include "tsd/gaussians.glsl"
 #include "tsd/triangle_uv.glsl"
+#ifdef PIXEL_DETAIL_BOUNCE
+// The bounce T per mesh vertex that tsd/bounce_splat.frag added to I_0 (dermis.techniques.tsd: its
+// gather's or series' target copied into a buffer, vertex v at v) and the index buffer, as shader
+// storage: the final pass already uses every one of the 16 guaranteed samplers.
+layout(std430, binding = BOUNCE_BINDING) readonly buffer BouncePerVertex {
+    vec4 bounce_per_vertex[];
+};
+layout(std430, binding = INDEX_BINDING) readonly buffer MeshIndices {
+    uint mesh_indices[];
+};
+
+// T at texture-space uv of triangle ``primitive``, interpolated linearly in the layout as the
+// splat's raster interpolates it (uv on the triangle: uv_on_triangle); clamped at 0 as the splat does
+vec3 bounce_on_triangle(vec2 uv, int primitive) {
+    int i = 3 * primitive;
+    vec2 a = triangle_uv_ts[i], b = triangle_uv_ts[i + 1], c = triangle_uv_ts[i + 2];
+    float area = cross2(b - a, c - a);
+    vec3 w = area != 0.0 ? vec3(cross2(b - uv, c - uv), cross2(c - uv, a - uv), cross2(a - uv, b - uv)) / area
+                         : vec3(1.0 / 3.0);
+    vec3 T = w.x * bounce_per_vertex[mesh_indices[i]].rgb + w.y * bounce_per_vertex[mesh_indices[i + 1]].rgb
+           + w.z * bounce_per_vertex[mesh_indices[i + 2]].rgb;
+    return max(T, vec3(0.0));
+}
+#endif
 
 uniform sampler2D uTranslucency;
 uniform float uMix;
@@ -50,6 +66,17 @@ in vec3 v_blocked_sh0;  // the L2 SH of the directions the mesh blocks: the spec
 in vec3 v_blocked_sh1;
 in vec3 v_blocked_sh2;
 out vec4 f_color;
+
+#if defined(PIXEL_DETAIL) && defined(SHARP_SHADOW_READ)
+// Light i's shadow for I_0 at this pixel: I_1 holds the lights' soft (PCF) shadows at its texel
+// centres, the stored sharp shadow says where they may differ from 0 or 1: inside its bilinear
+// edge band (a texel each side of the sharp edge; the PCF's penumbra is ~0.1-0.2 mm, narrower)
+// the soft shadow is evaluated here, elsewhere the stored 0 or 1 is the soft shadow too
+float detail_shadow(int i, vec3 P, vec3 Ng) {
+    float s = stored_sharp_shadow(i);
+    return s > 0.0 && s < 1.0 ? shadow_soft(i, P, Ng) : s;
+}
+#endif
 
 #ifdef PIXEL_DETAIL
 // I_1's texels per mm of surface here, along the layout's coarsest surface direction: the smaller
@@ -90,12 +117,24 @@ void main() {
     vec3 albedo = albedo_at(v_uv);
     // k(N.V) is the half-space's REFLECTION (dermis.profiles.directional_albedo): the light that
     // entered on this side; the light through a thin part (translucency) is left Lambertian
+#ifdef SHARP_SHADOW_READ
+    load_sharp_shadows(uv_ts);
+#endif
 #ifdef PIXEL_DETAIL
     // I_0 as tsd/irradiance.frag and tsd/bounce_splat.frag put it into the irradiance texture, but
-    // at this pixel: (E_lights + E_ambient + E_bounce) albedo^mix
-    vec3 I0 = skin_irradiance_directional(v_world, Ng, N, rho_s, m, v_visibility, uDirectionalAlbedo * directional_c(albedo));
-#ifdef DERMIS_INTERREFLECTION
-    I0 += bounce_irradiance();
+    // at this pixel: (E_lights + E_ambient + E_bounce) albedo^mix, each light shadowed by its sharp
+    // shadow, the specular's (stored in texture space, read bilinearly: the edge I_1 has too)
+    vec3 c_in = uDirectionalAlbedo * directional_c(albedo);
+#ifdef SHARP_SHADOW_READ
+    vec3 I0 = vec3(0.0);
+    DERMIS_FOR_EACH_LIGHT(I0 += skin_light_entry_shadowed(light_i, v_world, Ng, N, rho_s, m, c_in,
+                                                          detail_shadow(light_i, v_world, Ng));)
+#else  // the lights' soft shadows per sample, as the irradiance pass has them
+    vec3 I0 = skin_lights_directional(v_world, Ng, N, rho_s, m, c_in);
+#endif
+    I0 += skin_ambient(N, Ng, rho_s, m, v_visibility);
+#ifdef PIXEL_DETAIL_BOUNCE
+    I0 += bounce_on_triangle(uv_ts, gl_PrimitiveID);
 #endif
     // a sample whose pixel centre lies off its triangle (multisampling: an edge sample) has P and N
     // extrapolated off it as far as uv_ts was moved back; a triangle seen edge-on moves them by
@@ -111,9 +150,6 @@ void main() {
            + texture(uTranslucency, uv_ts).rgb;
     vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
-#ifdef SHARP_SHADOW_READ
-    load_sharp_shadows(uv_ts);
-#endif
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility,
                                        v_blocked_sh0, v_blocked_sh1, v_blocked_sh2);
 

@@ -1,0 +1,146 @@
+"""tsd's pixel detail (tsd/final.frag with PIXEL_DETAIL, tsd/gaussians.glsl: diffuse_irradiance_detail):
+where the irradiance texture's texels are wider than the narrow Gaussians, the narrow terms take
+the part of I_0 the texels cannot hold from I_0 evaluated at each pixel (issue 12: the side view's
+scapha drew as a comb of red stripes at the adaptive irradiance size).
+
+The surface: a plane corrugated by folds of wavelength 2.4 texels of the coarse irradiance texture
+(4 pixels per texel), oblique to the texel grid, lit from the side so that N.L turns from 0.97 to
+below 0 across each fold. Reference: the same technique with the texture 8x finer (texels of half
+a pixel: nothing left for the detail to add), and in closed form max(N.L, 0) per pixel of the
+analytic surface where the profile is far narrower than a pixel."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dermis.profiles.gaussians import SumOfGaussians, deon_skin
+from dermis.renderer import Renderer
+from dermis.scene.builtin import grid_mesh
+from dermis.scene.loaders import finish_mesh
+from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial
+
+SIZE_MM = 16.0  # the plane's side; mm_per_unit = 1
+COARSE, FINE, PIXELS = 64, 512, 256  # irradiance texels across; the frame (16 px per mm)
+WAVELENGTH_MM = 0.6  # 2.4 coarse texels (0.25 mm), 9.6 pixels
+AMPLITUDE_MM = 0.08  # slope 2 pi A / lambda = 0.84: normals swing +-40 degrees
+FOLD_ANGLE_DEG = 30.0  # the folds' direction against the u axis
+LIGHT_DEG = 60.0  # from the plane's normal, across the folds
+CAMERA_Z = 400.0  # far away: rays within 1.2 degrees of -z
+
+
+def _fold_direction():
+    a = math.radians(FOLD_ANGLE_DEG)
+    return np.array([math.cos(a), math.sin(a)])
+
+
+def corrugated_scene(profile, amplitude_mm: float = AMPLITUDE_MM) -> Scene:
+    """The corrugated plane z = A sin(2 pi s / lambda), s = (x, y) . d (d at FOLD_ANGLE_DEG to the u axis),
+    UVs its (x, y) over [0, 1]^2, white, no specular, a directional light of irradiance pi at
+    LIGHT_DEG from the normal in the plane of d and z; no ambient, no bounce."""
+    d = _fold_direction()
+    k = 2 * math.pi / WAVELENGTH_MM
+
+    def fn(u, v):
+        x, y = (u - 0.5) * SIZE_MM, (v - 0.5) * SIZE_MM
+        s = x * d[0] + y * d[1]
+        z = amplitude_mm * np.sin(k * s)
+        g = amplitude_mm * k * np.cos(k * s)  # dz/ds
+        n = np.stack([-g * d[0], -g * d[1], np.ones_like(g)], -1)
+        return np.stack([x, y, z], -1), n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+    p, n, uv, t = grid_mesh(320, 320, fn)  # 0.05 mm: 12 vertices per wavelength
+    b = math.radians(LIGHT_DEG)
+    light = (-math.sin(b) * d[0], -math.sin(b) * d[1], -math.cos(b))  # travelling along +d, down
+    return Scene(mesh=finish_mesh(p, n, uv, t, "test:corrugated", "v-up"), profile=profile,
+                 material=SkinMaterial(albedo_color=(1.0, 1.0, 1.0), rho_s=0.0, pore_strength=0.0),
+                 lights=[Light(direction=light, intensity=np.pi, cast_shadows=False)],
+                 camera=Camera(position=(0.0, 0.0, CAMERA_Z), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0),
+                               fov_deg=math.degrees(2 * math.atan(0.5 * SIZE_MM / CAMERA_Z))),
+                 environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0, name="corrugated",
+                 interreflection=False, directional_albedo=False)
+
+
+def _render(scene, irradiance_size, gl_ctx, **options):
+    with Renderer(scene, (PIXELS, PIXELS), ctx=gl_ctx, samples=0, irradiance_size=irradiance_size,
+                  shadow_size=512) as r:
+        r.technique("tsd", **options)
+        return r.render("tsd").astype(np.float64).mean(axis=-1)
+
+
+def _closed_form():
+    """max(N.L, 0) at each pixel centre of the analytic surface (rays along -z: the camera is 400 mm
+    away, the surface 0.08 mm from z = 0), row 0 = top (+y)."""
+    c = (np.arange(PIXELS) + 0.5) / PIXELS * SIZE_MM - 0.5 * SIZE_MM
+    x, y = np.meshgrid(c, -c)
+    d = _fold_direction()
+    k = 2 * math.pi / WAVELENGTH_MM
+    g = AMPLITUDE_MM * k * np.cos(k * (x * d[0] + y * d[1]))
+    n = np.stack([-g * d[0], -g * d[1], np.ones_like(g)], -1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    b = math.radians(LIGHT_DEG)
+    to_light = np.array([math.sin(b) * d[0], math.sin(b) * d[1], math.cos(b)])
+    return np.maximum(n @ to_light, 0.0)
+
+
+INNER = (slice(8, -8), slice(8, -8))  # away from the plane's border
+
+
+def _rms(a, b):
+    return float(np.sqrt(np.mean((a[INNER] - b[INNER]) ** 2)) / np.mean(b[INNER]))
+
+
+@pytest.fixture(scope="module")
+def narrow_renders(gl_ctx):
+    """A profile of one Gaussian far narrower than a pixel (sigma 0.01 mm; a pixel is 0.0625 mm):
+    the diffuse radiance is the irradiance at the pixel over pi, here max(N.L, 0)."""
+    scene = corrugated_scene(SumOfGaussians(np.array([1e-4]), np.ones((1, 3)), "narrow"))
+    return (_render(scene, COARSE, gl_ctx), _render(scene, COARSE, gl_ctx, pixel_detail=False),
+            _render(scene, FINE, gl_ctx, pixel_detail=False))
+
+
+def test_narrow_profile_matches_the_closed_form_at_a_coarse_texture(narrow_renders):
+    detail, plain, fine = narrow_renders
+    exact = _closed_form()
+    # the technique meets the closed form where its texels are half a pixel (0.044: the bilinear
+    # reads of the texture; the mesh's normals, linear between vertices 0.05 mm apart, leave ~0.03,
+    # the rms of a 2048^2 texture)
+    assert _rms(fine, exact) < 0.05, _rms(fine, exact)
+    # at 4 pixels per texel the plain texture point-samples folds of 2.4 texels: stripes (0.43)
+    assert _rms(plain, exact) > 0.3, _rms(plain, exact)
+    # the detail restores the per-pixel irradiance (0.028)
+    assert _rms(detail, exact) < 0.035, _rms(detail, exact)
+
+
+def test_skin_profile_at_a_coarse_texture_approaches_the_fine_one(gl_ctx):
+    """d'Eon's six Gaussians: the narrow ones (sigma 0.08-0.43 mm against texels of 0.25 mm) carry
+    the folds; the fine texture (texels of 0.03 mm) resolves every Gaussian (2048^2 differs from it
+    by 0.007). The plain coarse texture is 0.14 off, the detail 0.043: the Gaussians as wide as a
+    texel take a share a_k of the residual at the texture's Nyquist frequency (tsd/gaussians.glsl),
+    an approximation (a_k at twice or half that frequency: 0.045 and 0.080)."""
+    scene = corrugated_scene(deon_skin())
+    detail = _render(scene, COARSE, gl_ctx)
+    plain = _render(scene, COARSE, gl_ctx, pixel_detail=False)
+    fine = _render(scene, FINE, gl_ctx, pixel_detail=False)
+    assert _rms(plain, fine) > 0.1, _rms(plain, fine)
+    assert _rms(detail, fine) < 0.05, _rms(detail, fine)
+
+
+def test_pixel_detail_leaves_a_resolved_irradiance_alone(gl_ctx):
+    """A flat plane under a light at 60 degrees: I_0 is constant, the texture holds it exactly, so the
+    detail adds nothing (within the 16-bit irradiance texture's rounding)."""
+    scene = corrugated_scene(deon_skin(), amplitude_mm=0.0)
+    detail = _render(scene, COARSE, gl_ctx)
+    plain = _render(scene, COARSE, gl_ctx, pixel_detail=False)
+    assert np.max(np.abs(detail - plain)[INNER]) < 2e-3 * np.mean(plain[INNER])
+    assert abs(np.mean(plain[INNER]) - math.cos(math.radians(LIGHT_DEG))) < 0.01
+
+
+def test_pixel_detail_must_be_a_bool(gl_ctx):
+    from dermis.errors import DermisError
+
+    with Renderer(corrugated_scene(deon_skin()), (16, 16), ctx=gl_ctx, samples=0, irradiance_size=64) as r:
+        with pytest.raises(DermisError, match="pixel_detail"):
+            r.technique("tsd", pixel_detail=1)
