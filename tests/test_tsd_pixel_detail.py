@@ -36,7 +36,7 @@ def _fold_direction():
     return np.array([math.cos(a), math.sin(a)])
 
 
-def corrugated_scene(profile, amplitude_mm: float = AMPLITUDE_MM) -> Scene:
+def corrugated_scene(profile, amplitude_mm: float = AMPLITUDE_MM, n: int = 320) -> Scene:
     """The corrugated plane z = A sin(2 pi s / lambda), s = (x, y) . d (d at FOLD_ANGLE_DEG to the u axis),
     UVs its (x, y) over [0, 1]^2, white, no specular, a directional light of irradiance pi at
     LIGHT_DEG from the normal in the plane of d and z; no ambient, no bounce."""
@@ -51,10 +51,10 @@ def corrugated_scene(profile, amplitude_mm: float = AMPLITUDE_MM) -> Scene:
         n = np.stack([-g * d[0], -g * d[1], np.ones_like(g)], -1)
         return np.stack([x, y, z], -1), n / np.linalg.norm(n, axis=-1, keepdims=True)
 
-    p, n, uv, t = grid_mesh(320, 320, fn)  # 0.05 mm: 12 vertices per wavelength
+    p, nn, uv, t = grid_mesh(n, n, fn)  # n = 320: 0.05 mm, 12 vertices per wavelength
     b = math.radians(LIGHT_DEG)
     light = (-math.sin(b) * d[0], -math.sin(b) * d[1], -math.cos(b))  # travelling along +d, down
-    return Scene(mesh=finish_mesh(p, n, uv, t, "test:corrugated", "v-up"), profile=profile,
+    return Scene(mesh=finish_mesh(p, nn, uv, t, "test:corrugated", "v-up"), profile=profile,
                  material=SkinMaterial(albedo_color=(1.0, 1.0, 1.0), rho_s=0.0, pore_strength=0.0),
                  lights=[Light(direction=light, intensity=np.pi, cast_shadows=False)],
                  camera=Camera(position=(0.0, 0.0, CAMERA_Z), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0),
@@ -144,3 +144,58 @@ def test_pixel_detail_must_be_a_bool(gl_ctx):
     with Renderer(corrugated_scene(deon_skin()), (16, 16), ctx=gl_ctx, samples=0, irradiance_size=64) as r:
         with pytest.raises(DermisError, match="pixel_detail"):
             r.technique("tsd", pixel_detail=1)
+
+
+def test_pixel_detail_keeps_the_bounce_where_the_texture_resolves(gl_ctx):
+    """I_1 holds the bounce the splat added (tsd/bounce_splat.frag), so I_0 at the pixel must hold the
+    same bounce (the per-vertex T from a storage buffer, interpolated in the layout as the splat does):
+    in the preintegrated tests' V-groove, whose walls light each other, at a texture finer than the
+    pixels the detail changes nothing, while the bounce is 10 % or more of the groove's light."""
+    import dataclasses
+
+    from test_preintegrated_folds import groove_scene
+
+    scene = dataclasses.replace(groove_scene(), interreflection=True)
+    size = 64
+    imgs = {}
+    for key, sc, opts in (("detail", scene, {}), ("plain", scene, {"pixel_detail": False}),
+                          ("no_bounce", dataclasses.replace(scene, interreflection=False), {"pixel_detail": False})):
+        with Renderer(sc, (size, size), ctx=gl_ctx, samples=0, irradiance_size=512, shadow_size=1024) as r:
+            r.technique("tsd", **opts)
+            imgs[key] = r.render("tsd").astype(np.float64).mean(axis=-1)
+    groove = (slice(size // 2 - 6, size // 2 + 6), slice(8, -8))  # the rows of the groove
+    d, p, nb = (imgs[k][groove] for k in ("detail", "plain", "no_bounce"))
+    assert np.mean(p) > 1.1 * np.mean(nb), (np.mean(p), np.mean(nb))
+    assert abs(np.mean(d) - np.mean(p)) < 0.01 * np.mean(p), (np.mean(d), np.mean(p))
+    assert np.max(np.abs(d - p)) < 0.05 * np.max(p)
+
+
+@pytest.mark.parametrize("k, lights", [(6, 1), (7, 3), (8, 3), (6, 4)])
+def test_pixel_detail_programs_fit_the_guaranteed_samplers(gl_ctx, k, lights):
+    """The PIXEL_DETAIL variants (tsd._final_program): the stored sharp shadows and the atlas with a
+    blur array of the profile's K <= 7, else the per-sample shadows with MAX_GAUSSIANS blurs; the
+    bounce from storage buffers, not a sampler. Each within GL 4.5's 16 samplers per stage, each
+    drawing a finite image that differs from the plain one only by the detail."""
+    import dataclasses
+
+    from dermis.gl.shaders import sampler_count
+    from dermis.techniques import shared
+
+    v = 0.0064 * 3.0 ** np.arange(k)  # d'Eon-like spacing, 0.0064 mm^2 on
+    profile = SumOfGaussians(v, np.full((k, 3), 1.0 / k), f"k{k}")
+    base = corrugated_scene(profile, n=48)
+    light = base.lights[0]
+    scene = dataclasses.replace(base, interreflection=True,
+                                lights=[dataclasses.replace(light, intensity=np.pi / lights)] * lights)
+    with Renderer(scene, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=256) as r:
+        img = r.render("tsd")
+        t = r.technique("tsd")
+        detail = [(key, p) for key, p in t._programs.items() if key[0] == "detail"]
+        assert len(detail) == 1
+        (key, prog), = detail
+        assert key[1] == (k <= 7 and lights <= 3) and key[2] is True
+        assert sampler_count(prog) <= shared.GUARANTEED_TEXTURE_UNITS, sampler_count(prog)
+        r.technique("tsd", pixel_detail=False)
+        plain = r.render("tsd")
+    assert np.all(np.isfinite(img)) and img.max() > 0
+    assert abs(float(img.mean()) - float(plain.mean())) < 0.1 * float(plain.mean())
