@@ -883,8 +883,9 @@ class TextureSpaceDiffusion(Technique):
             if prog.get("uSharpShadow", None) is not None:  # p_final and its PIXEL_DETAIL variant
                 bind_sampler(prog, "uSharpShadow", self.tex["sharp_shadow"], Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)
             if self._detail_bounce is not None:
-                # I_1's texels across (tsd/final.frag: detail_texels_per_mm)
-                set_uniform(prog, "uDetailTexels", float(self.renderer.irradiance_size >> self.levels[0]))
+                # I_1's texels across (tsd/final.frag: detail_texels_per_mm), written when it changes
+                texels = float(self.renderer.irradiance_size >> self.levels[0])
+                prepared(prog, "detail_texels", texels, lambda p: set_uniform(p, "uDetailTexels", texels))
                 if self._detail_bounce:
                     self._detail_buffer.bind_to_storage_buffer(BOUNCE_BINDING)
                     frame.gpu.ibo.bind_to_storage_buffer(INDEX_BINDING)
