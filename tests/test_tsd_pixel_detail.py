@@ -146,28 +146,30 @@ def test_pixel_detail_must_be_a_bool(gl_ctx):
             r.technique("tsd", pixel_detail=1)
 
 
-def test_pixel_detail_keeps_the_bounce_where_the_texture_resolves(gl_ctx):
+def test_pixel_detail_keeps_the_bounce(gl_ctx):
     """I_1 holds the bounce the splat added (tsd/bounce_splat.frag), so I_0 at the pixel must hold the
-    same bounce (the per-vertex T from a storage buffer, interpolated in the layout as the splat does):
-    in the preintegrated tests' V-groove, whose walls light each other, at a texture finer than the
-    pixels the detail changes nothing, while the bounce is 10 % or more of the groove's light."""
+    same bounce (the per-vertex T from a storage buffer, interpolated in the layout as the splat does).
+    In the preintegrated tests' V-groove, whose walls light each other (the bounce is 32-42 % of the
+    groove's light), at texels of 0.38 mm (a_1 = 0.8): the bounce's share of the image (with minus
+    without) is the same with the detail as without it, per channel within 2 % (0.99-1.00); with
+    the bounce left out of I_0 it is 0.27-0.74 of it."""
     import dataclasses
 
     from test_preintegrated_folds import groove_scene
 
-    scene = dataclasses.replace(groove_scene(), interreflection=True)
     size = 64
-    imgs = {}
-    for key, sc, opts in (("detail", scene, {}), ("plain", scene, {"pixel_detail": False}),
-                          ("no_bounce", dataclasses.replace(scene, interreflection=False), {"pixel_detail": False})):
-        with Renderer(sc, (size, size), ctx=gl_ctx, samples=0, irradiance_size=512, shadow_size=1024) as r:
-            r.technique("tsd", **opts)
-            imgs[key] = r.render("tsd").astype(np.float64).mean(axis=-1)
     groove = (slice(size // 2 - 6, size // 2 + 6), slice(8, -8))  # the rows of the groove
-    d, p, nb = (imgs[k][groove] for k in ("detail", "plain", "no_bounce"))
-    assert np.mean(p) > 1.1 * np.mean(nb), (np.mean(p), np.mean(nb))
-    assert abs(np.mean(d) - np.mean(p)) < 0.01 * np.mean(p), (np.mean(d), np.mean(p))
-    assert np.max(np.abs(d - p)) < 0.05 * np.max(p)
+    means = {}
+    for bounce in (True, False):
+        scene = dataclasses.replace(groove_scene(), interreflection=bounce)
+        for detail in (True, False):
+            with Renderer(scene, (size, size), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=1024) as r:
+                r.technique("tsd", pixel_detail=detail)
+                means[bounce, detail] = r.render("tsd").astype(np.float64)[groove].reshape(-1, 3).mean(axis=0)
+    with_detail = means[True, True] - means[False, True]
+    without = means[True, False] - means[False, False]
+    assert np.all(without > 0.3 * means[True, False]), (without, means[True, False])
+    np.testing.assert_allclose(with_detail / without, 1.0, atol=0.02)
 
 
 @pytest.mark.parametrize("k, lights", [(6, 1), (7, 3), (8, 3), (6, 4)])
