@@ -32,38 +32,15 @@ ALBEDO_REST = 5
 """The sixth target's index (tsd only): albedo^(1 - mix), read as uAlbedoRest."""
 
 
-def box_subsamples(n: int, odd: bool = True) -> list[tuple[float, float, float]]:
-    """The prefilter's subsamples: (dx, dy, weight), an n x n grid over one texel's footprint
-    [-0.5, 0.5]^2 (offsets in texels from its centre, at the cells' centres (i + 0.5) / n - 0.5),
-    equal weights 1 / n^2: the box filter over the texel, the midpoint rule of its integral. n odd,
-    so that one subsample is the texel's centre (its coverage decides the texel's, as one raster's)."""
-    n = int(n)
-    if n < 1 or (odd and n % 2 == 0):
-        raise ValueError(f"the prefilter's subsamples per axis must be odd and >= 1, got {n}")
-    o = [(i + 0.5) / n - 0.5 for i in range(n)]
-    return [(dx, dy, 1.0 / (n * n)) for dy in o for dx in o]
-
-
 class IrradianceInputs:
     """The input targets on one context (made as 1x1 stand-ins, re-made at their size on first use: the
     count of live GPU objects never changes) and the program that rasterises them.
 
     ``albedo_rest``: add the sixth target (tsd's rho E = I_0 albedo^(1 - mix)).
     ``dtypes``: each target's moderngl dtype ("f4" or "f2"); P and the normals stay 32-bit (they place
-    the shadow lookups), the colour factors may go to 16 bits (what the irradiance target itself holds).
-    ``prefilter``: subsamples per axis (odd; 1: none). With n > 1 each target holds the mean of its
-    inputs over the texel's footprint (box_subsamples: n^2 rasters of the layout shifted by sub-texel
-    offsets, added by blending into 32-bit accumulators with their weights, then divided by the covered
-    weight: tsd/inputs_resolve.frag), so that the light pass reads the texel's mean N, not N at its
-    centre. Why: the irradiance texture point-sampled at texel centres aliases where the surface turns
-    faster than its texels (the side view's scapha, ~1.3 mm texels at 1024^2: a comb of stripes across
-    the groove; benchmarks/RESULTS.md, "Round 18, branch prefilter18"). N and Ng are left
-    unnormalised (their mean's length is the footprint's mean cosine): the light pass must read them
-    with SKIN_INPUTS_PREFILTERED (tsd/irradiance.frag). Costs n^2 rasters once per content, and the
-    accumulators (count + 1 rgba32f targets at the size) only while drawing."""
+    the shadow lookups), the colour factors may go to 16 bits (what the irradiance target itself holds)."""
 
-    def __init__(self, ctx, *, albedo_rest: bool = False, dtypes: tuple | None = None, prefilter: int = 1,
-                 linear_normals: bool = False):
+    def __init__(self, ctx, *, albedo_rest: bool = False, dtypes: tuple | None = None):
         from dermis.gl.shaders import program
 
         self.ctx = ctx
@@ -71,46 +48,18 @@ class IrradianceInputs:
         self.dtypes = tuple(dtypes) if dtypes is not None else ("f4",) * self.count
         if len(self.dtypes) != self.count:
             raise ValueError(f"{self.count} dtypes needed, got {len(self.dtypes)}")
-        self.subsamples = box_subsamples(prefilter)
-        self.prefilter = int(prefilter)
-        self.linear_normals = bool(linear_normals)
         defines = {"SKIN_BOUNCE_INPUTS": 1, **({"SKIN_INPUTS_ALBEDO_REST": 1} if albedo_rest else {})}
-        if self.prefilter > 1:
-            defines.update(SKIN_INPUTS_PREFILTER=self.count, SKIN_UV_JITTER=1)
         self.prog = program(ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines)
-        self.p_resolve = None
         self.textures = []
         self.fbo = None
-        self._accum, self._accum_fbo = [], None
-        if self.prefilter > 1:
-            self.p_resolve = program(ctx, "common/fullscreen.vert", "tsd/inputs_resolve.frag", {"INPUT_COUNT": self.count})
-            self._resolve_vao = ctx.vertex_array(self.p_resolve, [])
-            self._make_accumulators((1, 1))
         self._make((1, 1))
         self.key = None
 
-    def _make_accumulators(self, size: tuple):
-        """The prefilter's sums: the inputs' count + 1 (the weights) rgba32f targets at ``size``."""
-        self._release_accumulators()
-        for _ in range(self.count + 1):
-            t = self.ctx.texture(size, 4, dtype="f4")
-            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            self._accum.append(t)
-        self._accum_fbo = self.ctx.framebuffer(color_attachments=self._accum)
-
-    def _release_accumulators(self):
-        if self._accum_fbo is not None:
-            self._accum_fbo.release()
-        for t in self._accum:
-            t.release()
-        self._accum, self._accum_fbo = [], None
-
     def _make(self, size: tuple):
         self._release_targets()
-        for i, dtype in enumerate(self.dtypes):
+        for dtype in self.dtypes:
             t = self.ctx.texture(size, 4, dtype=dtype)
-            lin = self.linear_normals and i == 2
-            t.filter = (moderngl.LINEAR, moderngl.LINEAR) if lin else (moderngl.NEAREST, moderngl.NEAREST)
+            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self.textures.append(t)
         self.fbo = self.ctx.framebuffer(color_attachments=self.textures)
 
@@ -152,9 +101,6 @@ class IrradianceInputs:
         directional_albedo_uniforms(prog, frame.scene)
         if mix is not None:
             set_uniform(prog, "uMix", float(mix))  # after bind_scene's material uniforms
-        if self.prefilter > 1:
-            self._raster_prefiltered(frame, size)
-            return
         self.fbo.use()
         self.fbo.viewport = (0, 0, *size)
         self.fbo.clear(0.0, 0.0, 0.0, 0.0)  # Ng = 0 off the layout: coverage 0
@@ -162,41 +108,6 @@ class IrradianceInputs:
         # a texture-space raster: the maps' footprint is square, anisotropy only costs
         with maps_without_anisotropy(frame.gpu, surfaces=False):
             frame.gpu.vao(prog).render(moderngl.TRIANGLES)
-
-    def _raster_prefiltered(self, frame, size):
-        """The prefilter (the class's docstring): the jittered rasters added into the accumulators,
-        then the resolve into the targets; the accumulators are freed again (1x1)."""
-        from dermis.gl.resources import maps_without_anisotropy, set_uniform, use_texture
-
-        ctx, prog = self.ctx, self.prog
-        self._make_accumulators(size)
-        try:
-            self._accum_fbo.use()
-            self._accum_fbo.viewport = (0, 0, *size)
-            self._accum_fbo.clear(0.0, 0.0, 0.0, 0.0)
-            ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-            ctx.enable(moderngl.BLEND)
-            ctx.blend_func = moderngl.ONE, moderngl.ONE  # sums (the targets are 32-bit floats: no clamp)
-            try:
-                with maps_without_anisotropy(frame.gpu, surfaces=False):
-                    vao = frame.gpu.vao(prog)
-                    for dx, dy, w in self.subsamples:
-                        # texel centre t then samples the surface at t - (dx, dy): the footprint's cells
-                        set_uniform(prog, "uJitterClip", (2.0 * dx / size[0], 2.0 * dy / size[1]))
-                        set_uniform(prog, "uSubsampleWeight", float(w))
-                        set_uniform(prog, "uCentreSubsample", 1.0 if dx == 0.0 and dy == 0.0 else 0.0)
-                        vao.render(moderngl.TRIANGLES)
-            finally:
-                ctx.disable(moderngl.BLEND)
-                ctx.blend_func = moderngl.DEFAULT_BLENDING
-            for i, t in enumerate(self._accum):
-                use_texture(t, i)
-            set_uniform(self.p_resolve, "uAccum", list(range(len(self._accum))))
-            self.fbo.use()
-            self.fbo.viewport = (0, 0, *size)
-            self._resolve_vao.render(moderngl.TRIANGLES, vertices=3)  # every texel written
-        finally:
-            self._make_accumulators((1, 1))
 
     def bind(self, prog, first_unit: int):
         """The light pass's samplers: uBounceInputs[0..4] from ``first_unit``, uAlbedoRest after them."""
@@ -218,12 +129,8 @@ class IrradianceInputs:
 
     def release(self):
         self._release_targets()
-        self._release_accumulators()
         self.key = None
         self.prog.release()
-        if self.p_resolve is not None:
-            self._resolve_vao.release()
-            self.p_resolve.release()
 
 
 def light_pass(ctx, vao_cache: dict, prog, target_fbo, size):

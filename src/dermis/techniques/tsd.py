@@ -59,7 +59,7 @@ from dermis.geometry.texture_space import UV_RANGE_TOLERANCE, texture_space_uvs
 from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
 from dermis.gl.interreflection import BounceGather, BounceSeries, bounce_level, read_per_vertex
-from dermis.gl.irradiance_inputs import BOUNCE_INPUTS, IrradianceInputs, box_subsamples, light_pass
+from dermis.gl.irradiance_inputs import BOUNCE_INPUTS, IrradianceInputs, light_pass
 from dermis.gl.subsurface_transfer import SubsurfaceTransfer, source_index
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
@@ -142,22 +142,6 @@ SPLIT_IRRADIANCE = True
 # max): these 4.2e-4..7.2e-4 (mean 4-8e-7: float rounding); targets 3-5 at 16 bits (c, the ambient,
 # albedo^mix: 24 B/texel less) 8.5e-4..1.45e-3 (mean 3-15e-5). benchmarks/RESULTS.md, "Round 16, branch perf16"
 INPUT_DTYPES = ("f4", "f4", "f4", "f4", "f4", "f2")
-# The inputs' prefilter (dermis.gl.irradiance_inputs): subsamples per axis over each texel's footprint,
-# so that the light pass reads the texel's mean N (a fold that turns within a texel: the side view's
-# scapha drew a comb of stripes from N point-sampled at 1.3 mm texels). benchmarks/RESULTS.md,
-# "Round 18, branch prefilter18". 1: none.
-INPUT_PREFILTER = 3
-LIGHT_SUBSAMPLES = 3
-LIGHT_TENT = 1.0
-
-
-def light_subsamples():
-    import os
-    r = float(os.environ.get("PF_TENT", LIGHT_TENT)); n = LIGHT_SUBSAMPLES
-    o = [((i + 0.5) / n - 0.5) * 2 * r for i in range(n)]
-    t = [1 - abs(x) / r for x in o] if os.environ.get("PF_BOX") is None else [1.0] * n
-    W = sum(t) ** 2
-    return [(dx, dy, tx * ty / W) for dy, ty in zip(o, t) for dx, tx in zip(o, t)]
 
 
 def irradiance_defines(light_count: int) -> dict:
@@ -177,8 +161,7 @@ def light_pass_defines(light_count: int) -> dict:
     which is an input (IrradianceInputs' fifth target) that the bounce's splat reads itself."""
     d = irradiance_defines(light_count)
     d.pop("SKIN_ALBEDO_MIX_LOCATION")
-    return {**d, "SKIN_BOUNCE_FROM_INPUTS": 1, **({"SKIN_INPUTS_PREFILTERED": 1} if INPUT_PREFILTER > 1 else {}),
-            **({"SKIN_LIGHT_SUBSAMPLES": LIGHT_SUBSAMPLES ** 2} if LIGHT_SUBSAMPLES > 1 else {})}
+    return {**d, "SKIN_BOUNCE_FROM_INPUTS": 1}
 
 
 class TextureSpaceDiffusion(Technique):
@@ -202,8 +185,7 @@ class TextureSpaceDiffusion(Technique):
             ctx, "tsd/uv_space.vert", "tsd/irradiance.frag", defines, per_count=irradiance_defines)
         # the split pass (SPLIT_IRRADIANCE): the light-independent inputs, then per lighting change the
         # full-screen light pass per light count; the program drawn is compiled up front
-        self._inputs = IrradianceInputs(ctx, albedo_rest=True, dtypes=INPUT_DTYPES, prefilter=INPUT_PREFILTER,
-                                       linear_normals=LIGHT_SUBSAMPLES > 1)
+        self._inputs = IrradianceInputs(ctx, albedo_rest=True, dtypes=INPUT_DTYPES)
         self._light_programs = LightCountPrograms(
             ctx, "common/fullscreen.vert", "tsd/irradiance.frag", defines, per_count=light_pass_defines)
         (self._light_programs if SPLIT_IRRADIANCE else self._irradiance_programs).compile_for(renderer.scene)
@@ -659,8 +641,6 @@ class TextureSpaceDiffusion(Technique):
         bind_scene(frame, prog)
         if split:
             self._inputs.bind(prog, Unit.FIRST_FREE)
-            if LIGHT_SUBSAMPLES > 1:
-                set_uniform(prog, "uSubsamples", light_subsamples())
         else:
             directional_albedo_uniforms(prog, scene)
         if irradiance is not None:

@@ -21,31 +21,6 @@
 vec4 skin_sharp_shadow;
 #endif
 
-#ifdef SKIN_LIGHT_SUBSAMPLES
-// With SKIN_LIGHT_SUBSAMPLES = n (tsd's per-lighting-change pass over its texture-space inputs,
-// tsd/irradiance.frag with SKIN_BOUNCE_FROM_INPUTS), G_bump is the weighted mean of bump_shadowing
-// over the caller's n smooth normals Ng_k (unit), taken at sub-texel offsets, with weights w_k
-// (sum 1): that filter of G_bump over the texel's neighbourhood, N, the shadow and the rest at the
-// texel itself. Why: G_bump is a step at the smooth surface's horizon (0 where Ng.L <= 0; Smith's
-// G1 falls from ~0.7 to 0 over the last ~6 degrees where the map tilts N ~25 degrees), so where a
-// fold's smooth normal turns through the horizon the irradiance jumps from lit to the ambient
-// within one texel; taken at texel centres, an oblique jump is a staircase, which the view
-// magnifies into a comb (the side view's scapha at 1.3 mm texels, 1024^2). Ng is the interpolated
-// vertex normal: filtering it blurs no normal-map detail. benchmarks/RESULTS.md, "Round 18, branch prefilter18".
-vec3 skin_sub_Ng[SKIN_LIGHT_SUBSAMPLES];
-float skin_sub_weight[SKIN_LIGHT_SUBSAMPLES];
-
-float bump_shadowing_filtered(vec3 N, vec3 L) {
-    float g = 0.0;
-    for (int k = 0; k < SKIN_LIGHT_SUBSAMPLES; ++k)
-        g += skin_sub_weight[k] * bump_shadowing(skin_sub_Ng[k], N, L);
-    return g;
-}
-#define SKIN_BUMP_SHADOWING(Ng, N, L) bump_shadowing_filtered(N, L)
-#else
-#define SKIN_BUMP_SHADOWING(Ng, N, L) bump_shadowing(Ng, N, L)
-#endif
-
 // Light i's share of E (d'Eon & Luebke 2007, 14.4.1): E_i max(N.L, 0) G_bump shadow_soft (1 - rho_s a / pi) k(N.L).
 // c: the directional albedo's coefficients per channel (common/directional_albedo.glsl), weighting
 // each light by k(N.L) = 1 + c (2/3 - N.L); vec3(0) is the Lambertian entry.
@@ -68,7 +43,7 @@ vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3
     if (ndl <= 0.0) return vec3(0.0);
     float s = shadow_soft(i, P, Ng);
 #endif
-    return Ei * ndl * SKIN_BUMP_SHADOWING(Ng, N, L) * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
+    return Ei * ndl * bump_shadowing(Ng, N, L) * s * energy_transmitted(rho_s, ndl, m) * (1.0 + c * (2.0 / 3.0 - ndl));
 }
 
 // The sum over the lights, plus the ambient (left at k = 1: its average over a uniform hemisphere).

@@ -43,9 +43,6 @@ in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/envi
 // the mesh raster of ~18k triangles of ~14 texels each shades many half-covered blocks and fetches 4
 // filtered maps per texel; the full-screen pass shades each texel once with 5 texel fetches.
 uniform sampler2D uBounceInputs[5];
-#ifdef SKIN_LIGHT_SUBSAMPLES
-uniform vec3 uSubsamples[SKIN_LIGHT_SUBSAMPLES];  // (offset in texels from the centre, weight): dermis.techniques.tsd
-#endif
 #endif
 #if defined(SKIN_BOUNCE_INPUTS)
 layout(location = 0) out vec4 f_P_rho_s;
@@ -60,14 +57,6 @@ layout(location = 0) out vec4 f_irradiance;
 // tsd's inputs (dermis.gl.irradiance_inputs): albedo^(1 - mix), the factor by which the light pass
 // turns I_0 into rho E for the bounce (f_exitant below)
 layout(location = 5) out vec4 f_albedo_rest;
-#endif
-#if defined(SKIN_BOUNCE_INPUTS) && defined(SKIN_INPUTS_PREFILTER)
-// the prefilter's accumulation (dermis.gl.irradiance_inputs, added by blending over jittered rasters):
-// every output times this subsample's weight, and at SKIN_INPUTS_PREFILTER the weight itself (x) and
-// the texel centre's own coverage (y: 1 from the unshifted raster), read by tsd/inputs_resolve.frag
-uniform float uSubsampleWeight;
-uniform float uCentreSubsample;
-layout(location = SKIN_INPUTS_PREFILTER) out vec4 f_subsample_weight;
 #endif
 #if defined(SKIN_BOUNCE_FROM_INPUTS) && defined(SKIN_EXITANT_LOCATION)
 uniform sampler2D uAlbedoRest;  // SKIN_INPUTS_ALBEDO_REST's target
@@ -99,18 +88,6 @@ void main() {
 #ifdef SKIN_INPUTS_ALBEDO_REST
     f_albedo_rest = vec4(albedo_power(albedo, 1.0 - uMix), 1.0);
 #endif
-#ifdef SKIN_INPUTS_PREFILTER
-    float w = uSubsampleWeight;
-    f_P_rho_s *= w;
-    f_N_m *= w;
-    f_Ng_ambient_b *= w;
-    f_c_ambient_r *= w;
-    f_albedo_mix_ambient_g *= w;
-#ifdef SKIN_INPUTS_ALBEDO_REST
-    f_albedo_rest *= w;
-#endif
-    f_subsample_weight = vec4(w, uCentreSubsample, 0.0, 0.0);
-#endif
 }
 #elif defined(SKIN_BOUNCE_FROM_INPUTS)
 void main() {
@@ -128,31 +105,7 @@ void main() {
     }
     vec4 p = texelFetch(uBounceInputs[0], t, 0), n = texelFetch(uBounceInputs[1], t, 0);
     vec4 c = texelFetch(uBounceInputs[3], t, 0), am = texelFetch(uBounceInputs[4], t, 0);
-#ifdef SKIN_LIGHT_SUBSAMPLES
-    // the smooth normal at the sub-texel offsets (common/skin_irradiance.glsl): bilinear between this
-    // texel's and its neighbours' (the target's filter is linear), renormalised; a neighbour off
-    // the mesh (Ng = 0) only shortens the interpolation, whose direction stays this island's
-    {
-        vec2 inv = 1.0 / vec2(textureSize(uBounceInputs[2], 0));
-        for (int k = 0; k < SKIN_LIGHT_SUBSAMPLES; ++k) {
-            skin_sub_Ng[k] = normalize(textureLod(uBounceInputs[2], (vec2(t) + 0.5 + uSubsamples[k].xy) * inv, 0.0).xyz);
-            skin_sub_weight[k] = uSubsamples[k].z;
-        }
-    }
-#endif
-#ifdef SKIN_INPUTS_PREFILTERED
-    // N and Ng are the means over the texel's footprint (dermis.gl.irradiance_inputs' prefilter), not
-    // renormalised: where the footprint is lit throughout, its mean N.L is mean(N).L = |mean N| (n.L),
-    // n = mean N / |mean N| (linear in N, as LEAN mapping, Olano & Baker 2010, and Toksvig 2005 read a
-    // shortened mean normal). So the lights see the unit mean direction (N.L's clamp, the bump
-    // shadowing's tilt, the energy and directional-albedo terms, the shadow receiver's plane) and the
-    // sum is scaled by |mean N|: a fold that turns N within one texel darkens the texel by its mean
-    // cosine instead of the cosine at the texel's centre. Unitless; 1 on a flat footprint.
-    float n_len = length(n.xyz);
-    vec3 E = skin_lights_directional(p.xyz, normalize(ng.xyz), n.xyz / max(n_len, 1e-20), p.w, n.w, c.rgb) * n_len;
-#else
     vec3 E = skin_lights_directional(p.xyz, ng.xyz, n.xyz, p.w, n.w, c.rgb);
-#endif
     E += vec3(c.a, am.a, ng.a);
     f_irradiance = vec4(E * am.rgb, 1.0);
     // tsd's outputs of its one-raster pass (below), but albedo^mix: a light-independent input that

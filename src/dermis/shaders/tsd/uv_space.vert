@@ -14,11 +14,6 @@ out vec2 v_uv;
 out vec2 v_uv1;
 out vec4 v_tangent;
 out vec4 v_visibility;
-#ifdef SKIN_UV_JITTER
-// dermis.gl.irradiance_inputs' prefilter: the layout shifted by a sub-texel offset (clip units,
-// 2 offset_texels / size), so that texel centre t samples the surface at t - offset
-uniform vec2 uJitterClip;
-#endif
 #ifdef INTERREFLECTION
 // tsd/bounce_splat.frag: the bounce irradiance gathered per vertex (tsd/bounce_gather.frag), vertex
 // v at texel (v mod P, v div P); gl_VertexID is the index buffer's value, the vertex's number
@@ -37,7 +32,4 @@ void main() {
     v_tangent = in_tangent;
     v_visibility = in_visibility;
     gl_Position = vec4(in_uv_ts * 2.0 - 1.0, 0.0, 1.0);
-#ifdef SKIN_UV_JITTER
-    gl_Position.xy += uJitterClip;
-#endif
 }
