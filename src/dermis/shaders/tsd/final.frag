@@ -141,8 +141,13 @@ void main() {
     // texels per pixel (tsd/triangle_uv.glsl), lighting the sample as some other surface: its
     // detail fades out between 1 and 2 texels off (an ordinary edge sample is within ~0.5)
     float off = length((uv_ts - v_uv_ts) * uDetailTexels);
+    // and only where a texel covers more than a pixel: where it covers less the texture resolves all
+    // that the pixel can show, and I_0 at the pixel centre (its maps read at the pixel's coarser
+    // mip level) is no better a sample of it (full detail from 1 pixel per texel, none at 2 texels
+    // per pixel and more)
+    float texels_per_pixel = max(length(dFdx(v_uv_ts)), length(dFdy(v_uv_ts))) * uDetailTexels;
     vec3 Ed = diffuse_irradiance_detail(uv_ts, I0 * albedo_power(albedo, uMix), detail_texels_per_mm(),
-                                        1.0 - smoothstep(1.0, 2.0, off));
+                                        (1.0 - smoothstep(1.0, 2.0, off)) * (1.0 - smoothstep(1.0, 2.0, texels_per_pixel)));
 #else
     vec3 Ed = diffuse_irradiance(uv_ts);
 #endif
