@@ -124,15 +124,25 @@ void main() {
     // I_0 as tsd/irradiance.frag and tsd/bounce_splat.frag put it into the irradiance texture, but
     // at this pixel: (E_lights + E_ambient + E_bounce) albedo^mix, each light shadowed by its sharp
     // shadow, the specular's (stored in texture space, read bilinearly: the edge I_1 has too)
-    vec3 c_in = uDirectionalAlbedo * directional_c(albedo);
+    // at the centroid of the pixel's covered samples, inside the triangle: every interior edge
+    // pixel has a fragment whose centre lies off its triangle, and I_0 of the attributes
+    // extrapolated there drew the mesh's edges as faint lines (+1-2 %) into the detail
+    vec3 P_c = interpolateAtCentroid(v_world);
+    vec3 n_c = interpolateAtCentroid(v_normal);
+    vec2 uv_c = interpolateAtCentroid(v_uv);
+    vec3 Ng_c = normalize(n_c);
+    vec3 N_c = perturb_normal(n_c, interpolateAtCentroid(v_tangent), uv_c);
+    vec3 albedo_c = albedo_at(uv_c);
+    float rho_s_c = specular_intensity(uv_c), m_c = roughness_at(uv_c);
+    vec3 c_in = uDirectionalAlbedo * directional_c(albedo_c);
 #ifdef SHARP_SHADOW_READ
     vec3 I0 = vec3(0.0);
-    DERMIS_FOR_EACH_LIGHT(I0 += skin_light_entry_shadowed(light_i, v_world, Ng, N, rho_s, m, c_in,
-                                                          detail_shadow(light_i, v_world, Ng));)
+    DERMIS_FOR_EACH_LIGHT(I0 += skin_light_entry_shadowed(light_i, P_c, Ng_c, N_c, rho_s_c, m_c, c_in,
+                                                          detail_shadow(light_i, P_c, Ng_c));)
 #else  // the lights' soft shadows per sample, as the irradiance pass has them
-    vec3 I0 = skin_lights_directional(v_world, Ng, N, rho_s, m, c_in);
+    vec3 I0 = skin_lights_directional(P_c, Ng_c, N_c, rho_s_c, m_c, c_in);
 #endif
-    I0 += skin_ambient(N, Ng, rho_s, m, v_visibility);
+    I0 += skin_ambient(N_c, Ng_c, rho_s_c, m_c, interpolateAtCentroid(v_visibility));
 #ifdef PIXEL_DETAIL_BOUNCE
     I0 += bounce_on_triangle(uv_ts, gl_PrimitiveID);
 #endif
@@ -143,11 +153,11 @@ void main() {
     float off = length((uv_ts - v_uv_ts) * uDetailTexels);
     // and only where a texel covers more than a pixel: where it covers less the texture resolves all
     // that the pixel can show, and I_0 at the pixel centre (its maps read at the pixel's coarser
-    // mip level) is no better a sample of it (full detail from 1 pixel per texel, none at 2 texels
-    // per pixel and more)
+    // mip level) is no better a sample of it (full detail from 2 pixels per texel, none at 1 pixel
+    // per texel or less)
     float texels_per_pixel = max(length(dFdx(v_uv_ts)), length(dFdy(v_uv_ts))) * uDetailTexels;
-    vec3 Ed = diffuse_irradiance_detail(uv_ts, I0 * albedo_power(albedo, uMix), detail_texels_per_mm(),
-                                        (1.0 - smoothstep(1.0, 2.0, off)) * (1.0 - smoothstep(1.0, 2.0, texels_per_pixel)));
+    vec3 Ed = diffuse_irradiance_detail(uv_ts, I0 * albedo_power(albedo_c, uMix), detail_texels_per_mm(),
+                                        (1.0 - smoothstep(1.0, 2.0, off)) * (1.0 - smoothstep(0.5, 1.0, texels_per_pixel)));
 #else
     vec3 Ed = diffuse_irradiance(uv_ts);
 #endif
