@@ -103,7 +103,8 @@ float detail_texels_per_mm() {
 
 void main() {
     vec3 Ng = normalize(v_normal);
-    vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
+    vec3 normal_map_texel = texture(uNormalMap, normal_map_uv(v_uv)).xyz * 2.0 - 1.0;  // perturb_normal's
+    vec3 N = tangent_to_world(v_normal, v_tangent, normal_map_texel);
     vec3 V = normalize(uCameraPos - v_world);
     float m = roughness_at(v_uv);
     float rho_s = specular_intensity(v_uv);
@@ -127,22 +128,21 @@ void main() {
     // at the centroid of the pixel's covered samples, inside the triangle: every interior edge
     // pixel has a fragment whose centre lies off its triangle, and I_0 of the attributes
     // extrapolated there drew the mesh's edges as faint lines (+1-2 %) into the detail
+    // (the maps' values are the pixel centre's: a few texels of the maps move nothing that shows,
+    // each further filtered read costs llvmpipe ~10 % of this pass)
     vec3 P_c = interpolateAtCentroid(v_world);
     vec3 n_c = interpolateAtCentroid(v_normal);
-    vec2 uv_c = interpolateAtCentroid(v_uv);
     vec3 Ng_c = normalize(n_c);
-    vec3 N_c = perturb_normal(n_c, interpolateAtCentroid(v_tangent), uv_c);
-    vec3 albedo_c = albedo_at(uv_c);
-    float rho_s_c = specular_intensity(uv_c), m_c = roughness_at(uv_c);
-    vec3 c_in = uDirectionalAlbedo * directional_c(albedo_c);
+    vec3 N_c = tangent_to_world(n_c, interpolateAtCentroid(v_tangent), normal_map_texel);
+    vec3 c_in = uDirectionalAlbedo * directional_c(albedo);
 #ifdef SHARP_SHADOW_READ
     vec3 I0 = vec3(0.0);
-    DERMIS_FOR_EACH_LIGHT(I0 += skin_light_entry_shadowed(light_i, P_c, Ng_c, N_c, rho_s_c, m_c, c_in,
+    DERMIS_FOR_EACH_LIGHT(I0 += skin_light_entry_shadowed(light_i, P_c, Ng_c, N_c, rho_s, m, c_in,
                                                           detail_shadow(light_i, P_c, Ng_c));)
 #else  // the lights' soft shadows per sample, as the irradiance pass has them
-    vec3 I0 = skin_lights_directional(P_c, Ng_c, N_c, rho_s_c, m_c, c_in);
+    vec3 I0 = skin_lights_directional(P_c, Ng_c, N_c, rho_s, m, c_in);
 #endif
-    I0 += skin_ambient(N_c, Ng_c, rho_s_c, m_c, interpolateAtCentroid(v_visibility));
+    I0 += skin_ambient(N_c, Ng_c, rho_s, m, interpolateAtCentroid(v_visibility));
 #ifdef PIXEL_DETAIL_BOUNCE
     I0 += bounce_on_triangle(uv_ts, gl_PrimitiveID);
 #endif
@@ -156,7 +156,7 @@ void main() {
     // mip level) is no better a sample of it (full detail from 2 pixels per texel, none at 1 pixel
     // per texel or less)
     float texels_per_pixel = max(length(dFdx(v_uv_ts)), length(dFdy(v_uv_ts))) * uDetailTexels;
-    vec3 Ed = diffuse_irradiance_detail(uv_ts, I0 * albedo_power(albedo_c, uMix), detail_texels_per_mm(),
+    vec3 Ed = diffuse_irradiance_detail(uv_ts, I0 * albedo_power(albedo, uMix), detail_texels_per_mm(),
                                         (1.0 - smoothstep(1.0, 2.0, off)) * (1.0 - smoothstep(0.5, 1.0, texels_per_pixel)));
 #else
     vec3 Ed = diffuse_irradiance(uv_ts);
