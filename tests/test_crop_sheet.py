@@ -99,3 +99,46 @@ def test_full_resolution_cycles_crops_land_on_their_rows(gl_ctx, tmp_path):
         assert ours.std() > 5.0
         # 7-bit mantissa storage (0.4 %): a grey level at most here and there
         assert np.abs(ours - cyc).mean() < 1.0, name
+
+
+def _look_zoom():
+    import sys
+
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    spec = importlib.util.spec_from_file_location("look_zoom", REPO / "benchmarks" / "look_zoom.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_look_zoom_shows_the_pixels_and_ranks_a_planted_comb_first(tmp_path, capsys):
+    """benchmarks/look_zoom.py (round 18's review): a zoom tile is the frame's own display pixels
+    repeated (nearest), not resampled, at the box's place; `hotspots` puts a comb of stripes that
+    one technique has and the others lack in its own window, first. Synthetic frames (no GL)."""
+    from PIL import Image
+
+    lz = _look_zoom()
+    scene = str(REPO / "examples" / "reference" / "front-key.toml")
+    sc = lz.scene_of(scene)
+    H = W = 64
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
+    base = np.stack([0.02 + 0.004 * xx, 0.01 + 0.003 * yy, 0.01 + 0.001 * (xx + yy)], -1)  # a smooth ramp
+    imgs = {t: base * (1.0 + 0.02 * i) for i, t in enumerate(lz.TECHNIQUES)}
+    imgs["tsd"] = imgs["tsd"].copy()
+    imgs["tsd"][16:32, 32:48:2] *= 1.6  # the comb: every other column of one window, in tsd only
+    npz = tmp_path / "frames.npz"
+    np.savez(npz, **{f"img_{t}": v for t, v in imgs.items()})
+    out = tmp_path / "zoom.png"
+    box, k = (8, 40, 24, 56), 3
+    lz.main(["zoom", str(npz), scene, str(out), "--box", *map(str, box), "--scale", str(k), "--no-cycles"])
+    sheet = np.asarray(Image.open(out).convert("RGB"))
+    pad, band, side = 4, 16, (box[2] - box[0]) * k
+    for j, t in enumerate(lz.TECHNIQUES):
+        x, y = pad + j * (side + pad), pad + band
+        want = lz.u8(lz.disp(sc, imgs[t][box[1]:box[3], box[0]:box[2]]))
+        np.testing.assert_array_equal(sheet[y:y + side, x:x + side], np.repeat(np.repeat(want, k, 0), k, 1))
+    capsys.readouterr()
+    lz.main(["hotspots", str(npz), scene, "--top", "3", "--win", "16"])
+    first = capsys.readouterr().out.splitlines()[0].split()
+    print(first)
+    assert first[1] == "tsd" and " ".join(first[3:7]) == "(32, 16, 48, 32)", first
