@@ -208,7 +208,7 @@ class TextureSpaceDiffusion(Technique):
         self.p_trans_tent = program(ctx, "common/fullscreen.vert", "tsd/translucency_tent.frag", defines)
         self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag",
                                {**defines, "SHARP_SHADOW_READ": None, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING})
-        self._programs = {}  # "per_sample" -> the final pass without the stored shadows; ("detail", bounce) -> PIXEL_DETAIL's
+        self._programs = {}  # "per_sample" -> the final pass without the stored shadows; ("detail", stored, bounce, K) -> PIXEL_DETAIL's
         self._detail_bounce = None  # None: no pixel detail this frame; else whether I_0 holds the bounce
         self._detail_buffer = None  # the bounce per vertex for PIXEL_DETAIL_BOUNCE (_bounce_buffer)
         self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)

@@ -51,7 +51,7 @@ vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3
 }
 
 // Light i's share with its shadow s given by the caller (tsd/final.frag with PIXEL_DETAIL: the
-// sharp shadow stored in texture space), the same terms.
+// stored shadow, or the soft one at its edge: detail_shadow), the same terms.
 vec3 skin_light_entry_shadowed(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3 c, float s) {
     vec3 L;
     vec3 Ei = light_incident(i, P, L);

@@ -52,10 +52,10 @@ uniform float uDirectionalAlbedo;  // 1: the skin's directional albedo at exit (
 uniform float uPoreScaleMm;
 uniform float uPoreStrength;
 uniform vec3 uCameraPos;
-uniform int uOutputMode;
+uniform int uOutputMode;  // OUTPUT_FULL, OUTPUT_DIFFUSE or OUTPUT_SPECULAR (dermis.techniques.shared.OutputMode)
 #ifdef PIXEL_DETAIL
 uniform float uDetailTexels;  // texels across I_1's texture (the chain's first level)
-#endif  // OUTPUT_FULL, OUTPUT_DIFFUSE or OUTPUT_SPECULAR (dermis.techniques.shared.OutputMode)
+#endif
 in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -123,9 +123,8 @@ void main() {
 #endif
 #ifdef PIXEL_DETAIL
     // I_0 as tsd/irradiance.frag and tsd/bounce_splat.frag put it into the irradiance texture, but
-    // at this pixel: (E_lights + E_ambient + E_bounce) albedo^mix, each light shadowed by its sharp
-    // shadow, the specular's (stored in texture space, read bilinearly: the edge I_1 has too)
-    // at the centroid of the pixel's covered samples, inside the triangle: every interior edge
+    // at this pixel: (E_lights + E_ambient + E_bounce) albedo^mix, the lights' soft shadows as there
+    // (detail_shadow), P and N at the centroid of the pixel's covered samples, inside the triangle: every interior edge
     // pixel has a fragment whose centre lies off its triangle, and I_0 of the attributes
     // extrapolated there drew the mesh's edges as faint lines (+1-2 %) into the detail
     // (the maps' values are the pixel centre's: a few texels of the maps move nothing that shows,
