@@ -107,7 +107,8 @@ def test_far_face_shadowed_by_a_layer_behind_it_ramps_over_the_slabs_spread(gl_c
     edge (within 0.04: the square's taps on an axis-aligned grid made 7 levels of it, 0.08 off: bands),
     nothing beyond (no light leaks through the layer's shadow). Measured before the fix (point
     lookups of the far face's shadow): a step at the edge, preintegrated 0.999 of the level 0.08 mm
-    past it and 0.49 off the ramp at most, ssss 0.24 off it (its screen blur softens the step)."""
+    before it and 0 at 0.08 mm past it (0.49 off the ramp), ssss 0.24 off it (its screen blur softens
+    the step)."""
     d = 3.0
     sc = _plate_with_a_layer_behind(d, 1.0, 3.0)
     law = slab_law(dermis.profiles.deon_skin(), np.array(SKIN_ALBEDO))
