@@ -83,6 +83,29 @@ def test_thin_slab_law_limits():
     assert np.all(tot > 0.95), tot
 
 
+def test_transmitted_variance_is_the_curvature_of_the_laws_transform():
+    """The far face's lateral spread (SlabLaw.transmitted_variance, the width of the far-face shadow
+    common/transmittance.glsl filters over) against the law itself: across the faces the diffusion
+    equation's kappa^2 becomes kappa^2 + q^2, so T(q) = alpha' sinh(k_q (z_0 + z_b)) / sinh(k_q (d + 2 z_b))
+    is the transmitted light's 2-D Fourier transform and -d^2 ln T / dq^2 at q = 0 its per-axis
+    variance; here by a central difference of the law with kappa replaced (step 1e-3 / mm), at
+    thicknesses on both sides of z_0. And the slab's Monte Carlo spread (benchmarks/RESULTS.md, round
+    7: 2.05 / 3.47 / 6.31 mm^2 at 2 / 3 / 5 mm, red, the back-ears scene's medium) is below it by
+    at most 1.5x: the filter is never narrower than the light's spread."""
+    import dataclasses
+
+    law = slab_law(dermis.profiles.deon_skin(), np.array(SKIN_ALBEDO))
+    dq = 1e-3
+    for d in (0.05, 0.5, 2.0, 5.0, 12.0):
+        lnT = [np.log(dataclasses.replace(law, kappa_per_mm=np.sqrt(law.kappa_per_mm ** 2 + q * q)).transmittance(d))
+               for q in (-dq, 0.0, dq)]
+        numeric = -(lnT[0] - 2.0 * lnT[1] + lnT[2]) / dq ** 2
+        np.testing.assert_allclose(law.transmitted_variance(d), numeric, rtol=2e-3)
+    red = law.transmitted_variance(np.array([2.0, 3.0, 5.0]))[:, 0]
+    mc = np.array([2.05, 3.47, 6.31])
+    assert np.all(red >= mc) and np.all(red <= 1.5 * mc), red
+
+
 def test_random_walk_slab_bisects_once_per_medium():
     """The albedo's bisection (steps x bisection_photons photons) runs once per medium, not once
     per thickness: a second thickness reuses it (and gets the same albedo)."""

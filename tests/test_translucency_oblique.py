@@ -78,3 +78,52 @@ def test_far_face_of_a_thickness_step_is_not_self_shadowed(gl_ctx, technique):
     expected_far = np.cos(th) * law.transmittance(4.0)[0]
     assert abs(far - expected_far) <= 0.1 * expected_far, (far, expected_far)  # the thick side: a 4 mm slab
     assert near.min() >= 0.9 * far, (near, far)
+
+
+def _plate_with_a_layer_behind(plate_mm: float, gap_mm: float, layer_mm: float, size_mm: float = 30.0):
+    """backlit_slab_scene's plate (front face z = plate/2, lit from behind along +z) and, behind its
+    x > 0 half, a second layer of tissue layer_mm thick across an air gap of gap_mm: the top of the
+    back-lit scapha in one dimension (benchmarks/farface_occluder.py: the far face ~3.7 mm behind
+    the front, 0.7-2.1 mm of air, a layer of the helix ~3 mm thick)."""
+    from dermis.scene.builtin import box, merge, slab
+    from dermis.scene.loaders import finish_mesh
+
+    sc = backlit_slab_scene(plate_mm, size_mm=size_mm, n=32, albedo=SKIN_ALBEDO)
+    z = -plate_mm / 2 - gap_mm - layer_mm / 2
+    layer = box((size_mm / 4, 0.0, z), (size_mm / 4, size_mm / 2, layer_mm / 2), uv_origin=(0.0, 2 / 3), uv_cell=1 / 9,
+                n=16, gutter=0.01)
+    p, nn, uv, t = merge([slab(size=size_mm, thickness=plate_mm, n=32), layer])
+    sc.mesh = finish_mesh(p, nn, uv, t, f"test:plate {plate_mm} with a layer behind", "v-up")
+    return sc
+
+
+@pytest.mark.parametrize("technique", ["preintegrated", "ssss"])
+def test_far_face_shadowed_by_a_layer_behind_it_ramps_over_the_slabs_spread(gl_ctx, technique):
+    """A 3 mm plate whose far face lies, for x > 0, in the shadow of a 3 mm layer 1 mm behind it (the
+    back-lit scapha, round 18). The light that reaches the front at x entered the far face anywhere
+    within the slab's lateral spread (per-axis variance v(3 mm), SlabLaw.transmitted_variance), so
+    the front ramps across the shadow's edge, as the box of that variance (half-width a = sqrt(3 v),
+    3.7 mm) over a step: cos T(3 mm) (the law) far on the lit side, (a - x) / 2a of it within a of the
+    edge (within 0.04: the square's taps on an axis-aligned grid made 7 levels of it, 0.08 off: bands),
+    nothing beyond (no light leaks through the layer's shadow). Measured before the fix (point
+    lookups of the far face's shadow): a step at the edge, preintegrated 0.999 of the level 0.08 mm
+    before it and 0 at 0.08 mm past it (0.49 off the ramp), ssss 0.24 off it (its screen blur softens
+    the step)."""
+    d = 3.0
+    sc = _plate_with_a_layer_behind(d, 1.0, 3.0)
+    law = slab_law(dermis.profiles.deon_skin(), np.array(SKIN_ALBEDO))
+    a = float(np.sqrt(3.0 * law.transmitted_variance(d)[0]))
+    with Renderer(sc, (128, 128), irradiance_size=256, ctx=gl_ctx, samples=0) as r:
+        img = r.render(technique, output_mode=1)[..., :3].astype(np.float64)
+    W = img.shape[1]
+    ppm = W / (2.0 * (120.0 - d / 2) * np.tan(np.radians(5.0)))  # pixels per mm on the front face (fov 10)
+    xs = (np.arange(W) + 0.5 - W / 2) / ppm
+    red = img[W // 2 - 8:W // 2 + 8, :, 0].mean(axis=0)
+    level = law.transmittance(d)[0]  # cos = 1: the light along the plate's normal
+    lit = red[xs < -a - 1.0]
+    assert np.all(np.abs(lit - level) <= 0.1 * level), (lit, level)
+    assert np.all(red[xs > a + 1.0] <= 0.02 * level), red[xs > a + 1.0]
+    ramp = np.abs(xs) < 0.8 * a
+    expected = np.clip((a - xs[ramp]) / (2.0 * a), 0.0, 1.0)
+    err = np.abs(red[ramp] / level - expected)
+    assert err.max() <= 0.04, (xs[ramp][np.argmax(err)], red[ramp] / level, expected)

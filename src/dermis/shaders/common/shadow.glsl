@@ -230,6 +230,41 @@ float shadow_soft_penumbra(int i, vec3 P, vec3 N, out float width_mm) {
     return shadow_pcf(i, P, N, true, width_mm);
 }
 
+// The shadow box-filtered over a square of half-width half_mm (mm) of P's tangent plane (normal N):
+// the mean of SHADOW_BOX_GRID^2 bilinear-compare taps at the cell midpoints of the square, each compared
+// against the receiver plane's own depth there (shadow_receiver's gradient). For light that entered a
+// thin part's far face anywhere within the square (a box of per-axis variance half_mm^2 / 3, in any
+// orientation; common/transmittance.glsl), not a light's penumbra. The taps are many texels apart, and
+// each switches within one texel, so the mean across a straight shadow edge is a staircase with one step
+// per distinct distance of a tap from the edge: on an axis-aligned grid 7 levels for an edge along an
+// axis (steps of 1/6: bands; tests/test_translucency_oblique.py). The grid is turned by atan(1/6)
+// (a rotated grid, as multisampling's): the 36 taps' projections on either axis are then distinct and
+// evenly spaced (i - j / 6), and on the diagonals distinct ((7 i + 5 j) / 6), so such an edge steps by
+// 1/36. pcf_grid's exact 3 x 3 weights stride past whole texels once the square is wider than ~5 texels:
+// over the back-lit scapha (back-ears, 768 px, the square 3-4 mm wide, ~25 texels at shadow 2048) its
+// 9 taps drew speckles in preintegrated; this grid at 4 x 4 faint blotches, 6 x 6 and 8 x 8 smooth.
+// 1 where the light casts no shadow.
+const int SHADOW_BOX_GRID = 6;
+const vec2 SHADOW_BOX_TURN = vec2(6.0, 1.0) / 6.0827625;  // (cos, sin) of atan(1/6); 6.0827625 = sqrt(37)
+float shadow_box(int i, vec3 P, vec3 N, float half_mm) {
+    vec3 c;
+    vec2 dz;
+    mat2 T;
+    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
+    vec2 e1 = T[0] * (half_mm / uMmPerUnit), e2 = T[1] * (half_mm / uMmPerUnit);  // map uv of the square's half-axes
+    float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint, as shadow_pcf_at
+    float sum = 0.0;
+    for (int ky = 0; ky < SHADOW_BOX_GRID; ++ky) {
+        for (int kx = 0; kx < SHADOW_BOX_GRID; ++kx) {
+            vec2 g = (vec2(kx, ky) + 0.5) * (2.0 / float(SHADOW_BOX_GRID)) - 1.0;
+            vec2 f = vec2(SHADOW_BOX_TURN.x * g.x - SHADOW_BOX_TURN.y * g.y, SHADOW_BOX_TURN.y * g.x + SHADOW_BOX_TURN.x * g.y);
+            vec2 delta = f.x * e1 + f.y * e2;
+            sum += shadow_tap(i, c.xy + delta, z + dot(dz, delta));
+        }
+    }
+    return sum / float(SHADOW_BOX_GRID * SHADOW_BOX_GRID);
+}
+
 // The soft shadow (shadow_soft) and the sharp one (shadow_sharp) of light i from ONE receiver
 // solve; the soft one only where want_soft (the caller's N.L > 0). For tsd's texture-space
 // irradiance pass, which stores the sharp shadow for the final pass's specular (d'Eon & Luebke

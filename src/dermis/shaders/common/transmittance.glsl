@@ -38,19 +38,30 @@ vec3 transmittance_profile(float d_mm) {
 // Where -N finds no far face the bake holds the key light's path through a slab instead
 // (geometry/thickness.py: light_thickness, weighted by how antiparallel its faces are): for a slab
 // its thickness is the same h and A = P - h Ng lies on the same far face.
-// A's shadow is looked up FAR_FACE_LIFT_MM off the far face along its outward normal -Ng: A lies
-// on the surface only within the bake's accuracy (the smoothed h, a soft minimum over the
-// neighbours, is below the texel's own ray median by > 0.7 mm on 10% of the back-lit ear's texels
-// thinner than 8 mm, > 1.1 mm on 5%, > 2.4 mm on 1%; bake at 512), and A inside the tissue is
-// shadowed by its own far face. That point alone darkened the inner edge of the back-lit helix
-// (up to 0.085 of red at 768 px: something within 2.5 mm along -Ng there, another fold of the
-// ear, or A beyond the far face when h is long), so the far face counts as lit where either it or
-// A + 0.5 mm along the light (rounds 4-6) sees the light: each errs only towards shadow, and an
-// occluder is missed only if it lies within 2.5 mm of the far face.
-// Not along the light: a lift l along L moves A only l cos_far off the face, 0.1 mm at the ear's
-// grazing cos_far = 0.2 (rounds 4-6: 0.5 mm along L, a dark wedge at the top of the back-lit
-// helix; tests/test_translucency_oblique.py). Occluders centimetres away (the head behind an
-// ear) still shadow it.
+// The far face's light is not read at A alone: what arrives at P entered the far face anywhere
+// within the slab's lateral spread about A, a per-axis variance v(h) of a few mm^2
+// (slab_transmitted_variance, of the channel that crosses the most tissue). So A's shadow is the mean
+// over a square of that variance on the far face's tangent plane (shadow_box, half-width sqrt(3 v),
+// 2.9-4.9 mm for h = 2-5 mm in skin). Round 18 (farface18, review18's item 2): the point lookups (A lifted
+// 2.5 mm along -Ng, or 0.5 mm along the light) drew a hard red line and a dark patch across the top
+// of the back-lit scapha (back-ears, 768 px). There the tissue behind P is ~3.7 mm thick, and behind
+// its far face lie 0.7-2.1 mm of air and a second layer of the helix 2.8-3.2 mm thick that shadows it
+// (ray cast: the far face sees the light at none of the patch's pixels; the lifted point A - 2.5 mm
+// Ng lies inside that layer at 94% of them; benchmarks/farface_occluder.py); along the crease where
+// Ng turns, A sweeps across a sliver of the far face that does see the light, one pixel wide on
+// screen: the line. Cycles' light diffuses sideways across both (mean red 89 there against 59-61).
+// The square lies on one of two planes parallel to the far face's, lifted off it, and the far face
+// counts as lit where either sees the light (each errs only towards shadow): FAR_FACE_LIFT_MM along
+// the far face's outward normal -Ng, since A lies on the surface only within the bake's accuracy (the
+// smoothed h is below the texel's own ray median by > 0.7 mm on 10% of the back-lit ear's texels
+// thinner than 8 mm, > 1.1 mm on 5%) and A inside the tissue is shadowed by its own far face (beside
+// a thickness step: tests/test_translucency_oblique.py); or FAR_FACE_LIFT_ALONG_LIGHT_MM plus half the
+// square's half-width along the light, which clears a second layer close behind the far face when the
+// first plane lies inside it (the scapha: 94% of the patch's pixels), and the far face's own curve,
+// which leaves its tangent plane by r^2 / 2R at r from A (half the half-width where R is the
+// half-width; without it the taps compare against the far face itself: speckles). An occluder is
+// missed only if it lies within those lifts of the far face; occluders centimetres away (the head
+// behind an ear) still shadow it.
 const float FAR_FACE_LIFT_MM = 2.5;
 const float FAR_FACE_LIFT_ALONG_LIGHT_MM = 0.5;
 vec3 transmitted_irradiance(vec3 P, vec3 Ng, vec2 uv_ts) {
@@ -61,14 +72,18 @@ vec3 transmitted_irradiance(vec3 P, vec3 Ng, vec2 uv_ts) {
     float h = th.x / th.y;  // mm
     vec3 T_h = transmittance_profile(h) * th.y;  // partial coverage at the bake's edge: fades over a texel
     vec3 A = P - Ng * (h / uMmPerUnit);
+    // the spread of the most penetrating channel (the smallest kappa: red in skin), the one whose light arrives
+    vec3 v = slab_transmitted_variance(h);
+    float v_far = uSlabKappa.r <= min(uSlabKappa.g, uSlabKappa.b) ? v.r : (uSlabKappa.g <= uSlabKappa.b ? v.g : v.b);
+    float half_mm = sqrt(3.0 * v_far);  // the box of that variance
     for (int i = 0; i < uLightCount; ++i) {
         if (uLightRadiance[i].w < 0.5) continue;  // no shadow map: the light is not known to reach A
         vec3 L;
         vec3 Ei = light_incident(i, A, L);
         float cos_far = -dot(Ng, L);
         if (cos_far <= 0.0) continue;
-        float s = max(shadow_soft(i, A - Ng * (FAR_FACE_LIFT_MM / uMmPerUnit), -Ng),
-                      shadow_soft(i, A + L * (FAR_FACE_LIFT_ALONG_LIGHT_MM / uMmPerUnit), -Ng));
+        float s = max(shadow_box(i, A - Ng * (FAR_FACE_LIFT_MM / uMmPerUnit), -Ng, half_mm),
+                      shadow_box(i, A + L * ((FAR_FACE_LIFT_ALONG_LIGHT_MM + 0.5 * half_mm) / uMmPerUnit), -Ng, half_mm));
         T += Ei * (cos_far * s) * T_h;
     }
     return T * uTranslucencyStrength;
