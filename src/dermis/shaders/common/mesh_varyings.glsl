@@ -107,7 +107,24 @@ void load_mesh_varyings() {
     // Moreton 1991: p/w and 1/w are affine in screen space); its barycentrics clamped onto the triangle
     // (llvmpipe's perspective centroid of a sliver came out farther off than the pixel centre, round 12;
     // the noperspective one within 0.004 of it, round 13; the clamp keeps any rasteriser's on it).
+#ifdef DERMIS_MESH_VARYINGS_CENTROID  // (a control: the centroid, one covered sample)
     vec3 c_world = c_world_w.xyz / c_world_w.w;
+#else
+    // the mean of the covered samples' points: the resolve weights this fragment's one shade by all of
+    // them, and at a rim, where the light changes fast across the pixel, one of them (the centroid) is
+    // an extreme (round 14, speck14b; here the back-lit ear lobe's rim, back-ears (288, 577) at 768 px:
+    // 0.38 with the centroid, 0.16 supersampled). interpolateAtSample does not make the shader run per
+    // sample (gl_SamplePosition would: GLSL 4.50, 8.13.1)
+    vec4 c_sum = vec4(0.0);
+    float n_covered = 0.0;
+    for (int i = 0; i < gl_NumSamples; ++i) {
+        if ((gl_SampleMaskIn[0] & (1 << i)) != 0) {
+            vec4 c = interpolateAtSample(c_world_w, i);
+            c_sum += vec4(c.xyz / c.w, 1.0);
+        }
+    }
+    vec3 c_world = c_sum.xyz / max(c_sum.w, 1.0);
+#endif
     vec2 l_c = triangle_barycentrics(c_world);
     vec3 l3 = max(vec3(1.0 - l_c.x - l_c.y, l_c), 0.0);
     l_c = l3.yz / max(l3.x + l3.y + l3.z, 1e-12);
