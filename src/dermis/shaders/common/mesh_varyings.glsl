@@ -12,8 +12,8 @@
 // vs 0.04 supersampled; the example's lip line (391, 550) 0.27 vs 0.07).
 // So a fragment with an uncovered sample whose pixel centre's point lies more than MESH_MOVE_FOOTPRINTS
 // pixel footprints (at the covered point's distance) from the covered point takes every varying at that
-// covered point: the noperspective centroid of common/mesh.vert (llvmpipe: a covered sample), its
-// barycentrics clamped onto the triangle. Every other fragment keeps the plain pixel-centre interpolants
+// covered point: the mean of its covered samples' points on the triangle (below). Every other fragment
+// keeps the plain pixel-centre interpolants
 // bit for bit: the interior, and every ordinary edge fragment (rounds 13-14, speck13 / speck14b, moved
 // them all: 50-80 k pixels of a 768 px frame changed, and against a 6 x 6 supersampled frame the mean
 // error over them did not drop; round 15 kept main's).
@@ -78,7 +78,6 @@ float mesh_curvature_v;
 #ifdef DERMIS_INTERREFLECTION
 vec3 mesh_bounce;
 #endif
-bool mesh_moved;  // this fragment's varyings were moved (for tests: none of the shading reads it)
 
 void load_mesh_varyings() {
     mesh_world = mesh_raw_world = v_world;
@@ -97,16 +96,15 @@ void load_mesh_varyings() {
 #ifdef DERMIS_INTERREFLECTION
     mesh_bounce = v_bounce;
 #endif
-    mesh_moved = false;
-#ifndef DERMIS_MESH_VARYINGS_RAW  // (defined: the plain interpolants everywhere; a benchmark's control)
     ivec2 at = ivec2(2 * (gl_PrimitiveID % MESH_TRIANGLES_PER_ROW), gl_PrimitiveID / MESH_TRIANGLES_PER_ROW);
     frame_b = imageLoad(uTriangleFrames, at);
     frame_c = imageLoad(uTriangleFrames, at + ivec2(1, 0));
     vec2 l = triangle_barycentrics(v_world);
-    // The covered point: the noperspective centroid's (p / w) / (1 / w), perspective-correct (Heckbert &
-    // Moreton 1991: p/w and 1/w are affine in screen space); its barycentrics clamped onto the triangle
-    // (llvmpipe's perspective centroid of a sliver came out farther off than the pixel centre, round 12;
-    // the noperspective one within 0.004 of it, round 13; the clamp keeps any rasteriser's on it).
+    // The covered point. Each sample's point is c_world_w's (p / w) / (1 / w) there, perspective-correct
+    // (Heckbert & Moreton 1991: p/w and 1/w are affine in screen space; llvmpipe's perspective-correct
+    // centroid of a sliver came out farther off than the pixel centre, round 12, the noperspective one
+    // within 0.004 of it, round 13); the point's barycentrics are clamped onto the triangle (keeping any
+    // rasteriser's rounding on it).
 #ifdef DERMIS_MESH_VARYINGS_CENTROID  // (a control: the centroid, one covered sample)
     vec3 c_world = c_world_w.xyz / c_world_w.w;
 #else
@@ -145,7 +143,6 @@ void load_mesh_varyings() {
 #endif
     if (gl_SampleMaskIn[0] != (1 << gl_NumSamples) - 1 && !gl_HelperInvocation && finite
         && !(footprints <= MESH_MOVE_FOOTPRINTS)) {
-        mesh_moved = true;
         mesh_world = world;
         mesh_normal = normal;
         mesh_uv = uv;
@@ -163,7 +160,6 @@ void load_mesh_varyings() {
         mesh_bounce = bounce;
 #endif
     }
-#endif
 }
 
 #define v_world mesh_world
