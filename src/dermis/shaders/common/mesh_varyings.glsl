@@ -1,4 +1,4 @@
-// The varyings of common/mesh.vert for a screen pass's fragment shader (lambert, preintegrated), moved
+// The varyings of common/mesh.vert for a screen pass's fragment shader (lambert, preintegrated, ssss's final pass), moved
 // onto the fragment's own triangle where the pixel centre's extrapolation runs far off it (issue 12,
 // rounds 12-18). Include it FIRST in the fragment shader and call load_mesh_varyings() at the top of
 // main(): below the #defines at the end of this file the names v_world, v_normal, ... mean global copies.
@@ -13,10 +13,9 @@
 // So a fragment with an uncovered sample whose pixel centre's point lies more than MESH_MOVE_FOOTPRINTS
 // pixel footprints (at the covered point's distance) from the covered point takes every varying at that
 // covered point: the mean of its covered samples' points on the triangle (below). Every other fragment
-// keeps the plain pixel-centre interpolants
-// bit for bit: the interior, and every ordinary edge fragment (rounds 13-14, speck13 / speck14b, moved
-// them all: 50-80 k pixels of a 768 px frame changed, and against a 6 x 6 supersampled frame the mean
-// error over them did not drop; round 15 kept main's).
+// keeps the plain pixel-centre interpolants bit for bit: the interior, and every ordinary edge fragment
+// (rounds 13-14, speck13 / speck14b, moved them all: 50-80 k pixels of a 768 px frame changed, and
+// against a 6 x 6 supersampled frame the mean error over them did not drop; round 15 kept main's).
 // How the move is made: every varying A is the same affine function of the barycentrics lambda
 // (perspective-correct interpolation IS barycentric), so across the 2 x 2 quad (one triangle's planes)
 // the finite differences obey dA = J dlambda, and A at the covered point c is A + dA/dx s.x + dA/dy s.y
