@@ -241,6 +241,28 @@ def test_multisampling_adds_no_speck(gl_ctx, scene, technique):
     assert np.abs(on[..., :3] - ref[..., :3]).max() > 0.01  # the two differ (edges): the scan compares something
 
 
+def test_triangle_frames_give_the_barycentrics_of_points_in_each_plane():
+    """dermis.gl.resources.triangle_frames (common/mesh_varyings.glsl's inside test and move): for points
+    a + lb (b - a) + lc (c - a) of random triangles (inside and far outside, lb, lc in [-3, 3]) the two
+    rows give (lb, lc), against the construction; past the first block of 65,536 triangles too, in the
+    texel order the shader reads (2 texels per triangle, 2048 a row); a triangle of zero area gets zeros."""
+    from dermis.gl.resources import MESH_TRIANGLES_PER_ROW, triangle_frames
+
+    rng = np.random.default_rng(7)
+    pos = rng.normal(size=(500, 3))
+    tri = rng.integers(0, 500, size=(70000, 3))
+    tri[-1] = (3, 3, 4)  # a segment
+    frames = triangle_frames(pos, tri)
+    assert frames.shape == (-(-len(tri) // MESH_TRIANGLES_PER_ROW), MESH_TRIANGLES_PER_ROW * 8)
+    for t in [0, 1, 2047, 2048, 65535, 65536, 69998]:
+        g = frames[t // MESH_TRIANGLES_PER_ROW, (t % MESH_TRIANGLES_PER_ROW) * 8:][:8]
+        a, b, c = pos[tri[t]]
+        for lb, lc in rng.uniform(-3.0, 3.0, size=(4, 2)):
+            x = np.append(a + lb * (b - a) + lc * (c - a), 1.0)
+            assert np.allclose([g[:4] @ x, g[4:] @ x], [lb, lc], atol=1e-4), (t, lb, lc)
+    assert not frames.reshape(-1, 8)[len(tri) - 1].any()
+
+
 def _groove_scene(half_width=0.0067, depth=0.3, half=3.0, rows=24):
     """A plane with a V-groove along y whose walls are nearly vertical (slope 0.022: the nose wing's or
     the lip line's |N.V| ~ 0.02 from a camera straight above), seen along its fold at 192 px (one pixel

@@ -60,19 +60,23 @@ def triangle_frames(positions, indices) -> np.ndarray:
     1 - lambda_b - lambda_c. With e1 = b - a, e2 = c - a and the Gram matrix D = [[e1.e1, e1.e2],
     [e1.e2, e2.e2]]: (g1, g2) = D^-1 (e1, e2) (least squares: exact for p in the plane), the fourth
     components -g.a. A triangle of zero area gets zeros (every point at lambda = (1, 0, 0): its
-    fragments are moved nowhere, s = 0)."""
-    p = np.asarray(positions, np.float64)[np.asarray(indices, np.int64).reshape(-1, 3)]
-    a, e1, e2 = p[:, 0], p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
-    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
-    det = d11 * d22 - d12 * d12
-    ok = det > 1e-12 * np.maximum(d11 * d22, 1e-300)
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
-    g1 = (d22[:, None] * e1 - d12[:, None] * e2) * inv
-    g2 = (d11[:, None] * e2 - d12[:, None] * e1) * inv
-    rows = np.concatenate([g1, -(g1 * a).sum(1, keepdims=True), g2, -(g2 * a).sum(1, keepdims=True)], axis=1)
-    n = -(-len(rows) // MESH_TRIANGLES_PER_ROW)
+    fragments are moved nowhere, s = 0). In float64, in blocks of 65,536 triangles (a whole mesh's
+    corners in float64 would be ~0.9 GB at 12 million triangles)."""
+    tri = np.asarray(indices, np.int64).reshape(-1, 3)
+    pos = np.asarray(positions)
+    n = -(-len(tri) // MESH_TRIANGLES_PER_ROW)
     out = np.zeros((n * MESH_TRIANGLES_PER_ROW, 8), np.float32)
-    out[: len(rows)] = rows
+    for start in range(0, len(tri), 65536):
+        p = pos[tri[start:start + 65536]].astype(np.float64)
+        a, e1, e2 = p[:, 0], p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+        d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+        det = d11 * d22 - d12 * d12
+        ok = det > 1e-12 * np.maximum(d11 * d22, 1e-300)
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
+        g1 = (d22[:, None] * e1 - d12[:, None] * e2) * inv
+        g2 = (d11[:, None] * e2 - d12[:, None] * e1) * inv
+        out[start:start + len(p)] = np.concatenate([g1, -(g1 * a).sum(1, keepdims=True), g2,
+                                                    -(g2 * a).sum(1, keepdims=True)], axis=1)
     return out.reshape(n, -1)
 
 
@@ -287,7 +291,10 @@ class GpuScene:
         self.visibility_uploaded = False  # set_visibility() not called yet: open sky
         self.ibo = ctx.buffer(np.ascontiguousarray(m.indices, np.uint32).tobytes())
         self._triangle_uv_ts = None  # triangle_uv_ts(): made on first use (tsd's final pass)
-        self._triangle_frames = None  # triangle_frame_image(): made on first use (lambert's, preintegrated's pass)
+        # each triangle's barycentric frame (the screen passes' move of far-extrapolated MSAA edge fragments,
+        # common/mesh_varyings.glsl), made with the mesh: a texture made at a later frame would read as a
+        # growing GPU object count (tests/test_viewer.py)
+        self._triangle_frames = triangle_frame_image(ctx, m.positions, m.indices)
         self._vaos = {}
         self.textures = {}
         self.upload_material()
@@ -317,12 +324,8 @@ class GpuScene:
         return self._triangle_uv_ts
 
     def triangle_frames(self):
-        """Each triangle's barycentric frame (:func:`triangle_frame_image`), made on first use: the
-        screen passes' move of far-extrapolated edge fragments onto their triangle
-        (common/mesh_varyings.glsl)."""
-        if self._triangle_frames is None:
-            m = self.scene.mesh
-            self._triangle_frames = triangle_frame_image(self.ctx, m.positions, m.indices)
+        """Each triangle's barycentric frame (:func:`triangle_frame_image`): the screen passes' move of
+        far-extrapolated edge fragments onto their triangle (common/mesh_varyings.glsl)."""
         return self._triangle_frames
 
     def vertex_content(self, prog) -> tuple:
