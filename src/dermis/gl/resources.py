@@ -47,6 +47,49 @@ def interleave(attributes: tuple, visibility) -> bytes:
     return np.ascontiguousarray(np.concatenate([before, np.asarray(visibility, np.float32), after], axis=1)).tobytes()
 
 
+# the image of each triangle's barycentric frame (common/mesh_varyings.glsl: how far off its triangle a
+# fragment's pixel centre lies): its image unit, and triangles per row (two rgba32f texels each)
+MESH_TRIANGLE_IMAGE = 0
+MESH_TRIANGLES_PER_ROW = 2048  # common/mesh_varyings.glsl: the same
+
+
+def triangle_frames(positions, indices) -> np.ndarray:
+    """(rows, MESH_TRIANGLES_PER_ROW * 8) float32: for triangle t = (a, b, c) at texels (2 (t mod R),
+    t div R) and the next, the rows G1, G2 of the affine map p -> (lambda_b, lambda_c), the
+    barycentrics of p's projection into the triangle's plane: lambda_b = dot(G1, (p, 1)), lambda_a =
+    1 - lambda_b - lambda_c. With e1 = b - a, e2 = c - a and the Gram matrix D = [[e1.e1, e1.e2],
+    [e1.e2, e2.e2]]: (g1, g2) = D^-1 (e1, e2) (least squares: exact for p in the plane), the fourth
+    components -g.a. A triangle of zero area gets zeros (every point at lambda = (1, 0, 0): its
+    fragments are moved nowhere, s = 0). In float64, in blocks of 65,536 triangles (a whole mesh's
+    corners in float64 would be ~0.9 GB at 12 million triangles)."""
+    tri = np.asarray(indices, np.int64).reshape(-1, 3)
+    pos = np.asarray(positions)
+    n = -(-len(tri) // MESH_TRIANGLES_PER_ROW)
+    out = np.zeros((n * MESH_TRIANGLES_PER_ROW, 8), np.float32)
+    for start in range(0, len(tri), 65536):
+        p = pos[tri[start:start + 65536]].astype(np.float64)
+        a, e1, e2 = p[:, 0], p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+        d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+        det = d11 * d22 - d12 * d12
+        ok = det > 1e-12 * np.maximum(d11 * d22, 1e-300)
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
+        g1 = (d22[:, None] * e1 - d12[:, None] * e2) * inv
+        g2 = (d11[:, None] * e2 - d12[:, None] * e1) * inv
+        out[start:start + len(p)] = np.concatenate([g1, -(g1 * a).sum(1, keepdims=True), g2,
+                                                    -(g2 * a).sum(1, keepdims=True)], axis=1)
+    return out.reshape(n, -1)
+
+
+def triangle_frame_image(ctx, positions, indices):
+    """:func:`triangle_frames` as an rgba32f texture (read by imageLoad)."""
+    import moderngl
+
+    data = triangle_frames(positions, indices)
+    tex = ctx.texture((data.shape[1] // 4, data.shape[0]), 4, np.ascontiguousarray(data).tobytes(), dtype="f4")
+    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    return tex
+
+
 def vertex_content(vbo, prog) -> tuple:
     """(buffer, format, attributes...) of a VERTEX_FORMAT buffer for ``prog``: attributes the program
     does not use are skipped as padding ("3x4" = 3 floats)."""
@@ -248,6 +291,10 @@ class GpuScene:
         self.visibility_uploaded = False  # set_visibility() not called yet: open sky
         self.ibo = ctx.buffer(np.ascontiguousarray(m.indices, np.uint32).tobytes())
         self._triangle_uv_ts = None  # triangle_uv_ts(): made on first use (tsd's final pass)
+        # each triangle's barycentric frame (the screen passes' move of far-extrapolated MSAA edge fragments,
+        # common/mesh_varyings.glsl), made with the mesh: a texture made at a later frame would read as a
+        # growing GPU object count (tests/test_viewer.py)
+        self._triangle_frames = triangle_frame_image(ctx, m.positions, m.indices)
         self._vaos = {}
         self.textures = {}
         self.upload_material()
@@ -275,6 +322,11 @@ class GpuScene:
             uv = np.asarray(texture_space_uvs(m), np.float32)[np.asarray(m.indices, np.int64).reshape(-1)]
             self._triangle_uv_ts = self.ctx.buffer(np.ascontiguousarray(uv).tobytes())
         return self._triangle_uv_ts
+
+    def triangle_frames(self):
+        """Each triangle's barycentric frame (:func:`triangle_frame_image`): the screen passes' move of
+        far-extrapolated edge fragments onto their triangle (common/mesh_varyings.glsl)."""
+        return self._triangle_frames
 
     def vertex_content(self, prog) -> tuple:
         """(buffer, format, attributes...) of the vertex buffer for ``prog`` (:func:`vertex_content`)."""
@@ -358,6 +410,9 @@ class GpuScene:
         if self._triangle_uv_ts is not None:
             self._triangle_uv_ts.release()
             self._triangle_uv_ts = None
+        if self._triangle_frames is not None:
+            self._triangle_frames.release()
+            self._triangle_frames = None
         for surface in getattr(self, "surfaces", []):
             surface.release()
         self.surfaces = []

@@ -227,11 +227,17 @@ def _bind_material(frame: Frame, prog):
 def draw_mesh(frame: Frame, prog, vao=None):
     """Bind the camera and the shared scene state (:func:`bind_scene`) and draw the mesh
     (with ``frame.gpu.vao(prog)``, or ``vao``: one that adds a technique's own attributes)."""
-    from dermis.gl.resources import mat_bytes, set_uniform
+    from dermis.gl.resources import MESH_TRIANGLE_IMAGE, mat_bytes, set_uniform
 
     set_uniform(prog, "uViewProj", mat_bytes(frame.viewproj))
     set_uniform(prog, "uCameraPos", tuple(float(x) for x in frame.eye))
     bind_scene(frame, prog)
+    if prog.get("uTriangleFrames", None) is not None:  # common/mesh_varyings.glsl
+        # the angle of one pixel at the image centre (radians): 2 tan(fov / 2) / height, proj[1][1] =
+        # 1 / tan(fov / 2) of a perspective projection
+        set_uniform(prog, "uPixelRadians", float(2.0 / (abs(frame.proj[1][1]) * frame.size[1])))
+        # gl_PrimitiveID of this one draw of the whole index buffer numbers the triangles from 0
+        frame.gpu.triangle_frames().bind_to_image(MESH_TRIANGLE_IMAGE, read=True, write=False)
     if vao is None:  # the same pass without pore detail where it cannot show (its own vertex array: as it is)
         prog = shading_program(frame, prog)
     cull = not frame.scene.material.double_sided  # a closed skin: its back faces are hidden (SkinMaterial)

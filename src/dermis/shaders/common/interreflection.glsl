@@ -9,7 +9,9 @@
 // directional albedo's hemispherical average) and without a terminator, a shadow edge or normal-map
 // detail, so nothing of preintegrated's tables applies to it (dermis/techniques/preintegrated.py).
 #ifdef DERMIS_INTERREFLECTION
+#ifndef DERMIS_MESH_VARYINGS  // else declared there (common/mesh_varyings.glsl)
 in vec3 v_bounce;
+#endif
 
 vec3 bounce_irradiance() {
     return max(v_bounce, vec3(0.0));

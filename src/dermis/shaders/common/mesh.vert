@@ -31,6 +31,14 @@ out vec4 v_visibility;
 out vec3 v_blocked_sh0;
 out vec3 v_blocked_sh1;
 out vec3 v_blocked_sh2;
+// The position again for an edge pixel's fragment (common/mesh_varyings.glsl): over the clip w, with
+// 1/w, interpolated linearly in screen space at a covered sample (noperspective centroid); the fragment
+// divides (Heckbert & Moreton 1991, "Interpolation for polygon texture mapping and shading": p/w and 1/w
+// are affine in screen space, so their ratio is the perspective-correct position at any point of the
+// triangle). Why not plain `centroid`: llvmpipe's perspective-correct centroid values of a sliver came
+// out farther off it than the pixel centre's (round 12: 5-9 texels; round 13: barycentrics down to
+// -228), its noperspective centroid ones within 0.004 of the triangle (round 13, speck13).
+noperspective centroid out vec4 c_world_w;  // (position, 1) / w
 void main() {
     v_uv_ts = in_uv_ts;
     v_visibility = in_visibility;
@@ -49,4 +57,5 @@ void main() {
     v_bounce = texelFetch(uBounce, ivec2(gl_VertexID % uVerticesPerRow, gl_VertexID / uVerticesPerRow), 0).rgb;
 #endif
     gl_Position = uViewProj * vec4(in_position, 1.0);
+    c_world_w = vec4(in_position, 1.0) / gl_Position.w;
 }

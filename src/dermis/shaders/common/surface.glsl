@@ -14,7 +14,9 @@ uniform vec2 uSpecMapBiasScale;   // rho_s(x) = rho_s * (bias + scale * specMap(
 // Per-map addressing (glTF texCoord + KHR_texture_transform; dermis.scene.model.Texture): each map
 // reads UV set 0 (the ``uv`` passed in: the mesh's TEXCOORD_0, v_uv) or set 1 (v_uv1, written by
 // common/mesh.vert and tsd/uv_space.vert) through its own 3x3 affine transform of (u, v, 1), v up.
+#ifndef DERMIS_MESH_VARYINGS  // else declared there (common/mesh_varyings.glsl)
 in vec2 v_uv1;
+#endif
 uniform mat3 uAlbedoUV, uNormalUV, uSpecularUV, uRoughnessUV;
 uniform int uAlbedoSet, uNormalSet, uSpecularSet, uRoughnessSet;
 

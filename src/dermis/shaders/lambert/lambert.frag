@@ -1,21 +1,14 @@
 // Baseline: Lambert diffuse + normalised Blinn-Phong specular, soft (PCF) shadows.
 // The "hard, dry" look every skin technique must visibly beat. Radiance is physical:
 // diffuse = albedo / pi * E * N.L (Lambert 1760); specular from common/brdf.glsl.
+// first: the varyings on the fragment's own triangle (before any code that reads them)
+#include "common/mesh_varyings.glsl"
 #include "common/shadow.glsl"
 #include "common/surface.glsl"
 #include "common/environment.glsl"
 #include "common/brdf.glsl"
 #include "common/interreflection.glsl"
 
-uniform vec3 uCameraPos;
-in vec3 v_world;
-in vec3 v_normal;
-in vec2 v_uv;
-in vec4 v_tangent;
-in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
-in vec3 v_blocked_sh0;  // the L2 SH of the directions the mesh blocks: the specular occlusion
-in vec3 v_blocked_sh1;
-in vec3 v_blocked_sh2;
 out vec4 f_color;
 
 // Light i's diffuse and specular radiance at v_world (0 where it does not reach the surface). The
@@ -31,6 +24,7 @@ vec3 lambert_light(int i, vec3 Ng, vec3 N, vec3 V, vec3 albedo, float shininess,
 }
 
 void main() {
+    load_mesh_varyings();
     vec3 Ng = normalize(v_normal);
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     vec3 V = normalize(uCameraPos - v_world);

@@ -14,6 +14,8 @@
 // skin's directional albedo (common/directional_albedo.glsl; the ambient enters at k = 1, the light
 // through thin parts leaves Lambertian, as in tsd). Per channel, D P is raised to at least the light
 // the shadow map's lit points scatter across a concave fold (fold_scattered_light, below).
+// first: the varyings on the fragment's own triangle (before any code that reads them)
+#include "common/mesh_varyings.glsl"
 #include "common/surface.glsl"
 #include "common/noise.glsl"
 #include "common/shadow.glsl"
@@ -33,20 +35,9 @@ uniform float uCurvatureFromMesh;   // 1: the mesh's per-vertex curvature, 0: sc
 uniform float uBlurredNormals;      // 1: per-channel blurred normals, 0: the detailed normal
 uniform float uPenumbraScattering;  // 1: scatter the penumbra through its table, 0: plain PCF
 uniform float uDirectionalAlbedo;   // 1: the skin's directional albedo (scene.directional_albedo), 0: Lambertian
-uniform vec3 uCameraPos;
 uniform float uPoreScaleMm;
 uniform float uPoreStrength;
 uniform int uOutputMode;  // OUTPUT_FULL, _DIFFUSE, _SPECULAR or _CURVATURE (1/mm; dermis.techniques.shared.OutputMode)
-in vec3 v_world;
-in vec3 v_normal;
-in vec2 v_uv;
-in vec4 v_tangent;
-in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
-in vec3 v_blocked_sh0;  // the L2 SH of the directions the mesh blocks: the specular occlusion
-in vec3 v_blocked_sh1;
-in vec3 v_blocked_sh2;
-in vec2 v_uv_ts;  // texture-space UVs: the thickness bake
-in float v_curvature;
 out vec4 f_color;
 
 
@@ -256,19 +247,24 @@ vec3 preintegrated_light(int i, vec3 Ngeo, vec3 N, vec3 N_red, vec3 N_green, vec
 }
 
 void main() {
+    load_mesh_varyings();
     vec3 Ngeo = normalize(v_normal);
     vec3 P_mm = v_world * uMmPerUnit;
     // curvature (1/mm): the mesh's, or Penner's length(fwidth(N)) / length(fwidth(P)). Every screen
     // derivative here is the fine one (per pixel, not per 2x2 quad): GLSL leaves plain dFdx / fwidth
     // to the implementation, which picks coarse or fine per GPU.
-    float curvature_derivatives = length(fwidthFine(Ngeo)) / max(length(fwidthFine(P_mm)), 1e-9);
+    // The derivatives are the plain interpolants' (common/mesh_varyings.glsl: affine per triangle, so
+    // an edge fragment moved onto its triangle keeps its quad's differences).
+    vec3 P_raw_mm = mesh_raw_world * uMmPerUnit;
+    float curvature_derivatives = length(fwidthFine(normalize(mesh_raw_normal))) / max(length(fwidthFine(P_raw_mm)), 1e-9);
     float curvature = uCurvatureFromMesh > 0.5 ? abs(v_curvature) : curvature_derivatives;
     // the normal map's texels per mm (square root of the area ratio of a pixel's footprint)
     vec2 tex = vec2(textureSize(uNormalMap, 0));
     vec2 nuv = normal_map_uv(v_uv);  // the normal map's own coordinates (its UV set and transform)
-    vec2 duvx = dFdxFine(nuv) * tex, duvy = dFdyFine(nuv) * tex;
+    vec2 nuv_raw = normal_map_uv(mesh_raw_uv);
+    vec2 duvx = dFdxFine(nuv_raw) * tex, duvy = dFdyFine(nuv_raw) * tex;
     float area_uv = abs(duvx.x * duvy.y - duvx.y * duvy.x);
-    float area_mm = length(cross(dFdxFine(P_mm), dFdyFine(P_mm)));  // a pixel's footprint, mm^2
+    float area_mm = length(cross(dFdxFine(P_raw_mm), dFdyFine(P_raw_mm)));  // a pixel's footprint, mm^2
     float texels_per_mm = sqrt(area_uv / max(area_mm, 1e-12));
 
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);

@@ -6,6 +6,8 @@
 // multisampled silhouettes of the other techniques. A fragment whose depth does not match what
 // pass 1 saw at its pixel (an MSAA edge sample of another surface) takes the scattered light of
 // the 3x3 neighbour nearest in depth.
+// first: the varyings on the fragment's own triangle (before any code that reads them)
+#include "common/mesh_varyings.glsl"
 #include "common/surface.glsl"
 #include "common/albedo_mix.glsl"
 #include "common/noise.glsl"
@@ -17,16 +19,7 @@ uniform vec4 uViewZ;
 uniform float uMix;
 uniform float uPoreScaleMm;
 uniform float uPoreStrength;
-uniform vec3 uCameraPos;
 uniform int uOutputMode;  // OUTPUT_FULL, OUTPUT_DIFFUSE or OUTPUT_SPECULAR (dermis.techniques.shared.OutputMode)
-in vec3 v_world;
-in vec3 v_normal;
-in vec2 v_uv;
-in vec4 v_tangent;
-in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/environment.glsl
-in vec3 v_blocked_sh0;  // the L2 SH of the directions the mesh blocks: the specular occlusion
-in vec3 v_blocked_sh1;
-in vec3 v_blocked_sh2;
 out vec4 f_color;
 
 const float SAME_SURFACE_MM = 1.0;
@@ -51,6 +44,7 @@ vec3 scattered_here(float depth_mm) {
 }
 
 void main() {
+    load_mesh_varyings();
     vec3 Ng = normalize(v_normal);
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     vec3 V = normalize(uCameraPos - v_world);
