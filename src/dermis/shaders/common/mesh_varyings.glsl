@@ -79,22 +79,9 @@ vec3 mesh_bounce;
 #endif
 
 void load_mesh_varyings() {
-    mesh_world = mesh_raw_world = v_world;
-    mesh_normal = mesh_raw_normal = v_normal;
-    mesh_uv = mesh_raw_uv = v_uv;
-    mesh_uv1 = v_uv1;
-    mesh_tangent = v_tangent;
-    mesh_uv_ts = v_uv_ts;
-    mesh_visibility = v_visibility;
-    mesh_blocked_sh0 = v_blocked_sh0;
-    mesh_blocked_sh1 = v_blocked_sh1;
-    mesh_blocked_sh2 = v_blocked_sh2;
-#ifdef DERMIS_VERTEX_CURVATURE
-    mesh_curvature_v = v_curvature;
-#endif
-#ifdef DERMIS_INTERREFLECTION
-    mesh_bounce = v_bounce;
-#endif
+    mesh_raw_world = v_world;
+    mesh_raw_normal = v_normal;
+    mesh_raw_uv = v_uv;
     ivec2 at = ivec2(2 * (gl_PrimitiveID % MESH_TRIANGLES_PER_ROW), gl_PrimitiveID / MESH_TRIANGLES_PER_ROW);
     frame_b = imageLoad(uTriangleFrames, at);
     frame_c = imageLoad(uTriangleFrames, at + ivec2(1, 0));
@@ -113,7 +100,6 @@ void load_mesh_varyings() {
     // 0.38 with the centroid, 0.16 supersampled). interpolateAtSample does not make the shader run per
     // sample (gl_SamplePosition would: GLSL 4.50, 8.13.1)
     vec4 c_sum = vec4(0.0);
-    float n_covered = 0.0;
     for (int i = 0; i < gl_NumSamples; ++i) {
         if ((gl_SampleMaskIn[0] & (1 << i)) != 0) {
             vec4 c = interpolateAtSample(c_world_w, i);
@@ -129,36 +115,27 @@ void load_mesh_varyings() {
     // how far the pixel centre's point is from the covered one, in pixel footprints at the covered point
     float footprints = length(v_world - c_world) / max(length(c_world - uCameraPos) * uPixelRadians, 1e-30);
     bool finite = !any(isnan(s)) && !any(isinf(s)) && c_world_w.w > 0.0 && !isnan(footprints);
-    // (the derivatives taken in uniform control flow, as GLSL requires: before the branch)
-    vec3 world = MOVED(v_world, s), normal = MOVED(v_normal, s);
-    vec2 uv = MOVED(v_uv, s), uv1 = MOVED(v_uv1, s), uv_ts = MOVED(v_uv_ts, s);
-    vec4 tangent = MOVED(v_tangent, s), visibility = MOVED(v_visibility, s);
-    vec3 sh0 = MOVED(v_blocked_sh0, s), sh1 = MOVED(v_blocked_sh1, s), sh2 = MOVED(v_blocked_sh2, s);
+    // every varying moved by s, or by 0 (a + d 0 = a: the plain interpolant, bit for bit) where the
+    // fragment keeps its pixel centre; the derivatives are taken in uniform control flow, as GLSL requires
+    bool move = gl_SampleMaskIn[0] != (1 << gl_NumSamples) - 1 && !gl_HelperInvocation && finite
+                && !(footprints <= MESH_MOVE_FOOTPRINTS);
+    s = move ? s : vec2(0.0);
+    mesh_world = MOVED(v_world, s);
+    mesh_normal = MOVED(v_normal, s);
+    mesh_uv = MOVED(v_uv, s);
+    mesh_uv1 = MOVED(v_uv1, s);
+    mesh_uv_ts = MOVED(v_uv_ts, s);
+    mesh_tangent = MOVED(v_tangent, s);
+    mesh_visibility = MOVED(v_visibility, s);
+    mesh_blocked_sh0 = MOVED(v_blocked_sh0, s);
+    mesh_blocked_sh1 = MOVED(v_blocked_sh1, s);
+    mesh_blocked_sh2 = MOVED(v_blocked_sh2, s);
 #ifdef DERMIS_VERTEX_CURVATURE
-    float curvature = MOVED(v_curvature, s);
+    mesh_curvature_v = MOVED(v_curvature, s);
 #endif
 #ifdef DERMIS_INTERREFLECTION
-    vec3 bounce = MOVED(v_bounce, s);
+    mesh_bounce = MOVED(v_bounce, s);
 #endif
-    if (gl_SampleMaskIn[0] != (1 << gl_NumSamples) - 1 && !gl_HelperInvocation && finite
-        && !(footprints <= MESH_MOVE_FOOTPRINTS)) {
-        mesh_world = world;
-        mesh_normal = normal;
-        mesh_uv = uv;
-        mesh_uv1 = uv1;
-        mesh_uv_ts = uv_ts;
-        mesh_tangent = tangent;
-        mesh_visibility = visibility;
-        mesh_blocked_sh0 = sh0;
-        mesh_blocked_sh1 = sh1;
-        mesh_blocked_sh2 = sh2;
-#ifdef DERMIS_VERTEX_CURVATURE
-        mesh_curvature_v = curvature;
-#endif
-#ifdef DERMIS_INTERREFLECTION
-        mesh_bounce = bounce;
-#endif
-    }
 }
 
 #define v_world mesh_world
