@@ -122,30 +122,9 @@ void main() {
     load_sharp_shadows(uv_ts);
 #endif
 #ifdef PIXEL_DETAIL
-    // I_0 as tsd/irradiance.frag and tsd/bounce_splat.frag put it into the irradiance texture, but
-    // at this pixel: (E_lights + E_ambient + E_bounce) albedo^mix, the lights' soft shadows as there
-    // (detail_shadow), P and N at the centroid of the pixel's covered samples, inside the triangle: every interior edge
-    // pixel has a fragment whose centre lies off its triangle, and I_0 of the attributes
-    // extrapolated there drew the mesh's edges as faint lines (+1-2 %) into the detail
-    // (the maps' values are the pixel centre's: a few texels of the maps move nothing that shows,
-    // each further filtered read costs llvmpipe ~10 % of this pass)
-    vec3 P_c = interpolateAtCentroid(v_world);
-    vec3 n_c = interpolateAtCentroid(v_normal);
-    vec3 Ng_c = normalize(n_c);
-    vec3 N_c = tangent_to_world(n_c, interpolateAtCentroid(v_tangent), normal_map_texel);
-    vec3 c_in = uDirectionalAlbedo * directional_c(albedo);
-#ifdef SHARP_SHADOW_READ
-    vec3 I0 = vec3(0.0);
-    DERMIS_FOR_EACH_LIGHT(I0 += skin_light_entry_shadowed(light_i, P_c, Ng_c, N_c, rho_s, m, c_in,
-                                                          detail_shadow(light_i, P_c, Ng_c));)
-#else  // the lights' soft shadows per sample, as the irradiance pass has them
-    vec3 I0 = skin_lights_directional(P_c, Ng_c, N_c, rho_s, m, c_in);
-#endif
-    I0 += skin_ambient(N_c, Ng_c, rho_s, m, interpolateAtCentroid(v_visibility));
-#ifdef PIXEL_DETAIL_BOUNCE
-    I0 += bounce_on_triangle(uv_ts, gl_PrimitiveID);
-#endif
-    // a sample whose pixel centre lies off its triangle (multisampling: an edge sample) has P and N
+    // The detail's weight first (screen derivatives: in uniform control flow), then I_0 only where it
+    // is > 0 (a GPU skips that for whole warps of a zoomed-out frame; llvmpipe runs it masked).
+    // A sample whose pixel centre lies off its triangle (multisampling: an edge sample) has P and N
     // extrapolated off it as far as uv_ts was moved back; a triangle seen edge-on moves them by
     // texels per pixel (tsd/triangle_uv.glsl), lighting the sample as some other surface: its
     // detail fades out between 1 and 2 texels off (an ordinary edge sample is within ~0.5)
@@ -155,8 +134,37 @@ void main() {
     // mip level) is no better a sample of it (full detail from 2 pixels per texel, none at 1 pixel
     // per texel or less)
     float texels_per_pixel = max(length(dFdx(v_uv_ts)), length(dFdy(v_uv_ts))) * uDetailTexels;
-    vec3 Ed = diffuse_irradiance_detail(uv_ts, I0 * albedo_power(albedo, uMix), detail_texels_per_mm(),
-                                        (1.0 - smoothstep(1.0, 2.0, off)) * (1.0 - smoothstep(0.5, 1.0, texels_per_pixel)));
+    float detail_weight = (1.0 - smoothstep(1.0, 2.0, off)) * (1.0 - smoothstep(0.5, 1.0, texels_per_pixel));
+    float texels_per_mm = detail_texels_per_mm();
+    vec3 I0_mix = vec3(0.0);  // I_0 albedo^mix at the pixel (unused where the weight is 0)
+    if (detail_weight > 0.0) {
+        // I_0 as tsd/irradiance.frag and tsd/bounce_splat.frag put it into the irradiance texture, but
+        // at this pixel: (E_lights + E_ambient + E_bounce) albedo^mix, the lights' soft shadows as there
+        // (detail_shadow); P and N at the centroid of the pixel's covered samples, inside the triangle:
+        // every interior edge pixel has a fragment whose centre lies off its triangle, and I_0 of the
+        // attributes extrapolated there drew the mesh's edges as faint lines (+1-2 %) into the detail
+        // (the maps' values are the pixel centre's: a few texels of the maps move nothing that shows,
+        // each further filtered read costs llvmpipe ~10 % of this pass)
+        vec3 P_c = interpolateAtCentroid(v_world);
+        vec3 n_c = interpolateAtCentroid(v_normal);
+        vec3 Ng_c = normalize(n_c);
+        vec3 N_c = tangent_to_world(n_c, interpolateAtCentroid(v_tangent), normal_map_texel);
+        vec3 c_in = uDirectionalAlbedo * directional_c(albedo);
+#ifdef SHARP_SHADOW_READ
+        vec3 I0 = vec3(0.0);
+        DERMIS_FOR_EACH_LIGHT(I0 += skin_light_entry_shadowed(light_i, P_c, Ng_c, N_c, rho_s, m, c_in,
+                                                              detail_shadow(light_i, P_c, Ng_c));)
+#else  // the lights' soft shadows per sample, as the irradiance pass has them
+        vec3 I0 = skin_lights_directional(P_c, Ng_c, N_c, rho_s, m, c_in);
+#endif
+        I0 += skin_ambient(N_c, Ng_c, rho_s, m, interpolateAtCentroid(v_visibility));
+#ifdef PIXEL_DETAIL_BOUNCE
+        I0 += bounce_on_triangle(uv_ts, gl_PrimitiveID);
+#endif
+        I0_mix = I0 * albedo_power(albedo, uMix);
+    }
+    // outside the branch: its texture reads take implicit derivatives
+    vec3 Ed = diffuse_irradiance_detail(uv_ts, I0_mix, texels_per_mm, detail_weight);
 #else
     vec3 Ed = diffuse_irradiance(uv_ts);
 #endif
