@@ -38,8 +38,7 @@ vec3 bounce_on_triangle(vec2 uv, int primitive) {
     int i = 3 * primitive;
     vec2 a = triangle_uv_ts[i], b = triangle_uv_ts[i + 1], c = triangle_uv_ts[i + 2];
     float area = cross2(b - a, c - a);
-    vec3 w = area != 0.0 ? vec3(cross2(b - uv, c - uv), cross2(c - uv, a - uv), cross2(a - uv, b - uv)) / area
-                         : vec3(1.0 / 3.0);
+    vec3 w = area != 0.0 ? triangle_weights(uv, a, b, c) / area : vec3(1.0 / 3.0);
     vec3 T = w.x * bounce_per_vertex[mesh_indices[i]].rgb + w.y * bounce_per_vertex[mesh_indices[i + 1]].rgb
            + w.z * bounce_per_vertex[mesh_indices[i + 2]].rgb;
     return max(T, vec3(0.0));

@@ -35,10 +35,16 @@ vec2 closest_on_segment(vec2 p, vec2 a, vec2 b) {
 // closest point of the triangle a b c to p (Ericson 2005, "Real-Time Collision Detection", 5.1.5,
 // in 2-D: p itself when inside, else the nearest of the three edges; a triangle of zero area, its
 // corners in a line, has only its edges)
+// twice the signed areas of (p, b, c), (p, c, a), (p, a, b): the barycentrics of p times twice the
+// triangle's signed area cross2(b - a, c - a)
+vec3 triangle_weights(vec2 p, vec2 a, vec2 b, vec2 c) {
+    return vec3(cross2(b - p, c - p), cross2(c - p, a - p), cross2(a - p, b - p));
+}
+
 vec2 closest_on_triangle(vec2 p, vec2 a, vec2 b, vec2 c) {
     float area = cross2(b - a, c - a);
-    float wa = cross2(b - p, c - p), wb = cross2(c - p, a - p), wc = cross2(a - p, b - p);
-    if (area != 0.0 && wa * area >= 0.0 && wb * area >= 0.0 && wc * area >= 0.0) return p;
+    vec3 w = triangle_weights(p, a, b, c);
+    if (area != 0.0 && w.x * area >= 0.0 && w.y * area >= 0.0 && w.z * area >= 0.0) return p;
     vec2 q0 = closest_on_segment(p, a, b), q1 = closest_on_segment(p, b, c), q2 = closest_on_segment(p, c, a);
     vec2 d = vec2(dot(q0 - p, q0 - p), dot(q1 - p, q1 - p));
     vec2 q = d.x <= d.y ? q0 : q1;
