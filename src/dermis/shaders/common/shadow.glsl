@@ -58,10 +58,19 @@ bool shadow_coords_jacobian(int i, vec3 P, out vec3 c, out mat3 J) {
 // which on a receiver grazed by the light shifts it sideways by up to the offset: where that
 // crossed an occluder's silhouette in the map (the side view's eye socket behind the nose bridge,
 // the nose wing) a lit blob several mm wide appeared inside the shadow. The gradient is clamped at
-// a slope of MAX_RECEIVER_SLOPE (about 84 degrees), where N.L is ~0 anyway. T: the map uv that a
+// a slope of MAX_RECEIVER_SLOPE (7: 81.9 degrees, N.L 0.141). The clamp bounds how far in front of a
+// grazing receiver an occluder goes unseen: the PCF taps compare against the receiver plane up to
+// slope x (their reach + the bilinear footprint) texels nearer the light (~26 texels of depth at 7,
+// ~45 at the former 10). At 10 (84 degrees), in a concave fold lit at a graze (the side scene's
+// concha seen 3x closer, shadow tile 2048, benchmarks/RESULTS.md round 19 sizes19) the points of
+// N.L 0-0.1 under the antihelix's shadow read a mean lit fraction of 0.71 (ray cast: 0): a lit line
+// along the terminator inside the shadow, the "doubled edge" of preintegrated (whose wrap lights
+// N.L ~ 0) and a faint line in lambert. Below the clamp a plane's taps toward the light see the plane
+// itself (up to half of them shadowed at N.L -> 0), the lesser error where N.L < 0.14 scales the
+// light; a plane at N.L 0.15 stays exact (tests/test_shadow_pcf.py). T: the map uv that a
 // unit step (scene units) along the tangent-plane axes t1, t2 moves (columns), for the penumbra
 // width below. False for a light without a shadow map (uLightRadiance.w) or a point outside its map.
-const float MAX_RECEIVER_SLOPE = 10.0;
+const float MAX_RECEIVER_SLOPE = 7.0;
 bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat2 T) {
     mat3 J;
     c = vec3(0.0);
@@ -184,7 +193,11 @@ float pcf_grid(int i, vec2 c, float z, vec2 dz, float a, bool box, float stride,
 // c, dz, T: shadow_receiver's, for a light that casts shadows and a receiver inside its map.
 float shadow_pcf_at(int i, vec3 c, vec2 dz, mat2 T, bool want_width, out float width_mm) {
     width_mm = 1e30;
-    float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint of each tap, and curvature
+    // the bilinear 2x2 footprint of each tap: its four texel centres lie within one texel of the tap
+    // on each axis, where the receiver plane is at most (|dz.x| + |dz.y|) texels nearer (exact for a
+    // plane; curvature is the constant bias's, uShadowParams.y). Rounds 5-18 took 2 |dz| (up to 2.0 / 1.41
+    // of it): at a grazing receiver that is mm of depth (the concha leak above)
+    float z = c.z - (abs(dz.x) + abs(dz.y)) * uShadowParams[i].w;
     float R = PCF_DISC_SCALE * uShadowParams[i].x;  // the disc's radius, texels
     if (R <= 0.0) return shadow_tap(i, c.xy, z);
     // per light (uniform): the half-widths (texels) of the same variance; the parabola where the
