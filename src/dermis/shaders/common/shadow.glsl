@@ -58,24 +58,34 @@ bool shadow_coords_jacobian(int i, vec3 P, out vec3 c, out mat3 J) {
 // which on a receiver grazed by the light shifts it sideways by up to the offset: where that
 // crossed an occluder's silhouette in the map (the side view's eye socket behind the nose bridge,
 // the nose wing) a lit blob several mm wide appeared inside the shadow. The gradient is clamped at
-// a slope of MAX_RECEIVER_SLOPE (7: 81.9 degrees, N.L 0.141). The clamp bounds how far in front of a
-// grazing receiver an occluder goes unseen: the PCF taps compare against the receiver plane up to
-// slope x (their reach + the bilinear footprint) texels nearer the light (~26 texels of depth at 7,
-// ~45 at the former 10). At 10 (84 degrees), in a concave fold lit at a graze (the side scene's
-// concha seen 3x closer, shadow tile 2048, benchmarks/RESULTS.md round 19 sizes19) the points of
-// N.L 0-0.1 under the antihelix's shadow read a mean lit fraction of 0.71 (ray cast: 0): a lit line
-// along the terminator inside the shadow, the "doubled edge" of preintegrated (whose wrap lights
-// N.L ~ 0) and a faint line in lambert. Below the clamp a plane's taps toward the light see the plane
-// itself (up to half of them shadowed at N.L -> 0), the lesser error where N.L < 0.14 scales the
-// light; a plane at N.L 0.15 stays exact (tests/test_shadow_pcf.py). T: the map uv that a
+// a slope of MAX_RECEIVER_SLOPE (7: 81.9 degrees, N.L 0.141; a plane at N.L 0.15 stays exact,
+// tests/test_shadow_pcf.py). shadow_graze (below) is set from the slope. T: the map uv that a
 // unit step (scene units) along the tangent-plane axes t1, t2 moves (columns), for the penumbra
 // width below. False for a light without a shadow map (uLightRadiance.w) or a point outside its map.
 const float MAX_RECEIVER_SLOPE = 7.0;
+// How grazing the last shadow_receiver's receiver is: 0 up to half the slope clamp (N.L >= 0.27),
+// rising to 1 at the clamp (N.L <= 0.14); shadow_pcf_at reads it (pcf_grid), right after the solve.
+// At a grazing receiver the PCF taps on the light's side compare against the receiver plane many
+// texels of depth nearer the light (slope x reach: up to ~25 texels at 10 with the 2 |dz| footprint
+// bias, ~45 texels in all), so an occluder that close in front goes unseen: in a concave fold under a
+// cast shadow (the side scene's concha under the antihelix, the ear seen 3x closer, shadow tile
+// 2048) the points at N.L 0-0.1 read a mean lit fraction 0.63 where a ray cast finds the antihelix
+// (tests/test_shadow_leaks.py), a lit line along the terminator inside the shadow (preintegrated's
+// "doubled edge": its wrap lights N.L ~ 0). A lower clamp alone trades that for self-shadowing of
+// convex grazing receivers (the head's side terminator: the light's-side taps see the surface
+// itself). Both come from the light's-side taps, so a grazing receiver's filter drops them: the
+// taps on the far side of the receiver plane (dot(dz, delta) >= 0) still see an occluder in front
+// and never the receiver's own surface. The penumbra of a grazing receiver is then the half disc's
+// (narrower, shifted away from the light by ~half the radius), where N.L < 0.27 scales the light.
+// benchmarks/RESULTS.md round 19 (sizes19): fold 0.63 -> 0.17; front-key at 768 px 20 pixels
+// darker by > 10 levels (clamp 7 with a 1.42 |dz| footprint: 282).
+float shadow_graze = 0.0;
 bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat2 T) {
     mat3 J;
     c = vec3(0.0);
     dz = vec2(0.0);
     T = mat2(0.0);
+    shadow_graze = 0.0;
     if (uLightRadiance[i].w < 0.5) return false;  // the light casts no shadow: no map to read
     if (!shadow_coords_jacobian(i, P, c, J)) return false;
     vec3 t1 = normalize(cross(N, abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
@@ -93,6 +103,7 @@ bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat2 T)
     if (abs(det) * h * h < 1e-12) return true;  // the light grazes the plane: no usable gradient
     dz = inverse(M) * vec2(d1.z, d2.z);  // M dz = (d1.z, d2.z): rounds 1-4 solved with transpose(M), a wrong gradient wherever M is not symmetric
     float g = length(dz);
+    shadow_graze = clamp(2.0 * g / gmax - 1.0, 0.0, 1.0);
     if (g > gmax) dz *= gmax / g;
     return true;
 }
@@ -168,7 +179,8 @@ float pcf_grid(int i, vec2 c, float z, vec2 dz, float a, bool box, float stride,
     for (int ky = 0; ky < n; ++ky) {
         for (int kx = 0; kx < n; ++kx) {
             vec2 delta = vec2(pos[kx].x, pos[ky].y);
-            float wk = w[kx].x * w[ky].y;
+            // a grazing receiver's light-side taps weigh less (shadow_graze, shadow_receiver above)
+            float wk = w[kx].x * w[ky].y * (dot(dz, delta) < 0.0 ? 1.0 - shadow_graze : 1.0);
             float s = shadow_tap(i, c + delta, z + dot(dz, delta));
             sum += wk * s;
             wsum += wk;
@@ -191,13 +203,10 @@ float pcf_grid(int i, vec2 c, float z, vec2 dz, float a, bool box, float stride,
 // so s ramps across 1 / |g| of uv along g; the receiver's tangent plane (T of shadow_receiver)
 // maps that uv step back to the surface. width_mm = 1e30 where the taps agree (no ramp).
 // c, dz, T: shadow_receiver's, for a light that casts shadows and a receiver inside its map.
+// shadow_graze: shadow_receiver's for this receiver (every caller solves it just before).
 float shadow_pcf_at(int i, vec3 c, vec2 dz, mat2 T, bool want_width, out float width_mm) {
     width_mm = 1e30;
-    // the bilinear 2x2 footprint of each tap: its four texel centres lie within one texel of the tap
-    // on each axis, where the receiver plane is at most (|dz.x| + |dz.y|) texels nearer (exact for a
-    // plane; curvature is the constant bias's, uShadowParams.y). Rounds 5-18 took 2 |dz| (up to 2.0 / 1.41
-    // of it): at a grazing receiver that is mm of depth (the concha leak above)
-    float z = c.z - (abs(dz.x) + abs(dz.y)) * uShadowParams[i].w;
+    float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint of each tap, and curvature
     float R = PCF_DISC_SCALE * uShadowParams[i].x;  // the disc's radius, texels
     if (R <= 0.0) return shadow_tap(i, c.xy, z);
     // per light (uniform): the half-widths (texels) of the same variance; the parabola where the
