@@ -284,6 +284,8 @@ class Viewer:
         from dermis.adaptive_resolution import adaptive_sizes
 
         irr, shadow = adaptive_sizes(self.scene, fb or self.framebuffer_size(), camera=self.orbit.camera())
+        # a zoom must not ask for an atlas over the GPU's texture limit (an error mid-session)
+        shadow = min(shadow, self.renderer.shadows.max_tile_size(len(self.scene.lights)))
         changed = False
         if self.auto_sizes[0] and irr != self.renderer.irradiance_size:
             self.params.irradiance_size = int(irr)
