@@ -66,8 +66,8 @@ const float MAX_RECEIVER_SLOPE = 7.0;
 // How grazing the last shadow_receiver's receiver is: 0 up to half the slope clamp (N.L >= 0.27),
 // rising to 1 at the clamp (N.L <= 0.14); shadow_pcf_at reads it (pcf_grid), right after the solve.
 // At a grazing receiver the PCF taps on the light's side compare against the receiver plane many
-// texels of depth nearer the light (slope x reach: up to ~25 texels at 10 with the 2 |dz| footprint
-// bias, ~45 texels in all), so an occluder that close in front goes unseen: in a concave fold under a
+// texels of depth nearer the light (slope x (tap reach ~2.5 + the 2 |dz| footprint) texels: ~45 at the
+// former clamp of 10), so an occluder that close in front goes unseen: in a concave fold under a
 // cast shadow (the side scene's concha under the antihelix, the ear seen 3x closer, shadow tile
 // 2048) the points at N.L 0-0.1 read a mean lit fraction 0.63 where a ray cast finds the antihelix
 // (tests/test_shadow_leaks.py), a lit line along the terminator inside the shadow (preintegrated's
@@ -78,7 +78,7 @@ const float MAX_RECEIVER_SLOPE = 7.0;
 // and never the receiver's own surface. The penumbra of a grazing receiver is then the half disc's
 // (narrower, shifted away from the light by ~half the radius), where N.L < 0.27 scales the light.
 // benchmarks/RESULTS.md round 19 (sizes19): fold 0.63 -> 0.17; front-key at 768 px 20 pixels
-// darker by > 10 levels (clamp 7 with a 1.42 |dz| footprint: 282).
+// darker by > 10 levels (clamp 7 with a |dz.x| + |dz.y| footprint instead: 282).
 float shadow_graze = 0.0;
 bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat2 T) {
     mat3 J;
