@@ -266,7 +266,8 @@ float shadow_box_curved(int i, vec3 P, vec3 N, float half_mm, float curvature_pe
     mat3 J;
     shadow_coords_jacobian(i, P, cj, J);
     vec3 jn = J * N;
-    float rise_per_mm2 = 0.5 * curvature_per_mm * abs(jn.z - dot(dz, jn.xy)) / uMmPerUnit;  // map depth per mm^2 of r^2
+    float depth_per_mm = abs(jn.z - dot(dz, jn.xy)) / uMmPerUnit;  // map depth of a step along N off the plane
+    float rise_per_mm2 = 0.5 * curvature_per_mm * depth_per_mm;  // map depth per mm^2 of r^2
     vec2 e1 = T[0] * (half_mm / uMmPerUnit), e2 = T[1] * (half_mm / uMmPerUnit);  // map uv of the square's half-axes
     float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint, as shadow_pcf_at
     float r2 = rise_per_mm2 * half_mm * half_mm;  // map depth of the rise at |f| = 1

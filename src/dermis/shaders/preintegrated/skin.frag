@@ -99,10 +99,15 @@ float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
 // closed eye's slit (~2.5-3.5 mm along the surface, the lid 0.7-2.4 mm above it), went black where
 // the light scatters red into it (Cycles, tsd, ssss). For such channels the shadow is box-filtered
 // over the PCF width plus the scattering width on P's tangent plane (common/shadow.glsl,
-// shadow_box_curved: the receiver's own curvature lifted out) and read through the table's row of
-// that width, blended in by a_c = (scattering - pcf) / pcf in [0, 1] (none where the PCF already
-// holds the scattering, all where it is at most half of it). Probed first: the box's corners and the
-// PCF value agree (all lit or all shadowed) over most of a frame, and then so does the box.
+// shadow_box_curved: the receiver's own curvature lifted out) and read through the second table's
+// row of that width (penumbra_lookup(..., true): the edge sharpened by the whole scattering width,
+// which leaves the PCF's own edge), blended in by a_c = (scattering - pcf) / pcf in [0, 1] (none
+// where the PCF already holds the scattering, all where it is at most half of it). Probed first: the
+// box's corners and the PCF value agree (all lit or all shadowed) over most of a frame, and then so
+// does the box. Limits: the table reads a shadow narrower than the box as one edge (a 2.5 mm strip's
+// centre gets 0.46 of the closed form's red, tests/test_preintegrated.py), the scattered tail beyond
+// half the box is cut (the table's rescale), and the box lies on the tangent plane, not the surface.
+const float LIFT_MAX_TURN = 0.5;  // radians: the most the receiver's normal turns across the square for the lift
 vec3 wide_penumbra_blend(int i, vec3 P) {
     float pcf_mm = pcf_width_mm(i, P);
     return clamp((uScatteringWidthMm - pcf_mm) / pcf_mm, 0.0, 1.0);
@@ -268,8 +273,12 @@ vec3 preintegrated_light(int i, vec3 Ngeo, vec3 N, vec3 N_red, vec3 N_green, vec
             float W = wide_penumbra_width_mm(i, v_world);
             // 2 x the mesh's curvature: the mean |normal curvature| over a vertex's edges is at least half
             // the larger principal curvature on well-shaped triangles (a cylinder's: half, over edges 60
-            // degrees apart), and the lift must hold the surface's steepest rise
-            float s_wide = shadow_box_curved(i, v_world, Ngeo, 0.5 * W, 2.0 * curvature, s);
+            // degrees apart), and the lift must hold the surface's steepest rise. At most LIFT_MAX_TURN /
+            // half-width: a surface whose normal turns further across the square is a fold, whose walls do
+            // shadow each other (the slit); the quadric's lift there (up to 1.9 mm at the chin's crease, the
+            // vertex curvature 0.66-1.1 / mm) ignored real occluders: a red speck in the side view's black
+            // shadow under the chin, (228, 654) at 768 px, 8-bit red 2 -> 32
+            float s_wide = shadow_box_curved(i, v_world, Ngeo, 0.5 * W, min(2.0 * curvature, LIFT_MAX_TURN / (0.5 * W)), s);
             vec3 S_wide = s_wide > 0.0 && s_wide < 1.0 ? penumbra_lookup(s_wide, W, true) : vec3(s_wide);
             S = mix(S, S_wide, a);
         }
