@@ -25,6 +25,13 @@ from three local quantities looked up in tables computed at start-up from the ac
   the edge, sharpened by the width the scattering adds (at most to PENUMBRA_SHARPEN_MIN w),
   convolved with the profile across it (its 1-D marginal: the same Gaussians in 1-D) and rescaled
   to [0, 1] over the penumbra, per channel: red reaches further into the shadow than green and blue.
+  Rescaled to [0, 1], the table moves light only within the penumbra it is given; a channel whose
+  scattering widens an edge by more than the PCF's penumbra (d'Eon's red, 2.35 mm, against ~1.2 mm
+  on the head at the shadow tile 2048) also reads a wide penumbra: the shadow box-filtered over the
+  PCF's width plus the scattering's on the tangent plane, through a second table of the same rows
+  sharpened by the whole scattering width (:func:`penumbra_tables`), blended in by
+  (scattering - PCF) / PCF. Without it a cast shadow narrower than red's reach, the upper lid's on
+  the closed eye's slit, was black where Cycles is dark red (benchmarks/RESULTS.md, round 19, eyes19).
 * surface detail: each channel's normal is the normal map filtered by that channel's profile,
   sum_k w_k (the map at the mip level whose box has Gaussian k's standard deviation, never finer
   than the pixel's own footprint): Penner's "blurred normals", red the blurriest. One level at the
@@ -64,6 +71,9 @@ crease's green and blue, narrower, stay dark: its light is red), the
 ring model assumes one curvature at a scale of the profile's width (mesh curvature finer than
 that is meaningless, a coarse mesh blurs it), the penumbra width from derivatives is noisy on
 2x2 pixel quads (bounded by the projected filter size), and the table sharpens narrow penumbras.
+The wide penumbra reads a shadow narrower than its box as one edge (a 2.5 mm strip's centre gets
+0.46 of the closed form's red), cuts the scattered tail beyond half its box, and lies on the
+tangent plane: the receiver's own concave rise is lifted out only up to a 0.5 rad turn of its normal.
 Shaders: shaders/preintegrated/skin.frag.
 """
 
