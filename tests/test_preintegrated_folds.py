@@ -96,11 +96,12 @@ def _pixel_points(rows):
 
 def test_fold_bottom_receives_the_light_scattered_across_it(gl_ctx):
     """At the bottom of the groove (|y| <= 0.5 mm, 6 pixel rows) the surface integral gives red
-    radiance 0.104 (albedo 0.8 x 0.13 of the light) and green 0.005; main's preintegrated gave 0
-    (every point there is either the far wall, D = 0, or the near wall in the shadow, s = 0). With
-    the fold gather red is within 30% of it (measured 22% low: Gaussians narrower than two shadow
-    texels and the light through the tissue behind the point are left to Penner's tables), and no
-    channel exceeds the reference by more than 0.02."""
+    radiance 0.104 (albedo 0.8 x 0.13 of the light) and green 0.005; preintegrated without the gather
+    gave 0 until round 18 (every point there is either the far wall, D = 0, or the near wall in the
+    shadow, s = 0); since round 19 the wide penumbra (skin.frag) brings red 0.023 (22%) from the
+    near wall's lit part past the PCF's reach. With the fold gather red is within 30% of it (measured
+    22% low: Gaussians narrower than two shadow texels and the light through the tissue behind the
+    point are left to Penner's tables), and no channel exceeds the reference by more than 0.02."""
     sc = groove_scene()
     rows = [r for r, (y, _) in zip(range(SIZE), _pixel_points(range(SIZE))) if abs(y) <= 0.5]
     assert len(rows) == 6, rows
@@ -113,7 +114,8 @@ def test_fold_bottom_receives_the_light_scattered_across_it(gl_ctx):
         r.technique("preintegrated", fold_scattering=True)
         after = r.render("preintegrated", output_mode=1)[rows, cols].reshape(-1, 3).mean(axis=0)
     print(f"reference {expected}, before {before}, after {after}")
-    assert before[0] < 0.05 * expected[0], before  # main's: black
+    assert before[0] < 0.3 * expected[0], before  # the tables alone: at most the wide penumbra's red
+    assert np.all(before <= expected + 0.02), (before, expected)
     assert abs(after[0] / expected[0] - 1.0) < 0.30, (after, expected)
     assert np.all(after <= expected + 0.02), (after, expected)
 

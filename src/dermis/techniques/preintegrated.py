@@ -25,6 +25,13 @@ from three local quantities looked up in tables computed at start-up from the ac
   the edge, sharpened by the width the scattering adds (at most to PENUMBRA_SHARPEN_MIN w),
   convolved with the profile across it (its 1-D marginal: the same Gaussians in 1-D) and rescaled
   to [0, 1] over the penumbra, per channel: red reaches further into the shadow than green and blue.
+  Rescaled to [0, 1], the table moves light only within the penumbra it is given; a channel whose
+  scattering widens an edge by more than the PCF's penumbra (d'Eon's red, 2.35 mm, against ~1.2 mm
+  on the head at the shadow tile 2048) also reads a wide penumbra: the shadow box-filtered over the
+  PCF's width plus the scattering's on the tangent plane, through a second table of the same rows
+  sharpened by the whole scattering width (:func:`penumbra_tables`), blended in by
+  (scattering - PCF) / PCF. Without it a cast shadow narrower than red's reach, the upper lid's on
+  the closed eye's slit, was black where Cycles is dark red (benchmarks/RESULTS.md, round 19, eyes19).
 * surface detail: each channel's normal is the normal map filtered by that channel's profile,
   sum_k w_k (the map at the mip level whose box has Gaussian k's standard deviation, never finer
   than the pixel's own footprint): Penner's "blurred normals", red the blurriest. One level at the
@@ -64,6 +71,9 @@ crease's green and blue, narrower, stay dark: its light is red), the
 ring model assumes one curvature at a scale of the profile's width (mesh curvature finer than
 that is meaningless, a coarse mesh blurs it), the penumbra width from derivatives is noisy on
 2x2 pixel quads (bounded by the projected filter size), and the table sharpens narrow penumbras.
+The wide penumbra reads a shadow narrower than its box as one edge (a 2.5 mm strip's centre gets
+0.46 of the closed form's red), cuts the scattered tail beyond half its box, and lies on the
+tangent plane: the receiver's own concave rise is lifted out only up to a 0.5 rad turn of its normal.
 Shaders: shaders/preintegrated/skin.frag.
 """
 
@@ -213,22 +223,28 @@ def _ramp_convolved(x, width, variance):
     return (F(x + width / 2) - F(x - width / 2)) / width
 
 
-def scattering_width_mm(profile) -> float:
-    """How much the profile widens a sharp shadow edge: twice the rms radius along one axis of
-    its widest channel, 2 sqrt(max_c sum_k w_kc v_k) (2.35 mm for d'Eon's red)."""
+def channel_scattering_widths_mm(profile) -> np.ndarray:
+    """How much each channel's profile widens a sharp shadow edge: twice its rms radius along one
+    axis, 2 sqrt(sum_k w_kc v_k), (3,) mm (d'Eon's skin: red 2.35, green 0.52, blue 0.31)."""
     prof = profile.normalized()
-    return float(2.0 * np.sqrt(np.max(prof.weights.T @ prof.variances_mm2)))
+    return 2.0 * np.sqrt(prof.weights.T @ prof.variances_mm2)
 
 
-def sharp_edge_width_mm(profile, width_mm):
+def scattering_width_mm(profile) -> float:
+    """How much the profile widens a sharp shadow edge: that of its widest channel (2.35 mm for d'Eon's red)."""
+    return float(np.max(channel_scattering_widths_mm(profile)))
+
+
+def sharp_edge_width_mm(profile, width_mm, sharpen_min: float = PENUMBRA_SHARPEN_MIN):
     """The light's own edge under a PCF penumbra of width w: what is left once the scattering's
     widening is taken out (Penner's "sharpening"), w - scattering width, but at least
-    PENUMBRA_SHARPEN_MIN w: wide penumbras keep their width, narrow ones are sharpened."""
+    ``sharpen_min`` w (PENUMBRA_SHARPEN_MIN: wide penumbras keep their width, narrow ones are
+    sharpened; 0 for the wide penumbra, whose width is the PCF's plus the scattering's by construction)."""
     w = np.asarray(width_mm, np.float64)
-    return np.maximum(w - scattering_width_mm(profile), PENUMBRA_SHARPEN_MIN * w)
+    return np.maximum(w - scattering_width_mm(profile), sharpen_min * w)
 
 
-def scattered_shadow(profile, shadow, width_mm) -> np.ndarray:
+def scattered_shadow(profile, shadow, width_mm, sharpen_min: float = PENUMBRA_SHARPEN_MIN) -> np.ndarray:
     """Penner's penumbra scattering for one penumbra width, per channel: (len(shadow), 3).
 
     The soft shadow s sits at x = (s - 1/2) w across a penumbra of width w (mm). The light's own
@@ -240,7 +256,7 @@ def scattered_shadow(profile, shadow, width_mm) -> np.ndarray:
     summed across the penumbra is that of the PCF ramp: the table moves light, red furthest."""
     prof = profile.normalized()
     s = np.asarray(shadow, np.float64)
-    edge = float(sharp_edge_width_mm(profile, width_mm))
+    edge = float(sharp_edge_width_mm(profile, width_mm, sharpen_min))
     xs = np.concatenate([(s - 0.5) * width_mm, [-0.5 * width_mm, 0.5 * width_mm]])
     out = np.zeros((len(xs), 3))
     for v, w in zip(prof.variances_mm2, prof.weights):
@@ -249,14 +265,21 @@ def scattered_shadow(profile, shadow, width_mm) -> np.ndarray:
     return np.clip((out[:-2] - lo) / np.maximum(hi - lo, 1e-12), 0.0, 1.0)
 
 
-def penumbra_table(profile, size=PENUMBRA_TABLE_SIZE) -> np.ndarray:
+def penumbra_table(profile, size=PENUMBRA_TABLE_SIZE, sharpen_min: float = PENUMBRA_SHARPEN_MIN) -> np.ndarray:
     """(rows = penumbra width, cols = shadow value, 3) float32 table of the scattered shadow."""
-    key = _profile_key(profile, "penumbra", tuple(size), PENUMBRA_SHARPEN_MIN)
+    key = _profile_key(profile, "penumbra", tuple(size), sharpen_min)
     if key not in _TABLE_CACHE:
         s = shadow_axis(size[0])
-        rows = [scattered_shadow(profile, s, w) for w in penumbra_width_axis(size[1])]
+        rows = [scattered_shadow(profile, s, w, sharpen_min) for w in penumbra_width_axis(size[1])]
         _TABLE_CACHE[key] = np.stack(rows).astype(np.float32)
     return _TABLE_CACHE[key]
+
+
+def penumbra_tables(profile, size=PENUMBRA_TABLE_SIZE) -> np.ndarray:
+    """The texture skin.frag reads: penumbra_table's rows, then the wide penumbra's (the same widths,
+    the edge sharpened by the whole scattering width, sharpen_min 0: skin.frag's wide penumbra is the
+    PCF's width plus the scattering's, so what is left is the PCF's own edge), (2 x rows, cols, 3)."""
+    return np.concatenate([penumbra_table(profile, size), penumbra_table(profile, size, 0.0)], 0)
 
 
 # ---------------------------------------------------------------------- curvature (numpy)
@@ -361,7 +384,7 @@ class PreintegratedSkin(Technique):
             for t in self.profile_tables.values():
                 t.release()
             self.profile_tables = {"diffuse": _table_texture(self.ctx, diffuse_table(profile)),
-                                   "penumbra": _table_texture(self.ctx, penumbra_table(profile))}
+                                   "penumbra": _table_texture(self.ctx, penumbra_tables(profile))}
         self._profile_key = key
         frame.passes_run.append("preintegrated_tables")
 
@@ -450,6 +473,7 @@ class PreintegratedSkin(Technique):
                                   frame.scene)
             set_uniform(prog, "uCurvatureMaxPerMm", float(CURVATURE_MAX_PER_MM))
             set_uniform(prog, "uPenumbraWidthRangeMm", tuple(float(x) for x in PENUMBRA_WIDTH_RANGE_MM))
+            set_uniform(prog, "uScatteringWidthMm", tuple(float(x) for x in channel_scattering_widths_mm(profile)))
             set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.options.curvature_source == "mesh" else 0.0)
             set_uniform(prog, "uBlurredNormals", 1.0 if self.options.blurred_normals else 0.0)
             set_uniform(prog, "uPenumbraScattering", 1.0 if self.options.penumbra_scattering else 0.0)

@@ -282,23 +282,56 @@ float shadow_soft_penumbra(int i, vec3 P, vec3 N, out float width_mm) {
 // 1 where the light casts no shadow.
 const int SHADOW_BOX_GRID = 6;
 const vec2 SHADOW_BOX_TURN = vec2(6.0, 1.0) / 6.0827625;  // (cos, sin) of atan(1/6); 6.0827625 = sqrt(37)
-float shadow_box(int i, vec3 P, vec3 N, float half_mm) {
+//
+// shadow_box_curved: the same over a receiver that is not a plane: each tap compares against the
+// tangent plane lifted along N by the rise kappa r^2 / 2 (mm) that a concave quadric of curvature
+// kappa (1/mm, unsigned: the larger lift of the two signs) has at the tap's distance r from P, in
+// map depth h ((J N).z - dz . (J N).xy) (N moves the uv as well as the depth). Without it a box
+// millimetres wide on a concave surface (an eye socket, the nose's side) compares against a plane the
+// surface itself rises above and calls its own surface an occluder. kappa = 0 is shadow_box.
+// probe in [0, 1]: a shadow value at P known to the caller (its PCF); where the square's four corner
+// taps and it are all 1 (all 0) the box returns 1 (0) without the other 32 taps. A shadow that
+// touches neither the corners nor the PCF's disc is then missed (a speck narrower than the gaps,
+// ~0.2 of the square's side). probe < 0: no probe.
+float shadow_box_curved(int i, vec3 P, vec3 N, float half_mm, float curvature_per_mm, float probe) {
     vec3 c;
     vec2 dz;
     mat2 T;
     if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
+    vec3 cj;
+    mat3 J;
+    shadow_coords_jacobian(i, P, cj, J);
+    vec3 jn = J * N;
+    float depth_per_mm = abs(jn.z - dot(dz, jn.xy)) / uMmPerUnit;  // map depth of a step along N off the plane
+    float rise_per_mm2 = 0.5 * curvature_per_mm * depth_per_mm;  // map depth per mm^2 of r^2
     vec2 e1 = T[0] * (half_mm / uMmPerUnit), e2 = T[1] * (half_mm / uMmPerUnit);  // map uv of the square's half-axes
     float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint, as shadow_pcf_at
+    float r2 = rise_per_mm2 * half_mm * half_mm;  // map depth of the rise at |f| = 1
+    if (probe == 0.0 || probe == 1.0) {
+        float g = 1.0 - 1.0 / float(SHADOW_BOX_GRID);  // the outermost taps' cell midpoints
+        float corners = 0.0;
+        for (int k = 0; k < 4; ++k) {
+            vec2 gk = vec2((k & 1) == 0 ? -g : g, k < 2 ? -g : g);
+            vec2 f = vec2(SHADOW_BOX_TURN.x * gk.x - SHADOW_BOX_TURN.y * gk.y, SHADOW_BOX_TURN.y * gk.x + SHADOW_BOX_TURN.x * gk.y);
+            vec2 delta = f.x * e1 + f.y * e2;
+            corners += shadow_tap(i, c.xy + delta, z + dot(dz, delta) - r2 * dot(f, f));
+        }
+        if (corners == 4.0 * probe) return probe;
+    }
     float sum = 0.0;
     for (int ky = 0; ky < SHADOW_BOX_GRID; ++ky) {
         for (int kx = 0; kx < SHADOW_BOX_GRID; ++kx) {
             vec2 g = (vec2(kx, ky) + 0.5) * (2.0 / float(SHADOW_BOX_GRID)) - 1.0;
             vec2 f = vec2(SHADOW_BOX_TURN.x * g.x - SHADOW_BOX_TURN.y * g.y, SHADOW_BOX_TURN.y * g.x + SHADOW_BOX_TURN.x * g.y);
             vec2 delta = f.x * e1 + f.y * e2;
-            sum += shadow_tap(i, c.xy + delta, z + dot(dz, delta));
+            sum += shadow_tap(i, c.xy + delta, z + dot(dz, delta) - r2 * dot(f, f));
         }
     }
     return sum / float(SHADOW_BOX_GRID * SHADOW_BOX_GRID);
+}
+
+float shadow_box(int i, vec3 P, vec3 N, float half_mm) {
+    return shadow_box_curved(i, P, N, half_mm, 0.0, -1.0);
 }
 
 // The soft shadow (shadow_soft) and the sharp one (shadow_sharp) of light i from ONE receiver

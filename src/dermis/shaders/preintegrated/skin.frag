@@ -31,6 +31,7 @@ uniform sampler2D uPenumbraTable;  // P(shadow, width): s = shadow in [0, 1], t 
 uniform sampler2D uNormalMapLod;   // uNormalMap through a sampler without anisotropy (the blurred normals' explicit levels)
 uniform float uCurvatureMaxPerMm;
 uniform vec2 uPenumbraWidthRangeMm;
+uniform vec3 uScatteringWidthMm;    // per channel, how much the profile widens a sharp edge: 2 x its rms radius along an axis (mm)
 uniform float uCurvatureFromMesh;   // 1: the mesh's per-vertex curvature, 0: screen derivatives
 uniform float uBlurredNormals;      // 1: per-channel blurred normals, 0: the detailed normal
 uniform float uPenumbraScattering;  // 1: scatter the penumbra through its table, 0: plain PCF
@@ -55,9 +56,16 @@ vec3 diffuse_lookup(vec3 ndl, float curvature) {
                 textureLod(uDiffuseTable, table_coord(uDiffuseTable, vec2(ndl.b * 0.5 + 0.5, t)), 0.0).b);
 }
 
-vec3 penumbra_lookup(float shadow, float width_mm) {
+// The penumbra texture holds two tables of the same rows (dermis.techniques.preintegrated.penumbra_tables):
+// wide = false, Penner's (the PCF's penumbra, sharpened by at most half); true, the wide penumbra's
+// (sharpened by the whole scattering width). Texel centres of the chosen half only.
+vec3 penumbra_lookup(float shadow, float width_mm, bool wide) {
     float t = log(max(width_mm, 1e-6) / uPenumbraWidthRangeMm.x) / log(uPenumbraWidthRangeMm.y / uPenumbraWidthRangeMm.x);
-    return textureLod(uPenumbraTable, table_coord(uPenumbraTable, vec2(shadow, t)), 0.0).rgb;
+    vec2 size = vec2(textureSize(uPenumbraTable, 0));
+    float rows = 0.5 * size.y;
+    vec2 f = vec2(clamp(shadow, 0.0, 1.0) * (size.x - 1.0) + 0.5,
+                  (wide ? rows : 0.0) + clamp(t, 0.0, 1.0) * (rows - 1.0) + 0.5) / size;
+    return textureLod(uPenumbraTable, f, 0.0).rgb;
 }
 
 // Width (mm) of light i's penumbra on the surface at P: measured from the PCF taps' own gradient
@@ -73,9 +81,40 @@ float shadow_texel_world(int i, vec3 P) {
     return uShadowParams[i].w * 2.0 * abs(w) / max(row0, 1e-12);
 }
 
+float pcf_width_mm(int i, vec3 P) {
+    return 2.0 * (uShadowParams[i].x + 1.0) * shadow_texel_world(i, P) * uMmPerUnit;
+}
+
 float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
-    float pcf_mm = 2.0 * (uShadowParams[i].x + 1.0) * shadow_texel_world(i, P) * uMmPerUnit;
+    float pcf_mm = pcf_width_mm(i, P);
     return clamp(measured_mm, pcf_mm, pcf_mm / max(ndl_geometric, 0.2));
+}
+
+// Penner's penumbra table moves light only within the penumbra it is given: its entries are 0 at
+// s = 0 and 1 at s = 1 (dermis.techniques.preintegrated.scattered_shadow), so it presumes a soft
+// shadow at least as wide as the scattering (the table's "sharpening" takes the scattering's width
+// back out of the penumbra). A channel whose profile widens an edge by more than the PCF filter is
+// wide (d'Eon's red: 2.35 mm against ~1.2 mm at the shadow tile 2048 on the head) loses its light
+// beyond the filter's reach: a cast shadow narrower than the scattering, the upper lid's on the
+// closed eye's slit (~2.5-3.5 mm along the surface, the lid 0.7-2.4 mm above it), went black where
+// the light scatters red into it (Cycles, tsd, ssss). For such channels the shadow is box-filtered
+// over the PCF width plus the scattering width on P's tangent plane (common/shadow.glsl,
+// shadow_box_curved: the receiver's own curvature lifted out) and read through the second table's
+// row of that width (penumbra_lookup(..., true): the edge sharpened by the whole scattering width,
+// which leaves the PCF's own edge), blended in by a_c = (scattering - pcf) / pcf in [0, 1] (none
+// where the PCF already holds the scattering, all where it is at most half of it). Probed first: the
+// box's corners and the PCF value agree (all lit or all shadowed) over most of a frame, and then so
+// does the box. Limits: the table reads a shadow narrower than the box as one edge (a 2.5 mm strip's
+// centre gets 0.46 of the closed form's red, tests/test_preintegrated.py), the scattered tail beyond
+// half the box is cut (the table's rescale), and the box lies on the tangent plane, not the surface.
+const float LIFT_MAX_TURN = 0.5;  // radians: the most the receiver's normal turns across the square for the lift
+vec3 wide_penumbra_blend(int i, vec3 P) {
+    float pcf_mm = pcf_width_mm(i, P);
+    return clamp((uScatteringWidthMm - pcf_mm) / pcf_mm, 0.0, 1.0);
+}
+
+float wide_penumbra_width_mm(int i, vec3 P) {
+    return pcf_width_mm(i, P) + max(uScatteringWidthMm.r, max(uScatteringWidthMm.g, uScatteringWidthMm.b));
 }
 
 #ifdef PREINTEGRATED_FOLDS
@@ -228,7 +267,21 @@ vec3 preintegrated_light(int i, vec3 Ngeo, vec3 N, vec3 N_red, vec3 N_green, vec
         float s = shadow_soft_penumbra(i, v_world, Ngeo, width_mm);
         vec3 S = vec3(s);
         if (uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0)
-            S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm));
+            S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm), false);
+        vec3 a = uPenumbraScattering > 0.5 ? wide_penumbra_blend(i, v_world) : vec3(0.0);
+        if (max(a.r, max(a.g, a.b)) > 0.0) {
+            float W = wide_penumbra_width_mm(i, v_world);
+            // 2 x the mesh's curvature: the mean |normal curvature| over a vertex's edges is at least half
+            // the larger principal curvature on well-shaped triangles (a cylinder's: half, over edges 60
+            // degrees apart), and the lift must hold the surface's steepest rise. At most LIFT_MAX_TURN /
+            // half-width: a surface whose normal turns further across the square is a fold, whose walls do
+            // shadow each other (the slit); the quadric's lift there (up to 1.9 mm at the chin's crease, the
+            // vertex curvature 0.66-1.1 / mm) ignored real occluders: a red speck in the side view's black
+            // shadow under the chin, (228, 654) at 768 px, 8-bit red 2 -> 32
+            float s_wide = shadow_box_curved(i, v_world, Ngeo, 0.5 * W, min(2.0 * curvature, LIFT_MAX_TURN / (0.5 * W)), s);
+            vec3 S_wide = s_wide > 0.0 && s_wide < 1.0 ? penumbra_lookup(s_wide, W, true) : vec3(s_wide);
+            S = mix(S, S_wide, a);
+        }
         light = D * S;
     }
 #ifdef PREINTEGRATED_FOLDS
