@@ -76,3 +76,17 @@ def test_renderer_uses_the_rule_unless_a_size_is_given(gl_ctx):
         assert r.irradiance_size == want[0] and r.shadows.tile_size == 1024
     assert want != (512, 1024)  # the explicit sizes differ from the rule's, so the checks above can fail
     np.testing.assert_array_less(0, want)
+
+
+def test_largest_shadow_tile_fits_the_gpu_texture_limit(gl_ctx):
+    """The viewer caps a view-chosen shadow tile (ShadowAtlas.max_tile_size): the atlas of n lights
+    at that tile fits GL_MAX_TEXTURE_SIZE, at twice the tile it does not."""
+    from dermis.gl.shadows import ShadowAtlas
+
+    atlas = ShadowAtlas(gl_ctx, 512)
+    limit = int(gl_ctx.info.get("GL_MAX_TEXTURE_SIZE") or 16384)
+    for n in (1, 2, 3, 4, 5, 8):
+        t = atlas.max_tile_size(n)
+        cols = min(atlas.cols, n)
+        rows = math.ceil(n / cols)
+        assert t & (t - 1) == 0 and max(cols, rows) * t <= limit < max(cols, rows) * 2 * t, (n, t, limit)

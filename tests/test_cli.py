@@ -208,3 +208,29 @@ def test_cli_info_prints_the_renderer(gl_ctx):
     assert data["renderer"] == renderer
     assert data["version_code"] >= 450
     assert "lambert" in data["techniques"]
+
+
+def test_cli_texture_sizes_auto_follow_the_view_and_a_number_wins(tmp_path, gl_ctx):
+    """--irradiance-size / --shadow-size auto: the sizes dermis.adaptive_resolution picks for the
+    view (a close-up: more than the defaults 1024 / 2048); a number given wins; neither given: the
+    defaults (the reference scenes and validate keep their fixed sizes)."""
+    import dermis
+    from dermis.adaptive_resolution import adaptive_sizes
+
+    close = SPHERE_TOML + "\n[camera]\nposition = [0.0, 0.0, 3.0]\ntarget = [0.0, 0.0, 0.0]\nfov_deg = 1.0\n"
+    (tmp_path / "close.toml").write_text(close)
+    want = adaptive_sizes(dermis.load_scene(tmp_path / "close.toml"), (64, 48))
+    assert want[0] > 1024 and want[1] > 2048, want  # the close-up's sizes differ from the defaults
+
+    def sizes(*flags):
+        res = run_cli(["render", "close.toml", "-t", "lambert", "--size", "64x48", "--samples", "0",
+                       "--out", "r.png", "--stats", "s.json", *flags], cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+        stats = json.loads((tmp_path / "s.json").read_text())
+        return stats["irradiance_size"], stats["shadow_size"]
+
+    assert sizes("--irradiance-size", "auto", "--shadow-size", "AUTO") == want
+    assert sizes("--irradiance-size", "512", "--shadow-size", "auto") == (512, want[1])
+    assert sizes() == (1024, 2048)
+    res = run_cli(["render", "close.toml", "--irradiance-size", "big", "--out", "r.png"], cwd=tmp_path)
+    assert res.returncode == 2 and res.stderr.strip() == "dermis: error: --irradiance-size: expected an integer or 'auto', got 'big'"

@@ -94,8 +94,9 @@ def xvfb_display():
             proc.kill()
 
 
-def run_viewer(display, scene_path, script: dict, tmp_path, *extra, timeout=240):
-    """Run ``dermis view`` under ``display`` with a script; returns (completed process, report)."""
+def run_viewer(display, scene_path, script: dict, tmp_path, *extra, timeout=240, sizes=True):
+    """Run ``dermis view`` under ``display`` with a script; returns (completed process, report).
+    ``sizes``: give the irradiance and shadow sizes (else the viewer chooses them from the view)."""
     script = dict(script)
     script.setdefault("report", "report.json")
     sp = tmp_path / "script.json"
@@ -103,7 +104,9 @@ def run_viewer(display, scene_path, script: dict, tmp_path, *extra, timeout=240)
     env = dict(os.environ, DISPLAY=display, DERMIS_CACHE_DIR=str(tmp_path / "profile-cache"))
     env.pop("WAYLAND_DISPLAY", None)
     cmd = [sys.executable, "-m", "dermis.cli", "view", str(scene_path), "--size", f"{WINDOW[0]}x{WINDOW[1]}",
-           "--irradiance-size", str(IRRADIANCE), "--script", str(sp), *extra]
+           "--script", str(sp), *extra]
+    if sizes:  # the shadow size of _offline's Renderer (its default)
+        cmd += ["--irradiance-size", str(IRRADIANCE), "--shadow-size", "2048"]
     res = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
     assert res.returncode == 0, res.stderr[-3000:]
     report = json.loads((tmp_path / script["report"]).read_text())
@@ -278,13 +281,13 @@ def test_bad_script_is_a_user_error(tmp_path, box_toml):
 
 
 # ------------------------------------------------------------------ the real window under Xvfb
-def _offline(scene_path, technique, camera):
+def _offline(scene_path, technique, camera, irradiance_size=IRRADIANCE, shadow_size=2048):
     """The same frame rendered headless (EGL) with the Python API."""
     import dermis
     from dermis.renderer import Renderer
 
     scene = dermis.load_scene(scene_path)
-    with Renderer(scene, WINDOW, irradiance_size=IRRADIANCE) as r:
+    with Renderer(scene, WINDOW, irradiance_size=irradiance_size, shadow_size=shadow_size) as r:
         return r.render(technique, camera=camera), scene
 
 
@@ -412,3 +415,33 @@ def test_progressive_frames_while_dragging_then_the_full_frame(xvfb_display, sph
     expected, sc = _offline(sphere_toml, "tsd", oc.camera())
     want = output_transform(expected, sc.output.exposure, sc.output.tonemap)
     assert np.abs(_read_png(tmp_path / "refined.png") - want).mean() < 2.0 / 255
+
+
+def test_sizes_left_to_the_viewer_follow_the_zoom_at_the_refine(xvfb_display, sphere_toml, tmp_path):
+    """Without --irradiance-size / --shadow-size the viewer re-chooses both from the view
+    (adaptive_sizes of the orbit camera and window) at the full-quality frame after a zoom, not in
+    the reduced frames of the zoom; the refined frame is the headless render at those sizes; a size
+    the user then picks in the panel stays while the other keeps following the view."""
+    import dermis
+    from dermis.adaptive_resolution import adaptive_sizes
+    from dermis.output import output_transform
+    from dermis.viewer.camera_controls import OrbitCamera
+
+    script = {"actions": [{"frame": 1, "zoom": 7}, {"frame": 2, "screenshot": "zoomed.png"},
+                          {"frame": 3, "set": {"irradiance_size": 256}, "zoom": -7}, {"frame": 5, "zoom": 7}],
+              "quit_after": 7}
+    res, report = run_viewer(xvfb_display, sphere_toml, script, tmp_path, sizes=False)
+    assert report["quality"] == ["full", "interactive", "full", "interactive", "full", "interactive", "full"], report
+    scene = dermis.load_scene(sphere_toml)
+    oc = OrbitCamera.from_camera(scene.camera, float(np.linalg.norm(np.subtract(*scene.bounds()[::-1])) / 2))
+    start = adaptive_sizes(scene, WINDOW, camera=oc.camera())
+    oc.zoom(7)
+    near = adaptive_sizes(scene, WINDOW, camera=oc.camera())
+    assert near[0] > start[0] and near[1] > start[1], (start, near)  # the zoom changes both: the test can fail
+    sizes = [tuple(s) for s in report["sizes"]]
+    assert sizes[:3] == [start, start, near], sizes  # the zoom's reduced frame keeps the start's sizes
+    assert sizes[4] == (256, start[1]) and sizes[6] == (256, near[1]), sizes  # the panel's 256 stays
+    assert "tsd_irradiance" in report["passes_run"][2]  # the new sizes re-ran the texture space
+    expected, sc = _offline(sphere_toml, "tsd", oc.camera(), *near)
+    want = output_transform(expected, sc.output.exposure, sc.output.tonemap)
+    assert np.abs(_read_png(tmp_path / "zoomed.png") - want).mean() < 2.0 / 255

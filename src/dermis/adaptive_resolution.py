@@ -19,7 +19,8 @@ into the irradiance texture becomes a staircase), a texel much smaller is work n
       texels' footprint on the skin, D / T mm, is at most a pixel; PCF softens the rest)
 
 Only when the scene or the caller does not fix a size (``Renderer(irradiance_size=None)``,
-``dermis view`` without ``--irradiance-size``); an explicit size always wins.
+``dermis view`` without ``--irradiance-size`` / ``--shadow-size``, where the sizes follow the view as it
+zooms: viewer/app.py re-chooses them at each full-quality frame); an explicit size always wins.
 """
 
 from __future__ import annotations
@@ -70,18 +71,34 @@ def layout_density(positions, uvs, indices, mm_per_unit: float) -> float:
     return float(d[order][np.searchsorted(cw, 0.5 * cw[-1])])
 
 
-def adaptive_sizes(scene, size) -> tuple[int, int]:
+_MESH_MEASURES: list = []  # [(mesh, uvs, mm_per_unit, (rho, diameter_mm))]: the last mesh measured
+
+
+def mesh_measures(mesh, mm_per_unit: float) -> tuple[float, float]:
+    """(rho, bounding diameter in mm) of ``mesh``: what adaptive_sizes needs of the mesh, the same for
+    every view (rho costs ~0.1 s on the head); the last mesh's are remembered (the viewer asks at
+    every full-quality frame)."""
+    uv = mesh.uvs if getattr(mesh, "texture_space_uvs", None) is None else mesh.texture_space_uvs
+    for m, u, mm, measures in _MESH_MEASURES:
+        if m is mesh and u is uv and mm == float(mm_per_unit):
+            return measures
+    rho = layout_density(mesh.positions, uv, mesh.indices, mm_per_unit)
+    pos = np.asarray(mesh.positions, np.float64)
+    diameter_mm = float(np.linalg.norm(pos.max(axis=0) - pos.min(axis=0))) * float(mm_per_unit)
+    _MESH_MEASURES[:] = [(mesh, uv, float(mm_per_unit), (rho, diameter_mm))]
+    return rho, diameter_mm
+
+
+def adaptive_sizes(scene, size, camera=None) -> tuple[int, int]:
     """(irradiance size, shadow tile size) for ``scene`` seen in a frame of ``size`` = (W, H)
-    through its (framed) camera: the rule of this module's docstring."""
+    through ``camera`` (default: the scene's camera, framed as ``dermis render`` frames it): the
+    rule of this module's docstring."""
     from dermis.framing import framed_camera
 
     m = scene.mesh
-    cam = framed_camera(scene.camera, m, size[0] / size[1])
-    p = pixels_per_mm(cam, m.positions, size, scene.mm_per_unit)
-    uv = m.uvs if getattr(m, "texture_space_uvs", None) is None else m.texture_space_uvs
-    rho = layout_density(m.positions, uv, m.indices, scene.mm_per_unit)
+    camera = framed_camera(scene.camera if camera is None else camera, m, size[0] / size[1])  # as Renderer.render
+    p = pixels_per_mm(camera, m.positions, size, scene.mm_per_unit)
+    rho, diameter_mm = mesh_measures(m, scene.mm_per_unit)
     irr = pow2_at_least(IRRADIANCE_TEXELS_PER_PIXEL * p / rho, *IRRADIANCE_RANGE) if rho > 0 else IRRADIANCE_RANGE[1]
-    pos = np.asarray(m.positions, np.float64)
-    diameter_mm = float(np.linalg.norm(pos.max(axis=0) - pos.min(axis=0))) * float(scene.mm_per_unit)
     shadow = pow2_at_least(SHADOW_TEXELS_PER_PIXEL * p * diameter_mm, *SHADOW_RANGE)
     return irr, shadow

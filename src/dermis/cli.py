@@ -50,6 +50,19 @@ def parse_size(value: str, option="--size") -> tuple[int, int]:
     return check_size(size, option)
 
 
+def parse_texture_size(value, option: str) -> int | None:
+    """A texture size option: an integer, or "auto" (None: chosen from the mesh's size on screen,
+    dermis.adaptive_resolution). The range is checked by the Renderer's own check."""
+    if value is None or isinstance(value, int):
+        return value
+    if str(value).strip().lower() == "auto":
+        return None
+    try:
+        return int(value)
+    except ValueError:
+        raise DermisError(f"{option}: expected an integer or 'auto', got '{value}'") from None
+
+
 def scene_from_arg(scene_arg: str | None, technique: str | None = None):
     import dermis
 
@@ -101,8 +114,11 @@ def info(device, as_json):
 @click.option("--exposure", type=float, default=None, help="Exposure in stops (overrides the scene).")
 @click.option("--tonemap", type=click.Choice(["aces", "linear"]), default=None, help="Tone map (overrides the scene).")
 @click.option("--samples", type=int, default=4, show_default=True, help="MSAA samples (capped at 4 on llvmpipe).")
-@click.option("--irradiance-size", type=int, default=1024, show_default=True, help="Texture-space resolution (tsd).")
-@click.option("--shadow-size", type=int, default=2048, show_default=True, help="Shadow-map tile per light (texels).")
+@click.option("--irradiance-size", default="1024", show_default=True,
+              help="Texture-space resolution, or 'auto': chosen from the head's size on screen "
+                   "(dermis.adaptive_resolution; a close-up gets more texels).")
+@click.option("--shadow-size", default="2048", show_default=True,
+              help="Shadow-map tile per light (texels), or 'auto' (as --irradiance-size).")
 @click.option("--debug-buffers", default=None, help="Folder to write intermediate buffers (EXR) into.")
 @click.option("--device", type=int, default=None, help="EGL device (GPU) index.")
 def render(scene, technique, size, out, exr, stats, exposure, tonemap, samples, irradiance_size, shadow_size, debug_buffers,
@@ -116,7 +132,10 @@ def render(scene, technique, size, out, exr, stats, exposure, tonemap, samples, 
     from dermis.validation import check_exposure, check_renderer_options
 
     w, h = parse_size(size)
-    check_renderer_options((w, h), samples, shadow_size, irradiance_size, device)
+    irradiance_size = parse_texture_size(irradiance_size, "--irradiance-size")
+    shadow_size = parse_texture_size(shadow_size, "--shadow-size")
+    check_renderer_options((w, h), samples, 2048 if shadow_size is None else shadow_size,
+                           1024 if irradiance_size is None else irradiance_size, device)
     if exposure is not None:
         check_exposure(exposure)
     named = [("--out", out), ("--exr", exr), ("--stats", stats)]

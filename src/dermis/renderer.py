@@ -100,8 +100,8 @@ class Renderer:
         irr, shadow = adaptive_sizes(self.scene, self.size)
         if auto_irr and irr != self.irradiance_size:
             self.set_irradiance_size(irr)
-        if auto_shadow:
-            self.shadows.tile_size = int(shadow)  # re-allocated at the next shadow pass (set_scene re-runs it)
+        if auto_shadow and shadow != self.shadows.tile_size:
+            self.set_shadow_size(shadow)
 
     def _texture_space_mesh(self):
         """Give the scene's mesh the UV set texture space works in: its own when unique, else one
@@ -188,6 +188,18 @@ class Renderer:
         for tech in self._techniques.values():
             if hasattr(tech, "release_textures"):
                 tech.release_textures()
+
+    def set_shadow_size(self, n: int):
+        """A new shadow-map tile size (texels per light): the atlas is re-allocated at the next shadow
+        pass. The tile size is no input of dermis.invalidation.scene_inputs (whose source keys the
+        Cycles stores), so the frame's cached products that read the shadow maps (the atlas, every
+        texture-space pass) are re-run through :meth:`invalidate`."""
+        from dermis.validation import check_renderer_options
+
+        check_renderer_options(self.size, self.samples, int(n), self.irradiance_size, None)
+        if int(n) != self.shadows.tile_size:
+            self.shadows.tile_size = int(n)
+            self.invalidate()
 
     @property
     def bounce_orders(self) -> int | None:

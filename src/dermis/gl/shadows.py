@@ -44,6 +44,13 @@ class ShadowAtlas:
         self.tiles = np.zeros((max_lights, 4), np.float32)
         self.params = np.zeros((max_lights, 4), np.float32)
 
+    def max_tile_size(self, n_lights) -> int:
+        """The largest power-of-two tile whose atlas for ``n_lights`` fits this GPU's texture limit."""
+        cols = min(self.cols, max(n_lights, 1))
+        rows = max(1, math.ceil(max(n_lights, 1) / cols))
+        limit = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE") or 16384)
+        return 1 << int(math.floor(math.log2(max(limit // max(cols, rows), 1))))
+
     def _ensure(self, n_lights):
         cols = min(self.cols, max(n_lights, 1))
         rows = max(1, math.ceil(max(n_lights, 1) / cols))

@@ -8,6 +8,13 @@ renderer's lighting key) -> show the linear image through the GPU output transfo
 
 Mouse: left-drag orbits, shift+left or middle-drag pans, wheel zooms, right-drag moves the
 selected light. Keys: S screenshot, R reset camera, Tab panel on/off, Esc or Q quit.
+
+Texture sizes: the irradiance and shadow sizes the user did not give (``--irradiance-size``,
+``--shadow-size``, the panel's irradiance combo) follow the view: at every full-quality frame the
+viewer asks dermis.adaptive_resolution for the sizes of the current camera and window, so zooming in
+on an ear gets the texels a close-up needs (d'Eon & Luebke 2007, GPU Gems 3, 14.4.1). Not during a
+drag: the reduced frames keep the sizes, and the change (which re-runs the texture-space passes)
+waits for the refine.
 """
 
 from __future__ import annotations
@@ -57,8 +64,8 @@ class Viewer:
     """The interactive viewer. ``run()`` loops until the window closes (or a script ends) and
     returns a report: frames drawn, frame times, screenshots written, GPU object counts."""
 
-    def __init__(self, scene, size=(960, 640), *, irradiance_size: int | None = None, samples: int = 4, script=None,
-                 show_gui: bool = True, screenshot_dir=".", title: str | None = None, vsync: bool | None = None,
+    def __init__(self, scene, size=(960, 640), *, irradiance_size: int | None = None, shadow_size: int | None = None,
+                 samples: int = 4, script=None, show_gui: bool = True, screenshot_dir=".", title: str | None = None, vsync: bool | None = None,
                  progressive: bool = True, interactive_ms: float = 80.0):
         from dermis.renderer import Renderer, check_size
 
@@ -92,11 +99,14 @@ class Viewer:
             from dermis.viewer.present import Presenter
 
             self.gpu_objects = GpuObjectTracker(self.ctx).install()
-            shadow_size = 2048
-            if irradiance_size is None:  # from the head's size on screen (dermis.adaptive_resolution)
+            # None: from the head's size on screen (dermis.adaptive_resolution), re-chosen as the view changes
+            self.auto_sizes = [irradiance_size is None, shadow_size is None]
+            if irradiance_size is None or shadow_size is None:
                 from dermis.adaptive_resolution import adaptive_sizes
 
-                irradiance_size, shadow_size = adaptive_sizes(scene, self.framebuffer_size())
+                irr, sh = adaptive_sizes(scene, self.framebuffer_size())
+                irradiance_size = irr if irradiance_size is None else irradiance_size
+                shadow_size = sh if shadow_size is None else shadow_size
             self.params = ViewerParams.from_scene(scene, irradiance_size)
             self.params.validate("viewer")
             # no pass timer: the panel shows which passes ran, not their times, and timing a pass
@@ -140,7 +150,7 @@ class Viewer:
         self._view_key = None
         self._last_stats = {}
         self.report = {"frames": 0, "frame_ms": [], "render_ms": [], "passes_run": [], "quality": [], "render_size": [],
-                       "texture_space": [], "screenshots": [],
+                       "texture_space": [], "sizes": [], "screenshots": [],
                        "resources": [], "renderer": self.renderer.info.get("renderer")}
         self.last_image = None  # what the window shows, linear (H, W, 3)
         self._install_callbacks()
@@ -253,6 +263,8 @@ class Viewer:
                 values.setdefault("light_intensity", float(L.intensity))
         old_irr = self.params.irradiance_size
         self.params.update(values, source)
+        if "irradiance_size" in values:
+            self.auto_sizes[0] = False  # the user chose it: it no longer follows the view
         if self.params.irradiance_size != old_irr:
             self._set_irradiance_size(self.params.irradiance_size)
 
@@ -262,6 +274,28 @@ class Viewer:
         product, dermis.invalidation.PRODUCTS, so they re-run)."""
         self.renderer.set_irradiance_size(n)
         self._buffers_cache = (None, {})
+
+    def choose_sizes(self, fb=None) -> bool:
+        """Give the full renderer the irradiance / shadow sizes adaptive_sizes picks for the current
+        view (camera and window) -- those the user left to the viewer; True when one changed (the
+        texture-space passes then re-run). Called before each full-quality frame, never mid-drag."""
+        if not any(self.auto_sizes):
+            return False
+        from dermis.adaptive_resolution import adaptive_sizes
+
+        irr, shadow = adaptive_sizes(self.scene, fb or self.framebuffer_size(), camera=self.orbit.camera())
+        # a zoom must not ask for an atlas over the GPU's texture limit (an error mid-session)
+        shadow = min(shadow, self.renderer.shadows.max_tile_size(len(self.scene.lights)))
+        changed = False
+        if self.auto_sizes[0] and irr != self.renderer.irradiance_size:
+            self.params.irradiance_size = int(irr)
+            self._set_irradiance_size(int(irr))
+            changed = True
+        if self.auto_sizes[1] and shadow != self.renderer.shadows.tile_size:
+            self.renderer.set_shadow_size(int(shadow))
+            self._buffers_cache = (None, {})
+            changed = True
+        return changed
 
     def _run_actions(self, actions):
         for a in actions:
@@ -304,6 +338,9 @@ class Viewer:
         """Replace a reduced (interactive) image by the full frame of the same view."""
         if self.last_image is None or self.progressive.quality == "full" or self.params.buffer != "final":
             return
+        fb = self.framebuffer_size()
+        if self.choose_sizes(fb):  # the frame drawn is the one the new key names: the next frame stays idle
+            self._view_key = self._frame_view_key(fb)
         img = self.progressive.render(self.params.technique, self.framebuffer_size(), self.orbit.camera(),
                                       interactive=False)
         if getattr(self.scene.output, "bloom", 0.0) > 0:
@@ -400,8 +437,8 @@ class Viewer:
         self._update_profile(wait=scripted)
         self.editor.apply(self.params)
         fb = self.framebuffer_size()
-        lighting_key = self.renderer.lighting_key()
-        view_key = (self.orbit.state(), dataclasses.astuple(self.params), fb, lighting_key)
+        view_key = self._frame_view_key(fb)
+        lighting_key = view_key[-1]
         changed = view_key != self._view_key or self.last_image is None
         # progressive: a reduced frame while input is active, the full frame once it stops (a
         # script's input is its actions: the first frame without any refines)
@@ -413,6 +450,9 @@ class Viewer:
             shown = self.last_image
         else:
             interactive = changed and self.last_image is not None and self.params.buffer == "final"
+            if not (interactive and self.progressive.enabled) and self.choose_sizes(fb):
+                view_key = self._frame_view_key(fb)  # new sizes: a new lighting key (and params)
+                lighting_key = view_key[-1]
             img = self.progressive.render(self.params.technique, fb, self.orbit.camera(), interactive=interactive,
                                           lighting_key=lighting_key)
             stats = dict(self.progressive.stats)
@@ -459,6 +499,7 @@ class Viewer:
         self.report["quality"].append("idle" if self._idle else stats.get("quality", "full"))
         self.report["render_size"].append(list(stats.get("size", fb)))
         self.report["texture_space"].append(stats.get("renderer", "full"))
+        self.report["sizes"].append([int(stats.get("irradiance_size", 0)), int(stats.get("shadow_size", 0))])
         if not self._idle:
             self._last_frame_ms = frame_ms
         if self._want_screenshot:
@@ -469,6 +510,11 @@ class Viewer:
         if not (self.gui and self.show_gui) and self.frames_drawn % 15 == 1:
             glfw.set_window_title(self.window, f"dermis - {self.params.technique} - {frame_ms:.1f} ms/frame "
                                                f"(render {stats.get('frame_ms', 0):.1f} ms)")
+
+    def _frame_view_key(self, fb) -> tuple:
+        """What a frame's image depends on: camera, parameters, window size and the renderer's
+        lighting key (last)."""
+        return (self.orbit.state(), dataclasses.astuple(self.params), fb, self.renderer.lighting_key())
 
     def _draw_gui(self, fb, stats, frame_ms):
         imgui = self.gui.imgui
@@ -484,6 +530,7 @@ class Viewer:
         status = {"frame_ms": getattr(self, "_last_frame_ms", frame_ms), "render_ms": stats.get("frame_ms", 0.0),
                   "quality": stats.get("quality", "full"), "scale": stats.get("scale", 1.0),
                   "passes_run": stats.get("passes_run", []), "gpu_objects": self.gpu_objects.total(),
+                  "sizes": (self.renderer.irradiance_size, self.renderer.shadows.tile_size, tuple(self.auto_sizes)),
                   "profile_busy": self.profiles.busy, "profile_note": self._profile_note, "message": self._message}
         changes, actions = self.panel.draw(self.params, status)
         imgui.render()

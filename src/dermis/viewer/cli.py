@@ -20,8 +20,11 @@ def _irradiance(n: int) -> int:
 @click.option("--technique", "-t", default=None, help="Technique to start with (default: the scene's).")
 @click.option("--size", default="960x640", show_default=True, help="Window size WxH (screen pixels).")
 @click.option("--irradiance-size", type=int, default=None,
-              help="Texture-space resolution to start with (the panel changes it; default: chosen from the "
-                   "head's size on screen, with the shadow size, dermis.adaptive_resolution).")
+              help="Texture-space resolution (the panel changes it; default: chosen from the head's size on "
+                   "screen and re-chosen as the view zooms, dermis.adaptive_resolution).")
+@click.option("--shadow-size", type=int, default=None,
+              help="Shadow-map tile per light (texels; default: chosen from the head's size on screen and "
+                   "re-chosen as the view zooms).")
 @click.option("--samples", type=int, default=4, show_default=True, help="MSAA samples (capped at 4 on llvmpipe).")
 @click.option("--script", "script_path", default=None, type=click.Path(dir_okay=False),
               help="JSON file of scripted per-frame actions (see dermis.viewer.script).")
@@ -29,7 +32,7 @@ def _irradiance(n: int) -> int:
 @click.option("--screenshot-dir", default=".", show_default=True, help="Folder for screenshots taken with S.")
 @click.option("--progressive/--no-progressive", default=True, show_default=True,
               help="Reduced frames while dragging, the full frame when input stops.")
-def view_cmd(scene, technique, size, irradiance_size, samples, script_path, no_gui, screenshot_dir, progressive):
+def view_cmd(scene, technique, size, irradiance_size, shadow_size, samples, script_path, no_gui, screenshot_dir, progressive):
     """Open SCENE in an interactive window: orbit, light, skin and output controls, buffer views.
 
     Left-drag orbits, shift-drag or middle-drag pans, the wheel zooms, right-drag moves the
@@ -44,11 +47,16 @@ def view_cmd(scene, technique, size, irradiance_size, samples, script_path, no_g
     w, h = parse_size(size)
     if irradiance_size is not None:
         _irradiance(irradiance_size)
+    if shadow_size is not None:
+        from dermis.validation import SHADOW_SIZES
+
+        if not SHADOW_SIZES[0] <= shadow_size <= SHADOW_SIZES[1]:
+            raise DermisError(f"--shadow-size must be in [{SHADOW_SIZES[0]}, {SHADOW_SIZES[1]}], got {shadow_size}")
     script = Script.from_file(script_path) if script_path else None
     check_display()  # before loading a scene: the error a headless user sees first
     sc = scene_from_arg(scene, technique)
     technique_class(sc.technique)
-    report = view(sc, (w, h), irradiance_size=irradiance_size, samples=samples, script=script, show_gui=not no_gui,
+    report = view(sc, (w, h), irradiance_size=irradiance_size, shadow_size=shadow_size, samples=samples, script=script, show_gui=not no_gui,
                   screenshot_dir=screenshot_dir, progressive=progressive)
     if script is not None:
         click.echo(f"viewer: {report['frames']} frames, {len(report['screenshots'])} screenshots")

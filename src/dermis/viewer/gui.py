@@ -308,6 +308,10 @@ class Panel:
             combo("irradiance", "irradiance_size", sizes, str(p.irradiance_size))
             if "irradiance_size" in changes:
                 changes["irradiance_size"] = int(changes["irradiance_size"])
+            if status.get("sizes"):  # the sizes in use; "view": chosen from the view (adaptive_resolution)
+                irr, shadow, (auto_irr, auto_shadow) = status["sizes"]
+                imgui.text_disabled(f"irradiance {irr}{' (view)' if auto_irr else ''}   "
+                                    f"shadow {shadow}{' (view)' if auto_shadow else ''}")
         if imgui.collapsing_header("buffer view"):
             opened = imgui.begin_combo("buffer", p.buffer)
             self.wants_buffer_names = opened

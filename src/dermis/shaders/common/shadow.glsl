@@ -58,15 +58,38 @@ bool shadow_coords_jacobian(int i, vec3 P, out vec3 c, out mat3 J) {
 // which on a receiver grazed by the light shifts it sideways by up to the offset: where that
 // crossed an occluder's silhouette in the map (the side view's eye socket behind the nose bridge,
 // the nose wing) a lit blob several mm wide appeared inside the shadow. The gradient is clamped at
-// a slope of MAX_RECEIVER_SLOPE (about 84 degrees), where N.L is ~0 anyway. T: the map uv that a
+// a slope of MAX_RECEIVER_SLOPE (7: 81.9 degrees, N.L 0.141; a plane at N.L 0.15 stays exact,
+// tests/test_shadow_pcf.py). shadow_graze (below) is set from the slope. T: the map uv that a
 // unit step (scene units) along the tangent-plane axes t1, t2 moves (columns), for the penumbra
 // width below. False for a light without a shadow map (uLightRadiance.w) or a point outside its map.
-const float MAX_RECEIVER_SLOPE = 10.0;
+const float MAX_RECEIVER_SLOPE = 7.0;
+// How grazing the last shadow_receiver's receiver is: 0 up to half the slope clamp (N.L >= 0.27),
+// rising to 1 at the clamp (N.L <= 0.14); shadow_pcf_at reads it (pcf_grid), right after the solve.
+// At a grazing receiver the PCF taps on the light's side compare against the receiver plane many
+// texels of depth nearer the light (slope x (tap reach ~2.5 + the 2 |dz| footprint) texels: ~45 at the
+// former clamp of 10), so an occluder that close in front goes unseen: in a concave fold under a
+// cast shadow (the side scene's concha under the antihelix, the ear seen 3x closer, shadow tile
+// 2048) the points at N.L 0-0.1 read a mean lit fraction 0.63 where a ray cast finds the antihelix
+// (tests/test_shadow_leaks.py), a lit line along the terminator inside the shadow (preintegrated's
+// "doubled edge": its wrap lights N.L ~ 0). A lower clamp alone trades that for self-shadowing of
+// convex grazing receivers (the head's side terminator: the light's-side taps see the surface
+// itself). Both come from the light's-side taps, so a grazing receiver's filter weighs them down:
+// pcf_grid tilts its kernel along the depth gradient, to zero a third of the way to its light-side
+// edge at shadow_graze = 1 (PCF_GRAZE_TILT); the taps beyond the receiver plane's far side still see
+// an occluder in front and never the receiver's own surface. The penumbra of a grazing receiver is
+// then narrower and shifted away from the light (where N.L < 0.27 scales the light): where a grazing
+// receiver's shadow edge is cast from the light's side (the back of the back-ears concha under the
+// helix, 3x closer) its lit side reaches a few pixels further than at shadow 8192. benchmarks/
+// RESULTS.md round 19 (sizes19): the fold 0.63 -> 0.15; front-key at 768 px 6 pixels darker by > 10
+// levels (the clamp 7 with a |dz.x| + |dz.y| footprint instead: 282; the light-side taps dropped by
+// the sign of dot(dz, delta): blocky lit specks where a grazing shadow edge crosses texels).
+float shadow_graze = 0.0;
 bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat2 T) {
     mat3 J;
     c = vec3(0.0);
     dz = vec2(0.0);
     T = mat2(0.0);
+    shadow_graze = 0.0;
     if (uLightRadiance[i].w < 0.5) return false;  // the light casts no shadow: no map to read
     if (!shadow_coords_jacobian(i, P, c, J)) return false;
     vec3 t1 = normalize(cross(N, abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
@@ -84,6 +107,7 @@ bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat2 T)
     if (abs(det) * h * h < 1e-12) return true;  // the light grazes the plane: no usable gradient
     dz = inverse(M) * vec2(d1.z, d2.z);  // M dz = (d1.z, d2.z): rounds 1-4 solved with transpose(M), a wrong gradient wherever M is not symmetric
     float g = length(dz);
+    shadow_graze = clamp(2.0 * g / gmax - 1.0, 0.0, 1.0);
     if (g > gmax) dz *= gmax / g;
     return true;
 }
@@ -124,12 +148,17 @@ float shadow_sharp(int i, vec3 P, vec3 N) {
 // taps: 0.054-0.072).
 const float PCF_DISC_SCALE = 1.307;  // the Poisson set's disc: penumbrae as wide as rounds 1-5's
 
-// antiderivative of the 1-D weight (unnormalised): a parabola 1 - x^2 / a^2, or a box, on [-a, a]
-float pcf_weight_cdf(float x, float a, bool box) {
-    x = clamp(x, -a, a);
-    return box ? x : x - x * x * x / (3.0 * a * a);
+// antiderivative of the 1-D weight (unnormalised): a parabola 1 - x^2 / a^2, or a box, on [-a, a],
+// times the tilt max(0, 1 + k x) (k = 0 untilted; shadow_graze's, pcf_grid): zero beyond x = -1 / k
+float pcf_weight_cdf(float x, float a, bool box, float k) {
+    float lo = k > 0.0 ? max(-a, -1.0 / k) : -a;
+    float hi = k < 0.0 ? min(a, -1.0 / k) : a;
+    x = clamp(x, lo, hi);
+    float x2 = x * x;
+    return box ? x + 0.5 * k * x2 : x - x2 * x / (3.0 * a * a) + k * (0.5 * x2 - 0.25 * x2 * x2 / (a * a));
 }
 
+const float PCF_GRAZE_TILT = 3.0;  // a grazing kernel's weight is 0 from a / 3 on its light side (shadow_graze)
 const int PCF_GRID = 3;  // taps per axis: 2 x PCF_GRID cells hold any weight of half-width a < PCF_GRID - 0.5
 
 // PCF over the 2n x 2n cells (of ``stride`` texels, 1 where exact) from the one whose cell
@@ -143,11 +172,17 @@ float pcf_grid(int i, vec2 c, float z, vec2 dz, float a, bool box, float stride,
     vec2 pc = (c / texel - 0.5) / stride;
     vec2 t0 = floor(pc - a + 0.5);
     vec2 pos[n], w[n];
-    vec2 lo = vec2(pcf_weight_cdf(t0.x - 0.5 - pc.x, a, box), pcf_weight_cdf(t0.y - 0.5 - pc.y, a, box));
+    // a grazing receiver's kernel tilts along the receiver's depth gradient (shadow_graze,
+    // shadow_receiver above): per axis max(0, 1 + k x), k = PCF_GRAZE_TILT graze dz_hat / a, a separable
+    // ramp integrated over each cell like the kernel itself, so the weights stay continuous as the
+    // filter moves across texels (dropping the light-side taps by sign drew blocky specks)
+    float gl = length(dz);
+    vec2 tilt = gl > 0.0 ? PCF_GRAZE_TILT * shadow_graze * dz / (gl * a) : vec2(0.0);
+    vec2 lo = vec2(pcf_weight_cdf(t0.x - 0.5 - pc.x, a, box, tilt.x), pcf_weight_cdf(t0.y - 0.5 - pc.y, a, box, tilt.y));
     for (int k = 0; k < n; ++k) {
         vec2 ta = t0 + float(2 * k);
-        vec2 mid = vec2(pcf_weight_cdf(ta.x + 0.5 - pc.x, a, box), pcf_weight_cdf(ta.y + 0.5 - pc.y, a, box));
-        vec2 hi = vec2(pcf_weight_cdf(ta.x + 1.5 - pc.x, a, box), pcf_weight_cdf(ta.y + 1.5 - pc.y, a, box));
+        vec2 mid = vec2(pcf_weight_cdf(ta.x + 0.5 - pc.x, a, box, tilt.x), pcf_weight_cdf(ta.y + 0.5 - pc.y, a, box, tilt.y));
+        vec2 hi = vec2(pcf_weight_cdf(ta.x + 1.5 - pc.x, a, box, tilt.x), pcf_weight_cdf(ta.y + 1.5 - pc.y, a, box, tilt.y));
         w[k] = hi - lo;
         pos[k] = (ta + (hi - mid) / max(w[k], vec2(1e-12)) - pc) * (stride * texel);  // bilinear weighs ta, ta+1 as (mid-lo) : (hi-mid)
         lo = hi;
@@ -182,6 +217,7 @@ float pcf_grid(int i, vec2 c, float z, vec2 dz, float a, bool box, float stride,
 // so s ramps across 1 / |g| of uv along g; the receiver's tangent plane (T of shadow_receiver)
 // maps that uv step back to the surface. width_mm = 1e30 where the taps agree (no ramp).
 // c, dz, T: shadow_receiver's, for a light that casts shadows and a receiver inside its map.
+// shadow_graze: shadow_receiver's for this receiver (every caller solves it just before).
 float shadow_pcf_at(int i, vec3 c, vec2 dz, mat2 T, bool want_width, out float width_mm) {
     width_mm = 1e30;
     float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint of each tap, and curvature
