@@ -419,19 +419,22 @@ def test_progressive_frames_while_dragging_then_the_full_frame(xvfb_display, sph
 
 def test_sizes_left_to_the_viewer_follow_the_zoom_at_the_refine(xvfb_display, sphere_toml, tmp_path):
     """Without --irradiance-size / --shadow-size the viewer re-chooses both from the view
-    (adaptive_sizes of the orbit camera and window) at the full-quality frame after a zoom, not in
-    the reduced frames of the zoom; the refined frame is the headless render at those sizes; a size
-    the user then picks in the panel stays while the other keeps following the view."""
+    (adaptive_sizes of the orbit camera and window) after a zoom: not in the reduced frames of the
+    zoom, not in the full frame that refines them (drawn at the sizes in use, without re-running the
+    texture space: issue 14's 2 s), but in the frame after that; that frame is the headless render at
+    those sizes; a size the user then picks in the panel stays while the other keeps following the
+    view."""
     import dermis
     from dermis.adaptive_resolution import adaptive_sizes
     from dermis.output import output_transform
     from dermis.viewer.camera_controls import OrbitCamera
 
-    script = {"actions": [{"frame": 1, "zoom": 7}, {"frame": 2, "screenshot": "zoomed.png"},
-                          {"frame": 3, "set": {"irradiance_size": 256}, "zoom": -7}, {"frame": 5, "zoom": 7}],
-              "quit_after": 7}
+    script = {"actions": [{"frame": 1, "zoom": 7}, {"frame": 3, "screenshot": "zoomed.png"},
+                          {"frame": 4, "set": {"irradiance_size": 256}, "zoom": -7}, {"frame": 7, "zoom": 7}],
+              "quit_after": 10}
     res, report = run_viewer(xvfb_display, sphere_toml, script, tmp_path, sizes=False)
-    assert report["quality"] == ["full", "interactive", "full", "interactive", "full", "interactive", "full"], report
+    assert report["quality"] == ["full", "interactive", "full", "full", "interactive", "full", "full",
+                                 "interactive", "full", "full"], report
     scene = dermis.load_scene(sphere_toml)
     oc = OrbitCamera.from_camera(scene.camera, float(np.linalg.norm(np.subtract(*scene.bounds()[::-1])) / 2))
     start = adaptive_sizes(scene, WINDOW, camera=oc.camera())
@@ -439,9 +442,11 @@ def test_sizes_left_to_the_viewer_follow_the_zoom_at_the_refine(xvfb_display, sp
     near = adaptive_sizes(scene, WINDOW, camera=oc.camera())
     assert near[0] > start[0] and near[1] > start[1], (start, near)  # the zoom changes both: the test can fail
     sizes = [tuple(s) for s in report["sizes"]]
-    assert sizes[:3] == [start, start, near], sizes  # the zoom's reduced frame keeps the start's sizes
-    assert sizes[4] == (256, start[1]) and sizes[6] == (256, near[1]), sizes  # the panel's 256 stays
-    assert "tsd_irradiance" in report["passes_run"][2]  # the new sizes re-ran the texture space
+    # the zoom's reduced frame and its refine keep the start's sizes; the frame after them takes the view's
+    assert sizes[:4] == [start, start, start, near], sizes
+    assert sizes[5:7] == [(256, near[1]), (256, start[1])] and sizes[8:] == [(256, start[1]), (256, near[1])], sizes
+    assert "tsd_irradiance" not in report["passes_run"][2]  # the refine re-ran no texture-space pass
+    assert "tsd_irradiance" in report["passes_run"][3]  # the new sizes re-ran the texture space
     expected, sc = _offline(sphere_toml, "tsd", oc.camera(), *near)
     want = output_transform(expected, sc.output.exposure, sc.output.tonemap)
     assert np.abs(_read_png(tmp_path / "zoomed.png") - want).mean() < 2.0 / 255

@@ -13,8 +13,10 @@ Texture sizes: the irradiance and shadow sizes the user did not give (``--irradi
 ``--shadow-size``, the panel's irradiance combo) follow the view: at every full-quality frame the
 viewer asks dermis.adaptive_resolution for the sizes of the current camera and window, so zooming in
 on an ear gets the texels a close-up needs (d'Eon & Luebke 2007, GPU Gems 3, 14.4.1). Not during a
-drag: the reduced frames keep the sizes, and the change (which re-runs the texture-space passes)
-waits for the refine.
+drag: the reduced frames keep the sizes. A change of sizes re-runs every texture-space pass and
+bake at the new size (the example head, 1024/2048 -> 2048/4096: ~11 s on llvmpipe), so it is a
+refine step of its own: when input stops the full frame is drawn at the sizes in use (the 2 s
+goal of issue 14), and the frame after it, with no input between, at the view's sizes.
 """
 
 from __future__ import annotations
@@ -147,6 +149,8 @@ class Viewer:
         self._profile_note = ""
         self.frames_drawn = 0
         self._idle = False
+        self._view_sizes_for = None  # view_sizes: the view (orbit, window, auto flags, sizes) last asked for
+        self._view_sizes = None
         self._view_key = None
         self._last_stats = {}
         self.report = {"frames": 0, "frame_ms": [], "render_ms": [], "passes_run": [], "quality": [], "render_size": [],
@@ -275,17 +279,31 @@ class Viewer:
         self.renderer.set_irradiance_size(n)
         self._buffers_cache = (None, {})
 
-    def choose_sizes(self, fb=None) -> bool:
-        """Give the full renderer the irradiance / shadow sizes adaptive_sizes picks for the current
-        view (camera and window) -- those the user left to the viewer; True when one changed (the
-        texture-space passes then re-run). Called before each full-quality frame, never mid-drag."""
+    def view_sizes(self, fb=None) -> tuple[int, int]:
+        """The (irradiance, shadow tile) sizes for the current view (camera and window): adaptive_sizes'
+        for those the user left to the viewer, the renderer's own for the others. Remembered per view:
+        an idle frame asks again without recomputing the layout's density."""
+        fb = fb or self.framebuffer_size()
+        current = (self.renderer.irradiance_size, self.renderer.shadows.tile_size)
         if not any(self.auto_sizes):
-            return False
-        from dermis.adaptive_resolution import adaptive_sizes
+            return current
+        key = (self.orbit.state(), tuple(fb), tuple(self.auto_sizes), current)
+        if self._view_sizes_for != key:
+            from dermis.adaptive_resolution import adaptive_sizes
 
-        irr, shadow = adaptive_sizes(self.scene, fb or self.framebuffer_size(), camera=self.orbit.camera())
-        # a zoom must not ask for an atlas over the GPU's texture limit (an error mid-session)
-        shadow = min(shadow, self.renderer.shadows.max_tile_size(len(self.scene.lights)))
+            irr, shadow = adaptive_sizes(self.scene, fb, camera=self.orbit.camera())
+            # a zoom must not ask for an atlas over the GPU's texture limit (an error mid-session)
+            shadow = min(shadow, self.renderer.shadows.max_tile_size(len(self.scene.lights)))
+            self._view_sizes = (int(irr) if self.auto_sizes[0] else current[0],
+                                int(shadow) if self.auto_sizes[1] else current[1])
+            self._view_sizes_for = key
+        return self._view_sizes
+
+    def choose_sizes(self, fb=None) -> bool:
+        """Give the full renderer the sizes of :meth:`view_sizes`; True when one changed (the
+        texture-space passes then re-run). Never mid-drag: at the refine step after the full frame
+        (frame()) and before a screenshot (refine_now)."""
+        irr, shadow = self.view_sizes(fb)
         changed = False
         if self.auto_sizes[0] and irr != self.renderer.irradiance_size:
             self.params.irradiance_size = int(irr)
@@ -335,11 +353,15 @@ class Viewer:
         return output_transform(self.last_image, exposure, tonemap)
 
     def refine_now(self):
-        """Replace a reduced (interactive) image by the full frame of the same view."""
-        if self.last_image is None or self.progressive.quality == "full" or self.params.buffer != "final":
+        """Replace a reduced (interactive) image, or one at other sizes than the view's (view_sizes),
+        by the full frame of the same view."""
+        if self.last_image is None or self.params.buffer != "final":
             return
         fb = self.framebuffer_size()
-        if self.choose_sizes(fb):  # the frame drawn is the one the new key names: the next frame stays idle
+        resized = self.choose_sizes(fb)
+        if self.progressive.quality == "full" and not resized:
+            return
+        if resized:  # the frame drawn is the one the new key names: the next frame stays idle
             self._view_key = self._frame_view_key(fb)
         img = self.progressive.render(self.params.technique, self.framebuffer_size(), self.orbit.camera(),
                                       interactive=False)
@@ -444,13 +466,18 @@ class Viewer:
         # script's input is its actions: the first frame without any refines)
         refine = not changed and (self.progressive.quality != "full" if scripted else
                                   self.progressive.needs_refine(input_held=self._drag is not None))
-        self._idle = not changed and not refine
+        # the sizes of the view (zoomed in or out, a new window size) once the full frame at the sizes
+        # in use is shown and no input is held: a refine step of its own (the module's docstring)
+        resize = (not changed and not refine and self.progressive.quality == "full" and self._drag is None
+                  and self.params.buffer == "final" and self.last_image is not None
+                  and self.view_sizes(fb) != (self.renderer.irradiance_size, self.renderer.shadows.tile_size))
+        self._idle = not changed and not refine and not resize
         if self._idle:  # the same view: show the last image again (the panel may still change)
             stats = dict(self._last_stats, passes_run=[])
             shown = self.last_image
         else:
             interactive = changed and self.last_image is not None and self.params.buffer == "final"
-            if not (interactive and self.progressive.enabled) and self.choose_sizes(fb):
+            if resize and self.choose_sizes(fb):
                 view_key = self._frame_view_key(fb)  # new sizes: a new lighting key (and params)
                 lighting_key = view_key[-1]
             img = self.progressive.render(self.params.technique, fb, self.orbit.camera(), interactive=interactive,
