@@ -148,6 +148,29 @@ def test_specular_occlusion_sh_closed_forms():
     assert 1.0 - visibility.specular_occlusion_sh(zen, N, wall) == pytest.approx(0.5, abs=0.03)
 
 
+def test_occluded_directions_regenerate_alone_with_the_same_bits():
+    """The bake keeps which rays were occluded and regenerates their directions from the seed
+    (ambient_directions_at: only those, not all n k): the same bits as ambient_directions' full array
+    at those rays, for square (stratified) and other (Latin-hypercube) ray counts; and the well's
+    blocked-direction SH (VertexVisibility.blocked_sh) equals blocked_sh_of_rays over all its rays."""
+    from dermis.geometry.raycast import ambient_directions, ambient_directions_at
+
+    rng = np.random.default_rng(8)
+    nrm = rng.normal(size=(300, 3))
+    nrm[:3] = [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.95, 0.3, 0.0]]  # both branches of the tangent frame
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    for k in (64, 20):
+        full = ambient_directions(nrm, k, seed=4)
+        point, ray = np.nonzero(rng.random((300, k)) < 0.2)
+        assert np.array_equal(ambient_directions_at(nrm, k, 4, point, ray), full[point, ray]), k
+    m = well_scene(1.0).mesh
+    v = visibility.bake_vertex_visibility(m.positions, m.normals, m.indices, rays=64, cache=False)
+    occ = np.unpackbits(v.occluded, axis=1, count=64).astype(bool)
+    assert 0.05 < occ.mean() < 0.95
+    every = visibility.blocked_sh_of_rays(v.normals, ambient_directions(v.normals, 64, v.seed), occ)
+    assert np.array_equal(v.blocked_sh(), every[v.inverse].astype(np.float32))
+
+
 def test_specular_occlusion_sh_against_a_ray_cast_of_the_lobe(lee_perry_smith):
     """The estimate every technique's shader uses (its numpy twin) against the truth it stands for: at
     the 1000 head vertices the front-key camera sees most squarely and 400 it sees at N.V <= 0.2, the
