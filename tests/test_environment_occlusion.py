@@ -79,6 +79,35 @@ def test_every_technique_darkens_the_well_floor_by_its_occlusion(gl_ctx):
             assert centre(on) / centre(off) == pytest.approx(0.5, abs=0.03), tech
 
 
+def test_black_environment_needs_no_bake_and_keeps_every_image(gl_ctx, monkeypatch):
+    """A black environment has nothing to occlude: no visibility bake (the renderer's and the
+    reference's; tests and scenes lit by lamps alone paid for 26 M rays on a 100 k-vertex mesh), and
+    every technique's image is the same bits as with occlusion off; a grey one is baked again on the
+    same renderer and darkens the well's floor."""
+    from dermis.scene.model import Light
+
+    monkeypatch.setattr(visibility, "_MEMORY", {})  # earlier tests baked this well
+    monkeypatch.setattr(visibility, "bake_vertex_visibility", lambda *a, **k: pytest.fail("baked"))
+    scene = well_scene(1.0)
+    scene.mm_per_unit = 100.0
+    scene.lights = [Light(direction=(0.8, 0.0, -0.6), intensity=3.0)]  # 53 deg: the floor's centre in the wall's shadow
+    images = {}
+    with Renderer(scene, (32, 32), ctx=gl_ctx, irradiance_size=128, shadow_size=256) as r:
+        for occlusion in (True, False):
+            scene.environment = Environment(color=(0.0, 0.0, 0.0), occlusion=occlusion)
+            for tech in ("tsd", "ssss", "preintegrated", "lambert"):
+                images[occlusion, tech] = r.render(tech)
+                assert "visibility" not in r.stats["passes_run"] and r.visibility is None
+        for tech in ("tsd", "ssss", "preintegrated", "lambert"):
+            assert np.array_equal(images[True, tech], images[False, tech]) and images[True, tech].max() > 0.05, tech
+        monkeypatch.undo()
+        scene.environment = Environment(color=(SKY,) * 3, occlusion=True)
+        grey = r.render("lambert")
+        assert "visibility" in r.stats["passes_run"] and r.visibility is not None
+        scene.environment.occlusion = False
+        assert centre(grey) / centre(r.render("lambert")) == pytest.approx(0.5, abs=0.05)  # the form factor
+
+
 def test_mesh_edit_rebakes_and_toggle_reuploads(gl_ctx, tmp_path, monkeypatch):
     monkeypatch.setenv("DERMIS_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(visibility, "_MEMORY", {})  # earlier tests baked this well

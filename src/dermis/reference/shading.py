@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from dermis.camera import normalize
+from dermis.environment import environment_is_black
 from dermis.geometry.visibility import (OFFSET_REL, blocked_sh_of_rays, environment_radiance, occluded_fraction,
                                         occluded_irradiance, specular_occlusion_sh)
 from dermis.specular import ksk_specular
@@ -91,10 +92,9 @@ class LightRig:
         self.epsilon_mm = SHADOW_EPSILON_REL * float(np.linalg.norm((hi - lo) * mm)) + 1e-9
         self.ambient_offset_mm = OFFSET_REL * float(np.linalg.norm((hi - lo) * mm))
         env = scene.environment
-        # a black environment (no image, SH irradiance 0) has no light to occlude: r E_env(N) and the
-        # specular's E_env(R) rho_s a so / pi are 0 whatever the ambient rays find, so none are cast
-        # (the same image, bit for bit; on a black-lit plane the rays were 80 % of the render's time)
-        self.occlusion = bool(env.occlusion) and (env.image is not None or bool(np.any(surface.env_sh != 0.0)))
+        # a black environment has no light to occlude: no ambient rays are cast (the same image, bit for
+        # bit; on a black-lit plane the rays were 80 % of the render's time)
+        self.occlusion = bool(env.occlusion) and not environment_is_black(env)
         self.env_radiance = environment_radiance(env) if (self.occlusion and env.image is not None) else None
         self._ambient_batches = 0  # seeds successive ambient-occlusion batches differently, deterministically
 
