@@ -140,7 +140,10 @@ class RayCaster:
         a triangle per ray to ignore (the one the ray starts on), -1 for none."""
         o, d, tmin, tmax = self._rays(origins, directions, tmin, tmax)
         n = len(o)
-        skip = np.full(n, -1, np.int64) if skip is None else np.asarray(skip, np.int64).reshape(-1)
+        if skip is None:  # one query per ray, no relaunch (the loop's first pass, without its copies)
+            t, tri, _, _ = self._intersect(o, d, tmin, tmax)
+            return (tri >= 0) & (t < tmax)
+        skip = np.asarray(skip, np.int64).reshape(-1)
         occ = np.zeros(n, bool)
         todo = np.arange(n)
         lo = tmin.copy()
