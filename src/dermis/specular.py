@@ -248,9 +248,12 @@ def _rho_dt_table_cached(size_cos: int, size_m: int) -> np.ndarray:
 
     from dermis.geometry import bake_cache
 
-    source = "".join(inspect.getsource(f) for f in (_albedo, fresnel_schlick, roughness_axis, _rho_dt_table_cached))
+    try:
+        source = "".join(inspect.getsource(f) for f in (_albedo, fresnel_schlick, roughness_axis, _rho_dt_table_cached))
+    except (OSError, TypeError):  # no source to key it by (a frozen build): built, not stored
+        source = None
     key = hashlib.sha256(repr((size_cos, size_m, SKIN_F0, source)).encode()).hexdigest()
-    path = bake_cache.cache_path("rho_dt", key)
+    path = None if source is None else bake_cache.cache_path("rho_dt", key)
     got = bake_cache.load({}, key, path, {"table": (size_m, size_cos)}, 1)
     if got is not None and got["table"].dtype == np.float32:
         table = np.array(got["table"])
