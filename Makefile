@@ -46,7 +46,7 @@ demo: sysdeps install
 	@echo "demo image: $(CURDIR)/out/demo.png"
 
 test: test-sysdeps cycles
-	$(PY) -m pytest -q -ra
+	$(PY) -m pytest -q -ra --durations=25
 
 bench: sysdeps install
 	$(VENV)/bin/dermis bench

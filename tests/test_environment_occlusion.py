@@ -79,6 +79,35 @@ def test_every_technique_darkens_the_well_floor_by_its_occlusion(gl_ctx):
             assert centre(on) / centre(off) == pytest.approx(0.5, abs=0.03), tech
 
 
+def test_black_environment_needs_no_bake_and_keeps_every_image(gl_ctx, monkeypatch):
+    """A black environment has nothing to occlude: no visibility bake (the renderer's and the
+    reference's; tests and scenes lit by lamps alone paid for 26 M rays on a 100 k-vertex mesh), and
+    every technique's image is the same bits as with occlusion off; a grey one is baked again on the
+    same renderer and darkens the well's floor."""
+    from dermis.scene.model import Light
+
+    monkeypatch.setattr(visibility, "_MEMORY", {})  # earlier tests baked this well
+    monkeypatch.setattr(visibility, "bake_vertex_visibility", lambda *a, **k: pytest.fail("baked"))
+    scene = well_scene(1.0)
+    scene.mm_per_unit = 100.0
+    scene.lights = [Light(direction=(0.8, 0.0, -0.6), intensity=3.0)]  # 53 deg: the floor's centre in the wall's shadow
+    images = {}
+    with Renderer(scene, (32, 32), ctx=gl_ctx, irradiance_size=128, shadow_size=256) as r:
+        for occlusion in (True, False):
+            scene.environment = Environment(color=(0.0, 0.0, 0.0), occlusion=occlusion)
+            for tech in ("tsd", "ssss", "preintegrated", "lambert"):
+                images[occlusion, tech] = r.render(tech)
+                assert "visibility" not in r.stats["passes_run"] and r.visibility is None
+        for tech in ("tsd", "ssss", "preintegrated", "lambert"):
+            assert np.array_equal(images[True, tech], images[False, tech]) and images[True, tech].max() > 0.05, tech
+        monkeypatch.undo()
+        scene.environment = Environment(color=(SKY,) * 3, occlusion=True)
+        grey = r.render("lambert")
+        assert "visibility" in r.stats["passes_run"] and r.visibility is not None
+        scene.environment.occlusion = False
+        assert centre(grey) / centre(r.render("lambert")) == pytest.approx(0.5, abs=0.05)  # the form factor
+
+
 def test_mesh_edit_rebakes_and_toggle_reuploads(gl_ctx, tmp_path, monkeypatch):
     monkeypatch.setenv("DERMIS_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(visibility, "_MEMORY", {})  # earlier tests baked this well
@@ -146,6 +175,29 @@ def test_specular_occlusion_sh_closed_forms():
     assert 1.0 - visibility.specular_occlusion_sh(toward, N, wall) > 0.8
     assert 1.0 - visibility.specular_occlusion_sh(away, N, wall) < 0.2
     assert 1.0 - visibility.specular_occlusion_sh(zen, N, wall) == pytest.approx(0.5, abs=0.03)
+
+
+def test_occluded_directions_regenerate_alone_with_the_same_bits():
+    """The bake keeps which rays were occluded and regenerates their directions from the seed
+    (ambient_directions_at: only those, not all n k): the same bits as ambient_directions' full array
+    at those rays, for square (stratified) and other (Latin-hypercube) ray counts; and the well's
+    blocked-direction SH (VertexVisibility.blocked_sh) equals blocked_sh_of_rays over all its rays."""
+    from dermis.geometry.raycast import ambient_directions, ambient_directions_at
+
+    rng = np.random.default_rng(8)
+    nrm = rng.normal(size=(300, 3))
+    nrm[:3] = [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.95, 0.3, 0.0]]  # both branches of the tangent frame
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    for k in (64, 20):
+        full = ambient_directions(nrm, k, seed=4)
+        point, ray = np.nonzero(rng.random((300, k)) < 0.2)
+        assert np.array_equal(ambient_directions_at(nrm, k, 4, point, ray), full[point, ray]), k
+    m = well_scene(1.0).mesh
+    v = visibility.bake_vertex_visibility(m.positions, m.normals, m.indices, rays=64, cache=False)
+    occ = np.unpackbits(v.occluded, axis=1, count=64).astype(bool)
+    assert 0.05 < occ.mean() < 0.95
+    every = visibility.blocked_sh_of_rays(v.normals, ambient_directions(v.normals, 64, v.seed), occ)
+    assert np.array_equal(v.blocked_sh(), every[v.inverse].astype(np.float32))
 
 
 def test_specular_occlusion_sh_against_a_ray_cast_of_the_lobe(lee_perry_smith):

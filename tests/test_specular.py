@@ -186,6 +186,32 @@ def test_rho_dt_table_interpolation_vs_direct():
     np.testing.assert_allclose(_albedo_from_table(cos, m), direct, rtol=5e-3)
 
 
+def test_rho_dt_table_is_kept_on_disk_and_read_back_as_built(tmp_path, monkeypatch):
+    """Every rendering process needs the table (~1 s to build on 2 cores): it is kept in the disk
+    cache and read back as built, bit for bit (the rows are _albedo's at the roughness axis, float32);
+    read, not rebuilt (nothing stored again: the same table); not written with the cache off."""
+    from dermis.geometry import bake_cache
+
+    monkeypatch.setenv("DERMIS_CACHE_DIR", str(tmp_path))
+    S._rho_dt_table_cached.cache_clear()
+    try:
+        built = S.rho_dt_table(8, 6)
+        x = np.arange(8, dtype=np.float64) / 7
+        expected = np.stack([S._albedo(x * x, float(m), S.SKIN_F0, 96, 64) for m in S.roughness_axis(6)])
+        assert np.array_equal(built, expected.astype(np.float32)) and not built.flags.writeable
+        assert len(list((tmp_path / "rho_dt").glob("*.npz"))) == 1
+        S._rho_dt_table_cached.cache_clear()
+        with monkeypatch.context() as m:
+            m.setattr(bake_cache, "store", lambda *a: pytest.fail("rebuilt"))
+            again = S.rho_dt_table(8, 6)
+        assert np.array_equal(again, built) and again.dtype == np.float32 and not again.flags.writeable
+        monkeypatch.setenv("DERMIS_CACHE_DIR", "off")
+        S._rho_dt_table_cached.cache_clear()
+        assert np.array_equal(S.rho_dt_table(8, 5)[:, :], S.rho_dt_table(8, 5)) and len(list(tmp_path.rglob("*.npz"))) == 1
+    finally:
+        S._rho_dt_table_cached.cache_clear()
+
+
 def test_rho_dt_energy():
     table = S.rho_dt_table()
     cos = (np.arange(table.shape[1]) / (table.shape[1] - 1)) ** 2

@@ -50,3 +50,39 @@ def test_open_surface_has_no_thickness():
     sc = quad_scene(20.0, 20.0)
     bake = texel_thickness(sc.mesh, 64, 1.0)
     assert not bake[..., 3].any()
+
+
+def test_bake_is_kept_on_disk_and_read_back_as_made(gl_ctx, tmp_path, monkeypatch):
+    """Every process that renders a mesh needs its thickness bake (0.55-0.8 s for the head at 512^2): it is
+    kept in the disk cache and read back as made (tsd's image the same bits, the ray cast not run again),
+    made again for another texture-space layout of the same mesh arrays, and not written with the cache off."""
+    import dataclasses
+
+    from dermis.geometry import thickness as T
+    from dermis.gl import thickness as gl_thickness
+    from dermis.renderer import Renderer
+
+    monkeypatch.setenv("DERMIS_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(gl_thickness, "_BAKES", gl_thickness.OrderedDict())
+    sc = backlit_slab_scene(1.0, fov_deg=30.0)
+
+    def render(scene):
+        gl_thickness._BAKES.clear()
+        with Renderer(scene, (48, 48), ctx=gl_ctx, samples=0, irradiance_size=64) as r:
+            img = r.render("tsd")
+            assert "thickness" in r.stats["passes_run"]
+            return img
+
+    made = render(sc)
+    files = list((tmp_path / "thickness").glob("*.npz"))
+    assert len(files) == 1
+    with monkeypatch.context() as m:
+        m.setattr(T, "texel_thickness", lambda *a, **k: pytest.fail("baked again"))
+        assert np.array_equal(render(sc), made) and made[..., 0].max() > 0.01
+        # the same arrays with another texture-space layout (half the UV square): a bake of its own
+        moved = dataclasses.replace(sc, mesh=dataclasses.replace(sc.mesh, texture_space_uvs=0.5 * np.asarray(sc.mesh.uvs)))
+        with pytest.raises(pytest.fail.Exception, match="baked again"):
+            render(moved)
+    monkeypatch.setenv("DERMIS_CACHE_DIR", "off")
+    render(moved)
+    assert len(list((tmp_path / "thickness").glob("*.npz"))) == 1  # nothing more written with the cache off

@@ -11,6 +11,7 @@ analytic surface where the profile is far narrower than a pixel."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -41,6 +42,22 @@ def corrugated_scene(profile, amplitude_mm: float = AMPLITUDE_MM, n: int = 320) 
     UVs its (x, y) over [0, 1]^2, white, no specular, a directional light of irradiance pi at
     LIGHT_DEG from the normal in the plane of d and z; no ambient, no bounce."""
     d = _fold_direction()
+    b = math.radians(LIGHT_DEG)
+    light = (-math.sin(b) * d[0], -math.sin(b) * d[1], -math.cos(b))  # travelling along +d, down
+    return Scene(mesh=_corrugated_mesh(amplitude_mm, n), profile=profile,
+                 material=SkinMaterial(albedo_color=(1.0, 1.0, 1.0), rho_s=0.0, pore_strength=0.0),
+                 lights=[Light(direction=light, intensity=np.pi, cast_shadows=False)],
+                 camera=Camera(position=(0.0, 0.0, CAMERA_Z), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0),
+                               fov_deg=math.degrees(2 * math.atan(0.5 * SIZE_MM / CAMERA_Z))),
+                 environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0, name="corrugated",
+                 interreflection=False, directional_albedo=False)
+
+
+@functools.lru_cache(maxsize=2)
+def _corrugated_mesh(amplitude_mm: float, n: int):
+    """corrugated_scene's mesh, built once per shape for the module (103 k vertices and their tangents:
+    ~1 s each; the scenes only read it)."""
+    d = _fold_direction()
     k = 2 * math.pi / WAVELENGTH_MM
 
     def fn(u, v):
@@ -52,22 +69,23 @@ def corrugated_scene(profile, amplitude_mm: float = AMPLITUDE_MM, n: int = 320) 
         return np.stack([x, y, z], -1), n / np.linalg.norm(n, axis=-1, keepdims=True)
 
     p, nn, uv, t = grid_mesh(n, n, fn)  # n = 320: 0.05 mm, 12 vertices per wavelength
-    b = math.radians(LIGHT_DEG)
-    light = (-math.sin(b) * d[0], -math.sin(b) * d[1], -math.cos(b))  # travelling along +d, down
-    return Scene(mesh=finish_mesh(p, nn, uv, t, "test:corrugated", "v-up"), profile=profile,
-                 material=SkinMaterial(albedo_color=(1.0, 1.0, 1.0), rho_s=0.0, pore_strength=0.0),
-                 lights=[Light(direction=light, intensity=np.pi, cast_shadows=False)],
-                 camera=Camera(position=(0.0, 0.0, CAMERA_Z), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0),
-                               fov_deg=math.degrees(2 * math.atan(0.5 * SIZE_MM / CAMERA_Z))),
-                 environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0, name="corrugated",
-                 interreflection=False, directional_albedo=False)
+    return finish_mesh(p, nn, uv, t, "test:corrugated", "v-up")
 
 
 def _render(scene, irradiance_size, gl_ctx, **options):
+    return _renders(scene, irradiance_size, gl_ctx, options)[0]
+
+
+def _renders(scene, irradiance_size, gl_ctx, *option_sets):
+    """tsd's image per set of options, from one Renderer (the texture-space passes, which the pixel
+    detail does not change, are drawn once; the same bits as a Renderer per image)."""
     with Renderer(scene, (PIXELS, PIXELS), ctx=gl_ctx, samples=0, irradiance_size=irradiance_size,
                   shadow_size=512) as r:
-        r.technique("tsd", **options)
-        return r.render("tsd").astype(np.float64).mean(axis=-1)
+        out = []
+        for options in option_sets:
+            r.technique("tsd", **options)
+            out.append(r.render("tsd").astype(np.float64).mean(axis=-1))
+        return out
 
 
 def _closed_form():
@@ -97,8 +115,7 @@ def narrow_renders(gl_ctx):
     """A profile of one Gaussian far narrower than a pixel (sigma 0.01 mm; a pixel is 0.0625 mm):
     the diffuse radiance is the irradiance at the pixel over pi, here max(N.L, 0)."""
     scene = corrugated_scene(SumOfGaussians(np.array([1e-4]), np.ones((1, 3)), "narrow"))
-    return (_render(scene, COARSE, gl_ctx), _render(scene, COARSE, gl_ctx, pixel_detail=False),
-            _render(scene, FINE, gl_ctx, pixel_detail=False))
+    return (*_renders(scene, COARSE, gl_ctx, {}, {"pixel_detail": False}), _render(scene, FINE, gl_ctx, pixel_detail=False))
 
 
 def test_narrow_profile_matches_the_closed_form_at_a_coarse_texture(narrow_renders):
@@ -121,8 +138,7 @@ def test_skin_profile_at_a_coarse_texture_approaches_the_fine_one(gl_ctx):
     texel take a share a_k of the residual at the texture's Nyquist frequency (tsd/gaussians.glsl),
     an approximation (a_k at twice or half that frequency: 0.045 and 0.080)."""
     scene = corrugated_scene(deon_skin())
-    detail = _render(scene, COARSE, gl_ctx)
-    plain = _render(scene, COARSE, gl_ctx, pixel_detail=False)
+    detail, plain = _renders(scene, COARSE, gl_ctx, {}, {"pixel_detail": False})
     fine = _render(scene, FINE, gl_ctx, pixel_detail=False)
     assert _rms(plain, fine) > 0.1, _rms(plain, fine)
     assert _rms(detail, fine) < 0.05, _rms(detail, fine)
@@ -132,8 +148,7 @@ def test_pixel_detail_leaves_a_resolved_irradiance_alone(gl_ctx):
     """A flat plane under a light at 60 degrees: I_0 is constant, the texture holds it exactly, so the
     detail adds nothing (within the 16-bit irradiance texture's rounding)."""
     scene = corrugated_scene(deon_skin(), amplitude_mm=0.0)
-    detail = _render(scene, COARSE, gl_ctx)
-    plain = _render(scene, COARSE, gl_ctx, pixel_detail=False)
+    detail, plain = _renders(scene, COARSE, gl_ctx, {}, {"pixel_detail": False})
     assert np.max(np.abs(detail - plain)[INNER]) < 2e-3 * np.mean(plain[INNER])
     assert abs(np.mean(plain[INNER]) - math.cos(math.radians(LIGHT_DEG))) < 0.01
 
@@ -162,10 +177,14 @@ def test_pixel_detail_keeps_the_bounce(gl_ctx):
     means = {}
     for bounce in (True, False):
         scene = dataclasses.replace(groove_scene(), interreflection=bounce)
-        for detail in (True, False):
-            with Renderer(scene, (size, size), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=1024) as r:
+        images = {}
+        with Renderer(scene, (size, size), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=1024) as r:
+            for detail in (True, False):  # one Renderer: the same bits as one per image
                 r.technique("tsd", pixel_detail=detail)
-                means[bounce, detail] = r.render("tsd").astype(np.float64)[groove].reshape(-1, 3).mean(axis=0)
+                images[detail] = r.render("tsd").astype(np.float64)[groove]
+                means[bounce, detail] = images[detail].reshape(-1, 3).mean(axis=0)
+        # the option took effect on the live Renderer: the detail changes the groove's pixels (by up to 0.29)
+        assert np.abs(images[True] - images[False]).max() > 0.05
     with_detail = means[True, True] - means[False, True]
     without = means[True, False] - means[False, False]
     assert np.all(without > 0.3 * means[True, False]), (without, means[True, False])

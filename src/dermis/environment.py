@@ -93,3 +93,10 @@ def environment_sh(env) -> np.ndarray:
                              lambda: read_only(sh_irradiance_from_equirect(equirect_radiance(env))))
         return sh * env.intensity
     return sh_irradiance_constant(env.color) * env.intensity
+
+
+def environment_is_black(env) -> bool:
+    """True for a constant environment of no light (colour x intensity 0, no image): its occlusion,
+    diffuse (r E_sh) and specular (E_sh(R) rho_s a so / pi) are 0 whatever the mesh blocks, so the
+    renderers skip the ambient-occlusion bake and rays (the same image, bit for bit)."""
+    return env.image is None and not np.any(environment_sh(env) != 0.0)

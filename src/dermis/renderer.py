@@ -339,11 +339,14 @@ class Renderer:
     def _upload_visibility(self, passes: list):
         """in_visibility: the mesh's baked ambient occlusion and the visible fraction of the
         environment's irradiance (the bake cached per mesh content, in memory and on disk), or
-        (1, 1, 1, 1) with [environment] occlusion = false."""
+        (1, 1, 1, 1) with [environment] occlusion = false or a black environment (nothing to occlude:
+        the same image, no bake)."""
+        from dermis.environment import environment_is_black
         from dermis.geometry.visibility import mesh_visibility, open_visibility
 
         m = self.scene.mesh
-        if self.scene.environment.occlusion:
+        env = self.scene.environment
+        if env.occlusion and not environment_is_black(env):
             with self.timer("visibility"):
                 vis = mesh_visibility(m)
                 # the visible fraction of this environment's irradiance: a lookup per occluded ray

@@ -240,10 +240,29 @@ def _albedo(cos_theta, m: float, f0: float, n_xi: int, n_phi: int) -> np.ndarray
 
 @lru_cache(maxsize=4)
 def _rho_dt_table_cached(size_cos: int, size_m: int) -> np.ndarray:
-    x = np.arange(size_cos, dtype=np.float64) / (size_cos - 1)
-    cos = x * x  # x = sqrt(cos_theta) at texel centres
-    table = np.stack([_albedo(cos, float(mj), SKIN_F0, 96, 64) for mj in roughness_axis(size_m)])
-    table = table.astype(np.float32)
+    """Built once per process, and kept in dermis's disk cache (geometry.bake_cache: DERMIS_CACHE_DIR, off
+    with "off") under a key of the sizes, F0 and the source of the functions that compute it: every
+    process that renders needs it (0.6-1.5 s to build on 2 cores; the test suite starts ~20 of them)."""
+    import hashlib
+    import inspect
+
+    from dermis.geometry import bake_cache
+
+    try:
+        source = "".join(inspect.getsource(f) for f in (_albedo, fresnel_schlick, roughness_axis, _rho_dt_table_cached))
+    except (OSError, TypeError):  # no source to key it by (a frozen build): built, not stored
+        source = None
+    key = hashlib.sha256(repr((size_cos, size_m, SKIN_F0, source)).encode()).hexdigest()
+    path = None if source is None else bake_cache.cache_path("rho_dt", key)
+    got = bake_cache.load({}, key, path, {"table": (size_m, size_cos)}, 1)
+    if got is not None and got["table"].dtype == np.float32:
+        table = np.array(got["table"])
+    else:
+        x = np.arange(size_cos, dtype=np.float64) / (size_cos - 1)
+        cos = x * x  # x = sqrt(cos_theta) at texel centres
+        table = np.stack([_albedo(cos, float(mj), SKIN_F0, 96, 64) for mj in roughness_axis(size_m)])
+        table = table.astype(np.float32)
+        bake_cache.store(path, {"table": table})
     table.setflags(write=False)
     return table
 

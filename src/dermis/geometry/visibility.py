@@ -81,12 +81,12 @@ class VertexVisibility:
         if self._blocked is None and self.key in _BLOCKED:
             self._blocked = _BLOCKED[self.key]
         if self._blocked is None:  # the occluded rays' (vertex, u, v): once per bake, any environment
-            from dermis.geometry.raycast import ambient_directions
+            from dermis.geometry.raycast import ambient_directions_at
             from dermis.prefiltered_environment import direction_to_equirect
 
             occ = np.unpackbits(self.occluded, axis=1, count=self.rays).astype(bool)
             owner, ray = np.nonzero(occ)
-            u, v = direction_to_equirect(ambient_directions(self.normals, self.rays, self.seed)[owner, ray])
+            u, v = direction_to_equirect(ambient_directions_at(self.normals, self.rays, self.seed, owner, ray))
             self._blocked = (owner, u, v)
             if self.key:
                 while len(_BLOCKED) >= _MEMORY_MAX:
@@ -120,10 +120,11 @@ class VertexVisibility:
         from dermis.invalidation import memo_by_content, read_only
 
         def project():
-            from dermis.geometry.raycast import ambient_directions
+            from dermis.geometry.raycast import ambient_directions_at
 
-            occ = np.unpackbits(self.occluded, axis=1, count=self.rays).astype(bool)
-            c = blocked_sh_of_rays(self.normals, ambient_directions(self.normals, self.rays, self.seed), occ)
+            owner, ray = np.nonzero(np.unpackbits(self.occluded, axis=1, count=self.rays))
+            d = ambient_directions_at(self.normals, self.rays, self.seed, owner, ray)
+            c = _blocked_sh(self.normals, owner, d, self.rays)
             return read_only(c[self.inverse].astype(np.float32) if self.inverse is not None else c.astype(np.float32))
 
         return memo_by_content("visibility.blocked_sh", (self.occluded,), (self.key, self.rays, self.seed), project)
@@ -234,13 +235,17 @@ def blocked_sh_of_rays(normals, dirs, occ) -> np.ndarray:
     """(n, 9) the L2 SH of the blocked directions (VertexVisibility.blocked_sh) from K cosine-
     distributed rays per point: normals (n, 3) unit, dirs (n, K, 3), occ (n, K) bool;
     c_lm ~ (pi / K) sum_k occ_k Y_lm(w_k) / (n.w_k)."""
+    owner, ray = np.nonzero(np.asarray(occ, bool))
+    return _blocked_sh(normals, owner, np.asarray(dirs, np.float64)[owner, ray], np.asarray(occ).shape[1])
+
+
+def _blocked_sh(normals, owner, d, rays: int) -> np.ndarray:
+    """blocked_sh_of_rays from the occluded rays alone: their points ``owner`` (m,) and directions d (m, 3)."""
     from dermis.environment import sh9_basis
 
     nrm = np.asarray(normals, np.float64)
-    owner, ray = np.nonzero(np.asarray(occ, bool))
-    d = np.asarray(dirs, np.float64)[owner, ray]
     # the strata reach the horizon: a floor on n.w keeps one grazing ray from weighing 1000x
-    w = np.pi / np.asarray(occ).shape[1] / np.maximum(np.sum(d * nrm[owner], axis=-1), BLOCKED_SH_MIN_COS)
+    w = np.pi / rays / np.maximum(np.sum(d * nrm[owner], axis=-1), BLOCKED_SH_MIN_COS)
     y = sh9_basis(d) * w[:, None]
     return np.stack([np.bincount(owner, weights=y[:, j], minlength=len(nrm)) for j in range(9)], 1)
 

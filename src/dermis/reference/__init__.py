@@ -16,6 +16,14 @@ Modules, one concept each:
 * ``cli``       - ``dermis reference`` and ``dermis validate``.
 """
 
-from dermis.reference.render import ReferenceResult, render_reference
-
 __all__ = ["ReferenceResult", "render_reference"]
+
+
+def __getattr__(name):
+    """render_reference and ReferenceResult on first use (PEP 562): ``dermis`` registers this package's
+    commands at every start, and importing render (scipy.spatial, numba) cost each CLI process ~0.5 s."""
+    if name in __all__:
+        from dermis.reference import render
+
+        return getattr(render, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from dermis.camera import normalize
+from dermis.environment import environment_is_black
 from dermis.geometry.visibility import (OFFSET_REL, blocked_sh_of_rays, environment_radiance, occluded_fraction,
                                         occluded_irradiance, specular_occlusion_sh)
 from dermis.specular import ksk_specular
@@ -90,21 +91,26 @@ class LightRig:
         lo, hi = scene.bounds()
         self.epsilon_mm = SHADOW_EPSILON_REL * float(np.linalg.norm((hi - lo) * mm)) + 1e-9
         self.ambient_offset_mm = OFFSET_REL * float(np.linalg.norm((hi - lo) * mm))
-        self.occlusion = bool(scene.environment.occlusion)
         env = scene.environment
+        # a black environment has no light to occlude: no ambient rays are cast (the same image, bit for
+        # bit; on a black-lit plane the rays were 80 % of the render's time)
+        self.occlusion = bool(env.occlusion) and not environment_is_black(env)
         self.env_radiance = environment_radiance(env) if (self.occlusion and env.image is not None) else None
         self._ambient_batches = 0  # seeds successive ambient-occlusion batches differently, deterministically
 
-    def ambient_visibility(self, attrs):
+    def ambient_visibility(self, attrs, blocked_sh: bool = True):
         """(A (n,), the visible fraction r (n, 3) of the SH irradiance) at the points ``attrs``:
         cosine-weighted rays about the interpolated normal from the shadow-ray origin
         (RayCaster.ambient_rays), the light they block integrated against the environment image
         (dermis.geometry.visibility.occluded_fraction), or (1, 1) with environment occlusion off.
         Cached in ``attrs``, with the L2 SH of the directions the rays found blocked (``attrs["blocked_sh"]``,
-        dermis.geometry.visibility.blocked_sh_of_rays; 0 when off): the specular occlusion's."""
+        dermis.geometry.visibility.blocked_sh_of_rays; 0 when off): the specular occlusion's, projected only
+        with ``blocked_sh`` (the scattering's surface cells never read it: None there)."""
+        if "ambient_occlusion" in attrs and blocked_sh and attrs["blocked_sh"] is None:
+            raise ValueError("ambient_visibility: these points' rays were cast without their blocked SH")
         if "ambient_occlusion" not in attrs:
             ng = attrs["normal_geo"]
-            blocked = np.zeros((len(ng), 9))
+            blocked = np.zeros((len(ng), 9)) if blocked_sh else None
             if not self.occlusion:
                 ao, frac = np.ones(len(ng)), np.ones((len(ng), 3))
             else:
@@ -117,7 +123,8 @@ class LightRig:
                                                                             offset=self.ambient_offset_mm,
                                                                             seed=self._ambient_batches)
                     n_unit = ng[c0:c1] / np.maximum(np.linalg.norm(ng[c0:c1], axis=1, keepdims=True), 1e-300)
-                    blocked[c0:c1] = blocked_sh_of_rays(n_unit, dirs, occ)
+                    if blocked is not None:
+                        blocked[c0:c1] = blocked_sh_of_rays(n_unit, dirs, occ)
                     if self.env_radiance is None:  # a constant environment: r = A exactly
                         frac[c0:c1] = ao[c0:c1, None]
                     else:
@@ -186,7 +193,7 @@ def scattered_irradiance(surface, rig, attrs):
         vis = rig.visibility(i, attrs, L, dist, origins)
         f = np.where(lit, ndl, 0.0) * vis * surface.energy_transmitted(rho_s, np.clip(ndl, 0.0, 1.0))
         E += Ei * (f * bump_shadowing(attrs["normal_geo"], n_map, L))[:, None]
-    _, frac = rig.ambient_visibility(attrs)
+    _, frac = rig.ambient_visibility(attrs, blocked_sh=False)
     E += occluded_irradiance(surface.env_sh, n_map, frac) \
         * surface.energy_transmitted(rho_s, np.full(len(rho_s), 0.5))[:, None]
     mix = float(surface.material.mix)
