@@ -46,6 +46,7 @@ for rho_s <= pi / 2.75 = 1.14 (skin's 0.18 .. 0.34 fits). P is for an isotropic 
 
 from __future__ import annotations
 
+import sys
 from functools import lru_cache
 
 import numpy as np
@@ -241,7 +242,7 @@ def _albedo(cos_theta, m: float, f0: float, n_xi: int, n_phi: int) -> np.ndarray
 @lru_cache(maxsize=4)
 def _rho_dt_table_cached(size_cos: int, size_m: int) -> np.ndarray:
     """Built once per process, and kept in dermis's disk cache (geometry.bake_cache: DERMIS_CACHE_DIR, off
-    with "off") under a key of the sizes, F0 and the source of the functions that compute it: every
+    with "off") under a key of the sizes, F0 and the source of this module (which computes it): every
     process that renders needs it (0.6-1.5 s to build on 2 cores; the test suite starts ~20 of them)."""
     import hashlib
     import inspect
@@ -249,7 +250,8 @@ def _rho_dt_table_cached(size_cos: int, size_m: int) -> np.ndarray:
     from dermis.geometry import bake_cache
 
     try:
-        source = "".join(inspect.getsource(f) for f in (_albedo, fresnel_schlick, roughness_axis, _rho_dt_table_cached))
+        # this whole module's source: a change to any function the table is built with rebuilds it
+        source = inspect.getsource(sys.modules[__name__])
     except (OSError, TypeError):  # no source to key it by (a frozen build): built, not stored
         source = None
     key = hashlib.sha256(repr((size_cos, size_m, SKIN_F0, source)).encode()).hexdigest()
