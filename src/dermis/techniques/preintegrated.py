@@ -85,7 +85,7 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from dermis.gl.resources import set_uniform
+from dermis.gl.resources import prepared, set_uniform
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit,
@@ -473,7 +473,9 @@ class PreintegratedSkin(Technique):
                                   frame.scene)
             set_uniform(prog, "uCurvatureMaxPerMm", float(CURVATURE_MAX_PER_MM))
             set_uniform(prog, "uPenumbraWidthRangeMm", tuple(float(x) for x in PENUMBRA_WIDTH_RANGE_MM))
-            set_uniform(prog, "uScatteringWidthMm", tuple(float(x) for x in channel_scattering_widths_mm(profile)))
+            # per profile (its key), not per frame: a camera-only frame computes no scene uniform
+            prepared(prog, "scattering_width", frame.keys["profile_tables"],
+                     lambda p: set_uniform(p, "uScatteringWidthMm", tuple(float(x) for x in channel_scattering_widths_mm(profile))))
             set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.options.curvature_source == "mesh" else 0.0)
             set_uniform(prog, "uBlurredNormals", 1.0 if self.options.blurred_normals else 0.0)
             set_uniform(prog, "uPenumbraScattering", 1.0 if self.options.penumbra_scattering else 0.0)
