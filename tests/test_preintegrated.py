@@ -353,7 +353,8 @@ def test_red_scatters_into_a_cast_shadow_beyond_the_pcf_penumbra(gl_ctx, case):
     what the PCF calls fully shadowed, so before round 19 the strip's red was 0 at its centre (the
     closed eye's black slit) and red's rms error 0.149 (strip) / 0.113 (edge); with the wide penumbra
     0.066 / 0.051 (the strip's centre 0.091, 0.46 of the closed form: the table reads a strip narrower
-    than the box as one edge; the edge's tail beyond the box is cut). Green and blue, whose scattering
+    than the box as one edge; the edge's tail beyond the box is cut); with a step under the box
+    (fringe19, below) 0.072 / 0.052 and 0.086 (0.43): the error is now the cut tail, not the edge. Green and blue, whose scattering
     the PCF's penumbra holds, keep the narrow table: 0.059 / 0.064 (strip) and 0.043 / 0.046 (edge)
     as before.
     "edge" also bounds the lit side's colour at the edge against the closed form of a step where the

@@ -72,7 +72,7 @@ ring model assumes one curvature at a scale of the profile's width (mesh curvatu
 that is meaningless, a coarse mesh blurs it), the penumbra width from derivatives is noisy on
 2x2 pixel quads (bounded by the projected filter size), and the table sharpens narrow penumbras.
 The wide penumbra reads a shadow narrower than its box as one edge (a 2.5 mm strip's centre gets
-0.46 of the closed form's red), cuts the scattered tail beyond half its box, and lies on the
+0.43 of the closed form's red), cuts the scattered tail beyond half its box, and lies on the
 tangent plane: the receiver's own concave rise is lifted out only up to a 0.5 rad turn of its normal.
 Shaders: shaders/preintegrated/skin.frag.
 """

@@ -106,7 +106,7 @@ float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
 // where the PCF already holds the scattering, all where it is at most half of it). Probed first: the
 // box's corners and the PCF value agree (all lit or all shadowed) over most of a frame, and then so
 // does the box. Limits: the table reads a shadow narrower than the box as one edge (a 2.5 mm strip's
-// centre gets 0.46 of the closed form's red, tests/test_preintegrated.py), the scattered tail beyond
+// centre gets 0.43 of the closed form's red, tests/test_preintegrated.py), the scattered tail beyond
 // half the box is cut (the table's rescale), and the box lies on the tangent plane, not the surface.
 const float LIFT_MAX_TURN = 0.5;  // radians: the most the receiver's normal turns across the square for the lift
 vec3 wide_penumbra_blend(int i, vec3 P) {
