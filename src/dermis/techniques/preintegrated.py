@@ -253,11 +253,11 @@ def scattered_shadow(profile, shadow, width_mm, sharpen_min: float = PENUMBRA_SH
     (width 0): the wide penumbra's s is a box filter of width w over the shadow map's own compares
     (common/shadow.glsl, shadow_box_curved), and a box of width w over a step is exactly a linear
     ramp of width w, so s gives the position across the step itself and no width is left to take
-    out. (Sharpened by the scattering only, that edge kept the PCF's ~1.2 mm ramp, which the box's
-    taps do not have: red's light at the lit side of a cast shadow fell to 0.66 of the lit plane's
-    where a step gives 0.75, a pale green fringe; benchmarks/RESULTS.md, round 19, fringe19.)
-    The light under it,
-    scattered across the edge, is that ramp convolved with the profile's 1-D marginal
+    out (each tap's bilinear 2x2 compare adds about a texel, left out). Sharpened by the scattering
+    only, that edge kept the PCF's ~1.2 mm ramp, which the box's taps do not have: red at the lit
+    side of a cast shadow fell to 0.66 of the lit skin's where a step gives 0.75 (front-key's nose
+    shadow on the cheek), a pale green fringe (benchmarks/RESULTS.md, round 19, fringe19). The light
+    under it, scattered across the edge, is that ramp convolved with the profile's 1-D marginal
     sum_k w_k g(v_k, x) (the line integral of a 2-D Gaussian is the 1-D Gaussian of the same
     variance), rescaled to 0 at s = 0 and 1 at s = 1: the table cannot light what the shadow map
     calls fully shadowed, nor darken what it calls fully lit. Odd about s = 1/2, so the light

@@ -101,9 +101,10 @@ float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
 // over the PCF width plus the scattering width on P's tangent plane (common/shadow.glsl,
 // shadow_box_curved: the receiver's own curvature lifted out) and read through the second table's
 // row of that width (penumbra_lookup(..., true): a box of width W over the map's step is a ramp of
-// width W exactly, so the table's edge is the step itself; with the PCF's ~1.2 mm ramp left in it, red
-// fell at the lit side of a cast shadow where green does not, a pale green fringe), blended in by a_c = (scattering - pcf) / pcf in [0, 1] (none
-// where the PCF already holds the scattering, all where it is at most half of it). Probed first: the
+// width W exactly, so the table's edge is the step itself; with the PCF's ~1.2 mm ramp left in it,
+// red fell at the lit side of a cast shadow where green does not, a pale green fringe), blended in
+// by a_c = (scattering - pcf) / pcf in [0, 1] (none where the PCF already holds the scattering, all
+// where it is at most half of it). Probed first: the
 // box's corners and the PCF value agree (all lit or all shadowed) over most of a frame, and then so
 // does the box. Limits: the table reads a shadow narrower than the box as one edge (a 2.5 mm strip's
 // centre gets 0.43 of the closed form's red, tests/test_preintegrated.py), the scattered tail beyond
