@@ -29,7 +29,7 @@ from three local quantities looked up in tables computed at start-up from the ac
   scattering widens an edge by more than the PCF's penumbra (d'Eon's red, 2.35 mm, against ~1.2 mm
   on the head at the shadow tile 2048) also reads a wide penumbra: the shadow box-filtered over the
   PCF's width plus the scattering's on the tangent plane, through a second table of the same rows
-  sharpened by the whole scattering width (:func:`penumbra_tables`), blended in by
+  whose edge is a step (the box's ramp is its own width; :func:`penumbra_tables`), blended in by
   (scattering - PCF) / PCF. Without it a cast shadow narrower than red's reach, the upper lid's on
   the closed eye's slit, was black where Cycles is dark red (benchmarks/RESULTS.md, round 19, eyes19).
 * surface detail: each channel's normal is the normal map filtered by that channel's profile,
@@ -72,7 +72,7 @@ ring model assumes one curvature at a scale of the profile's width (mesh curvatu
 that is meaningless, a coarse mesh blurs it), the penumbra width from derivatives is noisy on
 2x2 pixel quads (bounded by the projected filter size), and the table sharpens narrow penumbras.
 The wide penumbra reads a shadow narrower than its box as one edge (a 2.5 mm strip's centre gets
-0.46 of the closed form's red), cuts the scattered tail beyond half its box, and lies on the
+0.43 of the closed form's red), cuts the scattered tail beyond half its box, and lies on the
 tangent plane: the receiver's own concave rise is lifted out only up to a 0.5 rad turn of its normal.
 Shaders: shaders/preintegrated/skin.frag.
 """
@@ -239,24 +239,32 @@ def sharp_edge_width_mm(profile, width_mm, sharpen_min: float = PENUMBRA_SHARPEN
     """The light's own edge under a PCF penumbra of width w: what is left once the scattering's
     widening is taken out (Penner's "sharpening"), w - scattering width, but at least
     ``sharpen_min`` w (PENUMBRA_SHARPEN_MIN: wide penumbras keep their width, narrow ones are
-    sharpened; 0 for the wide penumbra, whose width is the PCF's plus the scattering's by construction)."""
+    sharpened). Not for the wide penumbra's box, whose ramp holds no scattering (:func:`scattered_shadow`, box)."""
     w = np.asarray(width_mm, np.float64)
     return np.maximum(w - scattering_width_mm(profile), sharpen_min * w)
 
 
-def scattered_shadow(profile, shadow, width_mm, sharpen_min: float = PENUMBRA_SHARPEN_MIN) -> np.ndarray:
+def scattered_shadow(profile, shadow, width_mm, sharpen_min: float = PENUMBRA_SHARPEN_MIN,
+                     box: bool = False) -> np.ndarray:
     """Penner's penumbra scattering for one penumbra width, per channel: (len(shadow), 3).
 
     The soft shadow s sits at x = (s - 1/2) w across a penumbra of width w (mm). The light's own
-    edge there is a linear ramp of width :func:`sharp_edge_width_mm`; the light under it,
-    scattered across the edge, is that ramp convolved with the profile's 1-D marginal
+    edge there is a linear ramp of width :func:`sharp_edge_width_mm`, or, with ``box``, a step
+    (width 0): the wide penumbra's s is a box filter of width w over the shadow map's own compares
+    (common/shadow.glsl, shadow_box_curved), and a box of width w over a step is exactly a linear
+    ramp of width w, so s gives the position across the step itself and no width is left to take
+    out (each tap's bilinear 2x2 compare adds about a texel, left out). Sharpened by the scattering
+    only, that edge kept the PCF's ~1.2 mm ramp, which the box's taps do not have: red at the lit
+    side of a cast shadow fell to 0.66 of the lit skin's where a step gives 0.75 (front-key's nose
+    shadow on the cheek), a pale green fringe (benchmarks/RESULTS.md, round 19, fringe19). The light
+    under it, scattered across the edge, is that ramp convolved with the profile's 1-D marginal
     sum_k w_k g(v_k, x) (the line integral of a 2-D Gaussian is the 1-D Gaussian of the same
     variance), rescaled to 0 at s = 0 and 1 at s = 1: the table cannot light what the shadow map
     calls fully shadowed, nor darken what it calls fully lit. Odd about s = 1/2, so the light
     summed across the penumbra is that of the PCF ramp: the table moves light, red furthest."""
     prof = profile.normalized()
     s = np.asarray(shadow, np.float64)
-    edge = float(sharp_edge_width_mm(profile, width_mm, sharpen_min))
+    edge = 0.0 if box else float(sharp_edge_width_mm(profile, width_mm, sharpen_min))
     xs = np.concatenate([(s - 0.5) * width_mm, [-0.5 * width_mm, 0.5 * width_mm]])
     out = np.zeros((len(xs), 3))
     for v, w in zip(prof.variances_mm2, prof.weights):
@@ -265,21 +273,23 @@ def scattered_shadow(profile, shadow, width_mm, sharpen_min: float = PENUMBRA_SH
     return np.clip((out[:-2] - lo) / np.maximum(hi - lo, 1e-12), 0.0, 1.0)
 
 
-def penumbra_table(profile, size=PENUMBRA_TABLE_SIZE, sharpen_min: float = PENUMBRA_SHARPEN_MIN) -> np.ndarray:
-    """(rows = penumbra width, cols = shadow value, 3) float32 table of the scattered shadow."""
-    key = _profile_key(profile, "penumbra", tuple(size), sharpen_min)
+def penumbra_table(profile, size=PENUMBRA_TABLE_SIZE, sharpen_min: float = PENUMBRA_SHARPEN_MIN,
+                   box: bool = False) -> np.ndarray:
+    """(rows = penumbra width, cols = shadow value, 3) float32 table of the scattered shadow
+    (``box``: the wide penumbra's, a step under the box; :func:`scattered_shadow`)."""
+    key = _profile_key(profile, "penumbra", tuple(size), sharpen_min, box)
     if key not in _TABLE_CACHE:
         s = shadow_axis(size[0])
-        rows = [scattered_shadow(profile, s, w, sharpen_min) for w in penumbra_width_axis(size[1])]
+        rows = [scattered_shadow(profile, s, w, sharpen_min, box) for w in penumbra_width_axis(size[1])]
         _TABLE_CACHE[key] = np.stack(rows).astype(np.float32)
     return _TABLE_CACHE[key]
 
 
 def penumbra_tables(profile, size=PENUMBRA_TABLE_SIZE) -> np.ndarray:
     """The texture skin.frag reads: penumbra_table's rows, then the wide penumbra's (the same widths,
-    the edge sharpened by the whole scattering width, sharpen_min 0: skin.frag's wide penumbra is the
-    PCF's width plus the scattering's, so what is left is the PCF's own edge), (2 x rows, cols, 3)."""
-    return np.concatenate([penumbra_table(profile, size), penumbra_table(profile, size, 0.0)], 0)
+    the edge a step: skin.frag's wide penumbra is a box filter of the shadow map's compares, whose
+    ramp is the box's own width, not a penumbra), (2 x rows, cols, 3)."""
+    return np.concatenate([penumbra_table(profile, size), penumbra_table(profile, size, box=True)], 0)
 
 
 # ---------------------------------------------------------------------- curvature (numpy)

@@ -58,7 +58,7 @@ vec3 diffuse_lookup(vec3 ndl, float curvature) {
 
 // The penumbra texture holds two tables of the same rows (dermis.techniques.preintegrated.penumbra_tables):
 // wide = false, Penner's (the PCF's penumbra, sharpened by at most half); true, the wide penumbra's
-// (sharpened by the whole scattering width). Texel centres of the chosen half only.
+// (a step under the box: the box's ramp is all box, no penumbra). Texel centres of the chosen half only.
 vec3 penumbra_lookup(float shadow, float width_mm, bool wide) {
     float t = log(max(width_mm, 1e-6) / uPenumbraWidthRangeMm.x) / log(uPenumbraWidthRangeMm.y / uPenumbraWidthRangeMm.x);
     vec2 size = vec2(textureSize(uPenumbraTable, 0));
@@ -100,12 +100,14 @@ float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
 // the light scatters red into it (Cycles, tsd, ssss). For such channels the shadow is box-filtered
 // over the PCF width plus the scattering width on P's tangent plane (common/shadow.glsl,
 // shadow_box_curved: the receiver's own curvature lifted out) and read through the second table's
-// row of that width (penumbra_lookup(..., true): the edge sharpened by the whole scattering width,
-// which leaves the PCF's own edge), blended in by a_c = (scattering - pcf) / pcf in [0, 1] (none
-// where the PCF already holds the scattering, all where it is at most half of it). Probed first: the
+// row of that width (penumbra_lookup(..., true): a box of width W over the map's step is a ramp of
+// width W exactly, so the table's edge is the step itself; with the PCF's ~1.2 mm ramp left in it,
+// red fell at the lit side of a cast shadow where green does not, a pale green fringe), blended in
+// by a_c = (scattering - pcf) / pcf in [0, 1] (none where the PCF already holds the scattering, all
+// where it is at most half of it). Probed first: the
 // box's corners and the PCF value agree (all lit or all shadowed) over most of a frame, and then so
 // does the box. Limits: the table reads a shadow narrower than the box as one edge (a 2.5 mm strip's
-// centre gets 0.46 of the closed form's red, tests/test_preintegrated.py), the scattered tail beyond
+// centre gets 0.43 of the closed form's red, tests/test_preintegrated.py), the scattered tail beyond
 // half the box is cut (the table's rescale), and the box lies on the tangent plane, not the surface.
 const float LIFT_MAX_TURN = 0.5;  // radians: the most the receiver's normal turns across the square for the lift
 vec3 wide_penumbra_blend(int i, vec3 P) {
