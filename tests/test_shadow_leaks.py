@@ -28,6 +28,23 @@ def test_side_view_eye_socket_has_no_lit_blob(lee_perry_smith, gl_ctx):
     assert region.max() < 3.0 * median, (region.max(), median)
 
 
+def _one_light_scene(scene_path, light_index, shadows, bias_scale=1.0, camera=None):
+    """The scene with only light ``light_index`` (its shadow map on or off, its bias scaled), no
+    ambient, no bounce, no specular, no pores; ``camera`` in place of the scene's where given."""
+    sc = dermis.load_scene(scene_path)
+    sc.material.rho_s = 0.0
+    sc.material.pore_strength = 0.0
+    sc.environment.color = (0.0, 0.0, 0.0)
+    sc.environment.image = None
+    sc.interreflection = False
+    sc.lights = [sc.lights[light_index]]
+    sc.lights[0].cast_shadows = shadows
+    sc.lights[0].shadow_bias *= bias_scale
+    if camera is not None:
+        sc.camera = camera
+    return sc
+
+
 def _shadow_vs_ray_cast(scene_path, light_index, gl_ctx, size=256, bias_scale=1.0):
     """(mean boundary shift in pixels, leaked pixels / ray-cast shadowed pixels) of one light's
     shadow-map shadow against the hard shadow a ray cast from each pixel's surface point finds.
@@ -45,16 +62,7 @@ def _shadow_vs_ray_cast(scene_path, light_index, gl_ctx, size=256, bias_scale=1.
     from dermis.reference.render import camera_rays
 
     def scene(shadows):
-        sc = dermis.load_scene(scene_path)
-        sc.material.rho_s = 0.0
-        sc.material.pore_strength = 0.0
-        sc.environment.color = (0.0, 0.0, 0.0)
-        sc.environment.image = None
-        sc.interreflection = False
-        sc.lights = [sc.lights[light_index]]
-        sc.lights[0].cast_shadows = shadows
-        sc.lights[0].shadow_bias *= bias_scale
-        return sc
+        return _one_light_scene(scene_path, light_index, shadows, bias_scale=bias_scale)
 
     lum = []
     for shadows in (True, False):
@@ -118,16 +126,7 @@ def _grazing_cast_shadow(gl_ctx, scene_path, camera, size, ndl_range=(0.0, 0.1),
     from dermis.reference.render import camera_rays
 
     def scene(shadows):
-        sc = dermis.load_scene(scene_path)
-        sc.material.rho_s = 0.0
-        sc.material.pore_strength = 0.0
-        sc.environment.color = (0.0, 0.0, 0.0)
-        sc.environment.image = None
-        sc.interreflection = False
-        sc.lights = [sc.lights[0]]
-        sc.lights[0].cast_shadows = shadows
-        sc.camera = camera
-        return sc
+        return _one_light_scene(scene_path, 0, shadows, camera=camera)
 
     lum = []
     for shadows in (True, False):
