@@ -162,7 +162,7 @@ def test_grazing_receivers_in_a_fold_are_not_lit_through_its_shadow(lee_perry_sm
     slope clamp of 10, the untilted kernel at a grazing receiver) let the map see past the antihelix
     there: 0.63, a lit line along the terminator inside the shadow (preintegrated's "doubled edge");
     the clamp of 7 alone 0.50, with a kernel tilted only to zero at its edge 0.33 (the line still
-    seen) (common/shadow.glsl, shadow_graze; benchmarks/RESULTS.md round 19, sizes19)."""
+    seen) (common/shadow.glsl, ShadowReceiver.graze; benchmarks/RESULTS.md round 19, sizes19)."""
     from dermis.scene.model import Camera
 
     cam = Camera(position=(1.9816, 1.5710, 2.9248), target=(1.6784, 1.4194, -0.1074), fov_deg=26.0)

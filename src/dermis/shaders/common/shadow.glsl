@@ -59,12 +59,12 @@ bool shadow_coords_jacobian(int i, vec3 P, out vec3 c, out mat3 J) {
 // crossed an occluder's silhouette in the map (the side view's eye socket behind the nose bridge,
 // the nose wing) a lit blob several mm wide appeared inside the shadow. The gradient is clamped at
 // a slope of MAX_RECEIVER_SLOPE (7: 81.9 degrees, N.L 0.141; a plane at N.L 0.15 stays exact,
-// tests/test_shadow_pcf.py). shadow_graze (below) is set from the slope. T: the map uv that a
+// tests/test_shadow_pcf.py). graze (below) is set from the slope. T: the map uv that a
 // unit step (scene units) along the tangent-plane axes t1, t2 moves (columns), for the penumbra
 // width below. False for a light without a shadow map (uLightRadiance.w) or a point outside its map.
 const float MAX_RECEIVER_SLOPE = 7.0;
-// How grazing the last shadow_receiver's receiver is: 0 up to half the slope clamp (N.L >= 0.27),
-// rising to 1 at the clamp (N.L <= 0.14); shadow_pcf_at reads it (pcf_grid), right after the solve.
+// graze: how grazing the receiver is, 0 up to half the slope clamp (N.L >= 0.27), rising to 1 at the
+// clamp (N.L <= 0.14); pcf_grid reads it.
 // At a grazing receiver the PCF taps on the light's side compare against the receiver plane many
 // texels of depth nearer the light (slope x (tap reach ~2.5 + the 2 |dz| footprint) texels: ~45 at the
 // former clamp of 10), so an occluder that close in front goes unseen: in a concave fold under a
@@ -75,7 +75,7 @@ const float MAX_RECEIVER_SLOPE = 7.0;
 // convex grazing receivers (the head's side terminator: the light's-side taps see the surface
 // itself). Both come from the light's-side taps, so a grazing receiver's filter weighs them down:
 // pcf_grid tilts its kernel along the depth gradient, to zero a third of the way to its light-side
-// edge at shadow_graze = 1 (PCF_GRAZE_TILT); the taps beyond the receiver plane's far side still see
+// edge at graze = 1 (PCF_GRAZE_TILT); the taps beyond the receiver plane's far side still see
 // an occluder in front and never the receiver's own surface. The penumbra of a grazing receiver is
 // then narrower and shifted away from the light (where N.L < 0.27 scales the light): where a grazing
 // receiver's shadow edge is cast from the light's side (the back of the back-ears concha under the
@@ -83,21 +83,30 @@ const float MAX_RECEIVER_SLOPE = 7.0;
 // RESULTS.md round 19 (sizes19): the fold 0.63 -> 0.15; front-key at 768 px 6 pixels darker by > 10
 // levels (the clamp 7 with a |dz.x| + |dz.y| footprint instead: 282; the light-side taps dropped by
 // the sign of dot(dz, delta): blocky lit specks where a grazing shadow edge crosses texels).
-float shadow_graze = 0.0;
-bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat2 T) {
+// J: shadow_coords_jacobian's at P (shadow_box_curved lifts its taps along N with it).
+struct ShadowReceiver {
+    vec3 c;
+    vec2 dz;
+    mat2 T;
     mat3 J;
-    c = vec3(0.0);
-    dz = vec2(0.0);
-    T = mat2(0.0);
-    shadow_graze = 0.0;
+    float graze;
+};
+bool shadow_receiver(int i, vec3 P, vec3 N, out ShadowReceiver r) {
+    r.c = vec3(0.0);
+    r.dz = vec2(0.0);
+    r.T = mat2(0.0);
+    r.J = mat3(0.0);
+    r.graze = 0.0;
     if (uLightRadiance[i].w < 0.5) return false;  // the light casts no shadow: no map to read
-    if (!shadow_coords_jacobian(i, P, c, J)) return false;
+    if (!shadow_coords_jacobian(i, P, r.c, r.J)) return false;
+    mat3 J = r.J;
     vec3 t1 = normalize(cross(N, abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
     vec3 t2 = cross(N, t1);
     vec3 L;
     light_incident(i, P, L);
     vec3 d1 = J * t1, d2 = J * t2;
-    T = mat2(d1.xy, d2.xy);
+    mat2 T = mat2(d1.xy, d2.xy);
+    r.T = T;
     float zl = abs((J * L).z);  // depth of a unit step straight along the light
     float xl = length(d1.xy) + length(d2.xy) + 1e-9;  // ~ uv of a unit step across the light
     float gmax = MAX_RECEIVER_SLOPE * zl / (0.5 * xl);
@@ -105,10 +114,10 @@ bool shadow_receiver(int i, vec3 P, vec3 N, out vec3 c, out vec2 dz, out mat2 T)
     float det = determinant(M);
     float h = max(uShadowParams[i].z, 1e-6);  // rounds 1-4 stepped h (scene units): the same cut-off
     if (abs(det) * h * h < 1e-12) return true;  // the light grazes the plane: no usable gradient
-    dz = inverse(M) * vec2(d1.z, d2.z);  // M dz = (d1.z, d2.z): rounds 1-4 solved with transpose(M), a wrong gradient wherever M is not symmetric
+    vec2 dz = inverse(M) * vec2(d1.z, d2.z);  // M dz = (d1.z, d2.z): rounds 1-4 solved with transpose(M), a wrong gradient wherever M is not symmetric
     float g = length(dz);
-    shadow_graze = clamp(2.0 * g / gmax - 1.0, 0.0, 1.0);
-    if (g > gmax) dz *= gmax / g;
+    r.graze = clamp(2.0 * g / gmax - 1.0, 0.0, 1.0);
+    r.dz = g > gmax ? dz * (gmax / g) : dz;
     return true;
 }
 
@@ -119,11 +128,9 @@ float shadow_sharp_at(int i, vec3 c, vec2 dz) {
 }
 
 float shadow_sharp(int i, vec3 P, vec3 N) {
-    vec3 c;
-    vec2 dz;
-    mat2 T;
-    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
-    return shadow_sharp_at(i, c, dz);
+    ShadowReceiver r;
+    if (!shadow_receiver(i, P, N, r)) return 1.0;
+    return shadow_sharp_at(i, r.c, r.dz);
 }
 
 // Soft shadow: percentage-closer filtering (Reeves 1987) with a disc of PCF_DISC_SCALE x
@@ -149,7 +156,7 @@ float shadow_sharp(int i, vec3 P, vec3 N) {
 const float PCF_DISC_SCALE = 1.307;  // the Poisson set's disc: penumbrae as wide as rounds 1-5's
 
 // antiderivative of the 1-D weight (unnormalised): a parabola 1 - x^2 / a^2, or a box, on [-a, a],
-// times the tilt max(0, 1 + k x) (k = 0 untilted; shadow_graze's, pcf_grid): zero beyond x = -1 / k
+// times the tilt max(0, 1 + k x) (k = 0 untilted; the receiver graze's, pcf_grid): zero beyond x = -1 / k
 float pcf_weight_cdf(float x, float a, bool box, float k) {
     float lo = k > 0.0 ? max(-a, -1.0 / k) : -a;
     float hi = k < 0.0 ? min(a, -1.0 / k) : a;
@@ -158,26 +165,26 @@ float pcf_weight_cdf(float x, float a, bool box, float k) {
     return box ? x + 0.5 * k * x2 : x - x2 * x / (3.0 * a * a) + k * (0.5 * x2 - 0.25 * x2 * x2 / (a * a));
 }
 
-const float PCF_GRAZE_TILT = 3.0;  // a grazing kernel's weight is 0 from a / 3 on its light side (shadow_graze)
+const float PCF_GRAZE_TILT = 3.0;  // a grazing kernel's weight is 0 from a / 3 on its light side (ShadowReceiver.graze)
 const int PCF_GRID = 3;  // taps per axis: 2 x PCF_GRID cells hold any weight of half-width a < PCF_GRID - 0.5
 
 // PCF over the 2n x 2n cells (of ``stride`` texels, 1 where exact) from the one whose cell
 // [t - 0.5, t + 0.5) holds pc - a on each axis (pc: the filter's centre in cell-centre
 // coordinates). Returns the weighted mean; with want_width also the sums of the least-squares
-// gradient below.
-float pcf_grid(int i, vec2 c, float z, vec2 dz, float a, bool box, float stride, bool want_width,
+// gradient below. graze: the receiver's (ShadowReceiver).
+float pcf_grid(int i, vec2 c, float z, vec2 dz, float graze, float a, bool box, float stride, bool want_width,
                out float wsum, out vec2 sd, out vec2 dsum, out mat2 C) {
     const int n = PCF_GRID;
     float texel = uShadowParams[i].w;
     vec2 pc = (c / texel - 0.5) / stride;
     vec2 t0 = floor(pc - a + 0.5);
     vec2 pos[n], w[n];
-    // a grazing receiver's kernel tilts along the receiver's depth gradient (shadow_graze,
-    // shadow_receiver above): per axis max(0, 1 + k x), k = PCF_GRAZE_TILT graze dz_hat / a, a separable
+    // a grazing receiver's kernel tilts along the receiver's depth gradient (graze, shadow_receiver
+    // above): per axis max(0, 1 + k x), k = PCF_GRAZE_TILT graze dz_hat / a, a separable
     // ramp integrated over each cell like the kernel itself, so the weights stay continuous as the
     // filter moves across texels (dropping the light-side taps by sign drew blocky specks)
     float gl = length(dz);
-    vec2 tilt = gl > 0.0 ? PCF_GRAZE_TILT * shadow_graze * dz / (gl * a) : vec2(0.0);
+    vec2 tilt = gl > 0.0 ? PCF_GRAZE_TILT * graze * dz / (gl * a) : vec2(0.0);
     vec2 lo = vec2(pcf_weight_cdf(t0.x - 0.5 - pc.x, a, box, tilt.x), pcf_weight_cdf(t0.y - 0.5 - pc.y, a, box, tilt.y));
     for (int k = 0; k < n; ++k) {
         vec2 ta = t0 + float(2 * k);
@@ -216,10 +223,11 @@ float pcf_grid(int i, vec2 c, float z, vec2 dz, float a, bool box, float stride,
 //   g = C^-1 sum_k W_k (s_k - mean s) delta_k,  C = sum_k W_k (delta_k - mean delta)(delta_k - mean delta)^T,
 // so s ramps across 1 / |g| of uv along g; the receiver's tangent plane (T of shadow_receiver)
 // maps that uv step back to the surface. width_mm = 1e30 where the taps agree (no ramp).
-// c, dz, T: shadow_receiver's, for a light that casts shadows and a receiver inside its map.
-// shadow_graze: shadow_receiver's for this receiver (every caller solves it just before).
-float shadow_pcf_at(int i, vec3 c, vec2 dz, mat2 T, bool want_width, out float width_mm) {
+// r: shadow_receiver's, for a light that casts shadows and a receiver inside its map.
+float shadow_pcf_at(int i, ShadowReceiver r, bool want_width, out float width_mm) {
     width_mm = 1e30;
+    vec3 c = r.c;
+    vec2 dz = r.dz;
     float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint of each tap, and curvature
     float R = PCF_DISC_SCALE * uShadowParams[i].x;  // the disc's radius, texels
     if (R <= 0.0) return shadow_tap(i, c.xy, z);
@@ -234,7 +242,7 @@ float shadow_pcf_at(int i, vec3 c, vec2 dz, mat2 T, bool want_width, out float w
     float wsum;
     vec2 sd, dsum;
     mat2 C;
-    float s_mean = pcf_grid(i, c.xy, z, dz, a / stride, box, stride, want_width, wsum, sd, dsum, C);
+    float s_mean = pcf_grid(i, c.xy, z, dz, r.graze, a / stride, box, stride, want_width, wsum, sd, dsum, C);
     if (!want_width) return s_mean;
     vec2 d_mean = dsum / wsum;
     C -= wsum * outerProduct(d_mean, d_mean);
@@ -242,19 +250,17 @@ float shadow_pcf_at(int i, vec3 c, vec2 dz, mat2 T, bool want_width, out float w
     float gl = length(g);
     if (gl <= 1e-6) return s_mean;
     // the tangent-plane step a whose map projection is (1 / |g|) along g: T a = step
-    if (abs(determinant(T)) < 1e-20) return s_mean;  // the light grazes the surface: the caller bounds it
-    vec2 step_t = inverse(T) * (g / (gl * gl));
+    if (abs(determinant(r.T)) < 1e-20) return s_mean;  // the light grazes the surface: the caller bounds it
+    vec2 step_t = inverse(r.T) * (g / (gl * gl));
     width_mm = length(step_t) * uMmPerUnit;
     return s_mean;
 }
 
 float shadow_pcf(int i, vec3 P, vec3 N, bool want_width, out float width_mm) {
     width_mm = 1e30;
-    vec3 c;
-    vec2 dz;
-    mat2 T;
-    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
-    return shadow_pcf_at(i, c, dz, T, want_width, width_mm);
+    ShadowReceiver r;
+    if (!shadow_receiver(i, P, N, r)) return 1.0;
+    return shadow_pcf_at(i, r, want_width, width_mm);
 }
 
 float shadow_soft(int i, vec3 P, vec3 N) {
@@ -294,14 +300,12 @@ const vec2 SHADOW_BOX_TURN = vec2(6.0, 1.0) / 6.0827625;  // (cos, sin) of atan(
 // touches neither the corners nor the PCF's disc is then missed (a speck narrower than the gaps,
 // ~0.2 of the square's side). probe < 0: no probe.
 float shadow_box_curved(int i, vec3 P, vec3 N, float half_mm, float curvature_per_mm, float probe) {
-    vec3 c;
-    vec2 dz;
-    mat2 T;
-    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
-    vec3 cj;
-    mat3 J;
-    shadow_coords_jacobian(i, P, cj, J);
-    vec3 jn = J * N;
+    ShadowReceiver r;
+    if (!shadow_receiver(i, P, N, r)) return 1.0;
+    vec3 c = r.c;
+    vec2 dz = r.dz;
+    mat2 T = r.T;
+    vec3 jn = r.J * N;
     float depth_per_mm = abs(jn.z - dot(dz, jn.xy)) / uMmPerUnit;  // map depth of a step along N off the plane
     float rise_per_mm2 = 0.5 * curvature_per_mm * depth_per_mm;  // map depth per mm^2 of r^2
     vec2 e1 = T[0] * (half_mm / uMmPerUnit), e2 = T[1] * (half_mm / uMmPerUnit);  // map uv of the square's half-axes
@@ -340,11 +344,9 @@ float shadow_box(int i, vec3 P, vec3 N, float half_mm) {
 // 2007, 14.5.2: the shadow computed once in texture space and reused).
 float shadow_soft_and_sharp(int i, vec3 P, vec3 N, bool want_soft, out float sharp) {
     sharp = 1.0;
-    vec3 c;
-    vec2 dz;
-    mat2 T;
-    if (!shadow_receiver(i, P, N, c, dz, T)) return 1.0;
-    sharp = shadow_sharp_at(i, c, dz);
+    ShadowReceiver r;
+    if (!shadow_receiver(i, P, N, r)) return 1.0;
+    sharp = shadow_sharp_at(i, r.c, r.dz);
     float unused;
-    return want_soft ? shadow_pcf_at(i, c, dz, T, false, unused) : 1.0;
+    return want_soft ? shadow_pcf_at(i, r, false, unused) : 1.0;
 }
