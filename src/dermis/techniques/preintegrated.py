@@ -235,17 +235,16 @@ def scattering_width_mm(profile) -> float:
     return float(np.max(channel_scattering_widths_mm(profile)))
 
 
-def sharp_edge_width_mm(profile, width_mm, sharpen_min: float = PENUMBRA_SHARPEN_MIN):
+def sharp_edge_width_mm(profile, width_mm):
     """The light's own edge under a PCF penumbra of width w: what is left once the scattering's
     widening is taken out (Penner's "sharpening"), w - scattering width, but at least
-    ``sharpen_min`` w (PENUMBRA_SHARPEN_MIN: wide penumbras keep their width, narrow ones are
-    sharpened). Not for the wide penumbra's box, whose ramp holds no scattering (:func:`scattered_shadow`, box)."""
+    PENUMBRA_SHARPEN_MIN w: wide penumbras keep their width, narrow ones are sharpened. Not for
+    the wide penumbra's box, whose ramp holds no scattering (:func:`scattered_shadow`, box)."""
     w = np.asarray(width_mm, np.float64)
-    return np.maximum(w - scattering_width_mm(profile), sharpen_min * w)
+    return np.maximum(w - scattering_width_mm(profile), PENUMBRA_SHARPEN_MIN * w)
 
 
-def scattered_shadow(profile, shadow, width_mm, sharpen_min: float = PENUMBRA_SHARPEN_MIN,
-                     box: bool = False) -> np.ndarray:
+def scattered_shadow(profile, shadow, width_mm, box: bool = False) -> np.ndarray:
     """Penner's penumbra scattering for one penumbra width, per channel: (len(shadow), 3).
 
     The soft shadow s sits at x = (s - 1/2) w across a penumbra of width w (mm). The light's own
@@ -264,7 +263,7 @@ def scattered_shadow(profile, shadow, width_mm, sharpen_min: float = PENUMBRA_SH
     summed across the penumbra is that of the PCF ramp: the table moves light, red furthest."""
     prof = profile.normalized()
     s = np.asarray(shadow, np.float64)
-    edge = 0.0 if box else float(sharp_edge_width_mm(profile, width_mm, sharpen_min))
+    edge = 0.0 if box else float(sharp_edge_width_mm(profile, width_mm))
     xs = np.concatenate([(s - 0.5) * width_mm, [-0.5 * width_mm, 0.5 * width_mm]])
     out = np.zeros((len(xs), 3))
     for v, w in zip(prof.variances_mm2, prof.weights):
@@ -273,14 +272,13 @@ def scattered_shadow(profile, shadow, width_mm, sharpen_min: float = PENUMBRA_SH
     return np.clip((out[:-2] - lo) / np.maximum(hi - lo, 1e-12), 0.0, 1.0)
 
 
-def penumbra_table(profile, size=PENUMBRA_TABLE_SIZE, sharpen_min: float = PENUMBRA_SHARPEN_MIN,
-                   box: bool = False) -> np.ndarray:
+def penumbra_table(profile, size=PENUMBRA_TABLE_SIZE, box: bool = False) -> np.ndarray:
     """(rows = penumbra width, cols = shadow value, 3) float32 table of the scattered shadow
     (``box``: the wide penumbra's, a step under the box; :func:`scattered_shadow`)."""
-    key = _profile_key(profile, "penumbra", tuple(size), sharpen_min, box)
+    key = _profile_key(profile, "penumbra", tuple(size), PENUMBRA_SHARPEN_MIN, box)
     if key not in _TABLE_CACHE:
         s = shadow_axis(size[0])
-        rows = [scattered_shadow(profile, s, w, sharpen_min, box) for w in penumbra_width_axis(size[1])]
+        rows = [scattered_shadow(profile, s, w, box) for w in penumbra_width_axis(size[1])]
         _TABLE_CACHE[key] = np.stack(rows).astype(np.float32)
     return _TABLE_CACHE[key]
 

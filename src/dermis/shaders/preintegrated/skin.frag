@@ -104,9 +104,8 @@ float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
 // width W exactly, so the table's edge is the step itself; with the PCF's ~1.2 mm ramp left in it,
 // red fell at the lit side of a cast shadow where green does not, a pale green fringe), blended in
 // by a_c = (scattering - pcf) / pcf in [0, 1] (none where the PCF already holds the scattering, all
-// where it is at most half of it). Probed first: the
-// box's corners and the PCF value agree (all lit or all shadowed) over most of a frame, and then so
-// does the box. Limits: the table reads a shadow narrower than the box as one edge (a 2.5 mm strip's
+// where it is at most half of it). Probed first: the box's corners and the PCF value agree (all lit
+// or all shadowed) over most of a frame, and then so does the box. Limits: the table reads a shadow narrower than the box as one edge (a 2.5 mm strip's
 // centre gets 0.43 of the closed form's red, tests/test_preintegrated.py), the scattered tail beyond
 // half the box is cut (the table's rescale), and the box lies on the tangent plane, not the surface.
 const float LIFT_MAX_TURN = 0.5;  // radians: the most the receiver's normal turns across the square for the lift
