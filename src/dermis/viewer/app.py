@@ -149,8 +149,6 @@ class Viewer:
         self._profile_note = ""
         self.frames_drawn = 0
         self._idle = False
-        self._view_sizes_for = None  # view_sizes: the view (orbit, window, auto flags, sizes) last asked for
-        self._view_sizes = None
         self._view_key = None
         self._last_stats = {}
         self.report = {"frames": 0, "frame_ms": [], "render_ms": [], "passes_run": [], "quality": [], "render_size": [],
@@ -281,23 +279,17 @@ class Viewer:
 
     def view_sizes(self, fb=None) -> tuple[int, int]:
         """The (irradiance, shadow tile) sizes for the current view (camera and window): adaptive_sizes'
-        for those the user left to the viewer, the renderer's own for the others. Remembered per view:
-        an idle frame asks again without recomputing the layout's density."""
-        fb = fb or self.framebuffer_size()
+        for those the user left to the viewer, the renderer's own for the others (~0.5 ms on the
+        example head: the mesh's layout density is remembered by dermis.adaptive_resolution)."""
         current = (self.renderer.irradiance_size, self.renderer.shadows.tile_size)
         if not any(self.auto_sizes):
             return current
-        key = (self.orbit.state(), tuple(fb), tuple(self.auto_sizes), current)
-        if self._view_sizes_for != key:
-            from dermis.adaptive_resolution import adaptive_sizes
+        from dermis.adaptive_resolution import adaptive_sizes
 
-            irr, shadow = adaptive_sizes(self.scene, fb, camera=self.orbit.camera())
-            # a zoom must not ask for an atlas over the GPU's texture limit (an error mid-session)
-            shadow = min(shadow, self.renderer.shadows.max_tile_size(len(self.scene.lights)))
-            self._view_sizes = (int(irr) if self.auto_sizes[0] else current[0],
-                                int(shadow) if self.auto_sizes[1] else current[1])
-            self._view_sizes_for = key
-        return self._view_sizes
+        irr, shadow = adaptive_sizes(self.scene, fb or self.framebuffer_size(), camera=self.orbit.camera())
+        # a zoom must not ask for an atlas over the GPU's texture limit (an error mid-session)
+        shadow = min(shadow, self.renderer.shadows.max_tile_size(len(self.scene.lights)))
+        return (int(irr) if self.auto_sizes[0] else current[0], int(shadow) if self.auto_sizes[1] else current[1])
 
     def choose_sizes(self, fb=None) -> bool:
         """Give the full renderer the sizes of :meth:`view_sizes`; True when one changed (the
