@@ -44,20 +44,24 @@ class ShadowAtlas:
         self.tiles = np.zeros((max_lights, 4), np.float32)
         self.params = np.zeros((max_lights, 4), np.float32)
 
+    def _grid(self, n_lights) -> tuple[int, int]:
+        """(columns, rows) of tiles in the atlas for ``n_lights``."""
+        cols = min(self.cols, max(n_lights, 1))
+        return cols, max(1, math.ceil(max(n_lights, 1) / cols))
+
+    def _texture_limit(self) -> int:
+        return int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE") or 16384)
+
     def max_tile_size(self, n_lights) -> int:
         """The largest power-of-two tile whose atlas for ``n_lights`` fits this GPU's texture limit."""
-        cols = min(self.cols, max(n_lights, 1))
-        rows = max(1, math.ceil(max(n_lights, 1) / cols))
-        limit = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE") or 16384)
-        return 1 << int(math.floor(math.log2(max(limit // max(cols, rows), 1))))
+        return 1 << int(math.floor(math.log2(max(self._texture_limit() // max(self._grid(n_lights)), 1))))
 
     def _ensure(self, n_lights):
-        cols = min(self.cols, max(n_lights, 1))
-        rows = max(1, math.ceil(max(n_lights, 1) / cols))
+        cols, rows = self._grid(n_lights)
         size = (cols * self.tile_size, rows * self.tile_size)
         if size == self._size:
             return
-        limit = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE") or 16384)
+        limit = self._texture_limit()
         if max(size) > limit:
             raise DermisError(f"shadow_size: {self.tile_size} per light: {n_lights} lights need a {size[0]}x{size[1]} shadow "
                               f"atlas, over this GPU's texture limit of {limit}; use a smaller shadow_size")
