@@ -245,15 +245,12 @@ def _rho_dt_table_cached(size_cos: int, size_m: int) -> np.ndarray:
     with "off") under a key of the sizes, F0 and the source of this module (which computes it): every
     process that renders needs it (0.6-1.5 s to build on 2 cores; the test suite starts ~20 of them)."""
     import hashlib
-    import inspect
 
     from dermis.geometry import bake_cache
 
-    try:
-        # this whole module's source: a change to any function the table is built with rebuilds it
-        source = inspect.getsource(sys.modules[__name__])
-    except (OSError, TypeError):  # no source to key it by (a frozen build): built, not stored
-        source = None
+    # this whole module's source: a change to any function the table is built with rebuilds it (None in a
+    # frozen build: built, not stored)
+    source = bake_cache.source_key(sys.modules[__name__])
     key = hashlib.sha256(repr((size_cos, size_m, SKIN_F0, source)).encode()).hexdigest()
     path = None if source is None else bake_cache.cache_path("rho_dt", key)
     got = bake_cache.load({}, key, path, {"table": (size_m, size_cos)}, 1)

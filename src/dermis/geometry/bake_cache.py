@@ -30,6 +30,25 @@ def distinct_vertices(positions, normals):
     return n64, first, inverse.reshape(-1), diag
 
 
+_SOURCE_KEYS: dict = {}
+
+
+def source_key(*modules) -> str | None:
+    """A hash of ``modules``' source (remembered per process): a cached product keyed by it is rebuilt
+    when the code that computes it changes. None where a module's source cannot be read (a frozen
+    build): then the product is made, not stored."""
+    names = tuple(m.__name__ for m in modules)
+    if names not in _SOURCE_KEYS:
+        import hashlib
+        import inspect
+
+        try:
+            _SOURCE_KEYS[names] = hashlib.sha256("".join(inspect.getsource(m) for m in modules).encode()).hexdigest()
+        except (OSError, TypeError):
+            _SOURCE_KEYS[names] = None
+    return _SOURCE_KEYS[names]
+
+
 def cache_path(folder: str, key: str) -> Path | None:
     """Where the bake of content key ``key`` lives on disk (None: disk cache off)."""
     base = _cache_folder()

@@ -62,32 +62,22 @@ def _bake(frame, size: int) -> np.ndarray:
     return bake, islands >= 0
 
 
-_SOURCE_KEY = None
-
-
 def _stored_bake(scene, product_key: str, size: int, make):
     """``make()``'s (bake along -N (S, S, 4) float32, UV islands (S, S) int) through dermis's disk cache
     (geometry.bake_cache; DERMIS_CACHE_DIR, off with "off"), keyed by the product key "thickness" (the mesh's
     arrays, scale, irradiance size), the size, the texture-space UVs the bake rasterises (not in the mesh's
     key) and the source of the modules that compute it. 0.55-0.8 s a bake of the head at 512^2, 1.4-1.9 s
     for a sphere at load 5: each `dermis` process that renders paid it again."""
-    global _SOURCE_KEY
     import hashlib
-    import inspect
 
     from dermis.geometry import atlas, bake_cache, rasterize, raycast, texture_space, thickness
     from dermis.invalidation import fingerprint
 
-    if _SOURCE_KEY is None:
-        try:
-            _SOURCE_KEY = hashlib.sha256("".join(inspect.getsource(m) for m in (
-                thickness, texture_space, rasterize, raycast, atlas)).encode()).hexdigest()
-        except (OSError, TypeError):  # no source to key it by: made, not stored
-            _SOURCE_KEY = ""
-    if not _SOURCE_KEY:
+    source = bake_cache.source_key(thickness, texture_space, rasterize, raycast, atlas)
+    if source is None:  # no source to key it by: made, not stored
         return make()
     uv = fingerprint(np.asarray(texture_space.texture_space_uvs(scene.mesh)))
-    key = hashlib.sha256(repr((product_key, size, uv, _SOURCE_KEY)).encode()).hexdigest()
+    key = hashlib.sha256(repr((product_key, size, uv, source)).encode()).hexdigest()
     path = bake_cache.cache_path("thickness", key)
     got = bake_cache.load({}, key, path, {"normal": (size, size, 4), "islands": (size, size)}, 1)
     if got is not None and got["normal"].dtype == np.float32:
