@@ -94,7 +94,8 @@ def grid(tiles, labels, rows: int, cols: int, pad: int = 4, band: int = 16) -> "
 
 
 def cycles_window(scene, stem: str, size: int, box):
-    """The stored Cycles crop's pixels of box (display values), or None where no current crop holds it."""
+    """The stored Cycles crop's pixels of box (LINEAR values, over the background: pass them through disp),
+    and its landmark; or None where no current crop holds it."""
     from cycles_crops import OUT, frame_boxes, load_crop, over_background
 
     x0, y0, x1, y1 = box
