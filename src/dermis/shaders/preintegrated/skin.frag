@@ -270,8 +270,9 @@ vec3 preintegrated_light(int i, vec3 Ngeo, vec3 N, vec3 N_red, vec3 N_green, vec
         float width_mm;
         float s = shadow_soft_penumbra(i, v_world, Ngeo, width_mm);
         vec3 S = vec3(s);
-        float pcf_penumbra_mm = penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm);
-        if (uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0) S = penumbra_lookup(s, pcf_penumbra_mm, PENUMBRA_PCF);
+        bool in_penumbra = uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0;
+        float pcf_penumbra_mm = in_penumbra ? penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm) : 0.0;
+        if (in_penumbra) S = penumbra_lookup(s, pcf_penumbra_mm, PENUMBRA_PCF);
         vec3 a = uPenumbraScattering > 0.5 ? wide_penumbra_blend(i, v_world) : vec3(0.0);
         if (max(a.r, max(a.g, a.b)) > 0.0) {
             float W = wide_penumbra_width_mm(i, v_world);
@@ -290,8 +291,7 @@ vec3 preintegrated_light(int i, vec3 Ngeo, vec3 N, vec3 N_red, vec3 N_green, vec
             // plane's where the closed form gives 0.49 and green 0.72, an olive (cyan on a grey plane)
             // tip (tests/test_preintegrated.py's wedge; the side close-up's concha, benchmarks/RESULTS.md round 20 olive20)
             vec3 S_wide = s_wide > 0.0 && s_wide < 1.0 ? penumbra_lookup(s_wide, W, PENUMBRA_BOX_WIDE) : vec3(s_wide);
-            vec3 S_narrow = s > 0.0 && s < 1.0 ? penumbra_lookup(s, pcf_penumbra_mm, PENUMBRA_PCF_NARROW)
-                                               : vec3(s);
+            vec3 S_narrow = in_penumbra ? penumbra_lookup(s, pcf_penumbra_mm, PENUMBRA_PCF_NARROW) : vec3(s);
             S = mix(S, mix(S_wide, S_narrow, uNarrowShare), a);
         }
         light = D * S;
