@@ -30,7 +30,10 @@ from three local quantities looked up in tables computed at start-up from the ac
   on the head at the shadow tile 2048) also reads a wide penumbra: the shadow box-filtered over the
   PCF's width plus the scattering's on the tangent plane, through a second table of the same rows
   whose edge is a step (the box's ramp is its own width; :func:`penumbra_tables`), blended in by
-  (scattering - PCF) / PCF. Without it a cast shadow narrower than red's reach, the upper lid's on
+  (scattering - PCF) / PCF. There each channel's wide Gaussians (2 sigma > WIDE_SPLIT_MM) are read
+  from the box and its narrow ones from the PCF through Penner's table of the narrow part (one box for
+  the whole profile put red's narrow half as deep in the shadow as its tail at a lit wedge's tip
+  between cast shadows: olive tips; benchmarks/RESULTS.md, round 20, olive20). Without it a cast shadow narrower than red's reach, the upper lid's on
   the closed eye's slit, was black where Cycles is dark red (benchmarks/RESULTS.md, round 19, eyes19).
 * surface detail: each channel's normal is the normal map filtered by that channel's profile,
   sum_k w_k (the map at the mip level whose box has Gaussian k's standard deviation, never finer
