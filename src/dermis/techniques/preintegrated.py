@@ -30,7 +30,10 @@ from three local quantities looked up in tables computed at start-up from the ac
   on the head at the shadow tile 2048) also reads a wide penumbra: the shadow box-filtered over the
   PCF's width plus the scattering's on the tangent plane, through a second table of the same rows
   whose edge is a step (the box's ramp is its own width; :func:`penumbra_tables`), blended in by
-  (scattering - PCF) / PCF. Without it a cast shadow narrower than red's reach, the upper lid's on
+  (scattering - PCF) / PCF. There each channel's wide Gaussians (2 sigma > WIDE_SPLIT_MM) are read
+  from the box and its narrow ones from the PCF through Penner's table of the narrow part (one box for
+  the whole profile put red's narrow half as deep in the shadow as its tail at a lit wedge's tip
+  between cast shadows: olive tips; benchmarks/RESULTS.md, round 20, olive20). Without it a cast shadow narrower than red's reach, the upper lid's on
   the closed eye's slit, was black where Cycles is dark red (benchmarks/RESULTS.md, round 19, eyes19).
 * surface detail: each channel's normal is the normal map filtered by that channel's profile,
   sum_k w_k (the map at the mip level whose box has Gaussian k's standard deviation, never finer
@@ -100,6 +103,11 @@ CURVATURE_MAX_PER_MM = 1.0  # r = 1 mm: thinner than an ear's rim; higher curvat
 PENUMBRA_TABLE_SIZE = (129, 64)  # (shadow value, width)
 PENUMBRA_WIDTH_RANGE_MM = (0.05, 100.0)
 PENUMBRA_SHARPEN_MIN = 0.5  # the sharpened edge keeps at least this fraction of the PCF penumbra
+# The wide penumbra splits each channel's profile: the Gaussians whose own edge widening 2 sigma_k is
+# at most this (mm) are read from the PCF's shadow (Penner's premise holds for them: the PCF's ~1-1.2 mm
+# penumbra on the head at the shadow tile 2048 is as wide), the rest from the box (d'Eon's skin: sigma
+# 0.08, 0.22, 0.43 mm narrow; 0.75, 1.41, 2.72 mm wide; red's narrow share 0.451, green's 0.989, blue's 0.993).
+WIDE_SPLIT_MM = 1.0
 RING_PROFILE = "line"  # the ring's kernel: "line" (profile integrated across the ring) or "radial" (Penner)
 
 UNIT_DIFFUSE_TABLE, UNIT_PENUMBRA_TABLE, UNIT_THICKNESS = Unit.FIRST_FREE, Unit.FIRST_FREE + 1, Unit.FIRST_FREE + 2
@@ -230,6 +238,21 @@ def channel_scattering_widths_mm(profile) -> np.ndarray:
     return 2.0 * np.sqrt(prof.weights.T @ prof.variances_mm2)
 
 
+def profile_part(profile, wide: bool):
+    """The Gaussians of the profile wider (``wide``) or not than WIDE_SPLIT_MM (2 sigma_k), each
+    channel's weights normalised to 1 over that part (a channel with none there keeps zeros), and
+    that part's share of each channel's weight, (3,): (SumOfGaussians, share)."""
+    from dermis.profiles.gaussians import SumOfGaussians
+
+    prof = profile.normalized()
+    keep = (2.0 * np.sqrt(prof.variances_mm2) > WIDE_SPLIT_MM) == wide
+    if not keep.any():
+        return None, np.zeros(3)
+    w = prof.weights[keep]
+    share = w.sum(axis=0)
+    return SumOfGaussians(prof.variances_mm2[keep], w / np.where(share > 0.0, share, 1.0), prof.name), share
+
+
 def scattering_width_mm(profile) -> float:
     """How much the profile widens a sharp shadow edge: that of its widest channel (2.35 mm for d'Eon's red)."""
     return float(np.max(channel_scattering_widths_mm(profile)))
@@ -284,10 +307,16 @@ def penumbra_table(profile, size=PENUMBRA_TABLE_SIZE, box: bool = False) -> np.n
 
 
 def penumbra_tables(profile, size=PENUMBRA_TABLE_SIZE) -> np.ndarray:
-    """The texture skin.frag reads: penumbra_table's rows, then the wide penumbra's (the same widths,
-    the edge a step: skin.frag's wide penumbra is a box filter of the shadow map's compares, whose
-    ramp is the box's own width, not a penumbra), (2 x rows, cols, 3)."""
-    return np.concatenate([penumbra_table(profile, size), penumbra_table(profile, size, box=True)], 0)
+    """The texture skin.frag reads, three blocks of the same rows (widths): penumbra_table's; the wide
+    penumbra's, of the profile's wide part (:func:`profile_part`; the edge a step: skin.frag's wide
+    penumbra is a box filter of the shadow map's compares, whose ramp is the box's own width, not a
+    penumbra); Penner's of the narrow part (read at the PCF's s). (3 x rows, cols, 3)."""
+    blocks = [penumbra_table(profile, size)]
+    for wide in (True, False):
+        part, _ = profile_part(profile, wide)
+        blocks.append(penumbra_table(part, size, box=wide) if part is not None else
+                      np.broadcast_to(shadow_axis(size[0])[None, :, None], (size[1], size[0], 3)).astype(np.float32))
+    return np.concatenate(blocks, 0)
 
 
 # ---------------------------------------------------------------------- curvature (numpy)
@@ -483,7 +512,8 @@ class PreintegratedSkin(Technique):
             set_uniform(prog, "uPenumbraWidthRangeMm", tuple(float(x) for x in PENUMBRA_WIDTH_RANGE_MM))
             # per profile (its key), not per frame: a camera-only frame computes no scene uniform
             prepared(prog, "scattering_width", frame.keys["profile_tables"],
-                     lambda p: set_uniform(p, "uScatteringWidthMm", tuple(float(x) for x in channel_scattering_widths_mm(profile))))
+                     lambda p: (set_uniform(p, "uScatteringWidthMm", tuple(float(x) for x in channel_scattering_widths_mm(profile))),
+                                set_uniform(p, "uNarrowShare", tuple(float(x) for x in profile_part(profile, False)[1]))))
             set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.options.curvature_source == "mesh" else 0.0)
             set_uniform(prog, "uBlurredNormals", 1.0 if self.options.blurred_normals else 0.0)
             set_uniform(prog, "uPenumbraScattering", 1.0 if self.options.penumbra_scattering else 0.0)

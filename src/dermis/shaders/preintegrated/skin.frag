@@ -32,6 +32,7 @@ uniform sampler2D uNormalMapLod;   // uNormalMap through a sampler without aniso
 uniform float uCurvatureMaxPerMm;
 uniform vec2 uPenumbraWidthRangeMm;
 uniform vec3 uScatteringWidthMm;    // per channel, how much the profile widens a sharp edge: 2 x its rms radius along an axis (mm)
+uniform vec3 uNarrowShare;          // per channel, the share of the profile's weight in its narrow Gaussians (preintegrated.profile_part)
 uniform float uCurvatureFromMesh;   // 1: the mesh's per-vertex curvature, 0: screen derivatives
 uniform float uBlurredNormals;      // 1: per-channel blurred normals, 0: the detailed normal
 uniform float uPenumbraScattering;  // 1: scatter the penumbra through its table, 0: plain PCF
@@ -56,15 +57,17 @@ vec3 diffuse_lookup(vec3 ndl, float curvature) {
                 textureLod(uDiffuseTable, table_coord(uDiffuseTable, vec2(ndl.b * 0.5 + 0.5, t)), 0.0).b);
 }
 
-// The penumbra texture holds two tables of the same rows (dermis.techniques.preintegrated.penumbra_tables):
-// wide = false, Penner's (the PCF's penumbra, sharpened by at most half); true, the wide penumbra's
-// (a step under the box: the box's ramp is all box, no penumbra). Texel centres of the chosen half only.
-vec3 penumbra_lookup(float shadow, float width_mm, bool wide) {
+// The penumbra texture holds three tables of the same rows (dermis.techniques.preintegrated.penumbra_tables):
+// PENUMBRA_PCF, Penner's (the PCF's penumbra, sharpened by at most half); PENUMBRA_BOX_WIDE, the wide
+// penumbra's, of the profile's wide Gaussians (a step under the box: the box's ramp is all box, no
+// penumbra); PENUMBRA_PCF_NARROW, Penner's of the narrow Gaussians. Texel centres of the chosen block only.
+const int PENUMBRA_PCF = 0, PENUMBRA_BOX_WIDE = 1, PENUMBRA_PCF_NARROW = 2;
+vec3 penumbra_lookup(float shadow, float width_mm, int block) {
     float t = log(max(width_mm, 1e-6) / uPenumbraWidthRangeMm.x) / log(uPenumbraWidthRangeMm.y / uPenumbraWidthRangeMm.x);
     vec2 size = vec2(textureSize(uPenumbraTable, 0));
-    float rows = 0.5 * size.y;
+    float rows = size.y / 3.0;
     vec2 f = vec2(clamp(shadow, 0.0, 1.0) * (size.x - 1.0) + 0.5,
-                  (wide ? rows : 0.0) + clamp(t, 0.0, 1.0) * (rows - 1.0) + 0.5) / size;
+                  float(block) * rows + clamp(t, 0.0, 1.0) * (rows - 1.0) + 0.5) / size;
     return textureLod(uPenumbraTable, f, 0.0).rgb;
 }
 
@@ -99,7 +102,8 @@ float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
 // closed eye's slit (~2.5-3.5 mm along the surface, the lid 0.7-2.4 mm above it), went black where
 // the light scatters red into it (Cycles, tsd, ssss). For such channels the shadow is box-filtered
 // over the PCF width plus the scattering width on P's tangent plane (common/shadow.glsl,
-// shadow_box_curved: the receiver's own curvature lifted out) and read through the second table's
+// shadow_box_curved: the receiver's own curvature lifted out; only the profile's wide Gaussians, the
+// narrow ones read from the PCF, below) and read through the second table's
 // row of that width (penumbra_lookup(..., true): a box of width W over the map's step is a ramp of
 // width W exactly, so the table's edge is the step itself; with the PCF's ~1.2 mm ramp left in it,
 // red fell at the lit side of a cast shadow where green does not, a pale green fringe), blended in
@@ -267,8 +271,9 @@ vec3 preintegrated_light(int i, vec3 Ngeo, vec3 N, vec3 N_red, vec3 N_green, vec
         float width_mm;
         float s = shadow_soft_penumbra(i, v_world, Ngeo, width_mm);
         vec3 S = vec3(s);
-        if (uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0)
-            S = penumbra_lookup(s, penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm), false);
+        bool in_penumbra = uPenumbraScattering > 0.5 && s > 0.0 && s < 1.0;
+        float pcf_penumbra_mm = in_penumbra ? penumbra_width_mm(i, v_world, dot(Ngeo, L), width_mm) : 0.0;
+        if (in_penumbra) S = penumbra_lookup(s, pcf_penumbra_mm, PENUMBRA_PCF);
         vec3 a = uPenumbraScattering > 0.5 ? wide_penumbra_blend(i, v_world) : vec3(0.0);
         if (max(a.r, max(a.g, a.b)) > 0.0) {
             float W = wide_penumbra_width_mm(i, v_world);
@@ -280,8 +285,15 @@ vec3 preintegrated_light(int i, vec3 Ngeo, vec3 N, vec3 N_red, vec3 N_green, vec
             // vertex curvature 0.66-1.1 / mm) ignored real occluders: a red speck in the side view's black
             // shadow under the chin, (228, 654) at 768 px, 8-bit red 2 -> 32
             float s_wide = shadow_box_curved(i, v_world, Ngeo, 0.5 * W, min(2.0 * curvature, LIFT_MAX_TURN / (0.5 * W)), s);
-            vec3 S_wide = s_wide > 0.0 && s_wide < 1.0 ? penumbra_lookup(s_wide, W, true) : vec3(s_wide);
-            S = mix(S, S_wide, a);
+            // each Gaussian's light from the shadow filtered at its own reach: the wide ones' from the box,
+            // the narrow ones' from the PCF, whose penumbra holds them (Penner's premise). One box for the
+            // whole profile read at a lit wedge's tip between two cast shadows (the box ~3.4 mm, the wedge
+            // narrower) put red's narrow half as deep in the shadow as its wide tail: red 0.07 of the lit
+            // plane's where the closed form gives 0.49 and green 0.72, an olive (cyan on a grey plane)
+            // tip (tests/test_preintegrated.py's wedge; the side close-up's concha, benchmarks/RESULTS.md round 20 olive20)
+            vec3 S_wide = s_wide > 0.0 && s_wide < 1.0 ? penumbra_lookup(s_wide, W, PENUMBRA_BOX_WIDE) : vec3(s_wide);
+            vec3 S_narrow = in_penumbra ? penumbra_lookup(s, pcf_penumbra_mm, PENUMBRA_PCF_NARROW) : vec3(s);
+            S = mix(S, mix(S_wide, S_narrow, uNarrowShare), a);
         }
         light = D * S;
     }
