@@ -166,7 +166,7 @@ def score(a) -> dict:
     from dermis.reference.validate import metrics
     from dermis.renderer import Renderer
 
-    report = {"size": a.size, "crops": {}}
+    report = {"size": a.size, "texture_sizes": a.texture_sizes, "crops": {}}
     for stem, path in SCENES.items():
         sc = dermis.load_scene(path)
         if a.nospec:
@@ -178,7 +178,10 @@ def score(a) -> dict:
         # Cycles has no pore detail (the export does not carry dermis's procedural pores; validate
         # compares with pore_strength 0 on both sides): so do the techniques here
         sc.material.pore_strength = 0.0
-        with Renderer(sc, (a.size, a.size), irradiance_size=1024) as r:
+        # --texture-sizes fixed: the Renderer's 1024 / 2048 (every round's scores since round 14);
+        # auto: what `dermis render` picks for the view (dermis.adaptive_resolution; 2048 / 4096 here)
+        sizes = {} if a.texture_sizes == "fixed" else {"irradiance_size": None, "shadow_size": None}
+        with Renderer(sc, (a.size, a.size), **sizes) as r:
             imgs = {t: r.render(t) for t in a.techniques}
         for lm, (rgba, meta) in crops.items():
             x0, y0, x1, y1 = meta["box"]
@@ -212,6 +215,8 @@ def main(argv=None):
     ap.add_argument("--techniques", nargs="+", default=list(crop_sheet.TECHNIQUES))
     ap.add_argument("--json", default=None)
     ap.add_argument("--nospec", action="store_true", help="rho_s 0 on both sides (files <crop>-nospec.npz)")
+    ap.add_argument("--texture-sizes", choices=("fixed", "auto"), default="fixed",
+                    help="score: irradiance / shadow sizes fixed at 1024 / 2048, or chosen from the view as dermis render does")
     a = ap.parse_args(argv)
     return render(a) if a.mode == "render" else score(a)
 

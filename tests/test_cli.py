@@ -212,8 +212,8 @@ def test_cli_info_prints_the_renderer(gl_ctx):
 
 def test_cli_texture_sizes_auto_follow_the_view_and_a_number_wins(tmp_path, gl_ctx):
     """--irradiance-size / --shadow-size auto: the sizes dermis.adaptive_resolution picks for the
-    view (a close-up: more than the defaults 1024 / 2048); a number given wins; neither given: the
-    defaults (the reference scenes and validate keep their fixed sizes)."""
+    view (a close-up: more than the Renderer's fixed 1024 / 2048); a number given wins; neither
+    given: auto too (issue 12: resolution from the head's size on screen, `dermis render` included)."""
     import dermis
     from dermis.adaptive_resolution import adaptive_sizes
 
@@ -230,7 +230,7 @@ def test_cli_texture_sizes_auto_follow_the_view_and_a_number_wins(tmp_path, gl_c
         return stats["irradiance_size"], stats["shadow_size"]
 
     assert sizes("--irradiance-size", "auto", "--shadow-size", "AUTO") == want
-    assert sizes("--irradiance-size", "512", "--shadow-size", "auto") == (512, want[1])
-    assert sizes() == (1024, 2048)
+    assert sizes("--irradiance-size", "512", "--shadow-size", "1024") == (512, 1024)
+    assert sizes() == want
     res = run_cli(["render", "close.toml", "--irradiance-size", "big", "--out", "r.png"], cwd=tmp_path)
     assert res.returncode == 2 and res.stderr.strip() == "dermis: error: --irradiance-size: expected an integer or 'auto', got 'big'"

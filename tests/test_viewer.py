@@ -72,7 +72,7 @@ def xvfb_display():
             pytest.fail(msg + "; CI must have it")
         pytest.skip(msg)
     read_fd, write_fd = os.pipe()
-    proc = subprocess.Popen([exe, "-displayfd", str(write_fd), "-screen", "0", "640x480x24", "-nolisten", "tcp",
+    proc = subprocess.Popen([exe, "-displayfd", str(write_fd), "-screen", "0", "1024x768x24", "-nolisten", "tcp",
                              "-noreset"], pass_fds=(write_fd,), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     os.close(write_fd)
     try:
@@ -450,3 +450,32 @@ def test_sizes_left_to_the_viewer_follow_the_zoom_at_the_refine(xvfb_display, sp
     expected, sc = _offline(sphere_toml, "tsd", oc.camera(), *near)
     want = output_transform(expected, sc.output.exposure, sc.output.tonemap)
     assert np.abs(_read_png(tmp_path / "zoomed.png") - want).mean() < 2.0 / 255
+
+
+def test_the_image_is_framed_right_of_the_panel(xvfb_display, tmp_path):
+    """Issue 12: "the viewer frames the head in the area the panel leaves free". With the panel
+    shown in a window that has room, the image is rendered for and drawn in the window's part right
+    of the panel, the scene's fitted camera framed for that part: the window right of the panel is
+    the screenshot, and the screenshot is `dermis render` at that part's size (the panel covers no
+    skin). Fails where the image spans the whole window under the panel."""
+    import dermis
+    from dermis.output import output_transform
+    from dermis.renderer import Renderer
+    from dermis.viewer.gui import PANEL_MARGIN_PX, PANEL_WIDTH_PX
+
+    scene_path = tmp_path / "fit.toml"
+    scene_path.write_text(SPHERE_SCENE + "fit = true\n")
+    window, reserve = (720, 160), 2 * PANEL_MARGIN_PX + PANEL_WIDTH_PX
+    area = (window[0] - reserve, window[1])
+    script = {"actions": [{"frame": 0, "screenshot": "shot.png", "window_screenshot": "window.png"}], "quit_after": 1}
+    res, report = run_viewer(xvfb_display, scene_path, script, tmp_path, "--size", f"{window[0]}x{window[1]}",
+                             "-t", "lambert")
+    assert report["render_size"][0] == list(area), report["render_size"]
+    shot, shown = _read_png(tmp_path / "shot.png"), _read_png(tmp_path / "window.png")
+    assert shot.shape == (area[1], area[0], 3) and shown.shape == (window[1], window[0], 3)
+    assert np.abs(shown[:, reserve:] - shot).mean() < 2.0 / 255
+    scene = dermis.load_scene(scene_path)
+    with Renderer(scene, area, irradiance_size=IRRADIANCE, shadow_size=2048) as r:
+        want = output_transform(r.render("lambert"), scene.output.exposure, scene.output.tonemap)
+    assert np.abs(shot - want).mean() < 2.0 / 255
+    assert _luminance(shot).max() > 0.2  # the sphere is in the frame

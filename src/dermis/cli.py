@@ -114,10 +114,11 @@ def info(device, as_json):
 @click.option("--exposure", type=float, default=None, help="Exposure in stops (overrides the scene).")
 @click.option("--tonemap", type=click.Choice(["aces", "linear"]), default=None, help="Tone map (overrides the scene).")
 @click.option("--samples", type=int, default=4, show_default=True, help="MSAA samples (capped at 4 on llvmpipe).")
-@click.option("--irradiance-size", default="1024", show_default=True,
-              help="Texture-space resolution, or 'auto': chosen from the head's size on screen "
-                   "(dermis.adaptive_resolution; a close-up gets more texels).")
-@click.option("--shadow-size", default="2048", show_default=True,
+@click.option("--irradiance-size", default="auto", show_default=True,
+              help="Texture-space resolution (texels), or 'auto': chosen from the head's size on screen "
+                   "(d'Eon & Luebke 2007's adaptive resolution, dermis.adaptive_resolution; a close-up "
+                   "gets more texels).")
+@click.option("--shadow-size", default="auto", show_default=True,
               help="Shadow-map tile per light (texels), or 'auto' (as --irradiance-size).")
 @click.option("--debug-buffers", default=None, help="Folder to write intermediate buffers (EXR) into.")
 @click.option("--device", type=int, default=None, help="EGL device (GPU) index.")

@@ -101,19 +101,21 @@ class Viewer:
             from dermis.viewer.present import Presenter
 
             self.gpu_objects = GpuObjectTracker(self.ctx).install()
+            self.show_gui = show_gui  # view_rect reads it
+            self.gui = None
             # None: from the head's size on screen (dermis.adaptive_resolution), re-chosen as the view changes
             self.auto_sizes = [irradiance_size is None, shadow_size is None]
             if irradiance_size is None or shadow_size is None:
                 from dermis.adaptive_resolution import adaptive_sizes
 
-                irr, sh = adaptive_sizes(scene, self.framebuffer_size())
+                irr, sh = adaptive_sizes(scene, self.view_size())
                 irradiance_size = irr if irradiance_size is None else irradiance_size
                 shadow_size = sh if shadow_size is None else shadow_size
             self.params = ViewerParams.from_scene(scene, irradiance_size)
             self.params.validate("viewer")
             # no pass timer: the panel shows which passes ran, not their times, and timing a pass
             # costs a GPU round trip (a finish on llvmpipe) per pass
-            self.renderer = Renderer(scene, self.framebuffer_size(), ctx=self.ctx, samples=samples,
+            self.renderer = Renderer(scene, self.view_size(), ctx=self.ctx, samples=samples,
                                      irradiance_size=self.params.irradiance_size, shadow_size=shadow_size,
                                      timing=False)
             self.presenter = Presenter(self.ctx)
@@ -128,16 +130,15 @@ class Viewer:
         self.scene_radius = float(np.linalg.norm(np.asarray(hi, np.float64) - lo) / 2)
         from dermis.framing import framed_camera
 
-        fb = self.framebuffer_size()
-        # the scene's view as `dermis render` frames it ([camera] fit: the head fills the window)
-        self.orbit = OrbitCamera.from_camera(framed_camera(scene.camera, scene.mesh, fb[0] / fb[1]), self.scene_radius)
+        vs = self.view_size()
+        # the scene's view as `dermis render` frames it ([camera] fit: the head fills the area the image
+        # is drawn in: the window, or its part right of the panel)
+        self.orbit = OrbitCamera.from_camera(framed_camera(scene.camera, scene.mesh, vs[0] / vs[1]), self.scene_radius)
         self.editor = SceneEditor(scene)
         self.profiles = SkinProfileWorker(scene.profile)
         self._light_orbit = None
         self._light_orbit_index = None
         self.screenshot_dir = Path(screenshot_dir)
-        self.show_gui = show_gui
-        self.gui = None
         self.panel = None
         self.input = None
         if show_gui:
@@ -169,6 +170,25 @@ class Viewer:
     def framebuffer_size(self):
         w, h = self.glfw.get_framebuffer_size(self.window)
         return max(int(w), 1), max(int(h), 1)
+
+    def view_rect(self) -> tuple[int, int, int, int]:
+        """(x, y, w, h) of the framebuffer the image is rendered for and drawn in: right of the panel
+        while it is shown, if that leaves at least half the window, else the whole
+        window (the panel then lies over the image)."""
+        from dermis.viewer.gui import PANEL_MARGIN_PX, PANEL_WIDTH_PX
+
+        fw, fh = self.framebuffer_size()
+        ww = max(int(self.glfw.get_window_size(self.window)[0]), 1)
+        # issue 12: "the viewer frames the head in the area the panel leaves free"; the panel at its
+        # first-use place and width and a margin's gap, window pixels -> framebuffer pixels (HiDPI)
+        reserve = int(round((2 * PANEL_MARGIN_PX + PANEL_WIDTH_PX) * fw / ww))
+        if self.show_gui and 2 * reserve <= fw:
+            return reserve, 0, fw - reserve, fh
+        return 0, 0, fw, fh
+
+    def view_size(self) -> tuple[int, int]:
+        """The size the image is rendered at (view_rect's), as ``dermis render --size`` would be given."""
+        return self.view_rect()[2:]
 
     def _install_callbacks(self):
         glfw = self.glfw
@@ -286,7 +306,7 @@ class Viewer:
             return current
         from dermis.adaptive_resolution import adaptive_sizes
 
-        irr, shadow = adaptive_sizes(self.scene, fb or self.framebuffer_size(), camera=self.orbit.camera())
+        irr, shadow = adaptive_sizes(self.scene, fb or self.view_size(), camera=self.orbit.camera())
         # a zoom must not ask for an atlas over the GPU's texture limit (an error mid-session)
         shadow = min(shadow, self.renderer.shadows.max_tile_size(len(self.scene.lights)))
         return (int(irr) if self.auto_sizes[0] else current[0], int(shadow) if self.auto_sizes[1] else current[1])
@@ -349,14 +369,13 @@ class Viewer:
         by the full frame of the same view."""
         if self.last_image is None or self.params.buffer != "final":
             return
-        fb = self.framebuffer_size()
+        fb = self.view_size()
         resized = self.choose_sizes(fb)
         if self.progressive.quality == "full" and not resized:
             return
         if resized:  # the frame drawn is the one the new key names: the next frame stays idle
             self._view_key = self._frame_view_key(fb)
-        img = self.progressive.render(self.params.technique, self.framebuffer_size(), self.orbit.camera(),
-                                      interactive=False)
+        img = self.progressive.render(self.params.technique, fb, self.orbit.camera(), interactive=False)
         if getattr(self.scene.output, "bloom", 0.0) > 0:
             from dermis.output import bloom
 
@@ -405,7 +424,7 @@ class Viewer:
         r = self.renderer
         key = (self.params.technique, r.lighting_key(), r.irradiance_size)
         if name == "specular":
-            key = key + (self.orbit.state(), self.framebuffer_size())
+            key = key + (self.orbit.state(), self.view_size())
         cached_key, bufs = self._buffers_cache
         if cached_key != key:
             bufs = r.debug_buffers(self.params.technique)  # a side path: the frame's stats stay
@@ -451,7 +470,9 @@ class Viewer:
         self._update_profile(wait=scripted)
         self.editor.apply(self.params)
         fb = self.framebuffer_size()
-        view_key = self._frame_view_key(fb)
+        area = self.view_rect()
+        vs = area[2:]  # the size rendered at: the window, or its part right of the panel
+        view_key = self._frame_view_key(vs)
         lighting_key = view_key[-1]
         changed = view_key != self._view_key or self.last_image is None
         # progressive: a reduced frame while input is active, the full frame once it stops (a
@@ -462,17 +483,17 @@ class Viewer:
         # in use is shown and no input is held: a refine step of its own (the module's docstring)
         resize = (not changed and not refine and self.progressive.quality == "full" and self._drag is None
                   and self.params.buffer == "final" and self.last_image is not None
-                  and self.view_sizes(fb) != (self.renderer.irradiance_size, self.renderer.shadows.tile_size))
+                  and self.view_sizes(vs) != (self.renderer.irradiance_size, self.renderer.shadows.tile_size))
         self._idle = not changed and not refine and not resize
         if self._idle:  # the same view: show the last image again (the panel may still change)
             stats = dict(self._last_stats, passes_run=[])
             shown = self.last_image
         else:
             interactive = changed and self.last_image is not None and self.params.buffer == "final"
-            if resize and self.choose_sizes(fb):
-                view_key = self._frame_view_key(fb)  # new sizes: a new lighting key (and params)
+            if resize and self.choose_sizes(vs):
+                view_key = self._frame_view_key(vs)  # new sizes: a new lighting key (and params)
                 lighting_key = view_key[-1]
-            img = self.progressive.render(self.params.technique, fb, self.orbit.camera(), interactive=interactive,
+            img = self.progressive.render(self.params.technique, vs, self.orbit.camera(), interactive=interactive,
                                           lighting_key=lighting_key)
             stats = dict(self.progressive.stats)
             shown = img
@@ -500,7 +521,7 @@ class Viewer:
         exposure, tonemap = self._display_transform()
         if not self._idle:
             self.presenter.upload(shown)
-        self.presenter.draw(screen, fit_rect((shown.shape[1], shown.shape[0]), (0, 0, *fb)), exposure, tonemap)
+        self.presenter.draw(screen, fit_rect((shown.shape[1], shown.shape[0]), area), exposure, tonemap)
         frame_ms = (time.perf_counter() - t0) * 1e3
         if self.gui is not None and self.show_gui:
             self._draw_gui(fb, stats, frame_ms)
@@ -516,7 +537,7 @@ class Viewer:
         self.report["render_ms"].append(round(float(stats.get("frame_ms", 0.0)), 3))
         self.report["passes_run"].append(stats.get("passes_run", []))
         self.report["quality"].append("idle" if self._idle else stats.get("quality", "full"))
-        self.report["render_size"].append(list(stats.get("size", fb)))
+        self.report["render_size"].append(list(stats.get("size", vs)))
         self.report["texture_space"].append(stats.get("renderer", "full"))
         self.report["sizes"].append([int(stats.get("irradiance_size", 0)), int(stats.get("shadow_size", 0))])
         if not self._idle:
@@ -530,10 +551,10 @@ class Viewer:
             glfw.set_window_title(self.window, f"dermis - {self.params.technique} - {frame_ms:.1f} ms/frame "
                                                f"(render {stats.get('frame_ms', 0):.1f} ms)")
 
-    def _frame_view_key(self, fb) -> tuple:
-        """What a frame's image depends on: camera, parameters, window size and the renderer's
-        lighting key (last)."""
-        return (self.orbit.state(), dataclasses.astuple(self.params), fb, self.renderer.lighting_key())
+    def _frame_view_key(self, size) -> tuple:
+        """What a frame's image depends on: camera, parameters, the size rendered at (view_size) and
+        the renderer's lighting key (last)."""
+        return (self.orbit.state(), dataclasses.astuple(self.params), size, self.renderer.lighting_key())
 
     def _draw_gui(self, fb, stats, frame_ms):
         imgui = self.gui.imgui

@@ -17,6 +17,11 @@ import numpy as np
 from dermis.gl.resources import set_uniform
 from dermis.viewer.params import BUFFER_SCALES, ENVIRONMENTS, IRRADIANCE_SIZES, PROFILES, SKIN_COLORS, TONEMAPS
 
+# the panel's first-use place and width in window pixels (the viewer renders the image right of it:
+# viewer/app.py view_rect)
+PANEL_MARGIN_PX = 6
+PANEL_WIDTH_PX = 330
+
 _VERT = """
 #version 450 core
 uniform mat4 uProjection;
@@ -239,9 +244,9 @@ class Panel:
         changes, actions = {}, set()
         p = params
         display_h = imgui.get_io().display_size.y
-        imgui.set_next_window_pos(imgui.ImVec2(6, 6), imgui.Cond_.first_use_ever)
+        imgui.set_next_window_pos(imgui.ImVec2(PANEL_MARGIN_PX, PANEL_MARGIN_PX), imgui.Cond_.first_use_ever)
         imgui.set_next_window_size_constraints(imgui.ImVec2(240, 60), imgui.ImVec2(600, max(display_h - 12, 60)))
-        imgui.set_next_window_size(imgui.ImVec2(330, 0), imgui.Cond_.first_use_ever)
+        imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH_PX, 0), imgui.Cond_.first_use_ever)
         imgui.set_next_window_bg_alpha(0.8)
         imgui.begin("dermis")
         imgui.push_item_width(-120)  # room for the labels
