@@ -45,8 +45,11 @@ demo: sysdeps install
 	$(VENV)/bin/dermis render --out out/demo.png --size 768x768
 	@echo "demo image: $(CURDIR)/out/demo.png"
 
+# the suite on TEST_WORKERS processes (pytest-xdist), each taking one whole test file at a time in the
+# order tests/conftest.py gives (the slowest files first); TEST_WORKERS=0 runs it in this process
+TEST_WORKERS ?= 2
 test: test-sysdeps cycles
-	$(PY) -m pytest -q -ra --durations=25
+	$(PY) -m pytest -q -ra --durations=25 -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 bench: sysdeps install
 	$(VENV)/bin/dermis bench
