@@ -179,8 +179,10 @@ def test_script_parsing_and_errors(tmp_path):
                          base_dir=tmp_path)
     assert s.before(0) == [{"orbit": [3, 4]}]
     assert s.after(0) == [{"screenshot": tmp_path / "a.png"}]
-    assert s.before(1) == [] and s.done(3) and not s.done(2)
+    assert s.before(1) == [] and s.done(3) and not s.done(2) and s.scales == ()
+    assert Script.from_dict({"scales": [0.25, 1]}).scales == (0.25, 1.0)
     for bad, words in (({"actions": [{"orbit": [1, 2]}]}, "frame"),
+                       ({"scales": [0.3]}, "'scales' must be"), ({"scales": 0.5}, "'scales' must be"),
                        ({"actions": [{"frame": 0, "spin": 1}]}, "unknown action 'spin'"),
                        ({"actions": [{"frame": 0, "orbit": [1]}]}, "[dx, dy]"),
                        ({"actions": [], "extra": 1}, "unknown key 'extra'"),
@@ -376,9 +378,16 @@ def test_gpu_objects_stay_constant_over_200_frames_of_changes(xvfb_display, view
         if ph == cycle - 1:
             a["resources"] = True
         actions.append(a)
-    res, report = run_viewer(xvfb_display, box_toml, {"actions": actions, "quit_after": frames}, tmp_path,
-                             timeout=400, cache=viewer_cache)
+    # the reduced frames' scales set by frame number (every step, 8 dividing the cycle): each cycle draws the
+    # same frames at the same sizes, whatever the machine's load (adapted to the frame time, a loaded machine's
+    # scales wander, and a renderer first drew a program variant at a new size in the fourth cycle: one more
+    # vertex array, in a parallel run of the suite, round 20)
+    scales = [0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0, 0.5]
+    res, report = run_viewer(xvfb_display, box_toml, {"actions": actions, "quit_after": frames, "scales": scales},
+                             tmp_path, timeout=400, cache=viewer_cache)
     assert report["frames"] == frames
+    reduced = [tuple(report["render_size"][f]) for f in range(frames) if report["quality"][f] == "interactive"]
+    assert len(set(reduced)) == len(set(scales)), reduced  # the targets are resized: they must not leak either
     counts = [r["counts"] for r in report["resources"]]
     assert [r["frame"] for r in report["resources"]] == [39, 79, 119, 159, 199]
     assert counts[0]["texture"] > 10 and counts[0]["framebuffer"] > 5 and counts[0]["program"] > 3
