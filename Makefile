@@ -1,6 +1,6 @@
 # The two commands a fresh machine needs (see README.md):
 #   make demo   set up .venv, install dermis, render the built-in scene to out/demo.png
-#   make test   the same set-up, then the whole test suite
+#   make test   the same set-up, then the whole test suite (on TEST_WORKERS=2 processes, pytest-xdist)
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
