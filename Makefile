@@ -1,6 +1,6 @@
 # The two commands a fresh machine needs (see README.md):
 #   make demo   set up .venv, install dermis, render the built-in scene to out/demo.png
-#   make test   the same set-up, then the whole test suite
+#   make test   the same set-up, then the whole test suite (on TEST_WORKERS=2 processes, pytest-xdist)
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
@@ -45,8 +45,11 @@ demo: sysdeps install
 	$(VENV)/bin/dermis render --out out/demo.png --size 768x768
 	@echo "demo image: $(CURDIR)/out/demo.png"
 
+# the suite on TEST_WORKERS processes (pytest-xdist), each taking one whole test file at a time in the
+# order tests/conftest.py gives (the slowest files first); TEST_WORKERS=0 runs it in this process
+TEST_WORKERS ?= 2
 test: test-sysdeps cycles
-	$(PY) -m pytest -q -ra --durations=25
+	$(PY) -m pytest -q -ra --durations=25 -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 bench: sysdeps install
 	$(VENV)/bin/dermis bench

@@ -55,3 +55,25 @@ def box_toml(tmp_path_factory) -> Path:
     p = tmp_path_factory.mktemp("box_scene") / "box.toml"
     p.write_text(BOX_SCENE_TOML)
     return p
+
+
+# The test files that take longest (tens of seconds each on 2 cores; `make test`'s --durations and
+# benchmarks/RESULTS.md round 20), slowest first. `make test` runs the suite on two workers that take one
+# whole file at a time (pytest-xdist, --dist loadfile --no-loadscope-reorder: a file's module fixtures are
+# built once); starting with these leaves only short files for the end, so neither worker runs a long
+# file alone while the other has finished. Only the order changes; a file not listed keeps its place after
+# these, and a stale list costs only time.
+SLOW_FILES_FIRST = (
+    "test_reference.py", "test_subsurface_transfer.py", "test_viewer.py", "test_render_analytic.py",
+    "test_artifact_scan.py", "test_environment_occlusion.py", "test_batch.py", "test_procedural_head.py",
+    "test_fuzz.py", "test_light_unroll.py", "test_environment_specular.py", "test_ssss.py",
+    "test_tsd_pixel_detail.py", "test_texture_space_uvs.py", "test_metallic_roughness.py", "test_tsd_pipeline.py",
+    "test_tsd_cached_paths.py", "test_profiles_measured.py", "test_compare.py", "test_cli.py",
+    "test_environment_rotation.py", "test_blender_cycles.py",
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    rank = {name: i for i, name in enumerate(SLOW_FILES_FIRST)}
+    # a stable sort: within a file, and among the files not listed, the collection's own order stays
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))

@@ -94,14 +94,24 @@ def xvfb_display():
             proc.kill()
 
 
-def run_viewer(display, scene_path, script: dict, tmp_path, *extra, timeout=240, sizes=True):
+@pytest.fixture(scope="module")
+def viewer_cache(tmp_path_factory):
+    """One dermis disk-cache folder for this module's `dermis view` processes: a fresh one (no user's
+    or other test's products), shared so that the second process on reads back the first one's
+    products (rho_dt table, profile fits, bakes: content-keyed, read back bit for bit) instead of
+    building them again (round 20)."""
+    return tmp_path_factory.mktemp("viewer-cache")
+
+
+def run_viewer(display, scene_path, script: dict, tmp_path, *extra, timeout=240, sizes=True, cache=None):
     """Run ``dermis view`` under ``display`` with a script; returns (completed process, report).
-    ``sizes``: give the irradiance and shadow sizes (else the viewer chooses them from the view)."""
+    ``sizes``: give the irradiance and shadow sizes (else the viewer chooses them from the view).
+    ``cache``: the dermis cache folder (None: a fresh one under ``tmp_path``)."""
     script = dict(script)
     script.setdefault("report", "report.json")
     sp = tmp_path / "script.json"
     sp.write_text(json.dumps(script))
-    env = dict(os.environ, DISPLAY=display, DERMIS_CACHE_DIR=str(tmp_path / "profile-cache"))
+    env = dict(os.environ, DISPLAY=display, DERMIS_CACHE_DIR=str(cache or tmp_path / "profile-cache"))
     env.pop("WAYLAND_DISPLAY", None)
     cmd = [sys.executable, "-m", "dermis.cli", "view", str(scene_path), "--size", f"{WINDOW[0]}x{WINDOW[1]}",
            "--script", str(sp), *extra]
@@ -169,8 +179,10 @@ def test_script_parsing_and_errors(tmp_path):
                          base_dir=tmp_path)
     assert s.before(0) == [{"orbit": [3, 4]}]
     assert s.after(0) == [{"screenshot": tmp_path / "a.png"}]
-    assert s.before(1) == [] and s.done(3) and not s.done(2)
+    assert s.before(1) == [] and s.done(3) and not s.done(2) and s.scales == ()
+    assert Script.from_dict({"scales": [0.25, 1]}).scales == (0.25, 1.0)
     for bad, words in (({"actions": [{"orbit": [1, 2]}]}, "frame"),
+                       ({"scales": [0.3]}, "'scales' must be"), ({"scales": 0.5}, "'scales' must be"),
                        ({"actions": [{"frame": 0, "spin": 1}]}, "unknown action 'spin'"),
                        ({"actions": [{"frame": 0, "orbit": [1]}]}, "[dx, dy]"),
                        ({"actions": [], "extra": 1}, "unknown key 'extra'"),
@@ -291,7 +303,7 @@ def _offline(scene_path, technique, camera, irradiance_size=IRRADIANCE, shadow_s
         return r.render(technique, camera=camera), scene
 
 
-def test_scripted_session_screenshots_follow_the_inputs(xvfb_display, sphere_toml, tmp_path):
+def test_scripted_session_screenshots_follow_the_inputs(xvfb_display, viewer_cache, sphere_toml, tmp_path):
     """Orbit, technique switch and melanin, driven through the real GLFW window loop."""
     import dermis
     from dermis.output import output_transform
@@ -305,7 +317,7 @@ def test_scripted_session_screenshots_follow_the_inputs(xvfb_display, sphere_tom
         {"frame": 4, "set": {"melanin": 0.3}, "screenshot": "melanin_high.png"},
         {"frame": 5, "window_screenshot": "window.png", "resources": True},
     ], "quit_after": 6}
-    res, report = run_viewer(xvfb_display, sphere_toml, script, tmp_path)
+    res, report = run_viewer(xvfb_display, sphere_toml, script, tmp_path, cache=viewer_cache)
     assert report["frames"] == 6
     shots = {n: _read_png(tmp_path / f"{n}.png") for n in ("start", "orbit", "lambert", "melanin_low", "melanin_high")}
     for img in shots.values():
@@ -338,7 +350,7 @@ def test_scripted_session_screenshots_follow_the_inputs(xvfb_display, sphere_tom
     assert report["resources"][0]["counts"]["texture"] > 0
 
 
-def test_gpu_objects_stay_constant_over_200_frames_of_changes(xvfb_display, box_toml, tmp_path):
+def test_gpu_objects_stay_constant_over_200_frames_of_changes(xvfb_display, viewer_cache, box_toml, tmp_path):
     """200 frames changing technique, material, light, environment, output, skin profile,
     irradiance resolution and buffer view, with the panel on: the live GPU objects, counted at
     the same point of each 40-frame cycle, do not grow."""
@@ -366,9 +378,16 @@ def test_gpu_objects_stay_constant_over_200_frames_of_changes(xvfb_display, box_
         if ph == cycle - 1:
             a["resources"] = True
         actions.append(a)
-    res, report = run_viewer(xvfb_display, box_toml, {"actions": actions, "quit_after": frames}, tmp_path,
-                             timeout=400)
+    # the reduced frames' scales set by frame number (every step, 8 dividing the cycle): each cycle draws the
+    # same frames at the same sizes, whatever the machine's load (adapted to the frame time, a loaded machine's
+    # scales wander, and a renderer first drew a program variant at a new size in the fourth cycle: one more
+    # vertex array, in a parallel run of the suite, round 20)
+    scales = [0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0, 0.5]
+    res, report = run_viewer(xvfb_display, box_toml, {"actions": actions, "quit_after": frames, "scales": scales},
+                             tmp_path, timeout=400, cache=viewer_cache)
     assert report["frames"] == frames
+    reduced = [tuple(report["render_size"][f]) for f in range(frames) if report["quality"][f] == "interactive"]
+    assert len(set(reduced)) == len(set(scales)), reduced  # the targets are resized: they must not leak either
     counts = [r["counts"] for r in report["resources"]]
     assert [r["frame"] for r in report["resources"]] == [39, 79, 119, 159, 199]
     assert counts[0]["texture"] > 10 and counts[0]["framebuffer"] > 5 and counts[0]["program"] > 3
@@ -382,7 +401,7 @@ def test_gpu_objects_stay_constant_over_200_frames_of_changes(xvfb_display, box_
     assert all(c["texture"] == counts[0]["texture"] for c in counts), counts
 
 
-def test_progressive_frames_while_dragging_then_the_full_frame(xvfb_display, sphere_toml, tmp_path):
+def test_progressive_frames_while_dragging_then_the_full_frame(xvfb_display, viewer_cache, sphere_toml, tmp_path):
     """While input is active the viewer draws reduced frames (smaller output; a light drag re-runs
     the texture space on the small interactive renderer); the first frame without input is the
     full frame, equal to the headless render of that view."""
@@ -393,7 +412,7 @@ def test_progressive_frames_while_dragging_then_the_full_frame(xvfb_display, sph
     script = {"actions": [{"frame": f, "orbit": [40, -5]} for f in (1, 2, 3)] +
                          [{"frame": 4, "screenshot": "refined.png"}] +
                          [{"frame": f, "light_drag": [30, 0]} for f in (6, 7)], "quit_after": 10}
-    res, report = run_viewer(xvfb_display, sphere_toml, script, tmp_path)
+    res, report = run_viewer(xvfb_display, sphere_toml, script, tmp_path, cache=viewer_cache)
     q = report["quality"]
     assert q == ["full", "interactive", "interactive", "interactive", "full", "idle",
                  "interactive", "interactive", "full", "idle"], q
@@ -417,7 +436,7 @@ def test_progressive_frames_while_dragging_then_the_full_frame(xvfb_display, sph
     assert np.abs(_read_png(tmp_path / "refined.png") - want).mean() < 2.0 / 255
 
 
-def test_sizes_left_to_the_viewer_follow_the_zoom_at_the_refine(xvfb_display, sphere_toml, tmp_path):
+def test_sizes_left_to_the_viewer_follow_the_zoom_at_the_refine(xvfb_display, viewer_cache, sphere_toml, tmp_path):
     """Without --irradiance-size / --shadow-size the viewer re-chooses both from the view
     (adaptive_sizes of the orbit camera and window) after a zoom: not in the reduced frames of the
     zoom, not in the full frame that refines them (drawn at the sizes in use, without re-running the
@@ -432,7 +451,7 @@ def test_sizes_left_to_the_viewer_follow_the_zoom_at_the_refine(xvfb_display, sp
     script = {"actions": [{"frame": 1, "zoom": 7}, {"frame": 3, "screenshot": "zoomed.png"},
                           {"frame": 4, "set": {"irradiance_size": 256}, "zoom": -7}, {"frame": 7, "zoom": 7}],
               "quit_after": 10}
-    res, report = run_viewer(xvfb_display, sphere_toml, script, tmp_path, sizes=False)
+    res, report = run_viewer(xvfb_display, sphere_toml, script, tmp_path, sizes=False, cache=viewer_cache)
     assert report["quality"] == ["full", "interactive", "full", "full", "interactive", "full", "full",
                                  "interactive", "full", "full"], report
     scene = dermis.load_scene(sphere_toml)

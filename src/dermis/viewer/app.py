@@ -493,6 +493,8 @@ class Viewer:
             if resize and self.choose_sizes(vs):
                 view_key = self._frame_view_key(vs)  # new sizes: a new lighting key (and params)
                 lighting_key = view_key[-1]
+            if scripted and self.script.scales:  # the script's scale for this frame, not the frame time's
+                self.progressive.pin_scale(self.script.scales[self.frames_drawn % len(self.script.scales)])
             img = self.progressive.render(self.params.technique, vs, self.orbit.camera(), interactive=interactive,
                                           lighting_key=lighting_key)
             stats = dict(self.progressive.stats)

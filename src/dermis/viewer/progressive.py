@@ -62,6 +62,7 @@ class ProgressiveRenderer:
         self._full_lighting = None  # lighting key the full renderer's texture space holds
         self.last_input_time = -math.inf
         self._released_at = None  # when a drag's mouse button was released (input_released)
+        self._pinned = False      # pin_scale: the scale is set, not adapted
         self.stats = {}
 
     @property
@@ -130,9 +131,19 @@ class ProgressiveRenderer:
         self.quality = "full"
         return img
 
+    def pin_scale(self, scale: float | None):
+        """Draw the reduced frames at ``scale`` (one of SCALE_STEPS) instead of adapting it to the
+        frame time (None: adapt again, from ``scale``'s step): a scripted session's frames then do
+        not depend on the machine's speed or load."""
+        self._pinned = scale is not None
+        if scale is not None:
+            self.scale_index = SCALE_STEPS.index(scale)
+
     def _adapt(self, frame_ms: float):
         """One step of the output scale towards the one that would have met target_ms
         (time ~ pixels ~ scale^2)."""
+        if self._pinned:
+            return
         want = self.scale * math.sqrt(self.target_ms / max(frame_ms, 1e-3))
         if want < self.scale * 0.9 and self.scale_index > 0:
             self.scale_index -= 1

@@ -22,7 +22,10 @@ Actions run before frame ``frame`` is drawn, except ``screenshot`` (the tone-map
 orbit, pan, light_drag ([dx, dy] pixels), zoom (wheel steps), set (ViewerParams fields),
 preset (a profile preset, moving the sliders), reset_camera, screenshot, window_screenshot,
 resources, quit. ``quit_after`` ends the session after that many frames; ``report`` writes the
-frame times, resource counts and screenshots as JSON. Relative paths are relative to the
+frame times, resource counts and screenshots as JSON. ``scales`` (optional): the reduced frames' output
+scales (each one of dermis.viewer.progressive.SCALE_STEPS), frame f's taken from scales[f % len(scales)]
+instead of adapting to the measured frame time: a session whose frames do not depend on the machine's
+speed or load (the GPU-object test compares cycles of frames, tests/test_viewer.py). Relative paths are relative to the
 script's folder. A profile change waits for its computation so the next image shows it.
 """
 
@@ -45,14 +48,15 @@ class Script:
     quit_after: int | None = None
     report: Path | None = None
     source: str = "<script>"
+    scales: tuple = ()  # the reduced frames' output scales by frame number (empty: adapted to the frame time)
 
     @classmethod
     def from_dict(cls, data: dict, source: str = "<script>", base_dir: Path | None = None) -> "Script":
         if not isinstance(data, dict):
             raise DermisError(f"{source}: a script is a JSON object with 'actions'")
-        unknown = set(data) - {"actions", "quit_after", "report"}
+        unknown = set(data) - {"actions", "quit_after", "report", "scales"}
         if unknown:
-            raise DermisError(f"{source}: unknown key '{sorted(unknown)[0]}' (known: actions, quit_after, report)")
+            raise DermisError(f"{source}: unknown key '{sorted(unknown)[0]}' (known: actions, quit_after, report, scales)")
         base = Path(base_dir) if base_dir is not None else Path(".")
         actions: dict[int, list] = {}
         raw = data.get("actions", [])
@@ -90,7 +94,12 @@ class Script:
         report = data.get("report")
         if report is not None and not isinstance(report, str):
             raise DermisError(f"{source}: 'report' must be a file path")
-        return cls(actions, quit_after, base / report if report else None, source)
+        from dermis.viewer.progressive import SCALE_STEPS
+
+        scales = data.get("scales", [])
+        if not isinstance(scales, list) or any(isinstance(x, bool) or x not in SCALE_STEPS for x in scales):
+            raise DermisError(f"{source}: 'scales' must be a list of output scales out of {list(SCALE_STEPS)}")
+        return cls(actions, quit_after, base / report if report else None, source, tuple(float(x) for x in scales))
 
     @classmethod
     def from_file(cls, path) -> "Script":
