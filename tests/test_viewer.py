@@ -471,7 +471,7 @@ def test_sizes_left_to_the_viewer_follow_the_zoom_at_the_refine(xvfb_display, vi
     assert np.abs(_read_png(tmp_path / "zoomed.png") - want).mean() < 2.0 / 255
 
 
-def test_the_image_is_framed_right_of_the_panel(xvfb_display, tmp_path):
+def test_the_image_is_framed_right_of_the_panel(xvfb_display, viewer_cache, tmp_path):
     """Issue 12: "the viewer frames the head in the area the panel leaves free". With the panel
     shown in a window that has room, the image is rendered for and drawn in the window's part right
     of the panel, the scene's fitted camera framed for that part: the window right of the panel is
@@ -488,7 +488,7 @@ def test_the_image_is_framed_right_of_the_panel(xvfb_display, tmp_path):
     area = (window[0] - reserve, window[1])
     script = {"actions": [{"frame": 0, "screenshot": "shot.png", "window_screenshot": "window.png"}], "quit_after": 1}
     res, report = run_viewer(xvfb_display, scene_path, script, tmp_path, "--size", f"{window[0]}x{window[1]}",
-                             "-t", "lambert")
+                             "-t", "lambert", cache=viewer_cache)
     assert report["render_size"][0] == list(area), report["render_size"]
     shot, shown = _read_png(tmp_path / "shot.png"), _read_png(tmp_path / "window.png")
     assert shot.shape == (area[1], area[0], 3) and shown.shape == (window[1], window[0], 3)
