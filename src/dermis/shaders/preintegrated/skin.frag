@@ -103,8 +103,8 @@ float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
 // the light scatters red into it (Cycles, tsd, ssss). For such channels the shadow is box-filtered
 // over the PCF width plus the scattering width on P's tangent plane (common/shadow.glsl,
 // shadow_box_curved: the receiver's own curvature lifted out; only the profile's wide Gaussians, the
-// narrow ones read from the PCF, below) and read through the second table's
-// row of that width (penumbra_lookup(..., true): a box of width W over the map's step is a ramp of
+// narrow ones read from the PCF, below) and read through the wide block's row of that width
+// (penumbra_lookup(..., PENUMBRA_BOX_WIDE): a box of width W over the map's step is a ramp of
 // width W exactly, so the table's edge is the step itself; with the PCF's ~1.2 mm ramp left in it,
 // red fell at the lit side of a cast shadow where green does not, a pale green fringe), blended in
 // by a_c = (scattering - pcf) / pcf in [0, 1] (none where the PCF already holds the scattering, all
