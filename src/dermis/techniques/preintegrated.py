@@ -33,8 +33,9 @@ from three local quantities looked up in tables computed at start-up from the ac
   (scattering - PCF) / PCF. There each channel's wide Gaussians (2 sigma > WIDE_SPLIT_MM) are read
   from the box and its narrow ones from the PCF through Penner's table of the narrow part (one box for
   the whole profile put red's narrow half as deep in the shadow as its tail at a lit wedge's tip
-  between cast shadows: olive tips; benchmarks/RESULTS.md, round 20, olive20). Without it a cast shadow narrower than red's reach, the upper lid's on
-  the closed eye's slit, was black where Cycles is dark red (benchmarks/RESULTS.md, round 19, eyes19).
+  between cast shadows: olive tips; benchmarks/RESULTS.md, round 20, olive20). Without the wide
+  penumbra a cast shadow narrower than red's reach, the upper lid's on the closed eye's slit, was
+  black where Cycles is dark red (benchmarks/RESULTS.md, round 19, eyes19).
 * surface detail: each channel's normal is the normal map filtered by that channel's profile,
   sum_k w_k (the map at the mip level whose box has Gaussian k's standard deviation, never finer
   than the pixel's own footprint): Penner's "blurred normals", red the blurriest. One level at the
@@ -511,7 +512,7 @@ class PreintegratedSkin(Technique):
             set_uniform(prog, "uCurvatureMaxPerMm", float(CURVATURE_MAX_PER_MM))
             set_uniform(prog, "uPenumbraWidthRangeMm", tuple(float(x) for x in PENUMBRA_WIDTH_RANGE_MM))
             # per profile (its key), not per frame: a camera-only frame computes no scene uniform
-            prepared(prog, "scattering_width", frame.keys["profile_tables"],
+            prepared(prog, "profile_widths", frame.keys["profile_tables"],
                      lambda p: (set_uniform(p, "uScatteringWidthMm", tuple(float(x) for x in channel_scattering_widths_mm(profile))),
                                 set_uniform(p, "uNarrowShare", tuple(float(x) for x in profile_part(profile, False)[1]))))
             set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.options.curvature_source == "mesh" else 0.0)
