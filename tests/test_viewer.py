@@ -498,3 +498,6 @@ def test_the_image_is_framed_right_of_the_panel(xvfb_display, viewer_cache, tmp_
         want = output_transform(r.render("lambert"), scene.output.exposure, scene.output.tonemap)
     assert np.abs(shot - want).mean() < 2.0 / 255
     assert _luminance(shot).max() > 0.2  # the sphere is in the frame
+    # the panel is drawn from the first frame on (its text: light pixels left of the image; ImGui
+    # skips drawing a window in the frame it first fits to its content)
+    assert (_luminance(shown[:, :reserve]) > 0.5).sum() > 200

@@ -568,12 +568,20 @@ class Viewer:
         now = time.perf_counter()
         io.delta_time = max(now - getattr(self, "_gui_time", now - 1 / 60), 1e-4)
         self._gui_time = now
-        imgui.new_frame()
         status = {"frame_ms": getattr(self, "_last_frame_ms", frame_ms), "render_ms": stats.get("frame_ms", 0.0),
                   "quality": stats.get("quality", "full"), "scale": stats.get("scale", 1.0),
                   "passes_run": stats.get("passes_run", []), "gpu_objects": self.gpu_objects.total(),
                   "sizes": (self.renderer.irradiance_size, self.renderer.shadows.tile_size, tuple(self.auto_sizes)),
                   "profile_busy": self.profiles.busy, "profile_note": self._profile_note, "message": self._message}
+        if not getattr(self, "_gui_laid_out", False):
+            # ImGui hides a window for the frame in which it first auto-fits its size (the panel's
+            # first-use height is 0: fit to its content), so frame 0 would show no panel: lay the
+            # panel out once unseen, its input ignored, then draw it.
+            self._gui_laid_out = True
+            imgui.new_frame()
+            self.panel.draw(self.params, status)
+            imgui.render()
+        imgui.new_frame()
         changes, actions = self.panel.draw(self.params, status)
         imgui.render()
         self.gui.render(imgui.get_draw_data(), self.ctx.screen, fb)
