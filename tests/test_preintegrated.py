@@ -157,6 +157,11 @@ def test_penumbra_table_scatters_the_shadow_edge():
     wide, wide_share = pi.profile_part(profile, True)
     narrow, narrow_share = pi.profile_part(profile, False)
     assert np.allclose(wide_share + narrow_share, 1.0) and 0.44 < narrow_share[0] < 0.46, narrow_share  # d'Eon's red: 0.451
+    # the wide part's edge widening (the wide penumbra's box and blend), 2 x its 1-D rms from the raw Gaussians
+    sd, wk = np.sqrt(full.variances_mm2), full.weights
+    keep = 2.0 * sd > pi.WIDE_SPLIT_MM
+    ref_widths = 2.0 * np.sqrt((wk[keep] * sd[keep, None] ** 2).sum(0) / wk[keep].sum(0))
+    assert np.allclose(pi.wide_widths_mm(profile), ref_widths) and 3.1 < ref_widths[0] < 3.2, ref_widths  # red 3.14
     assert np.allclose(tables[0], table) and np.allclose(tables[1][:, 0], 0.0) and np.allclose(tables[1][:, -1], 1.0)
     # the texture's blocks: Penner's of the whole profile, the box's (a step) of the wide part, Penner's of the narrow part
     for j, box, block, prof in ((10, False, 0, full), (30, False, 0, full), (45, False, 0, full), (30, True, 1, wide),
@@ -369,7 +374,10 @@ def test_red_scatters_into_a_cast_shadow_beyond_the_pcf_penumbra(gl_ctx, case):
     of the lit plane's: red leaks into the shadow). With the wide table's edge the PCF's ~1 mm ramp
     (round 19, eyes19) red was 0.072 off there and R/G fell to 0.721, a pale green fringe on every
     cast shadow's lit side (the nose's on the cheek, the concha's); with a step under the box (the
-    box's ramp is its own width) 0.036 and 0.797."""
+    box's ramp is its own width) 0.036 and 0.797. The box holds only red's wide Gaussians (round 20, olive20);
+    sized, and blended in, by the whole profile's width (2.35 mm) it cut their tail (2 rms 3.14 mm) at half
+    the box: red off by up to 0.064 at 0.35-3 mm from the edge, the strip's rms 0.068 and its centre 0.48 of
+    the closed form; sized by the wide part's own width (round 21, wide21) 0.044, 0.049 and 0.89."""
     strip, offset = (STRIP_MM, 0.0) if case == "strip" else (30.0, 15.0)
     sc = strip_shadow_scene(strip, offset)
     with Renderer(sc, (STRIP_SIZE, STRIP_SIZE), ctx=gl_ctx, samples=0, shadow_size=2048) as r:
@@ -383,14 +391,14 @@ def test_red_scatters_into_a_cast_shadow_beyond_the_pcf_penumbra(gl_ctx, case):
     near = np.abs(np.abs(y) - 0.5 * strip) <= 3.0
     rms = np.sqrt(np.mean((prof[near] - ref[near]) ** 2, axis=0))
     print(f"{case}: rms per channel {rms}")
-    assert rms[0] < 0.085, rms
+    assert rms[0] < 0.06, rms
     assert rms[1] < 0.07 and rms[2] < 0.075, rms
     if case == "strip":
         centre = np.abs(y) <= 0.3
         c, c_ref = prof[centre].mean(0), ref[centre].mean(0)
         print(f"centre {c}, closed form {c_ref}")
         assert 0.17 < c_ref[0] < 0.23 and c_ref[1] < 0.01, c_ref  # the scene is what the docstring says
-        assert 0.35 < c[0] / c_ref[0] < 1.2, (c, c_ref)
+        assert 0.7 < c[0] / c_ref[0] < 1.2, (c, c_ref)
         assert c[1] < 0.01 and c[2] < 0.01, c
     else:
         s_pcf = pcf[:, cols, 1].mean(1) / pcf[-8:, cols, 1].mean()  # rho_s 0, no ambient: the PCF's s
@@ -403,20 +411,25 @@ def test_red_scatters_into_a_cast_shadow_beyond_the_pcf_penumbra(gl_ctx, case):
         err = np.abs(prof[at_edge] - ref[at_edge]).max(axis=0)
         lit = (d > 0.0) & (d <= 3.0)
         rg, rg_ref = (prof[lit, 0] / prof[lit, 1]).min(), (ref[lit, 0] / ref[lit, 1]).min()
-        print(f"edge at {y_map - 0.5 * strip:+.3f} mm: max |error| within 0.35 mm {err}; lit side's least R/G {rg:.3f}, "
-              f"closed form {rg_ref:.3f}")
+        tail = (np.abs(d) > 0.35) & (np.abs(d) <= 3.0)  # beyond the PCF's reach: red's wide Gaussians, read from the box
+        err_tail = np.abs(prof[tail] - ref[tail]).max(axis=0)
+        print(f"edge at {y_map - 0.5 * strip:+.3f} mm: max |error| within 0.35 mm {err}, 0.35-3 mm {err_tail}; "
+              f"lit side's least R/G {rg:.3f}, closed form {rg_ref:.3f}")
         assert 0.78 < rg_ref < 0.83, rg_ref  # the scene is what the docstring says
         assert err[0] < 0.05, err
+        assert err_tail[0] < 0.05, err_tail
         assert abs(rg - rg_ref) < 0.04, (rg, rg_ref)
 
 
 def test_wide_penumbra_casts_no_shadow_of_a_concave_surface_on_itself(gl_ctx):
     """A trough (a half cylinder of radius 8 mm, concave side up, mm_per_unit = 1) lit straight into
-    it and 10 degrees across it (its rims +-75 degrees: no cast shadow below 15): nothing shadows its floor, yet the wide penumbra's box (~3.4 mm on
-    the tangent plane) reaches where the surface rises 0.2 mm above that plane. Each tap compares
+    it and 10 degrees across it (its rims +-75 degrees: no cast shadow below 15): nothing shadows its floor, yet the wide penumbra's box (~3.2 mm on
+    the tangent plane here) reaches where the surface rises 0.3 mm above that plane. Each tap compares
     against the plane lifted by the concave quadric's rise (shadow_box_curved), so the floor renders
     as with the light's shadows off (within 0.5% of the brightest pixel); without the lift the red
-    channel darkens there (by 0.0088 of 0.79 with the light straight in)."""
+    channel darkens there (by 0.0088 of 0.79 with the light straight in). With the box sized by the
+    wide Gaussians' width (round 21, wide21) the rise taken at the tap itself, not where the lifted
+    surface seen at the tap's uv lies, shadowed the wall lit at N.L 0.5 (red 0.0076 at 10 degrees)."""
     R = 8.0
 
     def fn(u, v):

@@ -99,7 +99,8 @@ def test_fold_bottom_receives_the_light_scattered_across_it(gl_ctx):
     radiance 0.104 (albedo 0.8 x 0.13 of the light) and green 0.005; preintegrated without the gather
     gave 0 until round 18 (every point there is either the far wall, D = 0, or the near wall in the
     shadow, s = 0); since round 19 the wide penumbra (skin.frag) brings red 0.023 (22%) from the
-    near wall's lit part past the PCF's reach. With the fold gather red is within 30% of it (measured
+    near wall's lit part past the PCF's reach, 0.032 (31%) since its box holds the wide Gaussians' own
+    width (round 21, wide21). With the fold gather red is within 30% of it (measured
     22% low: Gaussians narrower than two shadow texels and the light through the tissue behind the
     point are left to Penner's tables), and no channel exceeds the reference by more than 0.02."""
     sc = groove_scene()
@@ -114,7 +115,7 @@ def test_fold_bottom_receives_the_light_scattered_across_it(gl_ctx):
         r.technique("preintegrated", fold_scattering=True)
         after = r.render("preintegrated", output_mode=1)[rows, cols].reshape(-1, 3).mean(axis=0)
     print(f"reference {expected}, before {before}, after {after}")
-    assert before[0] < 0.3 * expected[0], before  # the tables alone: at most the wide penumbra's red
+    assert before[0] < 0.4 * expected[0], before  # the tables alone: at most the wide penumbra's red
     assert np.all(before <= expected + 0.02), (before, expected)
     assert abs(after[0] / expected[0] - 1.0) < 0.30, (after, expected)
     assert np.all(after <= expected + 0.02), (after, expected)

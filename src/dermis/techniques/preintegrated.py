@@ -28,9 +28,9 @@ from three local quantities looked up in tables computed at start-up from the ac
   Rescaled to [0, 1], the table moves light only within the penumbra it is given; a channel whose
   scattering widens an edge by more than the PCF's penumbra (d'Eon's red, 2.35 mm, against ~1.2 mm
   on the head at the shadow tile 2048) also reads a wide penumbra: the shadow box-filtered over the
-  PCF's width plus the scattering's on the tangent plane, through a second table of the same rows
-  whose edge is a step (the box's ramp is its own width; :func:`penumbra_tables`), blended in by
-  (scattering - PCF) / PCF. There each channel's wide Gaussians (2 sigma > WIDE_SPLIT_MM) are read
+  PCF's width plus the wide part's scattering width (:func:`wide_widths_mm`) on the tangent plane,
+  through a second table of the same rows whose edge is a step (the box's ramp is its own width;
+  :func:`penumbra_tables`), blended in by (wide part's width - PCF) / PCF. There each channel's wide Gaussians (2 sigma > WIDE_SPLIT_MM) are read
   from the box and its narrow ones from the PCF through Penner's table of the narrow part (one box for
   the whole profile put red's narrow half as deep in the shadow as its tail at a lit wedge's tip
   between cast shadows: olive tips; benchmarks/RESULTS.md, round 20, olive20). Without the wide
@@ -76,7 +76,7 @@ ring model assumes one curvature at a scale of the profile's width (mesh curvatu
 that is meaningless, a coarse mesh blurs it), the penumbra width from derivatives is noisy on
 2x2 pixel quads (bounded by the projected filter size), and the table sharpens narrow penumbras.
 The wide penumbra reads a shadow narrower than its box as one edge (a 2.5 mm strip's centre gets
-0.43 of the closed form's red), cuts the scattered tail beyond half its box, and lies on the
+0.89 of the closed form's red), cuts the scattered tail beyond half its box (red 0.044 off), and lies on the
 tangent plane: the receiver's own concave rise is lifted out only up to a 0.5 rad turn of its normal.
 Shaders: shaders/preintegrated/skin.frag.
 """
@@ -252,6 +252,16 @@ def profile_part(profile, wide: bool):
     w = prof.weights[keep]
     share = w.sum(axis=0)
     return SumOfGaussians(prof.variances_mm2[keep], w / np.where(share > 0.0, share, 1.0), prof.name), share
+
+
+def wide_widths_mm(profile) -> np.ndarray:
+    """How much each channel's WIDE part (:func:`profile_part`, its own weights normalised) widens a sharp
+    edge, 2 x its rms radius along one axis, (3,) mm; 0 for a channel with no wide Gaussian (d'Eon's skin:
+    red 3.14, green 2.08, blue 1.51). The wide penumbra's box holds only this part (round 20, olive20), so its
+    width and its blend come from it, not from the whole profile's (red 2.35: the box then cut red's tail
+    beyond half its width harder; benchmarks/RESULTS.md, round 21, wide21)."""
+    part, _ = profile_part(profile, True)
+    return np.zeros(3) if part is None else channel_scattering_widths_mm(part)
 
 
 def scattering_width_mm(profile) -> float:
@@ -513,7 +523,7 @@ class PreintegratedSkin(Technique):
             set_uniform(prog, "uPenumbraWidthRangeMm", tuple(float(x) for x in PENUMBRA_WIDTH_RANGE_MM))
             # per profile (its key), not per frame: a camera-only frame computes no scene uniform
             prepared(prog, "profile_widths", frame.keys["profile_tables"],
-                     lambda p: (set_uniform(p, "uScatteringWidthMm", tuple(float(x) for x in channel_scattering_widths_mm(profile))),
+                     lambda p: (set_uniform(p, "uWideWidthMm", tuple(float(x) for x in wide_widths_mm(profile))),
                                 set_uniform(p, "uNarrowShare", tuple(float(x) for x in profile_part(profile, False)[1]))))
             set_uniform(prog, "uCurvatureFromMesh", 1.0 if self.options.curvature_source == "mesh" else 0.0)
             set_uniform(prog, "uBlurredNormals", 1.0 if self.options.blurred_normals else 0.0)

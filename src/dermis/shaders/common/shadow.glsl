@@ -299,6 +299,15 @@ const vec2 SHADOW_BOX_TURN = vec2(6.0, 1.0) / 6.0827625;  // (cos, sin) of atan(
 // taps and it are all 1 (all 0) the box returns 1 (0) without the other 32 taps. A shadow that
 // touches neither the corners nor the PCF's disc is then missed (a speck narrower than the gaps,
 // ~0.2 of the square's side). probe < 0: no probe.
+// The rise (map depth) to compare at the tap f: r2 |f'|^2 at f' = f - shift r2 |f|^2, the shift at most
+// half of |f| (a grazing receiver, T near singular: no fixed point to step to).
+float lifted_rise(vec2 f, vec2 shift, float r2) {
+    vec2 d = shift * (r2 * dot(f, f));
+    float lim = 0.5 * length(f);
+    vec2 g = f - (dot(d, d) > lim * lim ? d * (lim / length(d)) : d);
+    return r2 * dot(g, g);
+}
+
 float shadow_box_curved(int i, vec3 P, vec3 N, float half_mm, float curvature_per_mm, float probe) {
     ShadowReceiver r;
     if (!shadow_receiver(i, P, N, r)) return 1.0;
@@ -308,6 +317,13 @@ float shadow_box_curved(int i, vec3 P, vec3 N, float half_mm, float curvature_pe
     vec3 jn = r.J * N;
     float depth_per_mm = abs(jn.z - dot(dz, jn.xy)) / uMmPerUnit;  // map depth of a step along N off the plane
     float rise_per_mm2 = 0.5 * curvature_per_mm * depth_per_mm;  // map depth per mm^2 of r^2
+    // f per map depth of rise: lifting by l mm along N moves the uv by (J N).xy l / mm_per_unit, a tangent
+    // offset of T^-1 (J N).xy l (mm), so the lifted surface seen at a tap's uv is the one over f' = f - that
+    // offset / half_mm, whose rise is the one to compare (lifted_rise; one fixed-point step). With the rise
+    // at f itself the wide penumbra's 4.2 mm square (round 21, wide21: 3.4 mm before) shadowed a trough's
+    // wall lit at N.L = 0.5, 2 of 36 taps (tests/test_preintegrated.py); the offset, 0.5 mm at its corners.
+    float detT = determinant(T);
+    vec2 shift = abs(detT) > 1e-12 && depth_per_mm > 0.0 ? inverse(T) * jn.xy / (half_mm * depth_per_mm) : vec2(0.0);
     vec2 e1 = T[0] * (half_mm / uMmPerUnit), e2 = T[1] * (half_mm / uMmPerUnit);  // map uv of the square's half-axes
     float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint, as shadow_pcf_at
     float r2 = rise_per_mm2 * half_mm * half_mm;  // map depth of the rise at |f| = 1
@@ -318,7 +334,7 @@ float shadow_box_curved(int i, vec3 P, vec3 N, float half_mm, float curvature_pe
             vec2 gk = vec2((k & 1) == 0 ? -g : g, k < 2 ? -g : g);
             vec2 f = vec2(SHADOW_BOX_TURN.x * gk.x - SHADOW_BOX_TURN.y * gk.y, SHADOW_BOX_TURN.y * gk.x + SHADOW_BOX_TURN.x * gk.y);
             vec2 delta = f.x * e1 + f.y * e2;
-            corners += shadow_tap(i, c.xy + delta, z + dot(dz, delta) - r2 * dot(f, f));
+            corners += shadow_tap(i, c.xy + delta, z + dot(dz, delta) - lifted_rise(f, shift, r2));
         }
         if (corners == 4.0 * probe) return probe;
     }
@@ -328,7 +344,7 @@ float shadow_box_curved(int i, vec3 P, vec3 N, float half_mm, float curvature_pe
             vec2 g = (vec2(kx, ky) + 0.5) * (2.0 / float(SHADOW_BOX_GRID)) - 1.0;
             vec2 f = vec2(SHADOW_BOX_TURN.x * g.x - SHADOW_BOX_TURN.y * g.y, SHADOW_BOX_TURN.y * g.x + SHADOW_BOX_TURN.x * g.y);
             vec2 delta = f.x * e1 + f.y * e2;
-            sum += shadow_tap(i, c.xy + delta, z + dot(dz, delta) - r2 * dot(f, f));
+            sum += shadow_tap(i, c.xy + delta, z + dot(dz, delta) - lifted_rise(f, shift, r2));
         }
     }
     return sum / float(SHADOW_BOX_GRID * SHADOW_BOX_GRID);

@@ -31,7 +31,7 @@ uniform sampler2D uPenumbraTable;  // P(shadow, width): s = shadow in [0, 1], t 
 uniform sampler2D uNormalMapLod;   // uNormalMap through a sampler without anisotropy (the blurred normals' explicit levels)
 uniform float uCurvatureMaxPerMm;
 uniform vec2 uPenumbraWidthRangeMm;
-uniform vec3 uScatteringWidthMm;    // per channel, how much the profile widens a sharp edge: 2 x its rms radius along an axis (mm)
+uniform vec3 uWideWidthMm;          // per channel, how much the profile's wide part widens a sharp edge: 2 x its rms radius along an axis (mm; preintegrated.wide_widths_mm)
 uniform vec3 uNarrowShare;          // per channel, the share of the profile's weight in its narrow Gaussians (preintegrated.profile_part)
 uniform float uCurvatureFromMesh;   // 1: the mesh's per-vertex curvature, 0: screen derivatives
 uniform float uBlurredNormals;      // 1: per-channel blurred normals, 0: the detailed normal
@@ -101,25 +101,28 @@ float penumbra_width_mm(int i, vec3 P, float ndl_geometric, float measured_mm) {
 // beyond the filter's reach: a cast shadow narrower than the scattering, the upper lid's on the
 // closed eye's slit (~2.5-3.5 mm along the surface, the lid 0.7-2.4 mm above it), went black where
 // the light scatters red into it (Cycles, tsd, ssss). For such channels the shadow is box-filtered
-// over the PCF width plus the scattering width on P's tangent plane (common/shadow.glsl,
+// over the PCF width plus the wide part's scattering width (uWideWidthMm: the box holds only the wide
+// Gaussians, whose edge widening, red's 3.14 mm, the whole profile's 2.35 mm understated: the box cut
+// their tail at half its width, red 0.064 off at 0.35-3 mm from an edge against the closed form, 0.044
+// now; benchmarks/RESULTS.md round 21, wide21) on P's tangent plane (common/shadow.glsl,
 // shadow_box_curved: the receiver's own curvature lifted out; only the profile's wide Gaussians, the
 // narrow ones read from the PCF, below) and read through the wide block's row of that width
 // (penumbra_lookup(..., PENUMBRA_BOX_WIDE): a box of width W over the map's step is a ramp of
 // width W exactly, so the table's edge is the step itself; with the PCF's ~1.2 mm ramp left in it,
 // red fell at the lit side of a cast shadow where green does not, a pale green fringe), blended in
-// by a_c = (scattering - pcf) / pcf in [0, 1] (none where the PCF already holds the scattering, all
-// where it is at most half of it). Probed first: the box's corners and the PCF value agree (all lit
+// by a_c = (wide width_c - pcf) / pcf in [0, 1] (none where the PCF already holds the wide part's
+// scattering, all where it is at most half of it). Probed first: the box's corners and the PCF value agree (all lit
 // or all shadowed) over most of a frame, and then so does the box. Limits: the table reads a shadow narrower than the box as one edge (a 2.5 mm strip's
-// centre gets 0.43 of the closed form's red, tests/test_preintegrated.py), the scattered tail beyond
+// centre gets 0.89 of the closed form's red, tests/test_preintegrated.py), the scattered tail beyond
 // half the box is cut (the table's rescale), and the box lies on the tangent plane, not the surface.
 const float LIFT_MAX_TURN = 0.5;  // radians: the most the receiver's normal turns across the square for the lift
 vec3 wide_penumbra_blend(int i, vec3 P) {
     float pcf_mm = pcf_width_mm(i, P);
-    return clamp((uScatteringWidthMm - pcf_mm) / pcf_mm, 0.0, 1.0);
+    return clamp((uWideWidthMm - pcf_mm) / pcf_mm, 0.0, 1.0);
 }
 
 float wide_penumbra_width_mm(int i, vec3 P) {
-    return pcf_width_mm(i, P) + max(uScatteringWidthMm.r, max(uScatteringWidthMm.g, uScatteringWidthMm.b));
+    return pcf_width_mm(i, P) + max(uWideWidthMm.r, max(uWideWidthMm.g, uWideWidthMm.b));
 }
 
 #ifdef PREINTEGRATED_FOLDS
