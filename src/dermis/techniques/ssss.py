@@ -60,10 +60,12 @@ import numpy as np
 from dermis.errors import DermisError
 from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
+from dermis.gl.subsurface_transfer import SubsurfaceTransfer
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit, bind_interreflection, bind_sampler,
                                       bind_sampler_array, TISSUE_TAU, casts_translucency, directional_albedo_uniforms,
+                                      subsurface_transfer_uniforms,
                                       prepare_interreflection, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
 
@@ -137,6 +139,7 @@ class ScreenSpaceSSS(Technique):
         self.tex = {}
         self._targets_key = None
         self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
+        self.transfer = SubsurfaceTransfer(self.ctx)  # the baked subsurface transfer, read by the final pass
         renderer.interreflection  # the shared one bounce: made with the first technique that reads it
 
     # ------------------------------------------------------------------ resources
@@ -294,6 +297,9 @@ class ScreenSpaceSSS(Technique):
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         self.screen_space(frame)
+        prog = self.p_final
+        # the baked transfer of thin, curled parts (gathered only on a lighting change; before the target is bound)
+        subsurface_transfer_uniforms(prog, frame, self.transfer, self.options.translucency, Unit.FIRST_FREE + 1)
         with frame.timer("ssss_final"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
@@ -328,6 +334,7 @@ class ScreenSpaceSSS(Technique):
     def release(self):
         self._release_targets()
         self.thickness.release()
+        self.transfer.release()
         for v in self.vaos.values():
             v.release()
         for progs in self._programs.values():
