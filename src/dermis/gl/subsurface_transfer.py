@@ -7,6 +7,10 @@ target. Two passes, only where a bake exists (tsd/transfer_gather.vert, tsd/tran
   add:    the grid read (trilinear: its mipmaps where the target is coarser) at each texel of the
           translucency target, additive blending
 
+ssss and preintegrated (round 21, ears21) read the same grid at each fragment's texture-space uv
+(:meth:`SubsurfaceTransfer.screen_grid`, common/subsurface_transfer.glsl: the add pass's tent), gathered
+from the shared rho E (dermis.gl.interreflection.SharedBounce.exitant) instead of tsd's I_3.
+
 A scene without a matching bake (dermis.subsurface_transfer.store.find) draws neither: its image is
 the one tsd gave before. The bake is looked up once per PRODUCTS key "subsurface_transfer"
 (dermis.invalidation: mesh, scale, profile, material) and kept on the GPU until it changes.

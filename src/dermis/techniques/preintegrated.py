@@ -66,7 +66,10 @@ from three local quantities looked up in tables computed at start-up from the ac
 
 Everything else is shared with the other techniques: lights, shadows, environment, specular
 (common/skin_specular.glsl), energy conservation (N.L in, N.V out) and the translucency of thin
-parts from the shadow map's thickness (common/transmittance.glsl, Jimenez et al. 2010).
+parts from the shadow map's thickness (common/transmittance.glsl, Jimenez et al. 2010), and tsd's
+baked subsurface transfer of thin, curled parts where the mesh has one (common/subsurface_transfer.glsl
+at the texture-space uv, gathered from the shared rho E once per lighting change, added to the light
+leaving the skin: the back-lit ear's same-side light round its curls).
 Known failure modes: light crosses folds only from what the light's shadow map sees (points
 hidden from the light, e.g. behind a nostril's rim, send nothing; lights without shadows gather
 nothing), along straight lines (across the air of a fold: the reference's "straight" paths, an

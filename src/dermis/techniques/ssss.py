@@ -33,8 +33,12 @@ with each pixel's kernel scaled to millimetres by its depth:
                    whose straight path to the pixel crosses air rejected: creases, as the
                    reference's paths = "tissue"; a rejected tap keeps its weight and brings
                    the pixel's own light, Jimenez 2015's follow-surface rule, ssss/kernel.glsl).
-  ssss_final       the mesh into the frame's target: scattered * albedo^(1-mix) / pi
-                   * (1 - rho_s a(N.V, m) / pi) + specular (added after the blur)
+  ssss_final       the mesh into the frame's target: (scattered * albedo^(1-mix) + T_geo) / pi
+                   * (1 - rho_s a(N.V, m) / pi) + specular (added after the blur); T_geo: tsd's baked
+                   subsurface transfer of thin, curled parts where the mesh has one
+                   (dermis.subsurface_transfer; common/subsurface_transfer.glsl at the fragment's
+                   texture-space uv, gathered from the shared rho E once per lighting change: the
+                   back-lit ear's same-side light round its curls, which no screen blur sees)
 
 Inputs and units: the scene's mm_per_unit, the camera's projection (widths in pixels come from
 depth and field of view), the profile's Gaussians (any K <= 8, weights normalised per channel).
@@ -47,7 +51,7 @@ scale of the cells (the grain filter removes about half of it; what is left sits
 silhouettes, where the filter backs off); the
 horizontal-then-vertical split follows the surface only along the axes (as in Jimenez 2015).
 Shaders: shaders/ssss/*; shared: common/skin_irradiance.glsl, common/transmittance.glsl,
-common/skin_specular.glsl.
+common/subsurface_transfer.glsl, common/skin_specular.glsl.
 """
 
 from __future__ import annotations
