@@ -489,7 +489,7 @@ class SharedBounce:
         (premultiplied by coverage, rgba32f: tsd/irradiance.frag with mix = 1), redrawn when the product
         key "interreflection" changed (the lights, environment, material, mesh, irradiance size). What
         the bounce gathers, and what ssss and preintegrated gather the baked subsurface transfer from
-        (dermis.techniques.shared.subsurface_transfer_grid): drawn whether or not the scene has the
+        (dermis.gl.subsurface_transfer.SubsurfaceTransfer.screen_grid): drawn whether or not the scene has the
         bounce. Appends "interreflection_exitant" to frame.passes_run when drawn."""
         key = frame.keys["interreflection"]
         if key == self._exitant_key:

@@ -198,14 +198,14 @@ class SubsurfaceTransfer:
         if self.lookup(frame) is None:
             return None
         bounce = frame.renderer.interreflection
-        with frame.timer("subsurface_transfer"):
-            source = bounce.exitant(frame)
-            mipmaps = self.reads_mipmaps(target_size)
-            key = (self.key, bounce.exitant_key, mipmaps)
-            if key != self._gathered:
+        source = bounce.exitant(frame)  # times itself: outside this timer (a GPU's timer queries do not nest)
+        mipmaps = self.reads_mipmaps(target_size)
+        key = (self.key, bounce.exitant_key, mipmaps)
+        if key != self._gathered:
+            with frame.timer("subsurface_transfer"):
                 self.gather(source, mipmaps=mipmaps)
-                self._gathered = key
-                frame.passes_run.append("subsurface_transfer")
+            self._gathered = key
+            frame.passes_run.append("subsurface_transfer")
         return self.grid_texture, self.read_level(target_size)
 
     def per_point(self) -> np.ndarray:
