@@ -329,7 +329,8 @@ def test_a_camera_only_frame_prepares_only_the_per_frame_uniforms(gl_ctx, monkey
                                                  "uCurvatureFromMesh", "uScatterRadiusMm", "uBlurredNormals",
                                                  "uPenumbraScattering", "uGaussianCount", "uWeights", "uVariances",
                                                  "uSlabReducedAlbedo", "uSlabKappa", "uSlabSourceDepth", "uSlabExtrapolation",
-                                                 "uSlabAlbedo", "uFoldScattering", "uShadowDepth", "uNormalMapLod"}, (tech, computed)
+                                                 "uSlabAlbedo", "uFoldScattering", "uShadowDepth", "uNormalMapLod",
+                                                 "uTransfer", "uTransferLevel"}, (tech, computed)
             if tech != "preintegrated":  # tsd's and lambert's final passes: the per-frame ones alone
                 assert set(computed) <= per_frame and "uLightRadiance" not in computed, (tech, computed)
         sc.lights[1].color = (0.2, 0.9, 0.4)

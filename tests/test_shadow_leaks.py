@@ -292,7 +292,7 @@ def test_no_light_below_the_smooth_horizon(lee_perry_smith, gl_ctx):
     assert leaked < 1e-6, (leaked, int((below & (lum > 0)).sum()))
 
 
-def test_preintegrated_light_below_the_smooth_horizon_is_the_smooth_surfaces(lee_perry_smith, gl_ctx):
+def test_preintegrated_light_below_the_smooth_horizon_is_the_smooth_surfaces(lee_perry_smith, gl_ctx, monkeypatch):
     """Preintegrated skin wraps light past the terminator by design (Penner's D over the smooth
     surface's curvature), but the normal map must not add to it where the smooth surface faces away
     (round 16: a pale patch on the side view's jaw underside, as lambert's leak): below the smooth
@@ -301,6 +301,9 @@ def test_preintegrated_light_below_the_smooth_horizon_is_the_smooth_surfaces(lee
     size = 128
     sc = _side_light_alone()
     sc.directional_albedo = False  # k(N.L) reads the detailed normal: Lambertian entry isolates D
+    # the head's baked subsurface transfer (round 21: preintegrated reads it too) is light gathered from lit points
+    # round a curl, as the bounce (off here): the normal map moves that light where it enters, so it is left out
+    monkeypatch.setattr("dermis.subsurface_transfer.store.find", lambda scene, folder=None: None)
     out = {}
     for key in ("map", "flat"):
         if key == "flat":

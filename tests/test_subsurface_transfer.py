@@ -19,6 +19,9 @@
   albedo^(1 - mix) / pi at every pixel, the same factor in R, G, B (constant albedo, mix 0.3).
 - Per channel (round 17): on a thin slab with a different medium in each channel, each channel's net is
   its own medium's R_slab / R_inf - 1 by MCML (an independent Monte Carlo).
+- Every skin technique (round 21: ssss and preintegrated too, from the shared rho E) adds w A per channel
+  on a slab lit head-on with a hand-made bake of one tap of weight w at each point (closed form); half
+  the light, half the transfer; an unchanged frame gathers nothing.
 - The shipped bake is found for the head (back-ears and the example scene) and not for another
   medium; a mesh without a bake renders exactly as tsd without the hook; on the head the pass runs,
   adds red, and stops when the scene's medium changes (the invalidation key).
@@ -633,3 +636,64 @@ def test_image_adds_the_targets_delta_times_albedo_after_scatter_per_channel(hea
     # uv, channel-neutral), within 3 % of 1
     ratio = got[lit].sum(0) / want[lit].sum(0)
     assert np.all(np.abs(ratio - 1.0) < 0.03) and ratio.max() / ratio.min() - 1.0 < 0.003, ratio
+
+
+def _save_point_taps(sc, weight, grid: int = 64) -> None:
+    """A hand-made bake of ``sc``'s mesh where ``store.find`` looks (DERMIS_CACHE_DIR): every texel centre
+    of a ``grid``^2 layout is a point with one tap at itself, RGB weight ``weight`` (a second tap unused),
+    for the scene's own medium: T_geo = weight x the light at the point."""
+    from dermis.subsurface_transfer import store
+
+    c = (np.arange(grid) + 0.5) / grid
+    uv = np.stack(np.meshgrid(c, c), -1).reshape(-1, 2).astype(np.float32)
+    w = np.zeros((len(uv), 2, 3), np.float32)
+    w[:, 0] = weight
+    mfp, albedo = store.scene_medium(sc)
+    bake = B.TransferBake(uv, np.stack([uv, uv], 1), w, w.sum(1), np.zeros((len(uv), 3), np.float32),
+                          {"grid": grid, "walks": 1, "taps": 2, "mean_free_path_mm": mfp.tolist(),
+                           "albedo": albedo.tolist(), "recipe": B.recipe_key()})
+    store.save(bake, store.path_for(sc.mesh), store.mesh_key(sc.mesh), sc.mm_per_unit)
+
+
+@pytest.mark.parametrize("technique", ["tsd", "ssss", "preintegrated"])
+def test_every_skin_technique_adds_the_baked_transfer_of_the_light_leaving_the_skin(gl_ctx, technique, tmp_path, monkeypatch):
+    """issue 12, round 21 (ears21): ssss and preintegrated read the same bake as tsd (common/subsurface_transfer.glsl,
+    gathered from the shared rho E): the back-lit ear's same-side light through the curl was tsd's alone (back-ears
+    768 px, red display levels in the scapha: Cycles 89, tsd 82, ssss 69). A slab of constant albedo A lit head-on
+    by irradiance pi (no specular, no ambient, no directional albedo: rho E = A pi at the front face) with a bake
+    whose every point has one tap at itself of weight w: the diffuse image gains w rho E / pi = w A per channel at
+    the front face's centre (the grid's tent of a uniform field is the field). tsd's chain reads w I_3 A^(1 - mix)
+    / pi with I_3 = pi A^mix: the same. Main's ssss and preintegrated gain 0 (checked: fails)."""
+    from dermis.verification import SKIN_ALBEDO, backlit_slab_scene
+    import dataclasses
+
+    w = np.array([0.2, 0.1, 0.1])
+
+    def render(folder):
+        monkeypatch.setenv("DERMIS_CACHE_DIR", str(folder))
+        sc = backlit_slab_scene(2.0, albedo=SKIN_ALBEDO)
+        sc.directional_albedo = False
+        sc.interreflection = False  # rho E is drawn for the transfer without the bounce (a flat slab has none)
+        sc.lights = [dataclasses.replace(sc.lights[0], direction=(0.0, 0.0, -1.0))]  # onto the front face
+        if folder == tmp_path / "bake":
+            _save_point_taps(sc, w)
+        with Renderer(sc, (48, 48), irradiance_size=256, ctx=gl_ctx, samples=0) as r:
+            img = r.render(technique, output_mode=1)[..., :3].astype(np.float64)
+            # the same frame again gathers nothing; half the light halves the transfer (a stale grid would not)
+            again = r.render(technique, output_mode=1)[..., :3].astype(np.float64)
+            runs = list(r.last_frame.passes_run)
+            sc.lights = [dataclasses.replace(sc.lights[0], intensity=sc.lights[0].intensity * 0.5)]
+            half = r.render(technique, output_mode=1)[..., :3].astype(np.float64)
+            assert np.array_equal(img, again)
+            return img, half, runs
+
+    from dermis.renderer import Renderer
+
+    with_bake, with_half, runs = render(tmp_path / "bake")
+    without, without_half, _ = render(tmp_path / "none")
+    expected = w * np.asarray(SKIN_ALBEDO)
+    for a, b, want in ((with_bake, without, expected), (with_half, without_half, 0.5 * expected)):
+        gain = (a - b)[20:28, 20:28].reshape(-1, 3).mean(0)
+        # 2 % + the image's half-float rounding (a step of 2.4e-4 at the front's ~0.3-0.5)
+        assert np.all(np.abs(gain - want) <= 0.02 * want + 2.5e-4), (gain, want)
+    assert "subsurface_transfer" not in runs and "tsd_subsurface_transfer" not in runs  # an unchanged frame

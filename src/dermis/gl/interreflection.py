@@ -472,10 +472,44 @@ class SharedBounce:
         self._chain = LevelChain(ctx)  # rho E from the raster's level to the gather's
         self.key = None
         self.level = None  # the gather's level (of the irradiance size)
+        self._exitant_key = None  # the product key rho E was last drawn for (:meth:`exitant`)
+        self._exitant_levels = None  # (irradiance size, bounce level) it was drawn at
 
     @property
     def texture(self):
         return self._out
+
+    @property
+    def exitant_key(self):
+        """The product key rho E (:meth:`exitant`) was last drawn for (None: never)."""
+        return self._exitant_key
+
+    def exitant(self, frame):
+        """rho E, the light leaving the skin times pi, in texture space at the one bounce's ~1 mm level
+        (premultiplied by coverage, rgba32f: tsd/irradiance.frag with mix = 1), redrawn when the product
+        key "interreflection" changed (the lights, environment, material, mesh, irradiance size). What
+        the bounce gathers, and what ssss and preintegrated gather the baked subsurface transfer from
+        (dermis.gl.subsurface_transfer.SubsurfaceTransfer.screen_grid): drawn whether or not the scene has the
+        bounce. Appends "interreflection_exitant" to frame.passes_run when drawn."""
+        key = frame.keys["interreflection"]
+        if key == self._exitant_key:
+            return self._chain.levels(*self._exitant_levels)[0][0]
+        from dermis.techniques.base import bind_scene
+        from dermis.techniques.shared import Unit
+
+        S = int(frame.renderer.irradiance_size)
+        level = bounce_level(layout_texels_per_mm(frame.scene, S), S)
+        tex, fbo = self._chain.levels(S, level)[0]
+        # mix = 1: E albedo^1 = rho E
+        self.inputs.draw(frame, tex.size, mix=1.0, pass_name="interreflection_inputs")
+        with frame.timer("interreflection"):
+            prog = self.programs(frame.lights.count)
+            bind_scene(frame, prog)
+            self.inputs.bind(prog, Unit.FIRST_FREE)
+            light_pass(self.ctx, self._vaos, prog, fbo, tex.size)
+        self._exitant_key, self._exitant_levels = key, (S, level)
+        frame.passes_run.append("interreflection_exitant")
+        return tex
 
     def get(self, frame):
         """The per-vertex E_b texture for ``frame`` (rebuilt when the product key changed); appends
@@ -484,21 +518,11 @@ class SharedBounce:
         key = (frame.keys["interreflection"], self.hits.key)
         if key == self.key:
             return self._out
-        from dermis.techniques.base import bind_scene
-        from dermis.techniques.shared import Unit
-
-        S = int(frame.renderer.irradiance_size)
-        level = bounce_level(layout_texels_per_mm(frame.scene, S), S)
+        self.exitant(frame)
+        S, level = self._exitant_levels
         self.level = level
         levels = self._chain.levels(S, level)
-        tex, fbo = levels[0]
-        # mix = 1: E albedo^1 = rho E
-        self.inputs.draw(frame, tex.size, mix=1.0, pass_name="interreflection_inputs")
         with frame.timer("interreflection"):
-            prog = self.programs(frame.lights.count)
-            bind_scene(frame, prog)
-            self.inputs.bind(prog, Unit.FIRST_FREE)
-            light_pass(self.ctx, self._vaos, prog, fbo, tex.size)
             # the one bounce from the level FIRST_ORDER_FINER_LEVELS finer than the ~2 mm one
             first = max(level - FIRST_ORDER_FINER_LEVELS, 0) - max(level - SOURCE_FINER_LEVELS, 0)
             self._gather.run(self.hits, self._chain.reduce(levels[:max(first, 0) + 1]))
@@ -528,6 +552,7 @@ class SharedBounce:
         self._out = None
         self.programs.release()
         self.key = None
+        self._exitant_key = None
 
 
 def layout_texels_per_mm(scene, size: int) -> float:

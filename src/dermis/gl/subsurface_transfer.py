@@ -7,6 +7,10 @@ target. Two passes, only where a bake exists (tsd/transfer_gather.vert, tsd/tran
   add:    the grid read (trilinear: its mipmaps where the target is coarser) at each texel of the
           translucency target, additive blending
 
+ssss and preintegrated (round 21, ears21) read the same grid at each fragment's texture-space uv
+(:meth:`SubsurfaceTransfer.screen_grid`, common/subsurface_transfer.glsl: the add pass's tent), gathered
+from the shared rho E (dermis.gl.interreflection.SharedBounce.exitant) instead of tsd's I_3.
+
 A scene without a matching bake (dermis.subsurface_transfer.store.find) draws neither: its image is
 the one tsd gave before. The bake is looked up once per PRODUCTS key "subsurface_transfer"
 (dermis.invalidation: mesh, scale, profile, material) and kept on the GPU until it changes.
@@ -68,6 +72,9 @@ class SubsurfaceTransfer:
         self.bake = None
         self._gpu = []  # textures, buffer, vertex arrays, framebuffer of the current bake
         self._progs = None
+        self._gathered = None  # what the grid holds (:meth:`screen_grid`): (bake key, source key, mipmaps)
+        # what a screen pass's uTransfer samples where the scene has no bake (never read: uTransferLevel < 0)
+        self.placeholder = ctx.texture((1, 1), 4, dtype="f4")
 
     def _programs(self):
         if self._progs is None:
@@ -124,13 +131,17 @@ class SubsurfaceTransfer:
         self._tap_uv, self._tap_weight, self.grid_texture, self._fbo, self._vao = texs[0], texs[1], target, fbo, vao
         self._layout = (per_row, k, n)
 
-    def reads_mipmaps(self, target_size) -> bool:
-        """Whether tsd/transfer_add.frag reads the grid above level 0 for a target of ``target_size``
-        (its level = ceil(log2(max(grid / target)) - 1e-4), the same formula): only then must a gather
-        rebuild the grid's mipmaps."""
+    def read_level(self, target_size) -> int:
+        """The grid's level that common/subsurface_transfer.glsl reads for a target of ``target_size``:
+        the one whose texels are at least the target's, ceil(log2(max(grid / target)) - 1e-4), >= 0."""
         g = self.grid_texture.size
         r = max(g[0] / max(int(target_size[0]), 1), g[1] / max(int(target_size[1]), 1))
-        return math.ceil(math.log2(r) - 1e-4) > 0
+        return max(0, math.ceil(math.log2(r) - 1e-4))
+
+    def reads_mipmaps(self, target_size) -> bool:
+        """Whether a target of ``target_size`` reads the grid above level 0 (:meth:`read_level`): only
+        then must a gather rebuild the grid's mipmaps."""
+        return self.read_level(target_size) > 0
 
     def gather(self, irradiance, mipmaps: bool = True) -> None:
         """T_geo per bake point into :attr:`grid_texture` from ``irradiance`` (premultiplied);
@@ -161,8 +172,10 @@ class SubsurfaceTransfer:
         from dermis.gl.resources import set_uniform, use_texture
 
         self.gather(irradiance, mipmaps=self.reads_mipmaps(target_size))
+        self._gathered = None
         _, add, vao = self._programs()
         set_uniform(add, "uTransfer", 0)
+        set_uniform(add, "uTransferLevel", float(self.read_level(target_size)))
         set_uniform(add, "uTargetSize", tuple(float(s) for s in target_size))
         use_texture(self.grid_texture, 0)
         target_fbo.use()
@@ -172,6 +185,28 @@ class SubsurfaceTransfer:
         vao.render(moderngl.TRIANGLES, vertices=3)
         self.ctx.disable(moderngl.BLEND)
         return True
+
+    def screen_grid(self, frame, target_size):
+        """(grid texture, level) for a screen pass that reads T_geo at each fragment's texture-space uv
+        (common/subsurface_transfer.glsl: ssss's final pass, preintegrated), or None where the scene has
+        no bake. Gathered from the shared rho E (dermis.gl.interreflection.SharedBounce.exitant: the
+        light leaving the skin times pi at ~1 mm, so T_geo here is what tsd's T_geo(I_3) albedo^(1-mix)
+        is where the albedo is uniform over the taps' millimetres) only when that or the bake changed:
+        a camera-only frame gathers nothing. ``target_size``: the texture-space target whose level is
+        read (tsd's translucency target at the same irradiance size, so that all techniques read the
+        same level)."""
+        if self.lookup(frame) is None:
+            return None
+        bounce = frame.renderer.interreflection
+        source = bounce.exitant(frame)  # times itself: outside this timer (a GPU's timer queries do not nest)
+        mipmaps = self.reads_mipmaps(target_size)
+        key = (self.key, bounce.exitant_key, mipmaps)
+        if key != self._gathered:
+            with frame.timer("subsurface_transfer"):
+                self.gather(source, mipmaps=mipmaps)
+            self._gathered = key
+            frame.passes_run.append("subsurface_transfer")
+        return self.grid_texture, self.read_level(target_size)
 
     def per_point(self) -> np.ndarray:
         """T_geo of the last gather at each bake point, (n, 3) (read back from the grid)."""
@@ -184,6 +219,10 @@ class SubsurfaceTransfer:
 
     def release(self):
         self._release_gpu()
+        self._gathered = None
+        if self.placeholder is not None:
+            self.placeholder.release()
+            self.placeholder = None
         if self._progs is not None:
             for o in self._progs[::-1]:
                 o.release()

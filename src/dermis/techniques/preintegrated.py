@@ -66,7 +66,10 @@ from three local quantities looked up in tables computed at start-up from the ac
 
 Everything else is shared with the other techniques: lights, shadows, environment, specular
 (common/skin_specular.glsl), energy conservation (N.L in, N.V out) and the translucency of thin
-parts from the shadow map's thickness (common/transmittance.glsl, Jimenez et al. 2010).
+parts from the shadow map's thickness (common/transmittance.glsl, Jimenez et al. 2010), and tsd's
+baked subsurface transfer of thin, curled parts where the mesh has one (common/subsurface_transfer.glsl
+at the texture-space uv, gathered from the shared rho E once per lighting change, added to the light
+leaving the skin: the back-lit ear's same-side light round its curls).
 Known failure modes: light crosses folds only from what the light's shadow map sees (points
 hidden from the light, e.g. behind a nostril's rim, send nothing; lights without shadows gather
 nothing), along straight lines (across the air of a fold: the reference's "straight" paths, an
@@ -90,11 +93,13 @@ import moderngl
 import numpy as np
 
 from dermis.gl.resources import prepared, set_uniform
+from dermis.gl.subsurface_transfer import SubsurfaceTransfer
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_choice, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit,
                                       bind_interreflection, bind_sampler, casts_translucency, directional_albedo_uniforms, prepare_interreflection,
-                                      set_profile_uniforms, surface_detail_uniforms, translucency_uniforms)
+                                      set_profile_uniforms, subsurface_transfer_uniforms, surface_detail_uniforms,
+                                      translucency_uniforms)
 
 # The diffuse table: N.L along s (odd, so N.L = 0 is a texel centre and max(N.L, 0) interpolates
 # exactly), curvature along t on a square-root axis (fine steps where faces mostly are).
@@ -116,6 +121,7 @@ FOLD_DEFINE = "PREINTEGRATED_FOLDS"  # skin.frag: the fold gather compiled in (f
 GAUSSIANS_DEFINE = "PREINTEGRATED_GAUSSIANS"  # skin.frag: the profile's Gaussian count, a compile-time constant
 UNIT_SHADOW_DEPTH = Unit.FIRST_FREE + 3  # the shadow atlas again, its depths read without comparison (fold_scattering)
 UNIT_NORMAL_LOD = Unit.FIRST_FREE + 4  # the normal map again, through an isotropic sampler (the blurred normals' textureLod)
+UNIT_TRANSFER = Unit.FIRST_FREE + 5  # the baked subsurface transfer's grid (common/subsurface_transfer.glsl)
 
 _TABLE_CACHE: dict = {}
 
@@ -410,6 +416,7 @@ class PreintegratedSkin(Technique):
         self._vaos = {}  # id(program) -> (vertex array with the curvature, program): per mesh
         renderer.interreflection  # the shared one bounce: made with the first technique that reads it
         self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
+        self.transfer = SubsurfaceTransfer(self.ctx)  # the baked subsurface transfer of thin, curled parts
         self._mesh_key = None
         # the shadow atlas's depths as plain values (skin.frag's fold gather): a sampler object, whose
         # state overrides the texture's comparison mode on its own unit only (OpenGL 4.5, 8.2)
@@ -506,6 +513,8 @@ class PreintegratedSkin(Technique):
         bounce = prepare_interreflection(frame)
         prog = self.prog if self.prog is not None else self.light_programs(frame.scene, bounce)(frame.lights.count)
         vao = self._vao(frame, prog)
+        # the baked transfer of thin, curled parts (gathered only on a lighting change; before the target is bound)
+        subsurface_transfer_uniforms(prog, frame, self.transfer, self.options.translucency, UNIT_TRANSFER)
         with frame.timer("preintegrated"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
@@ -575,6 +584,7 @@ class PreintegratedSkin(Technique):
     def release(self):
         self._release_mesh()
         self.thickness.release()
+        self.transfer.release()
         self.depth_sampler.release()
         self.normal_lod_sampler.release()
         for t in self.profile_tables.values():

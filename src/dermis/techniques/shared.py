@@ -225,6 +225,22 @@ def translucency_uniforms(prog, enabled: bool, strength: float = 1.0, scene=None
             set_uniform(prog, name, tuple(float(x) for x in value))
 
 
+def subsurface_transfer_uniforms(prog, frame, transfer, enabled: bool, unit: int) -> None:
+    """The baked subsurface transfer for a screen pass (common/subsurface_transfer.glsl: ssss's final
+    pass, preintegrated): the grid ``transfer`` (dermis.gl.subsurface_transfer.SubsurfaceTransfer, the
+    technique's own) gathered from the shared rho E where the scene has a bake and ``enabled`` (the
+    technique's translucency: tsd adds it only with translucency on too), read at the level tsd's
+    translucency target reads at the same irradiance size; else uTransferLevel = -1 (nothing added).
+    Call it before the pass's target is bound (a gather draws into the grid)."""
+    from dermis.gl.resources import set_uniform
+
+    S = max(int(frame.renderer.irradiance_size) // 2, 1)
+    grid = transfer.screen_grid(frame, (S, S)) if enabled else None
+    tex, level = grid if grid is not None else (transfer.placeholder, -1)
+    bind_sampler(prog, "uTransfer", tex, unit)
+    set_uniform(prog, "uTransferLevel", float(level))
+
+
 def surface_detail_uniforms(prog, material, output_mode: int = OutputMode.FULL) -> None:
     """The final passes' procedural pore detail and output mode."""
     from dermis.gl.resources import set_uniform

@@ -33,8 +33,12 @@ with each pixel's kernel scaled to millimetres by its depth:
                    whose straight path to the pixel crosses air rejected: creases, as the
                    reference's paths = "tissue"; a rejected tap keeps its weight and brings
                    the pixel's own light, Jimenez 2015's follow-surface rule, ssss/kernel.glsl).
-  ssss_final       the mesh into the frame's target: scattered * albedo^(1-mix) / pi
-                   * (1 - rho_s a(N.V, m) / pi) + specular (added after the blur)
+  ssss_final       the mesh into the frame's target: (scattered * albedo^(1-mix) + T_geo) / pi
+                   * (1 - rho_s a(N.V, m) / pi) + specular (added after the blur); T_geo: tsd's baked
+                   subsurface transfer of thin, curled parts where the mesh has one
+                   (dermis.subsurface_transfer; common/subsurface_transfer.glsl at the fragment's
+                   texture-space uv, gathered from the shared rho E once per lighting change: the
+                   back-lit ear's same-side light round its curls, which no screen blur sees)
 
 Inputs and units: the scene's mm_per_unit, the camera's projection (widths in pixels come from
 depth and field of view), the profile's Gaussians (any K <= 8, weights normalised per channel).
@@ -47,7 +51,7 @@ scale of the cells (the grain filter removes about half of it; what is left sits
 silhouettes, where the filter backs off); the
 horizontal-then-vertical split follows the surface only along the axes (as in Jimenez 2015).
 Shaders: shaders/ssss/*; shared: common/skin_irradiance.glsl, common/transmittance.glsl,
-common/skin_specular.glsl.
+common/subsurface_transfer.glsl, common/skin_specular.glsl.
 """
 
 from __future__ import annotations
@@ -60,10 +64,12 @@ import numpy as np
 from dermis.errors import DermisError
 from dermis.gl.resources import read_texture, set_uniform
 from dermis.gl.shaders import program
+from dermis.gl.subsurface_transfer import SubsurfaceTransfer
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, check_bool, check_float, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (INTERREFLECTION_DEFINE, MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit, bind_interreflection, bind_sampler,
                                       bind_sampler_array, TISSUE_TAU, casts_translucency, directional_albedo_uniforms,
+                                      subsurface_transfer_uniforms,
                                       prepare_interreflection, set_profile_uniforms, surface_detail_uniforms,
                                       translucency_uniforms)
 
@@ -137,6 +143,7 @@ class ScreenSpaceSSS(Technique):
         self.tex = {}
         self._targets_key = None
         self.thickness = ThicknessTexture(self.ctx, filtered=True)  # thickness behind each texel (common/transmittance.glsl)
+        self.transfer = SubsurfaceTransfer(self.ctx)  # the baked subsurface transfer, read by the final pass
         renderer.interreflection  # the shared one bounce: made with the first technique that reads it
 
     # ------------------------------------------------------------------ resources
@@ -294,6 +301,9 @@ class ScreenSpaceSSS(Technique):
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         self.screen_space(frame)
+        prog = self.p_final
+        # the baked transfer of thin, curled parts (gathered only on a lighting change; before the target is bound)
+        subsurface_transfer_uniforms(prog, frame, self.transfer, self.options.translucency, Unit.FIRST_FREE + 1)
         with frame.timer("ssss_final"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
@@ -328,6 +338,7 @@ class ScreenSpaceSSS(Technique):
     def release(self):
         self._release_targets()
         self.thickness.release()
+        self.transfer.release()
         for v in self.vaos.values():
             v.release()
         for progs in self._programs.values():

@@ -25,6 +25,7 @@
 #include "common/transmittance.glsl"
 #include "common/directional_albedo.glsl"
 #include "common/interreflection.glsl"
+#include "common/subsurface_transfer.glsl"
 
 uniform sampler2D uDiffuseTable;   // D(N.L, curvature): s = N.L in [-1, 1], t = sqrt(curvature / max)
 uniform sampler2D uPenumbraTable;  // P(shadow, width): s = shadow in [0, 1], t = log-spaced width
@@ -385,7 +386,9 @@ void main() {
     // the exit's k(N.V) on the reflected light; the light through a thin part leaves Lambertian
     E = E * directional_factor(c, ndv) + transmitted_irradiance(v_world, Ngeo, v_uv_ts);
 
-    vec3 diffuse = E * albedo * INV_PI * energy_transmitted(rho_s, ndv, m);
+    // + the baked subsurface transfer of thin, curled parts (common/subsurface_transfer.glsl: light
+    // leaving the skin, gathered from rho E, so not times the albedo again)
+    vec3 diffuse = (E * albedo + subsurface_transfer(v_uv_ts)) * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uSpecularTables, v_visibility,
                                        v_blocked_sh0, v_blocked_sh1, v_blocked_sh2);
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec

@@ -2,6 +2,9 @@
 // light of the pixel, then the surface's own terms, as in tsd's final pass:
 //   diffuse = scattered * albedo^(1 - mix) / pi * (1 - rho_s a(N.V, m) / pi)
 //   specular = common/skin_specular.glsl, added AFTER the blur (Jimenez et al. 2009, sec. 3)
+//   + T_geo / pi * (1 - rho_s a(N.V, m) / pi): the baked subsurface transfer of thin, curled parts
+//     (common/subsurface_transfer.glsl, gathered from rho E: light leaving the skin), after the blur
+//     as tsd adds it after its blurs
 // Drawing the mesh again (instead of a full-screen composite) keeps the depth buffer and the
 // multisampled silhouettes of the other techniques. A fragment whose depth does not match what
 // pass 1 saw at its pixel (an MSAA edge sample of another surface) takes the scattered light of
@@ -13,6 +16,7 @@
 #include "common/noise.glsl"
 #include "common/energy.glsl"
 #include "common/skin_specular.glsl"
+#include "common/subsurface_transfer.glsl"
 
 uniform sampler2D uScattered;   // rgb scattered light, a = view depth mm (0: none)
 uniform vec4 uViewZ;
@@ -55,7 +59,8 @@ void main() {
 
     float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
     vec3 albedo = albedo_at(v_uv);
-    vec3 diffuse = scattered_here(depth_mm) * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
+    vec3 diffuse = (scattered_here(depth_mm) * albedo_power(albedo, 1.0 - uMix) + subsurface_transfer(v_uv_ts))
+                   * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility,
                                        v_blocked_sh0, v_blocked_sh1, v_blocked_sh2);
 
