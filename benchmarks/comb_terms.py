@@ -12,7 +12,13 @@ so each variant is one final pass.
     PYTHONPATH=src python benchmarks/comb_terms.py groove      (the oblique V-groove of
         tests/test_tsd_fold_comb.py: the along-groove variation of each term, 128^2 against 512^2)
     PYTHONPATH=src python benchmarks/comb_terms.py head SCENE.toml --box X0 Y0 X1 Y1 [--size 768]
-        (each term's difference between irradiance 1024 and 4096 over the box, display levels)
+        [--npz OUT.npz] [--ref EARLIER.npz] [--base '{"uGate": [0.5, 1.0]}']
+        (each term's difference between irradiance 1024 and 4096 over the box: rms and high-pass rms
+        relative to the box's mean; every experiment's pixels > 10 display levels from irradiance
+        4096; the texels per pixel and the detail's weight; diffuse only)
+    PYTHONPATH=src python benchmarks/comb_terms.py report OUT.npz SCENE.toml
+
+Round 21's numbers: benchmarks/RESULTS.md, "Round 21, branch combs21".
 """
 
 from __future__ import annotations
@@ -72,16 +78,16 @@ vec3 diffuse_irradiance_detail(vec2 uv, vec3 I0_pixel, float texels_per_mm, floa
 }
 """
 
-DEFAULTS = {"uTermK": -1, "uTermPart": 0, "uRecon": 0, "uNyquistScale": 1.0, "uGateNorm": 0, "uGate": (0.5, 1.0)}
+# the tree's own gate is replaced by uGate: (1, 2) since round 21 (main before it: 0.5, 1)
+DEFAULTS = {"uTermK": -1, "uTermPart": 0, "uRecon": 0, "uNyquistScale": 1.0, "uGateNorm": 0, "uGate": (1.0, 2.0)}
 
 # the experiments beside the per-term split: name -> uniforms
-EXPERIMENTS = [("bspline", {"uRecon": 1}), ("nyq0.5", {"uNyquistScale": 0.5}), ("nyq0.75", {"uNyquistScale": 0.75}),
+EXPERIMENTS = [("gate0.5-1", {"uGate": (0.5, 1.0)}), ("bspline", {"uRecon": 1}), ("nyq0.5", {"uNyquistScale": 0.5}), ("nyq0.75", {"uNyquistScale": 0.75}),
                ("bspline+nyq0.5", {"uRecon": 1, "uNyquistScale": 0.5}),
-               ("gate1-2", {"uGate": (1.0, 2.0)}), ("gate0.75-1.5", {"uGate": (0.75, 1.5)}),
-               ("gatemin", {"uGateNorm": 1}), ("gategeo", {"uGateNorm": 2}), ("gategeo1-2", {"uGateNorm": 2, "uGate": (1.0, 2.0)}),
+               ("gate0.75-1.5", {"uGate": (0.75, 1.5)}),
+               ("gatemin", {"uGateNorm": 1, "uGate": (0.5, 1.0)}), ("gategeo", {"uGateNorm": 2, "uGate": (0.5, 1.0)}), ("gategeo1-2", {"uGateNorm": 2, "uGate": (1.0, 2.0)}),
                ("gatemin1-2", {"uGateNorm": 1, "uGate": (1.0, 2.0)}),
-               ("gate1-2+bspline", {"uGate": (1.0, 2.0), "uRecon": 1}),
-               ("gategeo1-2+bspline", {"uGateNorm": 2, "uGate": (1.0, 2.0), "uRecon": 1})]
+               ("gate2-4", {"uGate": (2.0, 4.0)}), ("bspline+gate0.5-1", {"uGate": (0.5, 1.0), "uRecon": 1})]
 
 
 def _patch_source(src: str) -> str:
@@ -93,7 +99,7 @@ def _patch_source(src: str) -> str:
     src = src.replace("    float texels_per_pixel = max(length(dFdx(v_uv_ts)), length(dFdy(v_uv_ts))) * uDetailTexels;",
                       "    float tpx_a = length(dFdx(v_uv_ts)) * uDetailTexels, tpx_b = length(dFdy(v_uv_ts)) * uDetailTexels;\n"
                       "    float texels_per_pixel = uGateNorm == 0 ? max(tpx_a, tpx_b) : uGateNorm == 1 ? min(tpx_a, tpx_b) : sqrt(tpx_a * tpx_b);")
-    src = src.replace("(1.0 - smoothstep(0.5, 1.0, texels_per_pixel))", "(1.0 - smoothstep(uGate.x, uGate.y, texels_per_pixel))")
+    src = re.sub(r"\(1\.0 - smoothstep\([0-9.]+, [0-9.]+, texels_per_pixel\)\)", "(1.0 - smoothstep(uGate.x, uGate.y, texels_per_pixel))", src)
     src = src.replace("    float texels_per_mm = detail_texels_per_mm();",
                       "    float texels_per_mm = detail_texels_per_mm();\n"
                       "    g_dbg = vec3(texels_per_pixel, detail_weight, texels_per_mm);")
@@ -118,12 +124,15 @@ def patched():
         sh.load_shader_source = orig
 
 
+BASE = {}  # uniforms every variant starts from (head --base)
+
+
 def set_debug(r, **values):
     """Write the debug uniforms into every PIXEL_DETAIL program tsd has compiled."""
     t = r.techniques["tsd"] if hasattr(r, "techniques") and "tsd" in r.techniques else r._techniques["tsd"]
     progs = [p for k, p in t._programs.items() if isinstance(k, tuple) and k[0] == "detail"]
     assert progs, "no PIXEL_DETAIL program compiled yet"
-    v = {**DEFAULTS, **values}
+    v = {**DEFAULTS, **BASE, **values}
     for p in progs:
         for name, val in v.items():
             if p.get(name, None) is not None:
@@ -186,6 +195,7 @@ def head(a):
     from dermis.techniques.shared import OutputMode
 
     sc = dermis.load_scene(a.scene)
+    BASE.update(json.loads(a.base or "{}"))
     x0, y0, x1, y1 = a.box
     out = {}
     with patched():
@@ -225,7 +235,9 @@ def report(out, sc, label):
     for name in names:
         if (1024, name) not in out:
             continue
-        if name.startswith("k"):  # the term alone: the translucency (in every term's image) taken off
+        if name == "trans":
+            diff = out[(1024, name)] - out[(4096, name)]
+        elif name.startswith("k"):  # the term alone: the translucency (in every term's image) taken off
             diff = (out[(1024, name)] - out[(1024, "trans")]) - (out[(4096, name)] - out[(4096, "trans")])
         else:
             diff = out[(1024, name)] - ref_lin
@@ -254,7 +266,17 @@ def main(argv=None):
     h.add_argument("--npz")
     h.add_argument("--option", action="append")
     h.add_argument("--ref", help="an earlier --npz: its irradiance-4096 images")
+    h.add_argument("--base", help="JSON: uniforms every variant starts from, e.g. main's gate {\"uGate\": [0.5, 1.0]}")
+    r = sub.add_parser("report")
+    r.add_argument("npz")
+    r.add_argument("scene")
     a = ap.parse_args(argv)
+    if a.cmd == "report":
+        import dermis
+        with np.load(a.npz) as z:
+            out = {(int(k.split("_", 1)[0]), k.split("_", 1)[1]): z[k] for k in z.files}
+        report(out, dermis.load_scene(a.scene), a.scene)
+        return
     {"groove": groove, "head": head}[a.cmd](a)
 
 

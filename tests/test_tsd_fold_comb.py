@@ -105,7 +105,10 @@ def render_groove(gl_ctx, irradiance_size: int, **scene) -> np.ndarray:
 COMB_OPEN = pytest.mark.xfail(strict=True, reason="issue 12's comb, reduced not gone: tsd's I_0 and narrow Gaussians are "
                               "read from texels of ~4 px here (benchmarks/RESULTS.md, Round 18, branch prefilter18); "
                               "the pixel detail (round 18, lead) takes the variation from 0.0032 / 0.0056 / 0.0074 to "
-                              "0.0011 / 0.0022 / 0.0026, the Gaussians as wide as a texel (a_k ~ 0) keep the rest")
+                              "0.0011 / 0.0022 / 0.0026, the Gaussians as wide as a texel (a_k ~ 0) keep the rest. Round 21 (combs21): "
+                              "the rest is k1 (a_1 0.62; the least-squares scalar over R's spectrum is 0.60) and k2 "
+                              "(a_2 0.026, least squares 0.134); a_k at 0.75 x Nyquist passes here (0.0008 / 0.0015 / "
+                              "0.0018) but draws more of the head's ear folds at 768 px (front-key 163 -> 210 px)")
 
 
 @pytest.mark.parametrize("coarse", [pytest.param(128, marks=COMB_OPEN), 256])
