@@ -40,15 +40,17 @@ def _groove_z(s):
     return np.where(np.abs(s) < GROOVE_HALF_WIDTH_MM, -(GROOVE_HALF_WIDTH_MM - np.abs(s)), 0.0)
 
 
-def _fov_deg():
-    return 2.0 * math.degrees(math.atan(VIEW_HALF_MM / CAMERA_Z))
+def _fov_deg(view_half=VIEW_HALF_MM):
+    return 2.0 * math.degrees(math.atan(view_half / CAMERA_Z))
 
 
-def oblique_groove_scene() -> Scene:
+def oblique_groove_scene(mm_per_unit: float = 1.0, view_half: float = VIEW_HALF_MM) -> Scene:
     """The groove (mm_per_unit = 1) on a square plane whose mesh grid runs along and across it
     (0.125 mm across: its creases are grid lines, vertex normals there the mean of the two faces'),
     while its UVs are the plane's (x, y), so that the layout's texel grid is oblique to it; the
-    light comes from the -ACROSS side, 60 degrees from the normal."""
+    light comes from the -ACROSS side, 60 degrees from the normal. ``mm_per_unit`` scales the
+    profile against the geometry (the texels' size in mm); ``view_half`` the camera's half-width in
+    units (the pixels per texel)."""
     W = HALF_SIZE_MM
 
     def fn(a, c):  # a: along, c: across, both in [0, 1]
@@ -71,18 +73,18 @@ def oblique_groove_scene() -> Scene:
                  material=SkinMaterial(albedo_color=(0.8,) * 3, rho_s=0.0, pore_strength=0.0),
                  lights=[Light(direction=direction, intensity=np.pi, cast_shadows=False)],
                  camera=Camera(position=(0.0, 0.0, CAMERA_Z), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0),
-                               fov_deg=_fov_deg()),
-                 environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0, name="oblique-groove",
+                               fov_deg=_fov_deg(view_half)),
+                 environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=mm_per_unit, name="oblique-groove",
                  interreflection=False)
 
 
-def along_groove_variation(img: np.ndarray) -> np.ndarray:
+def along_groove_variation(img: np.ndarray, view_half: float = VIEW_HALF_MM, half_length: float = 2.5) -> np.ndarray:
     """Per channel: the standard deviation of ``img`` (linear, (SIZE, SIZE, 3), row 0 = top) along
-    lines parallel to the groove (5 mm of each, 201 points, bilinear), averaged over 81 lines 4 mm
-    across it (the groove and its rims); each point projected through the camera (straight down -z)
-    at its own depth."""
-    t = np.linspace(-2.5, 2.5, 201)
-    k_fov = math.tan(math.radians(_fov_deg()) / 2.0)
+    lines parallel to the groove (2 ``half_length`` units of each, 201 points, bilinear), averaged
+    over 81 lines 4 units across it (the groove and its rims); each point projected through the
+    camera of ``view_half`` (straight down -z) at its own depth."""
+    t = np.linspace(-half_length, half_length, 201)
+    k_fov = math.tan(math.radians(_fov_deg(view_half)) / 2.0)
     out = []
     for s in np.linspace(-2.0, 2.0, 81):
         x, y = t * ALONG[0] + s * ACROSS[0], t * ALONG[1] + s * ACROSS[1]
@@ -94,8 +96,8 @@ def along_groove_variation(img: np.ndarray) -> np.ndarray:
     return np.mean(out, axis=0)
 
 
-def render_groove(gl_ctx, irradiance_size: int) -> np.ndarray:
-    with Renderer(oblique_groove_scene(), (SIZE, SIZE), ctx=gl_ctx, samples=0, irradiance_size=irradiance_size) as r:
+def render_groove(gl_ctx, irradiance_size: int, **scene) -> np.ndarray:
+    with Renderer(oblique_groove_scene(**scene), (SIZE, SIZE), ctx=gl_ctx, samples=0, irradiance_size=irradiance_size) as r:
         r.technique("tsd", translucency=False)
         return r.render("tsd", output_mode=1)
 
@@ -103,7 +105,10 @@ def render_groove(gl_ctx, irradiance_size: int) -> np.ndarray:
 COMB_OPEN = pytest.mark.xfail(strict=True, reason="issue 12's comb, reduced not gone: tsd's I_0 and narrow Gaussians are "
                               "read from texels of ~4 px here (benchmarks/RESULTS.md, Round 18, branch prefilter18); "
                               "the pixel detail (round 18, lead) takes the variation from 0.0032 / 0.0056 / 0.0074 to "
-                              "0.0011 / 0.0022 / 0.0026, the Gaussians as wide as a texel (a_k ~ 0) keep the rest")
+                              "0.0011 / 0.0022 / 0.0026, the Gaussians as wide as a texel (a_k ~ 0) keep the rest. Round 21 (combs21): "
+                              "the rest is k1 (a_1 0.62; the least-squares scalar over R's spectrum is 0.60) and k2 "
+                              "(a_2 0.026, least squares 0.134); a_k at 0.75 x Nyquist passes here (0.0008 / 0.0015 / "
+                              "0.0018) but draws more of the head's ear folds at 768 px (front-key 163 -> 210 px)")
 
 
 @pytest.mark.parametrize("coarse", [pytest.param(128, marks=COMB_OPEN), 256])
@@ -126,3 +131,28 @@ def test_oblique_fold_draws_no_comb_of_the_texel_grid(gl_ctx, coarse):
     variation = along_groove_variation(img - fine) / peak
     print(f"{coarse}^2: along-groove variation of (coarse - fine) / peak {variation}")
     assert np.all(variation < 0.002), variation
+
+
+# The groove where a texel covers about a pixel, at the ear's texel size: front-key's helix at 768 px
+# (irradiance 1024: texels of ~1.7 mm, 0.95 texel per pixel at its stripes; benchmarks/RESULTS.md,
+# round 21, branch combs21). Units of 6.5 mm: texels of 1.66 mm at 128^2, 0.6 texel per mm; the camera
+# 3x wider: 0.73 texel per pixel (median over the plane).
+WIDE_MM_PER_UNIT, WIDE_VIEW_HALF = 6.5, 12.0
+
+
+def test_oblique_fold_at_a_texel_per_pixel_draws_no_moire(gl_ctx):
+    """The groove at ~0.7 texel per pixel (128^2 against 512^2; along 16 units of the groove): the
+    along-groove variation of the difference within 0.3% of the brightest value. The pixel detail
+    was gated off from 1 texel per pixel (full up to 0.5): here it had 0.55 of its weight and the
+    bilinear reads' phase drifting across the texels drew a moire of the fold. Measured on llvmpipe:
+    main (938a479) 0.0037 / 0.0050 / 0.0053 (r, g, b); the detail full up to 1 texel per pixel and
+    out by 2: 0.0023 / 0.0019 / 0.0015 (red: the wide Gaussians, sigma 0.85 texel, keep the point
+    samples' low-frequency alias; 4 px per texel is the case above). 1.8 s."""
+    scene = {"mm_per_unit": WIDE_MM_PER_UNIT, "view_half": WIDE_VIEW_HALF}
+    fine = render_groove(gl_ctx, 512, **scene)
+    img = render_groove(gl_ctx, 128, **scene)
+    peak = fine.reshape(-1, 3).max(axis=0)
+    assert np.all(peak > 0.3), peak
+    variation = along_groove_variation(img - fine, WIDE_VIEW_HALF, 8.0) / peak
+    print(f"a texel per pixel: along-groove variation of (coarse - fine) / peak {variation}")
+    assert np.all(variation < 0.003), variation

@@ -128,12 +128,17 @@ void main() {
     // texels per pixel (tsd/triangle_uv.glsl), lighting the sample as some other surface: its
     // detail fades out between 1 and 2 texels off (an ordinary edge sample is within ~0.5)
     float off = length((uv_ts - v_uv_ts) * uDetailTexels);
-    // and only where a texel covers more than a pixel: where it covers less the texture resolves all
-    // that the pixel can show, and I_0 at the pixel centre (its maps read at the pixel's coarser
-    // mip level) is no better a sample of it (full detail from 2 pixels per texel, none at 1 pixel
-    // per texel or less)
+    // and only where a texel covers about a pixel or more (full detail up to 1 texel per pixel, none
+    // from 2, along the screen direction with the most texels). The blurred textures are read once
+    // per pixel, at its centre: where a texel covers about a pixel, the bilinear read's phase in
+    // the texel grid drifts slowly from pixel to pixel, and an irradiance that turns within a texel
+    // (an ear fold at the adaptive 1024^2) shows as a moire of stripes, which the per-pixel I_0
+    // removes (issue 12, round 21: front-key's helix, texels per pixel 0.95 at the stripes, was
+    // left to a gate that stopped at 1). From 2 texels per pixel on, a pixel centre samples the
+    // texels at an unrelated phase each and I_0 at it (its maps read at the pixel's coarser mip
+    // level) is no better a sample than the texture's
     float texels_per_pixel = max(length(dFdx(v_uv_ts)), length(dFdy(v_uv_ts))) * uDetailTexels;
-    float detail_weight = (1.0 - smoothstep(1.0, 2.0, off)) * (1.0 - smoothstep(0.5, 1.0, texels_per_pixel));
+    float detail_weight = (1.0 - smoothstep(1.0, 2.0, off)) * (1.0 - smoothstep(1.0, 2.0, texels_per_pixel));
     float texels_per_mm = detail_texels_per_mm();
     vec3 I0_mix = vec3(0.0);  // I_0 albedo^mix at the pixel (unused where the weight is 0)
     if (detail_weight > 0.0) {
