@@ -578,6 +578,12 @@ def head(a) -> None:
     media = B.skin_media(sc.profile, np.asarray(mean_skin_albedo(sc.material), np.float64))
     W = a.walks
     print(f"{len(p0)} lit visible points of x 370-390, y 647-651 (N.L mean {e0.mean():.3f}); {W} walks each")
+    if a.collimated:
+        _collimated(walker, p0, tri0, view, nrm0, L, media, W)
+        return
+    if a.kernels:
+        _kernels(sc, pos, idx, vn, walker, p0, tri0, nrm0, L, e0, media)
+        return
     for c in range(2):
         for label in ("camera view", "diffuse views"):
             P, T = np.repeat(p0, W, 0), np.repeat(tri0, W)
@@ -599,6 +605,75 @@ def head(a) -> None:
                   flush=True)
 
 
+def _collimated(walker, p0, tri0, view, nrm0, L, media, W, check=0.02):
+    """The skin walk with the light's refracted collimated beam (next-event estimation, the walk's beam search,
+    its miss measured on ``check`` of the vertices by beam_exhaustive) along the camera ray, against the same walk
+    on a flat block at each point's own N.L and N.V (the plane: the search is exact there)."""
+    from dermis.reference.random_walk import DirectionalLight, MeshWalk
+    from dermis.scene.builtin import slab
+
+    bp, _, _, bt = slab(size=80.0, thickness=40.0, n=8)
+    block = MeshWalk(np.asarray(bp, np.float64), np.asarray(bt))
+    top = np.array([[0.0, 0.0, 20.0]])
+    top_tri = block.caster.closest_hit(top + [0, 0, 1.0], np.array([[0.0, 0.0, -1.0]]), 0.0, np.inf)[1]
+    light = DirectionalLight(tuple(L), 1.0)
+    for c in range(2):
+        st = {}
+        v = walker.radiance(np.repeat(p0, W, 0), np.repeat(tri0, W), np.repeat(view, W, 0), media[c], lights=[light],
+                            seed=40 + c, stats=st, check_fraction=check, check_radius_mm=2.5)
+        cyl = v.reshape(len(p0), W).mean(1)
+        flat = np.zeros(len(p0))
+        for i in range(len(p0)):
+            n = nrm0[i]
+            z = np.array([0.0, 0.0, 1.0])
+            ax = np.cross(n, z)
+            K = np.array([[0, -ax[2], ax[1]], [ax[2], 0, -ax[0]], [-ax[1], ax[0], 0]])
+            R = np.eye(3) + K + K @ K / (1.0 + float(n @ z))
+            fv = block.radiance(np.repeat(top, W // 4, 0), np.repeat(top_tri, W // 4), np.repeat((R @ view[i])[None], W // 4, 0),
+                                media[c], lights=[DirectionalLight(tuple(R @ L), 1.0)], seed=60 + i)
+            flat[i] = fv.mean()
+        miss = st["nee_search"] / max(st["nee_exhaustive"], 1e-300)
+        print(f"  {'RG'[c]} collimated beam, camera view: walk / flat block - 1 = {cyl.sum() / flat.sum() - 1:+.4f}; "
+              f"the beam search finds {miss:.3f} of the exhaustive sum (corrected: {cyl.sum() / miss / flat.sum() - 1:+.4f})",
+              flush=True)
+
+
+def _kernels(sc, pos, idx, vn, walker, p0, tri0, nrm0, L, e0, media, reach_mm=16.0):
+    """What tsd's blur and the bake's flat share see at the points: int R(g) E dA / E0 (tsd's profile, every
+    vertex) and int_same-facing K_flat(g) E dA / E0 (the bake's subtraction) over the geodesic neighbourhood
+    (dermis.subsurface_transfer.bake.SurfaceGraph on the triangles within ``reach_mm``), E the key light's
+    N.L with its cast shadow at the graph's vertices."""
+    from dermis.geometry.texture_space import texture_space_uvs
+    from dermis.subsurface_transfer import bake as B
+
+    cen = (pos[idx[:, 0]] + pos[idx[:, 1]] + pos[idx[:, 2]]) / 3.0
+    near = np.min(np.linalg.norm(cen[:, None] - p0[None, ::5], axis=2), 1) < reach_mm
+    sub = np.nonzero(near)[0]
+    uv = np.asarray(texture_space_uvs(sc.mesh), np.float64)
+    g = B.SurfaceGraph(pos, idx[sub], vn, uv)
+    remap = {t: i for i, t in enumerate(sub)}
+    start = g.nearest(p0, np.array([remap[t] for t in tri0]))
+    nv = g.normal
+    lit = walker._lit(g.position, nv, L)
+    Ev = np.maximum(nv @ L, 0.0) * lit
+    kern = [B.flat_kernel(m) for m in media[:2]]
+    D = g.distances(start)
+    for c in range(2):
+        iR, iK = [], []
+        for i in range(len(p0)):
+            fin = np.isfinite(D[i])
+            gd = np.maximum(D[i, fin], 1e-6)
+            w = g.area[fin] * Ev[fin]
+            iR.append((B.profile_density(sc.profile, gd)[:, c] * w).sum())
+            same = nv[fin] @ nrm0[i] > 0.0
+            iK.append((kern[c].at(gd) * w * same).sum())
+        # ratios of sums over the points (a region's mean radiance over its flat value); E0 at the points and at
+        # their graph vertices (the crease turns within a texel: the two differ there)
+        for name, e in (("E0 at the points", e0), ("E0 at their vertices", Ev[start])):
+            print(f"  {'RG'[c]}: int R E dA / E0 = {np.sum(iR) / e.sum():.4f} (tsd's profile), int_same K_flat E dA / E0 = "
+                  f"{np.sum(iK) / e.sum():.4f} (the bake's flat share); {name}", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("what", choices=["cycles", "walk", "flatwalk", "diffuse_entry", "bake", "tsd", "report", "sheet", "head"])
@@ -617,6 +692,8 @@ def main(argv=None):
     ap.add_argument("--environment", action="store_true")
     ap.add_argument("--nee", default="search", choices=["search", "exhaustive"])
     ap.add_argument("--sheet", default="slit-lips-x4.jpg")
+    ap.add_argument("--collimated", action="store_true")
+    ap.add_argument("--kernels", action="store_true")
     ap.add_argument("--sizes", type=int, nargs="+", default=[1024, 128])
     ap.add_argument("--no-directional-albedo", dest="directional_albedo", action="store_false")
     ap.add_argument("--media", nargs="+", default=["cycles", "skin"])
