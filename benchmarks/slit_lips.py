@@ -25,6 +25,8 @@ at load 6-9 on the 2 shared cores):
     bake OUT [--grid 64]             the shipped recipe on the points within BAKE_HALF_X_MM (2-9 min)
     tsd OUT                          tsd with / without the bake, lambert (30 s)
     report OUT [--per-row]           per region and row;   sheet OUT --sheet FILE.jpg   x4 crops
+    head OUT [--collimated | --kernels]   front-key's mouth line: the raw walks (30-70 s), or the collimated beam
+        against a flat block, or tsd's profile and the bake's flat share over the key light's irradiance (10 s)
 
     PYTHONPATH=src nice -n 5 python benchmarks/slit_lips.py cycles /tmp/slit21 --gap 0.05
 """
