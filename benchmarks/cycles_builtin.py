@@ -10,14 +10,15 @@ round 21, demo21).
         [--ring 6] [--sheet OUT.png] [--zoom 4] [--json OUT.json]
 
 Why a script and not ``cycles_crops.py``: the built-in scene has no TOML and its maps are in-memory
-arrays. dermis.blender.export writes such a map to an EXR of its (linear) values but still loads the
-albedo with colorspace "sRGB", and Blender applies that colorspace to float images too (0.5 reads back as
-0.214: ``check`` shows it): the exported albedo would be decoded twice, much too dark. Here each
-in-memory map is written by this script (albedo: its sRGB-ENCODED values, so Blender's sRGB decode gives
-the linear array back; normal and specular maps: as they are, "Non-Color") and the Texture's ``source``
-points at the file, which the export then loads as it is (export._image_path). ``check`` reads the
-files back through bpy and compares them with the arrays; everything else is the export of the scene
-itself (camera fit: export.build_camera frames it as dermis does).
+arrays. Until round 21 dermis.blender.export wrote such a map to an EXR of its (linear) values but still
+loaded the albedo with colorspace "sRGB", and Blender applies that colorspace to float images too (0.5
+read back as 0.214): the albedo was decoded twice. demo21 rendered the stored windows with each map
+written here (albedo sRGB-encoded); the export now loads an EXR albedo as linear
+(tests/test_blender_cycles.py::test_in_memory_albedo_exports_its_linear_values), so the maps are written
+here as their linear values, as the export itself would, and ``check`` reads them back through bpy and
+compares them with the arrays (the stored windows were re-keyed, benchmarks/rekey_cycles_stores.py: the
+albedo Blender reads is the same array either way). Everything else is the export of the scene itself
+(camera fit: export.build_camera frames it as dermis does).
 
 ``cycles``: dermis.blender.crop_render's render border of the SAME frame (its pixels are the frame's),
 ``--seeds`` seeds of ``--spp`` samples: the seeds' mean (RGB + coverage) and the seed-to-seed FLIP over
@@ -59,7 +60,7 @@ def builtin_scene(pores: bool = False):
 def cycles_ready(scene, folder: Path):
     """``scene`` with its in-memory maps written to ``folder`` and their Textures' ``source`` set to the
     files, so that the export loads them with the values dermis uses (see the module docstring)."""
-    from dermis.images import linear_to_srgb, write_exr
+    from dermis.images import write_exr
 
     folder.mkdir(parents=True, exist_ok=True)
     m = scene.material
@@ -70,8 +71,6 @@ def cycles_ready(scene, folder: Path):
             continue
         data = np.asarray(tex.data, np.float32)
         data = np.repeat(data[..., :1], 3, -1) if data.ndim == 3 and data.shape[2] == 1 else data
-        if name == "albedo":  # loaded as "sRGB": store the encoding, Blender decodes it to these values
-            data = linear_to_srgb(data)
         path = folder / f"{name}.exr"
         if not path.is_file():
             write_exr(path, data[..., :3])

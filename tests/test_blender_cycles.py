@@ -558,26 +558,28 @@ def test_cycles_window_is_the_frames_pixels(tmp_path):
 
 
 @needs_bpy
-@pytest.mark.xfail(strict=True, reason="export.build_material loads the albedo as 'sRGB' but _image_path writes an "
-                                       "in-memory map (no source file: the built-in head, glTF-embedded images) as "
-                                       "an EXR of its LINEAR values, and Blender decodes float images by their "
-                                       "colorspace too: decoded twice (0.5 -> 0.214). Found in round 21 (demo21); "
-                                       "a fix in export.py re-keys every stored Cycles render (validate's key hashes it)")
 def test_in_memory_albedo_exports_its_linear_values(tmp_path):
     """The albedo Blender shades with (its image's scene-linear float buffer) is the dermis Texture's
-    linear array when the Texture has no file behind it, as it is for a file (test_export_reimport...)."""
+    linear array when the Texture has no file behind it (the built-in head, glTF-embedded images:
+    written as a linear EXR) and when its file is an EXR (linear to dermis), as it is for an 8-bit
+    sRGB file (test_export_reimport...). Round 21 (demo21): both were decoded as sRGB a second time
+    (0.5 -> 0.214)."""
     from dermis.blender import require_bpy
     from dermis.blender.export import ExportOptions, build_scene
-    from dermis.images import read_image
+    from dermis.images import read_image, write_exr
 
     sc = _slab_scene(tmp_path, Light(kind="directional", direction=(0.3, -0.2, -0.93), intensity=3.0))
     lin = read_image(tmp_path / "ramp.png", srgb=True)  # linear, in [0.15, 0.85]
-    sc.material.albedo = Texture(lin, "<texture>")  # in memory: no source file
-    build_scene(sc, ExportOptions(texture_dir=tmp_path / "maps"), (32, 32))
-    img = require_bpy().data.materials["skin"].node_tree.nodes["albedo"].image
-    w, h = img.size
-    px = np.empty(w * h * 4, np.float32)
-    img.pixels.foreach_get(px)
-    px = px.reshape(h, w, 4)[::-1, :, :3]  # Blender's rows run bottom-up
-    assert px.shape == lin.shape
-    assert np.abs(px - lin).max() < 1e-4, (px.mean((0, 1)), lin.mean((0, 1)))
+    write_exr(tmp_path / "ramp.exr", lin)
+    from_exr = read_image(tmp_path / "ramp.exr", srgb=True)  # an HDR file: linear as it is
+    for albedo, want in ((Texture(lin, "<texture>"), lin),  # in memory: no source file
+                         (Texture(from_exr, str(tmp_path / "ramp.exr")), from_exr)):
+        sc.material.albedo = albedo
+        build_scene(sc, ExportOptions(texture_dir=tmp_path / "maps"), (32, 32))
+        img = require_bpy().data.materials["skin"].node_tree.nodes["albedo"].image
+        w, h = img.size
+        px = np.empty(w * h * 4, np.float32)
+        img.pixels.foreach_get(px)
+        px = px.reshape(h, w, 4)[::-1, :, :3]  # Blender's rows run bottom-up
+        assert px.shape == want.shape
+        assert np.abs(px - want).max() < 1e-4, (albedo.source, px.mean((0, 1)), want.mean((0, 1)))

@@ -27,11 +27,18 @@ class ExportOptions:
     texture_dir: Path | None = None  # where in-memory textures (no source file) are written
 
 
+def _own_file(tex) -> str | None:
+    """The dermis Texture's own source file, if it has one on disk (not the built-in head's arrays,
+    not an image embedded in a glTF)."""
+    src = getattr(tex, "source", "") or ""
+    return src if src and Path(src).is_file() else None
+
+
 def _image_path(tex, name, opts) -> str:
     """The file behind a dermis Texture: its own source file when there is one (absolute path),
     else the array written beside the export (EXR, linear) so nothing is lost."""
-    src = getattr(tex, "source", "") or ""
-    if src and Path(src).is_file():
+    src = _own_file(tex)
+    if src:
         return os.path.abspath(src)
     from dermis.images import write_exr
 
@@ -111,7 +118,13 @@ def build_material(bpy, scene, opts: ExportOptions):
     def tex_node(tex, name, space):
         node = nodes.new("ShaderNodeTexImage")
         node.name = node.label = name
-        node.image = _load_image(bpy, _image_path(tex, name, opts), space)
+        path = _image_path(tex, name, opts)
+        if space == "sRGB" and Path(path).suffix.lower() in (".exr", ".hdr"):
+            # dermis reads HDR files as linear (dermis.images.read_image), and an in-memory map is
+            # written as an EXR of its linear values (_image_path); Blender decodes float images by
+            # their colorspace too, so "sRGB" would decode them a second time (0.5 -> 0.214).
+            space = linear
+        node.image = _load_image(bpy, path, space)
         node.interpolation = "Linear"
         links.new(uvmap.outputs["UV"], node.inputs["Vector"])
         return node
