@@ -42,15 +42,20 @@ def _sample(img, uv):
     return img[y, x]
 
 
-def _exit_uv(pos, idx, uvm, tri, x):
-    """uv of points x on triangles tri (barycentric from positions)."""
+def barycentric(pos, idx, tri, x):
+    """(N, 3) barycentric weights of points x on triangles tri (idx: (T, 3)), from the positions."""
     a, b, c = pos[idx[tri, 0]], pos[idx[tri, 1]], pos[idx[tri, 2]]
     v0, v1, v2 = b - a, c - a, x - a
     d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
     d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
     den = d00 * d11 - d01 * d01
     bb, bc = (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den
-    return (1 - bb - bc)[:, None] * uvm[idx[tri, 0]] + bb[:, None] * uvm[idx[tri, 1]] + bc[:, None] * uvm[idx[tri, 2]]
+    return np.stack([1 - bb - bc, bb, bc], 1)
+
+
+def _exit_uv(pos, idx, uvm, tri, x):
+    """uv of points x on triangles tri (barycentric from positions)."""
+    return np.einsum("nk,nkc->nc", barycentric(pos, idx, tri, x), uvm[idx[tri]])
 
 
 def main(walks: int = 64, factor: int = 2):

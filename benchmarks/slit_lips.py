@@ -235,13 +235,11 @@ def cycles45_entry(view, shading_n, geometric_n, rng, ior=1.4):
     return wo, kept
 
 
-def walk(a) -> None:
-    """Per row (rows ROWS), ``walks`` camera rays over the middle columns, film y from Cycles' filter: the
-    skin walk (fresnel, the bake's media) and Cycles' walk as dermis models it (lambertian exit), direct light
-    by next-event estimation. Saves per row and channel the mean and its standard error."""
-    from dermis.reference.random_walk import DirectionalLight, MeshWalk
-    from dermis.scene.model import mean_skin_albedo
-    from dermis.subsurface_transfer import bake as B
+def _row_hits(a):
+    """The test object, its rows' pixel samples (``a.walks`` per row, Cycles' pixel filter, the middle
+    COLUMNS) and their first hits: (scene, rows, rng, walks, row index, ray origins, directions, MeshWalk,
+    t, triangle, barycentrics)."""
+    from dermis.reference.random_walk import MeshWalk
 
     sc = make_scene(a.gap, a.single)
     rows = np.arange(*a.rows)
@@ -254,6 +252,19 @@ def walk(a) -> None:
     mesh = sc.mesh
     walker = MeshWalk(np.asarray(mesh.positions, np.float64), np.asarray(mesh.indices), np.asarray(mesh.normals))
     t, tri, bc = walker.caster.closest_hit(o, d, 0.0, np.inf)
+    return sc, rows, rng, n, r_idx, o, d, walker, t, tri, bc
+
+
+def walk(a) -> None:
+    """Per row (rows ROWS), ``walks`` camera rays over the middle columns, film y from Cycles' filter: the
+    skin walk (fresnel, the bake's media) and Cycles' walk as dermis models it (lambertian exit), direct light
+    by next-event estimation. Saves per row and channel the mean and its standard error."""
+    from dermis.reference.random_walk import DirectionalLight
+    from dermis.scene.model import mean_skin_albedo
+    from dermis.subsurface_transfer import bake as B
+
+    sc, rows, rng, n, r_idx, o, d, walker, t, tri, bc = _row_hits(a)
+    mesh = sc.mesh
     ok = tri >= 0
     p = o + d * t[:, None]
     # the shading normal (smooth, interpolated) and the facet's, both towards the camera
@@ -468,21 +479,12 @@ def diffuse_entry(a) -> None:
     DIFFUSELY at the exit; against the same walks' flat twins (random_walk.halfspace_exits: the half-space
     tangent at the point, common random numbers) weighted by the point's own irradiance. Compare with the
     walk with the refracted collimated beam (``walk``) over ``flatwalk``."""
-    from dermis.reference.random_walk import CounterUniforms, MeshWalk, halfspace_exits
+    from dermis.reference.random_walk import CounterUniforms, halfspace_exits
     from dermis.scene.model import mean_skin_albedo
     from dermis.subsurface_transfer import bake as B
 
-    sc = make_scene(a.gap, a.single)
-    rows = np.arange(*a.rows)
-    rng = np.random.default_rng(a.seed)
-    n = a.walks
-    r_idx = np.repeat(np.arange(len(rows)), n)
-    py = rows[r_idx] + 0.5 + filter_offsets(len(r_idx), rng)
-    px = rng.uniform(*COLUMNS, len(r_idx))
-    o, d = film_rays(sc, px, py)
+    sc, rows, rng, n, r_idx, o, d, walker, t, tri, bc = _row_hits(a)
     mesh = sc.mesh
-    walker = MeshWalk(np.asarray(mesh.positions, np.float64), np.asarray(mesh.indices), np.asarray(mesh.normals))
-    t, tri, bc = walker.caster.closest_hit(o, d, 0.0, np.inf)
     p = o + d * t[:, None]
     L = -np.asarray(sc.lights[0].direction, np.float64)
     L /= np.linalg.norm(L)
@@ -561,13 +563,9 @@ def head(a) -> None:
     L /= np.linalg.norm(L)
 
     def irradiance(points, tris):
-        a_, b_, c_ = pos[idx[tris, 0]], pos[idx[tris, 1]], pos[idx[tris, 2]]
-        v0, v1, v2 = b_ - a_, c_ - a_, points - a_
-        d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
-        d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
-        den = d00 * d11 - d01 * d01
-        bb, cc = (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den
-        n = (1 - bb - cc)[:, None] * vn[idx[tris, 0]] + bb[:, None] * vn[idx[tris, 1]] + cc[:, None] * vn[idx[tris, 2]]
+        from ear_transfer import barycentric
+
+        n = np.einsum("nk,nkc->nc", barycentric(pos, idx, tris, points), vn[idx[tris]])
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         fn = walker.facet_normals[tris] * np.where((walker.facet_normals[tris] * n).sum(1) >= 0, 1.0, -1.0)[:, None]
         lit = walker._lit(points, fn, L)
