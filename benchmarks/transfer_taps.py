@@ -243,7 +243,7 @@ def walk(a) -> None:
         from dermis.framing import framed_camera
         from dermis.reference.render import camera_rays
 
-        lit = np.nonzero(z["pE"] > 1e-3)[0]
+        lit = np.nonzero(z["pE"] > (-1.0 if a.all_pixels else 1e-3))[0]
         pick = lit[np.linspace(0, len(lit) - 1, a.points).astype(int)]
         o, d, tmax, _ = camera_rays(sc, (SIZE, SIZE), 1, camera=framed_camera(sc.camera, sc.mesh, 1.0))
         pix = z["pix"][pick]
@@ -325,7 +325,7 @@ def walk(a) -> None:
             print(f"   {used[order][i]:6d} {np.linalg.norm(bpos[order][i] - cen):5.2f} {E0[i]:.3f}   {uni:+.3f} ({tw[i, :, c].sum():+.3f})"
                   f"                  {wE / e0:.3f}    {fE / e0:.3f}    {(wE - fE) / e0:+.3f}        {taps / e0:+.3f}", flush=True)
         print(f"   sum over the points: uniform {uni_sum / len(p0):+.3f} a point; key light (walk - flat) / E0 = "
-              f"{dif_sum / e_sum:+.3f} (ratio of sums)")
+              f"{dif_sum / max(e_sum, 1e-9):+.3f} (ratio of sums); sum of (walk - flat) {dif_sum:+.4f}, of E0 {e_sum:.4f}")
 
 
 def main(argv=None):
@@ -350,6 +350,7 @@ def main(argv=None):
     p.add_argument("--walks", type=int, default=4096)
     p.add_argument("--at-pixels", action="store_true")
     p.add_argument("--camera-view", action="store_true", help="with --at-pixels: walks along the camera ray")
+    p.add_argument("--all-pixels", action="store_true", help="with --at-pixels: the shadowed pixels too")
     p.set_defaults(fn=walk)
     a = ap.parse_args(argv)
     a.fn(a)
