@@ -280,6 +280,9 @@ def walk(a) -> None:
         return _lit(sc, ex["point"] / mm + n * 1e-4, n, L)
 
     W = a.walks
+    if a.flat_views:
+        _flat_views(walker, p0, tri, no, cam_view, media, kern, g, Ev, E0, W)
+        return
     tw, tE = z["tap_w"][order], z["tapE"][order]
     for c in range(2):
         if a.camera_view:  # the camera's ray instead of cosine views; normalised by the flat twins' total at that view
@@ -328,6 +331,33 @@ def walk(a) -> None:
               f"{dif_sum / max(e_sum, 1e-9):+.3f} (ratio of sums); sum of (walk - flat) {dif_sum:+.4f}, of E0 {e_sum:.4f}")
 
 
+def _flat_views(walker, p0, tri, no, cam_view, media, kern, g, Ev, E0, W):
+    """The flat medium's own view dependence under the key light: each point's flat twins (the half-space below
+    its tangent plane, dermis.reference.random_walk.halfspace_exits) along cosine views and along the camera ray,
+    each exit weighted by E at the surface graph's vertex nearest to it (the plane's exits mapped to the surface
+    by 3-D proximity: a tangent-plane approximation within ~1 mm), each view normalised by its twins' total."""
+    from scipy.spatial import cKDTree
+
+    from dermis.reference.random_walk import CounterUniforms, halfspace_exits
+    from dermis.subsurface_transfer import bake as B
+
+    tree = cKDTree(g.position)
+    for c in range(2):
+        out = {}
+        for label in ("cosine", "camera"):
+            P_, T_ = np.repeat(p0, W, 0), np.repeat(tri, W)
+            V_ = np.repeat(cam_view, W, 0) if label == "camera" else B.diffuse_views(np.repeat(no, W, 0), np.random.default_rng(9 + c))
+            st, gid = CounterUniforms(51 + c), np.arange(len(P_))
+            tw_ = halfspace_exits(P_, walker._outward(T_, -V_), V_, media[c], st, gid)
+            k = tw_["walk"] // W
+            tot = np.bincount(k, tw_["weight"], len(p0))
+            e = Ev[tree.query(tw_["point"])[1]]
+            out[label] = np.bincount(k, tw_["weight"] * e, len(p0)) / np.maximum(tot, 1e-12)
+        print(f"{'RG'[c]}: flat twins under the key light, sum over the {len(p0)} points / sum E0: cosine views "
+              f"{out['cosine'].sum() / E0.sum():.3f}, camera ray {out['camera'].sum() / E0.sum():.3f} "
+              f"(camera - cosine {(out['camera'] - out['cosine']).sum() / E0.sum():+.3f})", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sp = ap.add_subparsers(dest="cmd", required=True)
@@ -351,6 +381,7 @@ def main(argv=None):
     p.add_argument("--at-pixels", action="store_true")
     p.add_argument("--camera-view", action="store_true", help="with --at-pixels: walks along the camera ray")
     p.add_argument("--all-pixels", action="store_true", help="with --at-pixels: the shadowed pixels too")
+    p.add_argument("--flat-views", action="store_true", help="with --at-pixels: the flat twins' view dependence (_flat_views)")
     p.set_defaults(fn=walk)
     a = ap.parse_args(argv)
     a.fn(a)
