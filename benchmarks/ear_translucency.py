@@ -316,7 +316,7 @@ def against_cycles(npz, techniques):
               f"(load {os.getloadavg()[0]:.1f})")
 
 
-CYCLES_STORE = Path("/work/wt/notes/cycles-conv/back-ears")
+CYCLES_STORE = Path(__file__).resolve().parent / "cycles" / "stores" / "back-ears"  # the stored 64 px Cycles renders (was a scratch path)
 # Cycles' walk for this scene (ear7: Cycles' radius 9.24 / 3.10 mm from dermis.blender.sss, its mean free
 # path radius / 4 pi and its albedo remap of the mean albedo 0.535 / 0.321; red reproduces Cycles' own
 # back-lit slab render within 1-5%)

@@ -642,7 +642,12 @@ def _kernels(sc, pos, idx, vn, walker, p0, tri0, nrm0, L, e0, media, reach_mm=16
     """What tsd's blur and the bake's flat share see at the points: int R(g) E dA / E0 (tsd's profile, every
     vertex) and int_same-facing K_flat(g) E dA / E0 (the bake's subtraction) over the geodesic neighbourhood
     (dermis.subsurface_transfer.bake.SurfaceGraph on the triangles within ``reach_mm``), E the key light's
-    N.L with its cast shadow at the graph's vertices."""
+    N.L with its cast shadow at the graph's vertices.
+    CAUTION (round 21, taps21): each vertex's whole area is weighted at the kernel's value at its own g (clamped to
+    1e-6 at the start vertex), so the peaked near field is over-counted: under UNIFORM light this sum gives 1.17-1.68
+    at the line's points where the same-facing flat share is <= 1 (benchmarks/transfer_taps.py walk --at-pixels prints
+    both). slit21's "1.44" and the "-0.17 E0" derived from it are this artefact; transfer_taps.py's walk takes the
+    share within MIN_SURFACE_MM as F_flat(MIN_SURFACE_MM) times the kernel-weighted mean E, as the bake does."""
     from dermis.geometry.texture_space import texture_space_uvs
     from dermis.subsurface_transfer import bake as B
 
