@@ -428,10 +428,11 @@ def test_normal_map_tangent_convention(head):
 def test_no_uv_seam_between_the_nose_and_the_upper_lip(head):
     """Issue 12 (round 21, seam21): tsd's blurs do not cross a UV seam, and xatlas alone cut the nose's
     underside and nostrils off the face's chart along the nose-lip crease (the lit nose above, the shadowed
-    upper lip below: the lip's red 0.908 of Cycles'). Inside ATLAS_SEAMLESS_BOXES the only seams left are the
-    rims of charts under JOIN_MIN_TRIANGLES (the nostrils' floors). Seam edges: mesh edges (welded by
-    position) whose two triangles give their shared corners different UVs. Fails on the plain xatlas layout
-    (checked: 88 seam edges in the box, 76 of them not on a nostril floor's rim). ~0.1 s (the head built)."""
+    upper lip below: the lip's red 0.908 of Cycles'), and ended the face's chart on the cheeks. Inside
+    ATLAS_SEAMLESS_BOXES the only seams left are the rims of charts under JOIN_MIN_TRIANGLES (the nostrils'
+    floors). Seam edges: mesh edges (welded by position) whose two triangles give their shared corners
+    different UVs. Fails on the plain xatlas layout
+    (checked: 136 seam edges in the boxes, 124 of them not on a nostril floor's rim). ~0.1 s (the head built)."""
     from dermis.geometry.parameterize import JOIN_MIN_TRIANGLES
     from dermis.scene.procedural_head.model import ATLAS_SEAMLESS_BOXES
 
