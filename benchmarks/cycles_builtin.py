@@ -72,8 +72,7 @@ def cycles_ready(scene, folder: Path):
         data = np.asarray(tex.data, np.float32)
         data = np.repeat(data[..., :1], 3, -1) if data.ndim == 3 and data.shape[2] == 1 else data
         path = folder / f"{name}.exr"
-        if not path.is_file():
-            write_exr(path, data[..., :3])
+        write_exr(path, data[..., :3])  # always: a file left by another layout of the head would be stale (seam21)
         out[name] = dataclasses.replace(tex, source=str(path.resolve()))
     return dataclasses.replace(scene, material=dataclasses.replace(m, **out))
 
