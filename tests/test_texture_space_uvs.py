@@ -212,7 +212,7 @@ def test_light_crosses_a_fold_whose_charts_are_joined(gl_ctx):
     distance is the unfolded one): I_k(t) = E_B + (E_A - E_B) Phi(-t / sigma_k) at t = 0.3-2 mm past the
     edge, for the Gaussians wide enough to reach (k3-k6, sigma 0.43-2.7 mm). Measured: within 2.1% of the
     closed form's mean (k6 0.932 / 0.952 of E_A); with the plain layout tsd gives 0-0.047 of E_A there
-    (checked: this test fails with join_boxes=()). ~1.5 s."""
+    (checked: this test fails with join_boxes=()). 2.4 s at load 2."""
     from scipy.special import ndtr
 
     from dermis.verification import texel_positions
