@@ -125,3 +125,28 @@ def test_xatlas_atlas_is_unique_padded_and_cached(tmp_path, monkeypatch):
     np.testing.assert_array_equal(a.indices, b.indices)
     p2 = p * 1.5
     assert not generate_atlas(p2, t, resolution=256, padding_px=4).cached
+
+
+def test_lscm_and_arap_flatten_a_developable_patch_isometrically():
+    """dermis.geometry.parameterize (seam21): a half cylinder (radius 5, 3 units long, 40 x 12 quads) unrolls
+    without distortion, so LSCM's map must be the 3-D edge lengths (the independent reference) times one
+    scale (its pins are the chord's ends: 0.64 here; measured spread 1e-10), and ARAP's must be the lengths
+    themselves (measured 4e-12 off; LSCM alone 0.36 off). No flipped triangle. ~0.2 s."""
+    from dermis.geometry.parameterize import arap, lscm
+
+    a, h = np.meshgrid(np.linspace(0.0, np.pi, 41), np.linspace(0.0, 3.0, 13), indexing="ij")
+    P = np.stack([5 * np.cos(a), 5 * np.sin(a), h], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(40), np.arange(12), indexing="ij")
+    q = (i * 13 + j).ravel()
+    F = np.concatenate([np.stack([q, q + 13, q + 14], 1), np.stack([q, q + 14, q + 1], 1)])
+    edges = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    L3 = np.linalg.norm(P[edges[:, 0]] - P[edges[:, 1]], axis=1)
+    U0 = lscm(P, F)
+    L0 = np.linalg.norm(U0[edges[:, 0]] - U0[edges[:, 1]], axis=1)
+    assert np.ptp(L0 / L3) / np.mean(L0 / L3) < 1e-6
+    U = arap(P, F, U0, 20)
+    L2 = np.linalg.norm(U[edges[:, 0]] - U[edges[:, 1]], axis=1)
+    assert np.max(np.abs(L2 / L3 - 1)) < 1e-6, np.max(np.abs(L2 / L3 - 1))
+    d = U[F]
+    signed = (d[:, 1, 0] - d[:, 0, 0]) * (d[:, 2, 1] - d[:, 0, 1]) - (d[:, 2, 0] - d[:, 0, 0]) * (d[:, 1, 1] - d[:, 0, 1])
+    assert np.all(signed > 0) or np.all(signed < 0)

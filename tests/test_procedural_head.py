@@ -423,3 +423,40 @@ def test_normal_map_tangent_convention(head):
     prof = _profile(head, front_point(0.0, LABIOMENTAL_Y), [0.0, 1.0, 0.0])  # horizontal groove, crossed along y
     assert prof.max() > 0.04 and prof.min() < -0.04
     assert np.argmax(prof) < np.argmin(prof)
+
+
+def test_no_uv_seam_between_the_nose_and_the_upper_lip(head):
+    """Issue 12 (round 21, seam21): tsd's blurs do not cross a UV seam, and xatlas alone cut the nose's
+    underside and nostrils off the face's chart along the nose-lip crease (the lit nose above, the shadowed
+    upper lip below: the lip's red 0.908 of Cycles'), and ended the face's chart on the cheeks. Inside
+    ATLAS_SEAMLESS_BOXES the only seams left are the rims of charts under JOIN_MIN_TRIANGLES (the nostrils'
+    floors). Seam edges: mesh edges (welded by position) whose two triangles give their shared corners
+    different UVs. Fails on the plain xatlas layout
+    (checked: 136 seam edges in the boxes, 124 of them not on a nostril floor's rim). ~0.1 s (the head built)."""
+    from dermis.geometry.parameterize import JOIN_MIN_TRIANGLES
+    from dermis.scene.procedural_head.model import ATLAS_SEAMLESS_BOXES
+
+    P, T, UV = head.positions.astype(np.float64), head.indices.astype(np.int64), head.uvs.astype(np.float64)
+    w = _weld(P)
+    # charts: triangles joined through corners with one position and one UV
+    _, key = np.unique(np.c_[np.round(P, 5), np.round(UV, 6)], axis=0, return_inverse=True)
+    key = key.ravel()
+    n_charts, chart = _uv_islands(key[T], int(key.max()) + 1)
+    tri_chart = chart[key[T[:, 0]]]
+    chart_size = np.bincount(tri_chart, minlength=n_charts)
+    # every edge as (welded a, welded b) -> (triangle, its UV-keyed endpoints)
+    e_w = np.concatenate([np.sort(w[T][:, [i, j]], 1) for i, j in ((0, 1), (1, 2), (2, 0))])
+    e_k = np.concatenate([key[T][:, [i, j]] for i, j in ((0, 1), (1, 2), (2, 0))])
+    tri = np.tile(np.arange(len(T)), 3)
+    # sort each edge's UV keys by their welded vertex so both sides list them in the same order
+    first = np.concatenate([w[T][:, i] for i in (0, 1, 2)]) <= np.concatenate([w[T][:, j] for j in (1, 2, 0)])
+    e_k = np.where(first[:, None], e_k, e_k[:, ::-1])
+    o = np.lexsort((e_w[:, 1], e_w[:, 0]))
+    e_w, e_k, tri = e_w[o], e_k[o], tri[o]
+    pair = np.nonzero(np.all(e_w[1:] == e_w[:-1], axis=1))[0]
+    seam = pair[np.any(e_k[pair + 1] != e_k[pair], axis=1)]
+    mid = 0.5 * (P[T[tri[seam]]].mean(1) + P[T[tri[seam + 1]]].mean(1))
+    inside = np.any([np.all((mid >= lo) & (mid <= hi), axis=1) for lo, hi in ATLAS_SEAMLESS_BOXES], axis=0)
+    small = np.minimum(chart_size[tri_chart[tri[seam]]], chart_size[tri_chart[tri[seam + 1]]]) < JOIN_MIN_TRIANGLES
+    assert np.sum(~small & ~inside) > 100, "the head has seams elsewhere: the check finds them"
+    assert np.sum(inside & ~small) == 0, (np.sum(inside), np.sum(inside & ~small))

@@ -36,7 +36,8 @@ a camera move re-runs only the final pass (``frame.passes_run`` says what ran).
 Inputs and units: the scene's mm_per_unit; a unique texture-space UV layout: the mesh's own, or one
 generated with xatlas (dermis.geometry.texture_space) while the material keeps the asset's UVs.
 Known failure modes: UV seams (mitigated by coverage-normalised blurs and gutter dilation; light
-does not cross a seam), stretch varying faster than the blur width, translucency sums all lights'
+does not cross a seam: a layout should keep seams out of lit/shadowed junctions, as the procedural head's
+does on its face, dermis.geometry.atlas join_boxes), stretch varying faster than the blur width, translucency sums all lights'
 irradiance at the far face (every light and the ambient) through the thickness along -N only: light
 entering elsewhere (a nose wing lit from its side) is not transmitted. Interreflection is one
 bounce, per vertex (K rays: Monte Carlo noise of a few % of the bounce, blurred by the diffusion),

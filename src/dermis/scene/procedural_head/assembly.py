@@ -11,8 +11,8 @@ from dermis.geometry.atlas import atlas_on_welded_surface
 from dermis.scene.procedural_head.ears import _build_ear, _ear_point
 from dermis.scene.procedural_head.implicit import _Shape, _raycast
 from dermis.scene.procedural_head.meshing import _build_head_surface, _vertex_normals
-from dermis.scene.procedural_head.model import (ATLAS_PADDING_TEXELS, ATLAS_RESOLUTION, MM_PER_UNIT, PARTS,
-                                                PORE_SPACING_MM, ProceduralHead)
+from dermis.scene.procedural_head.model import (ATLAS_PADDING_TEXELS, ATLAS_RESOLUTION, ATLAS_SEAMLESS_BOXES,
+                                                MM_PER_UNIT, PARTS, PORE_SPACING_MM, ProceduralHead)
 from dermis.scene.procedural_head.painter import _textures
 
 @functools.lru_cache(maxsize=2)
@@ -49,8 +49,8 @@ def _geometry():
     _, group = np.unique(key, axis=0, return_inverse=True)
     N = _vertex_normals(P, T, group.ravel())
     # UV layout: xatlas charts of the welded surface, packed with ATLAS_PADDING_TEXELS gutters at
-    # ATLAS_RESOLUTION (dermis.geometry.atlas); vertices split along the chart seams
-    vm, T, UV = atlas_on_welded_surface(P, T, ATLAS_RESOLUTION, ATLAS_PADDING_TEXELS)
+    # ATLAS_RESOLUTION (dermis.geometry.atlas), none inside ATLAS_SEAMLESS_BOXES; vertices split along the seams
+    vm, T, UV = atlas_on_welded_surface(P, T, ATLAS_RESOLUTION, ATLAS_PADDING_TEXELS, join_boxes=ATLAS_SEAMLESS_BOXES)
     P, N = P[vm], N[vm]
     T = T.astype(np.int64)
     UV = UV.astype(np.float64)

@@ -20,6 +20,15 @@ def NASOLABIAL_X(y):
 PORE_SPACING_MM = 1.0
 ATLAS_RESOLUTION = 1024  # texels per side the UV charts are packed for
 ATLAS_PADDING_TEXELS = 6  # xatlas padding around every chart: >= 12 texels between charts at 1024^2
+# Boxes (mesh units, (lo xyz), (hi xyz)) inside which the layout has no seam: xatlas alone cuts the nose's
+# underside and nostrils off the face chart along the nose-lip crease, between the lit nose and the shadowed
+# upper lip, where tsd's per-chart blurs then lose the red the nose scatters into the lip (issue 12, round 21
+# seam21: the upper lip under the nose 0.908 of Cycles' red), and the face's chart ended on the cheeks; the
+# charts reaching into a box are joined (dermis.geometry.parameterize.join_charts): here the face's, both
+# sides' (chin to crown, ear to ear in front of the ears) and the nose underside's, one chart.
+ATLAS_SEAMLESS_BOXES = (((-2.6, -5.0, 7.5), (2.6, 0.5, 20.0)),  # the nose, its nostrils and the upper lip
+                        ((3.0, -4.0, 4.0), (6.0, 2.0, 20.0)),  # the cheeks: the face chart's sides
+                        ((-6.0, -4.0, 4.0), (-3.0, 2.0, 20.0)))
 
 
 @dataclass
