@@ -22,6 +22,7 @@ from dermis.renderer import Renderer
 from dermis.scene.builtin import grid_mesh
 from dermis.scene.loaders import finish_mesh
 from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial
+from dermis.techniques.shared import OutputMode
 
 SIZE_MM = 16.0  # the plane's side; mm_per_unit = 1
 COARSE, FINE, PIXELS = 64, 512, 256  # irradiance texels across; the frame (16 px per mm)
@@ -220,3 +221,28 @@ def test_pixel_detail_programs_fit_the_guaranteed_samplers(gl_ctx, k, lights):
         plain = r.render("tsd")
     assert np.all(np.isfinite(img)) and img.max() > 0
     assert abs(float(img.mean()) - float(plain.mean())) < 0.1 * float(plain.mean())
+
+
+def test_pixel_detail_draws_the_pcf_penumbra_where_the_stored_sharp_shadow_is_0_or_1(gl_ctx):
+    """I_0 at the pixel takes the lights' soft (PCF) shadows there, as the irradiance pass takes them
+    per texel. Round 21 (dots21) found the final pass taking them only inside the stored sharp
+    shadow's bilinear band (a texel each side of its edge) and the stored 0 or 1 elsewhere: where
+    the PCF's penumbra is wider than that band, the full detail then drew the band's end as a step
+    (front-key's nose shadow: single dark pixels, green 51 levels where irradiance 4096 has 106).
+    test_shadow_edge_rim's straight edge, shadow map 256^2 (penumbra ~2 mm), irradiance 512^2
+    (texels 0.28 mm, ~2.8 pixels: the detail full) against a texture that resolves the penumbra
+    (1024^2, 0.14 mm texels, no detail): max |error| / lit 0.004 (the band: 0.090, checked; both
+    against 4096^2 at 512^2: 0.003 and 0.089)."""
+    from test_shadow_edge_rim import H, W, _edge_scene
+
+    sc, _ = _edge_scene()
+    imgs = []
+    for size, detail in ((512, True), (1024, False)):
+        with Renderer(sc, (W, H), ctx=gl_ctx, samples=0, irradiance_size=size, shadow_size=256) as r:
+            r.technique("tsd", pixel_detail=detail)
+            imgs.append(r.render("tsd", output_mode=OutputMode.DIFFUSE).astype(np.float64))
+    coarse, ref = imgs
+    lit = ref[H // 2, -5:, 1].mean()
+    assert lit > 0.0 and ref[H // 2, :5, 1].mean() < 0.01 * lit  # the window spans the penumbra
+    err = np.abs(coarse - ref).max(axis=-1) / lit
+    assert err.max() < 0.01, (err.max(), np.unravel_index(err.argmax(), err.shape))

@@ -772,7 +772,7 @@ class TextureSpaceDiffusion(Technique):
         texture-space pass allows it, else the one _shading_programs gives."""
         if self._detail_bounce is None:
             return self._shading_programs(frame)[1]
-        # with the stored sharp shadows it reads the shadow atlas as well (detail_shadow): one sampler
+        # with the stored sharp shadows it reads the shadow atlas as well (I_0's soft shadows): one sampler
         # more than p_final, so its blur array holds the profile's K textures, not MAX_GAUSSIANS
         # (16 guaranteed samplers: 7 shared, the translucency, the stored shadows and K <= 7 blurs);
         # a profile of 8 Gaussians or a scene of more than 3 lights takes the per-sample shadows

@@ -50,16 +50,6 @@ vec3 skin_light_entry(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3
     return skin_light_terms(Ei, L, ndl, Ng, N, s, rho_s, m, c);
 }
 
-// Light i's share with its shadow s given by the caller (tsd/final.frag with PIXEL_DETAIL: the
-// stored shadow, or the soft one at its edge: detail_shadow), the same terms.
-vec3 skin_light_entry_shadowed(int i, vec3 P, vec3 Ng, vec3 N, float rho_s, float m, vec3 c, float s) {
-    vec3 L;
-    vec3 Ei = light_incident(i, P, L);
-    float ndl = dot(N, L);
-    if (ndl <= 0.0) return vec3(0.0);
-    return skin_light_terms(Ei, L, ndl, Ng, N, s, rho_s, m, c);
-}
-
 // The sum over the lights, plus the ambient (left at k = 1: its average over a uniform hemisphere).
 // With SKIN_LIGHT_COUNT = n defined (the scene's light count), the lights are unrolled with CONSTANT
 // indices into the uniform arrays (DERMIS_FOR_EACH_LIGHT, common/lights.glsl): on llvmpipe tsd's

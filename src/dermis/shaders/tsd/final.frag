@@ -66,17 +66,6 @@ in vec3 v_blocked_sh1;
 in vec3 v_blocked_sh2;
 out vec4 f_color;
 
-#if defined(PIXEL_DETAIL) && defined(SHARP_SHADOW_READ)
-// Light i's shadow for I_0 at this pixel: I_1 holds the lights' soft (PCF) shadows at its texel
-// centres, the stored sharp shadow says where they may differ from 0 or 1: inside its bilinear
-// edge band (a texel each side of the sharp edge; the PCF's penumbra is ~0.1-0.2 mm, narrower)
-// the soft shadow is evaluated here, elsewhere the stored 0 or 1 is the soft shadow too
-float detail_shadow(int i, vec3 P, vec3 Ng) {
-    float s = stored_sharp_shadow(i);
-    return s > 0.0 && s < 1.0 ? shadow_soft(i, P, Ng) : s;
-}
-#endif
-
 #ifdef PIXEL_DETAIL
 // I_1's texels per mm of surface here, along the layout's coarsest surface direction: the smaller
 // singular value of the Jacobian d(texels)/d(mm) on the tangent plane, from the screen derivatives
@@ -144,7 +133,7 @@ void main() {
     if (detail_weight > 0.0) {
         // I_0 as tsd/irradiance.frag and tsd/bounce_splat.frag put it into the irradiance texture, but
         // at this pixel: (E_lights + E_ambient + E_bounce) albedo^mix, the lights' soft shadows as there
-        // (detail_shadow); P and N at the centroid of the pixel's covered samples, inside the triangle:
+        // (below); P and N at the centroid of the pixel's covered samples, inside the triangle:
         // every interior edge pixel has a fragment whose centre lies off its triangle, and I_0 of the
         // attributes extrapolated there drew the mesh's edges as faint lines (+1-2 %) into the detail
         // (the maps' values are the pixel centre's: a few texels of the maps move nothing that shows,
@@ -154,13 +143,15 @@ void main() {
         vec3 Ng_c = normalize(n_c);
         vec3 N_c = tangent_to_world(n_c, interpolateAtCentroid(v_tangent), normal_map_texel);
         vec3 c_in = uDirectionalAlbedo * directional_c(albedo);
-#ifdef SHARP_SHADOW_READ
-        vec3 I0 = vec3(0.0);
-        DERMIS_FOR_EACH_LIGHT(I0 += skin_light_entry_shadowed(light_i, P_c, Ng_c, N_c, rho_s, m, c_in,
-                                                              detail_shadow(light_i, P_c, Ng_c));)
-#else  // the lights' soft shadows per sample, as the irradiance pass has them
+        // the lights' soft (PCF) shadows at P_c, as the irradiance pass has them per texel, evaluated
+        // here everywhere. Not only inside the stored sharp shadow's bilinear band (a texel each side of
+        // its edge) with its 0 or 1 elsewhere: the PCF's penumbra on the surface is often wider than
+        // that band (a light at grazing incidence, a coarse shadow map), and I_0 then stepped to full
+        // shadow (or light) where the texture's levels hold a partial one, which the full detail drew
+        // as single dark pixels along shadow edges (issue 12, round 21, dots21: front-key's nose
+        // shadow (399, 525), stored sharp 0.00 against the PCF's 0.28: green 51 levels, irradiance
+        // 4096 106; tests/test_tsd_pixel_detail.py's penumbra test)
         vec3 I0 = skin_lights_directional(P_c, Ng_c, N_c, rho_s, m, c_in);
-#endif
         I0 += skin_ambient(N_c, Ng_c, rho_s, m, interpolateAtCentroid(v_visibility));
 #ifdef PIXEL_DETAIL_BOUNCE
         I0 += bounce_on_triangle(uv_ts, gl_PrimitiveID);
