@@ -13,8 +13,6 @@ The bake is seeded (seed 0): the same code and mesh give the same file.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -55,19 +53,18 @@ def save(bake: TransferBake, path: Path, mesh_key_: str, mm_per_unit: float) -> 
     several % noise, float16's 0.05 % is below it)."""
     meta = dict(bake.meta, format=FORMAT, mesh_key=mesh_key_, mm_per_unit=float(mm_per_unit))
     path.parent.mkdir(parents=True, exist_ok=True)
-    # a temporary name of its own (not path + ".tmp"): two processes baking the same mesh at once (the
-    # test suite's workers, pytest -n 2) each write whole files, and the last rename wins
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".part.npz")
-    try:
-        with os.fdopen(fd, "wb") as f:
+    from dermis.fileio import atomic_write
+
+    def write(tmp):
+        with open(tmp, "wb") as f:
             np.savez_compressed(f, point_uv=bake.point_uv.astype(np.float32), tap_uv=bake.tap_uv.astype(np.float32),
                                 tap_weight=bake.tap_weight.astype(np.float16), kept=bake.kept.astype(np.float32),
                                 subtracted=bake.subtracted.astype(np.float32), excess=_or_empty(bake.excess, 2),
                                 excess_cov=_or_empty(bake.excess_cov, 3), meta=np.array(json.dumps(meta)))
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+
+    # a temporary name of its own (atomic_write: not path + ".tmp"): two processes baking the same mesh at
+    # once (the test suite's workers, pytest -n 2) each write whole files, and the last rename wins
+    atomic_write(path, write)
 
 
 def _or_empty(a, width: int) -> np.ndarray:
