@@ -150,3 +150,20 @@ def test_lscm_and_arap_flatten_a_developable_patch_isometrically():
     d = U[F]
     signed = (d[:, 1, 0] - d[:, 0, 0]) * (d[:, 2, 1] - d[:, 0, 1]) - (d[:, 2, 0] - d[:, 0, 0]) * (d[:, 1, 1] - d[:, 0, 1])
     assert np.all(signed > 0) or np.all(signed < 0)
+
+
+def test_bake_cache_store_writes_whole_files_and_swallows_unwritable_folders(tmp_path):
+    # every disk cache (atlases, visibility, interreflection) writes through bake_cache.store: a temporary
+    # name of its own, then renamed (dermis.fileio.atomic_write), so nothing half-written is ever read
+    from dermis.geometry import bake_cache
+
+    a = {"x": np.arange(5.0), "y": np.eye(2, dtype=np.float32)}
+    bake_cache.store(tmp_path / "k.npz", a)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k.npz"]  # no temporary left behind
+    with np.load(tmp_path / "k.npz") as z:
+        np.testing.assert_array_equal(z["x"], a["x"])
+        np.testing.assert_array_equal(z["y"], a["y"])
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    bake_cache.store(blocker / "sub" / "k.npz", a)  # cannot be written: only costs the re-bake, no error
+    assert blocker.read_text() == "not a folder"

@@ -13,8 +13,6 @@ never reuses a stale atlas.
 from __future__ import annotations
 
 import hashlib
-import os
-import tempfile
 import time
 from dataclasses import dataclass
 from importlib import metadata
@@ -23,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.geometry import bake_cache
 from dermis.profiles.scene_skin import _cache_folder
 
 CACHE_VERSION = 1  # bump when the options passed to xatlas change meaning (join_boxes: in the key only when given)
@@ -122,16 +121,9 @@ def generate_atlas(positions, indices, *, resolution: int = 1024, padding_px: in
         vmapping = vm1[vm2]
     result = Atlas(vmapping, np.asarray(idx, np.uint32).reshape(-1, 3), uv.astype(np.float32),
                    resolution, padding_px, float(np.mean(atlas.utilization)), time.perf_counter() - t0, False)
-    if path is not None:
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, vmapping=result.vmapping, indices=result.indices, uvs=result.uvs,
-                         utilization=result.utilization)
-            os.replace(tmp, path)
-        except OSError:
-            pass  # a read-only cache folder only costs the regeneration
+    # a read-only cache folder only costs the regeneration
+    bake_cache.store(path, dict(vmapping=result.vmapping, indices=result.indices, uvs=result.uvs,
+                                utilization=result.utilization))
     return result
 
 

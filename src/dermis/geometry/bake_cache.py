@@ -5,12 +5,11 @@ cache folder only costs the re-bake."""
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from dermis.errors import DermisError
 from dermis.profiles.scene_skin import _cache_folder
 
 
@@ -82,14 +81,18 @@ def remember(memory: dict, key: str, arrays: dict, keep: int):
 
 
 def store(path: Path | None, arrays: dict):
-    """Write ``arrays`` to ``path`` (a temporary name, then renamed); errors only cost the re-bake."""
+    """Write ``arrays`` to ``path`` (dermis.fileio.atomic_write: a temporary name of its own, then renamed, so
+    two processes baking the same mesh at once each write whole files); errors only cost the re-bake."""
     if path is None:
         return
+    from dermis.fileio import atomic_write
+
+    def write(tmp):
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, path)
-    except OSError:
+        atomic_write(path, write)
+    except (OSError, DermisError):
         pass
