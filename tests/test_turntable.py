@@ -33,6 +33,10 @@ def test_gif_has_n_frames_and_turns(box_toml, tmp_path):
     assert frames.shape[:3] == (FRAMES, SIZE[1], SIZE[0])
     assert _differ(frames[0], frames[FRAMES // 2]) > 0.01
     assert not list(tmp_path.glob(".spin.gif.*"))  # no temporary file left behind
+    # the usual permissions of a new file (as `dermis render`'s outputs), not the temporary name's 0600
+    umask = os.umask(0)
+    os.umask(umask)
+    assert out.stat().st_mode & 0o777 == 0o666 & ~umask
     # lights fixed to the head: texture space ran once, then only the final pass
     assert "tsd_irradiance" in res["passes_run"][0]
     assert all(p == ["tsd_final"] for p in res["passes_run"][1:])

@@ -13,13 +13,12 @@ renamed when complete.
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from dermis.errors import DermisError
+from dermis.fileio import OutputSet
 from dermis.viewer.camera_controls import orbit_rig, rotate_about_axis
 
 FORMATS = (".mp4", ".gif", "folder of .png")
@@ -37,25 +36,22 @@ def output_kind(out) -> str:
 
 
 class _AtomicFile:
-    """A temporary name beside ``path`` (keeping its extension, which the encoders read)."""
+    """A temporary name beside ``path`` (keeping its extension, which the encoders read), renamed over it
+    when the last frame is written (dermis.fileio.OutputSet: also gives the file the usual permissions)."""
 
     def __init__(self, path: Path):
         self.path = path
         folder = path.parent if str(path.parent) else Path(".")
         if not folder.is_dir():
             raise DermisError(f"{path}: output folder {folder} does not exist")
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part" + path.suffix, dir=folder)
-        os.close(fd)
-        self.tmp = Path(tmp)
+        self._outputs = OutputSet()
+        self.tmp = self._outputs.reserve(path)
 
     def commit(self):
-        os.replace(self.tmp, self.path)
+        self._outputs.commit()
 
     def discard(self):
-        try:
-            self.tmp.unlink()
-        except OSError:
-            pass
+        self._outputs.abort()
 
 
 class Mp4Writer:
