@@ -30,9 +30,11 @@ import numpy as np
 
 
 def render_slab(albedo, theta_l_deg, theta_v_deg, *, sss, anisotropy=0.0, depth_mm=300.0, spp=128, seed=0,
-                scene_file="examples/reference/side.toml"):
+                scene_file="examples/reference/side.toml", method=None):
     """Mean linear radiance (3,) of the slab's centre seen from theta_v (sun at theta_l, both in the
-    y-z plane, on opposite sides of the normal), for a sun of 1 W/m^2."""
+    y-z plane, on opposite sides of the normal), for a sun of 1 W/m^2. ``method``: Cycles'
+    subsurface method (default the exporter's, dermis.blender.sss.METHOD; the albedo's base_gain is
+    that method's either way)."""
     import dermis
     from dermis.blender import sss as S
     from dermis.blender.render import read_render
@@ -43,6 +45,12 @@ def render_slab(albedo, theta_l_deg, theta_v_deg, *, sss, anisotropy=0.0, depth_
     bpy, bsc, co = S._medium_slab_scene(base, p.radius_mm, 0.5, depth_mm * 1e-3, spp, seed, 0.004)
     b = bpy.data.materials["medium"].node_tree.nodes["Principled BSDF"]
     b.inputs["Subsurface Anisotropy"].default_value = float(anisotropy)
+    if method is not None:
+        b.subsurface_method = method
+        for i in b.inputs:  # RANDOM_WALK_SKIN's entry index (Blender 4.x; looked up by name, not key)
+            if i.name == "Subsurface IOR":
+                print(f"Subsurface IOR {i.default_value:.3f} -> {S.IOR}")
+                i.default_value = S.IOR
     if not sss:
         b.inputs["Subsurface Weight"].default_value = 0.0
     bpy.data.objects["sun"].rotation_euler = (math.radians(theta_l_deg), 0.0, 0.0)
@@ -128,10 +136,21 @@ def main(argv=None):
     ap.add_argument("--json", default=None)
     ap.add_argument("--head", default=None, help="folder of the converged Cycles stores (read only)")
     ap.add_argument("--slab", default=None, help="this script's --json output, for --head")
+    ap.add_argument("--methods", nargs="+", default=None,
+                    help="only: random walk / control at the skin's mean albedo per Cycles subsurface method "
+                         "(e.g. RANDOM_WALK RANDOM_WALK_SKIN; round 22, green22)")
     a = ap.parse_args(argv)
     if a.head:
         with open(a.slab) as f:
             head_by_view_angle(a.head, json.load(f))
+        return
+    if a.methods:
+        for method in a.methods:
+            for theta_v in (0.0, 28.0, 50.0, 70.0):
+                s = render_slab(ALBEDOS["skin mean"], 35.0, theta_v, sss=True, spp=a.spp, method=method)
+                c = render_slab(ALBEDOS["skin mean"], 35.0, theta_v, sss=False, spp=a.spp, method=method)
+                print(f"{method:17s} view {theta_v:4.0f} deg: random walk / control {' '.join(f'{x:.3f}' for x in s / c)}",
+                      flush=True)
         return
     t0 = time.time()
     rows = []
