@@ -99,7 +99,8 @@ def generate_atlas(positions, indices, *, resolution: int = 1024, padding_px: in
     if join_boxes:
         from dermis.geometry.parameterize import JOIN_MIN_TRIANGLES, JOIN_VERSION
 
-        extra = (join_boxes, JOIN_MIN_TRIANGLES, JOIN_VERSION)
+        # libigl flattens the joined charts (dermis.geometry.parameterize): its release keys them as xatlas's does
+        extra = (join_boxes, JOIN_MIN_TRIANGLES, JOIN_VERSION, metadata.version("libigl"))
     else:
         extra = ()  # keys of atlases without boxes unchanged
     key = content_hash(p, t, CACHE_VERSION, resolution, padding_px, metadata.version("xatlas"), *extra)

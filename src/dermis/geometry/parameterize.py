@@ -10,6 +10,9 @@ Squares Conformal Maps for Automatic Texture Atlas Generation", eqs. 3-6) refine
 iterations (Liu, Zhang, Xu, Gotsman & Gortler 2008, "A Local/Global Approach to Mesh Parameterization",
 section 3: conformal maps shrink a protrusion such as a nose by 4x in area, ARAP restores the texel
 density), and lets xatlas pack the charts as they are (ChartOptions.use_input_mesh_uvs).
+Both maps are libigl's (Jacobson, Panozzo et al., github.com/libigl/libigl; its Python bindings, PyPI
+``libigl`` >= 2.6: ``igl.lscm``, ``igl.arap_precomputation`` / ``igl.arap_solve``); round 22 (igl22)
+replaced seam21's hand-written ones.
 """
 
 from __future__ import annotations
@@ -21,104 +24,42 @@ import numpy as np
 # floor squeezes the floor (ARAP converges at 0.23 of the chart's median texel density there, 0.63 without).
 # A seam on a cave's floor is in the dark.
 JOIN_MIN_TRIANGLES = 16
-JOIN_VERSION = 2  # bump when join_charts' result changes (dermis.geometry.atlas keys its cache on it)
-
-def _local_frames(P, F):
-    """(M, 3, 2): each triangle's corners in an orthonormal frame of its own plane (isometric)."""
-    a, b, c = P[F[:, 0]], P[F[:, 1]], P[F[:, 2]]
-    e1, e2 = b - a, c - a
-    n = np.cross(e1, e2)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    ex = e1 / np.linalg.norm(e1, axis=1, keepdims=True)
-    ey = np.cross(n, ex)
-    X = np.zeros((len(F), 3, 2))
-    X[:, 1, 0] = np.sum(e1 * ex, 1)
-    X[:, 2, 0] = np.sum(e2 * ex, 1)
-    X[:, 2, 1] = np.sum(e2 * ey, 1)
-    return X
+# bump when join_charts' result changes (dermis.geometry.atlas keys its cache on it); 3: libigl's LSCM + ARAP
+JOIN_VERSION = 3
 
 
 def lscm(P, F) -> np.ndarray:
     """(N, 2) least-squares conformal UVs of the triangles ``F`` (M, 3) over vertices ``P`` (N, 3), the two
-    vertices furthest apart along the principal axis pinned (Lévy et al. 2002)."""
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as sla
+    vertices furthest apart along the principal axis pinned (Lévy et al. 2002; libigl's ``igl.lscm``)."""
+    import igl
 
-    P = np.asarray(P, np.float64)
-    F = np.asarray(F, np.int64)
-    n, m = len(P), len(F)
-    X = _local_frames(P, F)
-    area2 = np.abs(X[:, 1, 0] * X[:, 2, 1])  # twice the area
-    # W_j = (x_(j+2) - x_(j+1)) + i (y_(j+2) - y_(j+1)), over sqrt(2 A): the residual sum_j W_j (u_j + i v_j)
-    Wr = np.stack([X[:, (j + 2) % 3, 0] - X[:, (j + 1) % 3, 0] for j in range(3)], 1) / np.sqrt(area2)[:, None]
-    Wi = np.stack([X[:, (j + 2) % 3, 1] - X[:, (j + 1) % 3, 1] for j in range(3)], 1) / np.sqrt(area2)[:, None]
-    rows, cols = np.repeat(np.arange(m), 3), F.reshape(-1)
-
-    def block(w):
-        return sp.csr_matrix((w.ravel(), (rows, cols)), (m, n))
-
-    M = sp.vstack([sp.hstack([block(Wr), block(-Wi)]), sp.hstack([block(Wi), block(Wr)])]).tocsc()
+    P = np.ascontiguousarray(P, np.float64)
+    F = np.ascontiguousarray(F, np.int64)
     d = P - P.mean(0)
     s = d @ np.linalg.svd(d, full_matrices=False)[2][0]
     i0, i1 = int(np.argmin(s)), int(np.argmax(s))
-    pin = np.array([i0, i1, n + i0, n + i1])
-    val = np.array([0.0, np.linalg.norm(P[i1] - P[i0]), 0.0, 0.0])
-    free = np.setdiff1d(np.arange(2 * n), pin)
-    Mf = M[:, free]
-    sol = sla.spsolve((Mf.T @ Mf).tocsc(), Mf.T @ (-(M[:, pin] @ val)))
-    x = np.zeros(2 * n)
-    x[pin], x[free] = val, sol
-    return np.stack([x[:n], x[n:]], 1)
+    # the pins' distance apart kept: the map's scale is the chord's (unit-free otherwise)
+    bc = np.array([[0.0, 0.0], [np.linalg.norm(P[i1] - P[i0]), 0.0]])
+    uv, _ = igl.lscm(P, F, np.array([i0, i1], np.int64), bc)
+    return np.asarray(uv, np.float64)
 
 
 def arap(P, F, uv, iterations: int = 20) -> np.ndarray:
     """As-rigid-as-possible refinement of the UVs ``uv`` (N, 2) (Liu et al. 2008, local/global): each
     triangle's closest rotation of its isometric flattening (local), then the cotangent-weighted least
-    squares fit of all triangles to theirs (global; cotangents clamped at 1e-4 so the system stays definite)."""
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as sla
+    squares fit of all triangles to theirs (global); ``iterations`` local/global rounds from ``uv``, vertex 0
+    held where it is (the energy is translation invariant). libigl's ``igl.arap_solve`` with the per-triangle
+    energy (ARAP_ENERGY_TYPE_ELEMENTS: Liu et al.'s, on each triangle's isometric flattening)."""
+    import igl
 
-    P = np.asarray(P, np.float64)
-    F = np.asarray(F, np.int64)
-    n, m = len(P), len(F)
-    X = _local_frames(P, F)
-    I, J = [1, 2, 0], [2, 0, 1]  # half-edge e = (I[e], J[e]) lies opposite corner e
-    W = np.zeros((m, 3))
-    for k in range(3):
-        a, b = X[:, I[k]] - X[:, k], X[:, J[k]] - X[:, k]
-        W[:, k] = 0.5 * np.maximum(np.sum(a * b, 1) / np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]), 1e-4)
-    r, c, v = [], [], []
-    for e in range(3):
-        vi, vj, w = F[:, I[e]], F[:, J[e]], W[:, e]
-        r += [vi, vj, vi, vj]
-        c += [vi, vj, vj, vi]
-        v += [w, w, -w, -w]
-    L = sp.csr_matrix((np.concatenate(v), (np.concatenate(r), np.concatenate(c))), (n, n)).tolil()
-    L[0, :] = 0.0
-    L[0, 0] = 1.0  # vertex 0 held where it is (the energy is translation invariant)
-    solve = sla.factorized(L.tocsc())
-    U = np.array(uv, np.float64)
-    for _ in range(int(iterations)):
-        Jm = np.zeros((m, 2, 2))
-        for e in range(3):
-            du = U[F[:, I[e]]] - U[F[:, J[e]]]
-            dx = X[:, I[e]] - X[:, J[e]]
-            Jm += W[:, e, None, None] * du[:, :, None] * dx[:, None, :]
-        Us, _, Vt = np.linalg.svd(Jm)
-        R = Us @ Vt
-        neg = np.linalg.det(R) < 0
-        if neg.any():  # the closest proper rotation
-            Uf = Us[neg].copy()
-            Uf[:, :, 1] *= -1
-            R[neg] = Uf @ Vt[neg]
-        b = np.zeros((n, 2))
-        for e in range(3):
-            t = np.einsum("mab,mb->ma", R, X[:, I[e]] - X[:, J[e]]) * W[:, e, None]
-            np.add.at(b, F[:, I[e]], t)
-            np.add.at(b, F[:, J[e]], -t)
-        b[0] = U[0]
-        U = np.stack([solve(b[:, 0]), solve(b[:, 1])], 1)
-    return U
+    P = np.ascontiguousarray(P, np.float64)
+    F = np.ascontiguousarray(F, np.int64)
+    U = np.ascontiguousarray(uv, np.float64)
+    data = igl.ARAPData()
+    data.energy = igl.ARAP_ENERGY_TYPE_ELEMENTS
+    data.max_iter = int(iterations)
+    igl.arap_precomputation(P, F, 2, np.array([0], np.int32), data)
+    return np.asarray(igl.arap_solve(U[:1], data, U), np.float64)
 
 
 def chart_labels(indices) -> np.ndarray:
