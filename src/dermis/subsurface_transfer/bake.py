@@ -66,6 +66,28 @@ so the per-walk difference is mostly exactly 0: on the head the per-point standa
 (red) to 20x (blue) on the cheek and 1.6-5.7x on the helix (RESULTS.md round 12). ``crn=False`` keeps
 round 11's estimator (the deterministic share alone).
 
+The view (round 22, view22; issue 12). The walks start along cosine views, so the taps above are the
+transfer's mean over a diffuse exit; what a camera sees is the transfer along its ray, and that differs
+where the geometry or the light varies within millimetres (benchmarks/RESULTS.md round 21 taps21: at
+front-key's mouth line +0.11-0.13 E0 red along cosine views, ~0 along the camera ray; at the back-lit
+ear's scapha 1.3x more along the camera ray). From the SAME walks (no extra walk) each tap also keeps a
+view term per channel, (G_x, G_y, G_z, c) in the mesh's frame (:func:`view_basis`): a walk along view v
+enters with the Fresnel transmittance 1 - F(v) (all or none: a walk reflected at entry tallies 0, its
+flat twin too), and what it carries once in is taken linear in its refracted direction r(v), so
+
+    T_k(v) = (1 - F(v)) (G_k . r(v) + c_k),
+
+fitted per point by least squares of each walk's tally / (1 - F) on its r (an intercept at the walks'
+mean r; the tap's exits each carry their walk's regressor row, the flat twins' tallies likewise: the
+control variate is carried the same way, so on thick skin the view term is as exactly 0 as the mean).
+Its mean over the cosine views is the tap's weight w_k up to the fit. The readers (common/
+subsurface_transfer.glsl subsurface_transfer_view) add sum_k T_k(v) I_k less the cosine grid's
+sum_k w_k I_k at the fragment's view. Measured (benchmarks/view_transfer.py, RESULTS.md round 22): at
+the mouth line the view term at the camera is the fresh camera-ray walks' within their errors; on a thin
+slab within 2 standard errors down to 70 degrees from the normal, too strong nearer grazing (the linear
+model). Noise: the slope is an extrapolation of the walks' spread of directions (the refracted normal
+component spans only 0.70-1), so the view term's Monte Carlo error is ~2-4x the mean's per point.
+
 The bake keeps, per point and channel, its two parts' estimates (within / beyond MIN_SURFACE_MM, each
 less its flat share or twin) and their covariance from the per-walk tallies (:func:`_walk_moments`);
 :func:`significance` pools them over the same-facing points within POOL_MM (a chi-square statistic,

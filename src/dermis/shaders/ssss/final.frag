@@ -59,7 +59,8 @@ void main() {
 
     float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
     vec3 albedo = albedo_at(v_uv);
-    vec3 diffuse = (scattered_here(depth_mm) * albedo_power(albedo, 1.0 - uMix) + subsurface_transfer(v_uv_ts))
+    vec3 diffuse = (scattered_here(depth_mm) * albedo_power(albedo, 1.0 - uMix) + subsurface_transfer(v_uv_ts)
+                    + subsurface_transfer_view(v_uv_ts, V, Ng))
                    * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility,
                                        v_blocked_sh0, v_blocked_sh1, v_blocked_sh2);
