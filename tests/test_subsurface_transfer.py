@@ -426,19 +426,27 @@ def test_bake_is_found_for_the_head_only(head_bake, monkeypatch):
     from dermis.subsurface_transfer import store
 
     sc = dermis.load_scene(REPO / "examples" / "lee-perry-smith.toml")
+    # round 22 (format 3, the view term): the file's name carries the format, so a format-2 bake beside it (the
+    # shipped one of round 21) is neither overwritten by a new bake nor read
+    store.FORMAT, current = 2, store.FORMAT
+    try:
+        key2 = store.mesh_key(sc.mesh)
+    finally:
+        store.FORMAT = current
+    assert key2 != store.mesh_key(sc.mesh) and store.FORMAT == 3
     old = store.load(head_bake)
     store.FORMAT, current = 1, store.FORMAT
     try:
         store.save(old, head_bake, store.mesh_key(sc.mesh), sc.mm_per_unit)
     finally:
         store.FORMAT = current
-    with pytest.warns(UserWarning, match="format 1, expected 2.*rebuild it"):
+    with pytest.warns(UserWarning, match=f"format 1, expected {store.FORMAT}.*rebuild it"):
         assert find(sc) is None
     # a bake made by another recipe (the denoising's or the estimator's constants: here a round-11 bake,
     # which has none, and one whose smoothing radius has since changed) is stale in the same way: the
     # file's name is the mesh's alone, so it would otherwise be reused silently
     for recipe in (None, B.recipe_key()):
-        meta = dict(old.meta, format=2)
+        meta = dict(old.meta, format=store.FORMAT)
         meta.pop("recipe")
         if recipe is not None:
             meta["recipe"] = recipe
