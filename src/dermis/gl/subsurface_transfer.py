@@ -245,6 +245,8 @@ class SubsurfaceTransfer:
         if prog.get("uTransferCosine", None) is None:
             return
         live = self.bake is not None and level is not None and level >= 0
+        if not live and self.placeholder is None:  # released, then drawn again without a bake
+            self.placeholder = self.ctx.texture((1, 1), 4, dtype="f4")
         grids = [self.grid_texture, *self.view_grids] if live else [self.placeholder] * 4
         for u, t in enumerate(grids):
             t.bind_to_image(VIEW_IMAGE + u, read=True, write=False, level=int(level) if live else 0)
