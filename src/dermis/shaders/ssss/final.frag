@@ -4,7 +4,8 @@
 //   specular = common/skin_specular.glsl, added AFTER the blur (Jimenez et al. 2009, sec. 3)
 //   + T_geo / pi * (1 - rho_s a(N.V, m) / pi): the baked subsurface transfer of thin, curled parts
 //     (common/subsurface_transfer.glsl, gathered from rho E: light leaving the skin), after the blur
-//     as tsd adds it after its blurs
+//     as tsd adds it after its blurs; + its view term (subsurface_transfer_view: the transfer along this
+//     fragment's view less its cosine views' mean, round 22)
 // Drawing the mesh again (instead of a full-screen composite) keeps the depth buffer and the
 // multisampled silhouettes of the other techniques. A fragment whose depth does not match what
 // pass 1 saw at its pixel (an MSAA edge sample of another surface) takes the scattered light of

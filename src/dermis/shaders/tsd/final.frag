@@ -1,6 +1,8 @@
 // Final pass of texture-space diffusion (d'Eon & Luebke 2007, 14.4.4 and 14.5), in screen space:
 // diffuse = (sum_k w_k I_k(uv) k(N.V) + translucency) * albedo^(1 - mix) / pi * (1 - rho_s a(N.V, m) / pi)
 // (k: the skin's directional albedo, common/directional_albedo.glsl; k(N.L) weighted the irradiance).
+// translucency holds the baked subsurface transfer's cosine-view mean; its view term (the transfer along
+// this fragment's view less that mean, common/subsurface_transfer.glsl, round 22) is added beside it.
 // specular = sum_lights E_i * sharp shadow * KS_Skin_Specular / pi, on pore-detailed normals.
 // Radiance is physical (d'Eon's BRDFs carry no 1/pi; dermis divides both terms by pi).
 #include "common/shadow.glsl"
