@@ -766,3 +766,32 @@ def test_view_term_is_fresh_walks_along_the_view_on_a_thin_slab(slab_kernel):
         assert abs(cosine.mean() - f.mean()) > 3.0 * f.std(ddof=1) / np.sqrt(6), (cosine.mean(), f.mean())
     # the head-on view keeps more of the loss than the oblique one, in the model as in the walks
     assert model[:6].mean() < model[6:].mean() - 0.05 and walked[:6].mean() < walked[6:].mean() - 0.05
+
+
+def test_smooth_view_is_the_neighbourhood_mean_on_the_points_own_taps():
+    """round 22 (view22): bake.smooth_view averages each point's view term over its neighbourhood (the view term is
+    noise-dominated at 192 walks a point) and carries it on the point's own used taps: the mean (tap_weight) and the
+    taps' uv are unchanged, each point's summed coefficients are its neighbours' mean (numpy, bake._neighbourhoods),
+    a neighbour's tap lands on the nearest of the point's used taps, an unused tap gets nothing."""
+    rng = np.random.default_rng(3)
+    n, k = 40, 3
+    pos = np.c_[np.arange(n) * 0.5, np.zeros(n), np.zeros(n)]  # a row of points 0.5 mm apart on a plane
+    pts = B.BakePoints(np.zeros((n, 2)), pos, np.zeros(n, int), np.tile([0.0, 0.0, 1.0], (n, 1)))
+    w = rng.normal(0.0, 0.1, (n, k, 3)).astype(np.float32)
+    w[:, 2] = 0.0  # an unused tap
+    tp = np.stack([pos, pos + [0.0, 5.0, 0.0], pos + [0.0, -5.0, 0.0]], 1)  # own tap, one 5 mm either side
+    tv = rng.normal(0.0, 0.1, (n, k, 3, 4)).astype(np.float32)
+    tv[:, 2] = 0.0
+    bake = B.TransferBake(np.zeros((n, 2), np.float32), rng.random((n, k, 2)).astype(np.float32), w, w.sum(1),
+                          np.zeros((n, 3)), {}, tap_view=tv)
+    sm = B.smooth_view(bake, pts, 1.2, tp)
+    np.testing.assert_array_equal(sm.tap_weight, bake.tap_weight)
+    np.testing.assert_array_equal(sm.tap_uv, bake.tap_uv)
+    assert np.all(sm.tap_view[:, 2] == 0.0)
+    i, j = B._neighbourhoods(pts, 1.2)
+    for tap in (0, 1):  # the own taps go to the own tap, the +y taps to the +y tap
+        want = np.zeros((n, 3, 4))
+        np.add.at(want, i, tv[j, tap].astype(np.float64))
+        want /= np.bincount(i, minlength=n)[:, None, None]
+        np.testing.assert_allclose(sm.tap_view[:, tap], want, atol=1e-6)
+    assert np.bincount(i, minlength=n).min() >= 3  # every point has neighbours: the test averages

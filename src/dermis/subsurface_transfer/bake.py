@@ -461,6 +461,7 @@ def _compress(pos, c, taps):
 
 
 SMOOTH_OWN_MM = 1.0  # the shipped denoise: each point's own tap averaged over this (round 10's, again in round 12)
+SMOOTH_VIEW_MM = 2.5  # and each point's view term over this (round 22, :func:`smooth_view`)
 # round 11's denoise_round11 (a bake without the control variate):
 SMOOTH_MM = 2.0  # the neighbourhood averaged at thin points (all taps, :func:`smooth_taps`) and strong band ones (own tap)
 SMOOTH_WEAK_MM = 4.0  # and at the band's other points (own tap: thick skin beside the thin parts, a small, smooth transfer)
@@ -481,7 +482,8 @@ def recipe() -> dict:
     return {"version": RECIPE_VERSION, "estimator": "crn", "view": "first order, least squares on the walks' views", "min_surface_mm": MIN_SURFACE_MM, "max_surface_mm": MAX_SURFACE_MM,
             "graph_subdivisions": 2, "flat_kernel": [FLAT_KERNEL_WALKS, FLAT_KERNEL_SEED, FLAT_EDGES_MM.tolist()],
             "denoise": "own tap over smooth_own_mm", "smooth_own_mm": SMOOTH_OWN_MM, "smooth_mm": SMOOTH_MM,
-            "smooth_weak_mm": SMOOTH_WEAK_MM, "pool_mm": POOL_MM, "significance_z": SIGNIFICANCE_Z}
+            "smooth_weak_mm": SMOOTH_WEAK_MM, "pool_mm": POOL_MM, "significance_z": SIGNIFICANCE_Z,
+            "smooth_view_mm": SMOOTH_VIEW_MM}
 
 
 def recipe_key() -> str:
@@ -642,6 +644,49 @@ def shrink_insignificant(bake: TransferBake, points: BakePoints, pool_mm: float 
                                          shrunk_to_zero=float(np.mean(s == 0.0)), kept_whole=float(np.mean(s > 0.9))))
 
 
+def smooth_view(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOTH_VIEW_MM,
+                tap_position: np.ndarray | None = None) -> TransferBake:
+    """Each point's view term (:attr:`TransferBake.tap_view`) replaced by the mean of its neighbourhood's
+    (:func:`_neighbourhoods`, ``radius_mm``), carried on the point's OWN taps: every neighbour's tap (its
+    view coefficients / N) goes to the nearest (3-D) of the point's taps that hold weight (tap 0, the
+    point itself, and its used far taps), so the taps' uv and the mean (``tap_weight``) are unchanged
+    and the gather needs nothing new. Why: the view term is a slope fitted to the walks' spread of
+    directions, and at 192 walks it is noise-dominated per point (RESULTS.md round 22 view22: summed over
+    the scapha's 17 bake points, red under the back light, the view term at the camera 0.25 / 0.40 / 0.20
+    for three seeds where the cosine mean is 0.23 / 0.23 / 0.26 and 2048 walks give 0.21 / 0.21), while
+    the view dependence varies over millimetres. ``tap_position`` (n, taps, 3) mm: the taps' surface
+    points (default :attr:`TransferBake.tap_position`). Returns a new TransferBake."""
+    import dataclasses
+
+    if bake.tap_view is None:
+        return bake
+    tp = bake.tap_position if tap_position is None else tap_position
+    if tp is None:
+        raise DermisError("subsurface transfer: smooth_view needs the taps' positions")
+    tp = np.asarray(tp, np.float64)
+    n, taps = bake.tap_weight.shape[:2]
+    i, j = _neighbourhoods(points, radius_mm)
+    order = np.argsort(i, kind="stable")
+    i, j = i[order], j[order]
+    start = np.searchsorted(i, np.arange(n + 1))
+    used = np.abs(bake.tap_weight).sum(2) > 0.0
+    used[:, 0] = True
+    src = bake.tap_view.astype(np.float64)
+    out = np.zeros_like(src)
+    for p in range(n):
+        js = j[start[p]:start[p + 1]]
+        mine = np.flatnonzero(used[p])
+        cand = tp[js].reshape(-1, 3)
+        val = src[js].reshape(-1, 3, 4) / len(js)
+        nz = np.abs(val).sum((1, 2)) > 0.0
+        if not nz.any():
+            continue
+        d2 = ((cand[nz, None] - tp[p, mine][None]) ** 2).sum(2)
+        to = mine[np.argmin(d2, 1)]
+        np.add.at(out[p], to, val[nz])
+    return dataclasses.replace(bake, tap_view=out.astype(np.float32), meta=dict(bake.meta, smooth_view_mm=float(radius_mm)))
+
+
 def denoise(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOTH_OWN_MM) -> TransferBake:
     """The bake as shipped (:func:`dermis.subsurface_transfer.store.bake_scene`, round 12): every point's
     own tap averaged over ``radius_mm`` (:func:`smooth_own_taps`: the near-field excess, a sum over ~60 %
@@ -652,8 +697,13 @@ def denoise(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOTH_OW
     against Cycles (benchmarks/RESULTS.md round 12 cv12: front-key's seed-difference high-pass of the
     luminance ratio 0.31 % over all the lit skin the bake changes, 0.21 % beside the thin parts; round
     11's denoise_round11 on its plain walks 0.39 % / 0.28 %). A bake made without the control variate
-    needs :func:`denoise_round11`."""
-    return smooth_own_taps(bake, points, radius_mm)
+    needs :func:`denoise_round11`. Then (round 22) the view term averaged over SMOOTH_VIEW_MM (:func:`smooth_view`)."""
+    own = smooth_own_taps(bake, points, radius_mm)
+    if own.tap_view is None or (own.tap_position is None):
+        return own
+    tp = own.tap_position.astype(np.float64).copy()
+    tp[:, 0] = points.position
+    return smooth_view(own, points, SMOOTH_VIEW_MM, tp)
 
 
 def denoise_round11(bake: TransferBake, points: BakePoints, pool_mm: float = POOL_MM, z: float = SIGNIFICANCE_Z,
