@@ -30,6 +30,9 @@ mesh subdivided twice, vertices ~0.3-1 mm apart on the ear) and the point's own 
 within 1 mm, so it reads the irradiance averaged over about that footprint, not a point of the raw
 map (shadow edges, pores)."""
 POINTS_PER_ROW = 256
+VIEW_IMAGE = 1
+"""The first of the four image units common/subsurface_transfer.glsl's view term reads (the cosine grid,
+then the view grids of red, green, blue; unit 0 is the mesh's triangle frames)."""
 
 
 def source_index(variances_mm2) -> int:
@@ -44,10 +47,11 @@ def tap_layout(n_points: int, taps: int) -> tuple[int, int]:
     return POINTS_PER_ROW, max(1, -(-int(n_points) // POINTS_PER_ROW))
 
 
-def transfer_numpy(bake, irradiance_premultiplied: np.ndarray) -> np.ndarray:
+def transfer_numpy(bake, irradiance_premultiplied: np.ndarray, view: bool = False) -> np.ndarray:
     """The gather's numpy twin, (n, 3): sum_k w_k I(uv_k) per bake point with I (h, w, 4) row 0 =
     bottom (v = 0, GL's order), premultiplied, sampled bilinearly at the taps' uv (GL's rule: texel
-    centres at (i + 0.5) / w, clamped at the edges), taps with coverage < 1/64 left out."""
+    centres at (i + 0.5) / w, clamped at the edges), taps with coverage < 1/64 left out. ``view``: the
+    view grids' sums instead, (n, 3, 4): per channel sum_k (G_x, G_y, G_z, c)_k I(uv_k)."""
     h, w = irradiance_premultiplied.shape[:2]
     uv = bake.tap_uv.reshape(-1, 2).astype(np.float64)
     x, y = uv[:, 0] * w - 0.5, uv[:, 1] * h - 0.5
@@ -60,6 +64,9 @@ def transfer_numpy(bake, irradiance_premultiplied: np.ndarray) -> np.ndarray:
     ok = c[:, 3] >= 1.0 / 64.0
     col = np.where(ok[:, None], c[:, :3] / np.where(ok, c[:, 3], 1.0)[:, None], 0.0)
     wgt = bake.tap_weight.reshape(-1, 3).astype(np.float64)
+    if view:
+        tv = np.zeros(bake.tap_weight.shape + (4,)) if bake.tap_view is None else np.asarray(bake.tap_view, np.float64)
+        return (tv.reshape(-1, 3, 4) * col[:, :, None]).reshape(tv.shape).sum(1)
     return (wgt * col).reshape(bake.tap_weight.shape).sum(1)
 
 
@@ -75,6 +82,8 @@ class SubsurfaceTransfer:
         self._gathered = None  # what the grid holds (:meth:`screen_grid`): (bake key, source key, mipmaps)
         # what a screen pass's uTransfer samples where the scene has no bake (never read: uTransferLevel < 0)
         self.placeholder = ctx.texture((1, 1), 4, dtype="f4")
+        self.view_grids = []  # the view term's grids (red, green, blue) of the current bake
+        self.index = 1.4
 
     def _programs(self):
         if self._progs is None:
@@ -110,25 +119,39 @@ class SubsurfaceTransfer:
         uv[:n, :, :2] = bake.tap_uv
         wt = np.zeros((rows * per_row, k, 4), np.float32)
         wt[:n, :, :3] = bake.tap_weight
+        views = []
+        for c in range(3):  # the view term's coefficients per channel (0 for a bake without one)
+            v = np.zeros((rows * per_row, k, 4), np.float32)
+            if bake.tap_view is not None:
+                v[:n] = bake.tap_view[:, :, c]
+            views.append(v)
         texs = []
-        for data in (uv, wt):
+        for data in (uv, wt, *views):
             t = self.ctx.texture((per_row * k, rows), 4, dtype="f4")
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
             t.write(np.ascontiguousarray(data.reshape(rows, per_row * k, 4)).tobytes())
             texs.append(t)
         grid = int(bake.meta.get("grid", 512))
-        target = self.ctx.texture((grid, grid), 4, dtype="f4")
-        # mipmapped: a translucency target coarser than the grid (a small irradiance size) reads the
-        # grid's average over its texel, not every n-th bake point
-        target.build_mipmaps()
-        target.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-        target.repeat_x = target.repeat_y = False
-        fbo = self.ctx.framebuffer(color_attachments=[target])
+        grids = []
+        for _ in range(4):  # the cosine views' T_geo, then the view term's per channel (red, green, blue)
+            target = self.ctx.texture((grid, grid), 4, dtype="f4")
+            # mipmapped: a translucency target coarser than the grid (a small irradiance size) reads the
+            # grid's average over its texel, not every n-th bake point
+            target.build_mipmaps()
+            target.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+            target.repeat_x = target.repeat_y = False
+            grids.append(target)
+        target = grids[0]
+        fbo = self.ctx.framebuffer(color_attachments=grids)
         gather, _, _ = self._programs()
         buf = self.ctx.buffer(np.ascontiguousarray(bake.point_uv, np.float32).tobytes())
         vao = self.ctx.vertex_array(gather, [(buf, "2f", "in_uv")])
-        self._gpu = [*texs, fbo, target, vao, buf]
+        self._gpu = [*texs, fbo, *grids, vao, buf]
         self._tap_uv, self._tap_weight, self.grid_texture, self._fbo, self._vao = texs[0], texs[1], target, fbo, vao
+        self._tap_view = texs[2:]
+        self.view_grids = grids[1:]
+        # uTransferIndex < 0: a bake without the view term (the cosine grid alone, as before round 22)
+        self.index = float(bake.meta.get("index", 1.4)) if bake.tap_view is not None else -1.0
         self._layout = (per_row, k, n)
 
     def read_level(self, target_size) -> int:
@@ -151,11 +174,14 @@ class SubsurfaceTransfer:
 
         gather, _, _ = self._programs()
         per_row, k, n = self._layout
-        for name, value in (("uTapUv", 0), ("uTapWeight", 1), ("uIrradiance", 2), ("uTaps", k), ("uPointsPerRow", per_row)):
+        for name, value in (("uTapUv", 0), ("uTapWeight", 1), ("uIrradiance", 2), ("uTapView0", 3), ("uTapView1", 4),
+                            ("uTapView2", 5), ("uTaps", k), ("uPointsPerRow", per_row)):
             set_uniform(gather, name, int(value))
         use_texture(self._tap_uv, 0)
         use_texture(self._tap_weight, 1)
         use_texture(irradiance, 2)
+        for u, t in enumerate(self._tap_view):
+            use_texture(t, 3 + u)
         self._fbo.use()
         self._fbo.viewport = (0, 0, *self.grid_texture.size)
         self._fbo.clear(0.0, 0.0, 0.0, 0.0)
@@ -163,6 +189,8 @@ class SubsurfaceTransfer:
         self._vao.render(moderngl.POINTS, vertices=n)
         if mipmaps:
             self.grid_texture.build_mipmaps()
+            for t in self.view_grids:
+                t.build_mipmaps()
 
     def add(self, frame, target_fbo, target_size, irradiance) -> bool:
         """Gather and add T_geo into ``target_fbo`` (tsd's translucency target); False (nothing drawn)
@@ -208,14 +236,33 @@ class SubsurfaceTransfer:
             frame.passes_run.append("subsurface_transfer")
         return self.grid_texture, self.read_level(target_size)
 
-    def per_point(self) -> np.ndarray:
-        """T_geo of the last gather at each bake point, (n, 3) (read back from the grid)."""
-        t = self.grid_texture
-        a = np.frombuffer(t.read(), np.float32).reshape(t.size[1], t.size[0], 4)
+    def bind_view(self, prog, level) -> None:
+        """The view term's images for a pass that reads common/subsurface_transfer.glsl's
+        subsurface_transfer_view (``level``: the grids' level, uTransferLevel; < 0 or no bake: the
+        placeholders, never read) and its uTransferIndex."""
+        from dermis.gl.resources import set_uniform
+
+        if prog.get("uTransferCosine", None) is None:
+            return
+        live = self.bake is not None and level is not None and level >= 0
+        if not live and self.placeholder is None:  # released, then drawn again without a bake
+            self.placeholder = self.ctx.texture((1, 1), 4, dtype="f4")
+        grids = [self.grid_texture, *self.view_grids] if live else [self.placeholder] * 4
+        for u, t in enumerate(grids):
+            t.bind_to_image(VIEW_IMAGE + u, read=True, write=False, level=int(level) if live else 0)
+        set_uniform(prog, "uTransferIndex", float(self.index if live else 1.4))
+
+    def per_point(self, view: bool = False) -> np.ndarray:
+        """T_geo of the last gather at each bake point, (n, 3) (read back from the grid); ``view``: the
+        view grids' (n, 3, 4) (per channel (G_x, G_y, G_z, c) . I)."""
         uv = np.asarray(self.bake.point_uv, np.float64)
-        x = np.clip((uv[:, 0] * t.size[0]).astype(int), 0, t.size[0] - 1)
-        y = np.clip((uv[:, 1] * t.size[1]).astype(int), 0, t.size[1] - 1)
-        return a[y, x, :3].copy()
+        out = []
+        for t in (self.view_grids if view else [self.grid_texture]):
+            a = np.frombuffer(t.read(), np.float32).reshape(t.size[1], t.size[0], 4)
+            x = np.clip((uv[:, 0] * t.size[0]).astype(int), 0, t.size[0] - 1)
+            y = np.clip((uv[:, 1] * t.size[1]).astype(int), 0, t.size[1] - 1)
+            out.append(a[y, x].copy())
+        return np.stack(out, 1) if view else out[0][:, :3]
 
     def release(self):
         self._release_gpu()

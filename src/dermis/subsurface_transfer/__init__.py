@@ -17,6 +17,10 @@ tsd already renders: precomputed radiance transfer with subsurface scattering (S
 translucent objects with single and multiple scattering"), the transfer between surface points
 sampled by the adjoint walk thanks to the BSSRDF's reciprocity (Jensen et al. 2001).
 
+Round 22 (view22): the transfer depends on the view. The same walks also give each tap a first-order
+view term (the walk's tally against its refracted start direction, Fresnel at entry; bake.view_basis),
+which the readers evaluate at the fragment's view (common/subsurface_transfer.glsl).
+
 * :mod:`dermis.subsurface_transfer.bake`: the bake (numpy + Embree, no GL).
 * :mod:`dermis.subsurface_transfer.store`: the baked data on disk, found by the mesh's content.
 """

@@ -66,6 +66,28 @@ so the per-walk difference is mostly exactly 0: on the head the per-point standa
 (red) to 20x (blue) on the cheek and 1.6-5.7x on the helix (RESULTS.md round 12). ``crn=False`` keeps
 round 11's estimator (the deterministic share alone).
 
+The view (round 22, view22; issue 12). The walks start along cosine views, so the taps above are the
+transfer's mean over a diffuse exit; what a camera sees is the transfer along its ray, and that differs
+where the geometry or the light varies within millimetres (benchmarks/RESULTS.md round 21 taps21: at
+front-key's mouth line +0.11-0.13 E0 red along cosine views, ~0 along the camera ray; at the back-lit
+ear's scapha 1.3x more along the camera ray). From the SAME walks (no extra walk) each tap also keeps a
+view term per channel, (G_x, G_y, G_z, c) in the mesh's frame (:func:`view_basis`): a walk along view v
+enters with the Fresnel transmittance 1 - F(v) (all or none: a walk reflected at entry tallies 0, its
+flat twin too), and what it carries once in is taken linear in its refracted direction r(v), so
+
+    T_k(v) = (1 - F(v)) (G_k . r(v) + c_k),
+
+fitted per point by least squares of each walk's tally / (1 - F) on its r (an intercept at the walks'
+mean r; the tap's exits each carry their walk's regressor row, the flat twins' tallies likewise: the
+control variate is carried the same way, so on thick skin the view term is as exactly 0 as the mean).
+Its mean over the cosine views is the tap's weight w_k up to the fit. The readers (common/
+subsurface_transfer.glsl subsurface_transfer_view) add sum_k T_k(v) I_k less the cosine grid's
+sum_k w_k I_k at the fragment's view. Measured (benchmarks/view_transfer.py, RESULTS.md round 22): at
+the mouth line the view term at the camera is the fresh camera-ray walks' within their errors; on a thin
+slab within 2 standard errors down to 70 degrees from the normal, too strong nearer grazing (the linear
+model). Noise: the slope is an extrapolation of the walks' spread of directions (the refracted normal
+component spans only 0.70-1), so the view term's Monte Carlo error is ~2-4x the mean's per point.
+
 The bake keeps, per point and channel, its two parts' estimates (within / beyond MIN_SURFACE_MM, each
 less its flat share or twin) and their covariance from the per-walk tallies (:func:`_walk_moments`);
 :func:`significance` pools them over the same-facing points within POOL_MM (a chi-square statistic,
@@ -138,6 +160,10 @@ class TransferBake:
     excess: np.ndarray | None = None
     excess_cov: np.ndarray | None = None
     tap_position: np.ndarray | None = None  # (n, taps, 3) mm, in memory only (:func:`smooth_taps`)
+    # (n, taps, 3, 4): per tap and channel the view term (G_x, G_y, G_z, c) in the mesh's frame: the tap's
+    # weight seen along the view v is (1 - F(v)) (G . r(v) + c), r the refracted view (:func:`view_basis`,
+    # module docstring "The view"); ``tap_weight`` stays the cosine views' mean. None: a view-independent bake
+    tap_view: np.ndarray | None = None
 
     @property
     def total(self) -> np.ndarray:
@@ -168,27 +194,35 @@ def diffuse_views(normals, rng) -> np.ndarray:
 
 
 def walk_exits(walker: MeshWalk, position, triangle, normal, medium: WalkMedium, walks: int, seed: int = 0,
-               twin: bool = False) -> dict:
+               twin: bool = False, views=None) -> dict:
     """``walks`` adjoint walks from each point, diffuse views: the exits (random_walk's ``exits``)
     with "point_index" (which start point) and "sample" (which of its point's walks) added.
     ``twin``: the walks draw from a :class:`CounterUniforms` stream (``seed``) at their global index,
     and each walk's flat twin (:func:`dermis.reference.random_walk.halfspace_exits`: the same view,
     the same random numbers, the half-space tangent at the point, i.e. below the plane through it
     with the normal of the facet it enters by) is walked too: its exits under "twin" ("point_index", "sample",
-    "radius" mm in the plane, "weight")."""
+    "radius" mm in the plane, "weight"). "walk_view" (n * walks, 3) float32: every walk's view ray
+    (towards the surface), walk ``s`` of point ``i`` at row ``i * walks + s`` (the first-order term's
+    regression needs the views of the walks that never exit too). ``views`` (n, 3): every walk of point i
+    along views[i] (towards the surface) instead of cosine-distributed ones (a check of the view term:
+    fresh walks along one view)."""
     from dermis.reference.random_walk import CounterUniforms, halfspace_exits
 
     position = np.asarray(position, np.float64)
     normal = np.asarray(normal, np.float64)
     n = len(position)
     total = n * int(walks)
-    parts, twins = [], []
+    parts, twins, all_views = [], [], []
+    fixed = None if views is None else np.asarray(views, np.float64).reshape(n, 3)
     rng = np.random.default_rng(seed)
     stream = CounterUniforms(seed) if twin else None
     for start in range(0, total, CHUNK_WALKS):
         gid = np.arange(start, min(start + CHUNK_WALKS, total))
         idx = gid // int(walks)
         views = diffuse_views(normal[idx], rng)
+        if fixed is not None:  # the rng's draws as above: the walks' seeds do not depend on the option
+            views = fixed[idx]
+        all_views.append(views.astype(np.float32))
         ex = {}
         walker.radiance(position[idx], np.asarray(triangle)[idx], views, medium,
                         seed=int(rng.integers(2 ** 31)), exits=ex, uniforms=stream, walk_ids=gid)
@@ -203,6 +237,7 @@ def walk_exits(walker: MeshWalk, position, triangle, normal, medium: WalkMedium,
     out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if parts else {}
     if twin and twins:
         out["twin"] = {k: np.concatenate([t[k] for t in twins]) for k in twins[0]}
+    out["walk_view"] = np.concatenate(all_views) if all_views else np.zeros((0, 3), np.float32)
     return out
 
 
@@ -426,6 +461,7 @@ def _compress(pos, c, taps):
 
 
 SMOOTH_OWN_MM = 1.0  # the shipped denoise: each point's own tap averaged over this (round 10's, again in round 12)
+SMOOTH_VIEW_MM = 2.5  # and each point's view term over this (round 22, :func:`smooth_view`)
 # round 11's denoise_round11 (a bake without the control variate):
 SMOOTH_MM = 2.0  # the neighbourhood averaged at thin points (all taps, :func:`smooth_taps`) and strong band ones (own tap)
 SMOOTH_WEAK_MM = 4.0  # and at the band's other points (own tap: thick skin beside the thin parts, a small, smooth transfer)
@@ -433,7 +469,8 @@ POOL_MM = 3.0  # the neighbourhood whose pooled walks decide whether a point's t
 SIGNIFICANCE_Z = 2.0  # kept in full only well beyond this many standard errors (the 2-sigma level, 95.4 %)
 
 
-RECIPE_VERSION = 3  # bump with any change to how the walks, tallies or denoising shape a bake's taps (3: round 12's CRN)
+RECIPE_VERSION = 4  # bump with any change to how the walks, tallies or denoising shape a bake's taps (3: round 12's CRN;
+# 4: round 22's first-order view term, tap_view)
 FLAT_KERNEL_WALKS, FLAT_KERNEL_SEED = 40_000, 7
 
 
@@ -442,10 +479,11 @@ def recipe() -> dict:
     meta as they were given): the estimator and the denoising's constants, with RECIPE_VERSION for the
     code's logic. store.find treats a bake made by another recipe as stale (a change to the recipe must
     never silently reuse an older bake)."""
-    return {"version": RECIPE_VERSION, "estimator": "crn", "min_surface_mm": MIN_SURFACE_MM, "max_surface_mm": MAX_SURFACE_MM,
+    return {"version": RECIPE_VERSION, "estimator": "crn", "view": "first order, least squares on the walks' views", "min_surface_mm": MIN_SURFACE_MM, "max_surface_mm": MAX_SURFACE_MM,
             "graph_subdivisions": 2, "flat_kernel": [FLAT_KERNEL_WALKS, FLAT_KERNEL_SEED, FLAT_EDGES_MM.tolist()],
             "denoise": "own tap over smooth_own_mm", "smooth_own_mm": SMOOTH_OWN_MM, "smooth_mm": SMOOTH_MM,
-            "smooth_weak_mm": SMOOTH_WEAK_MM, "pool_mm": POOL_MM, "significance_z": SIGNIFICANCE_Z}
+            "smooth_weak_mm": SMOOTH_WEAK_MM, "pool_mm": POOL_MM, "significance_z": SIGNIFICANCE_Z,
+            "smooth_view_mm": SMOOTH_VIEW_MM}
 
 
 def recipe_key() -> str:
@@ -491,7 +529,13 @@ def smooth_own_taps(bake: TransferBake, points: BakePoints, radius_mm=SMOOTH_OWN
     count = np.bincount(i, minlength=len(own))[:, None]
     w = bake.tap_weight.copy()
     w[:, 0] = sums / count
-    return dataclasses.replace(bake, tap_weight=w, meta=dict(
+    view = bake.tap_view
+    if view is not None:  # the own tap's first-order term alike (its G in the mesh's frame, c with the point's normal)
+        vs = np.zeros(view.shape[:1] + view.shape[2:])
+        np.add.at(vs, i, view[j, 0].astype(np.float64))
+        view = view.copy()
+        view[:, 0] = vs / count[:, :, None]
+    return dataclasses.replace(bake, tap_weight=w, tap_view=view, meta=dict(
         bake.meta, smooth_own_mm=sorted(set(np.ravel(radius_mm).astype(float).tolist()))))
 
 
@@ -600,6 +644,49 @@ def shrink_insignificant(bake: TransferBake, points: BakePoints, pool_mm: float 
                                          shrunk_to_zero=float(np.mean(s == 0.0)), kept_whole=float(np.mean(s > 0.9))))
 
 
+def smooth_view(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOTH_VIEW_MM,
+                tap_position: np.ndarray | None = None) -> TransferBake:
+    """Each point's view term (:attr:`TransferBake.tap_view`) replaced by the mean of its neighbourhood's
+    (:func:`_neighbourhoods`, ``radius_mm``), carried on the point's OWN taps: every neighbour's tap (its
+    view coefficients / N) goes to the nearest (3-D) of the point's taps that hold weight (tap 0, the
+    point itself, and its used far taps), so the taps' uv and the mean (``tap_weight``) are unchanged
+    and the gather needs nothing new. Why: the view term is a slope fitted to the walks' spread of
+    directions, and at 192 walks it is noise-dominated per point (RESULTS.md round 22 view22: summed over
+    the scapha's 17 bake points, red under the back light, the view term at the camera 0.25 / 0.40 / 0.20
+    for three seeds where the cosine mean is 0.23 / 0.23 / 0.26 and 2048 walks give 0.21 / 0.21), while
+    the view dependence varies over millimetres. ``tap_position`` (n, taps, 3) mm: the taps' surface
+    points (default :attr:`TransferBake.tap_position`). Returns a new TransferBake."""
+    import dataclasses
+
+    if bake.tap_view is None:
+        return bake
+    tp = bake.tap_position if tap_position is None else tap_position
+    if tp is None:
+        raise DermisError("subsurface transfer: smooth_view needs the taps' positions")
+    tp = np.asarray(tp, np.float64)
+    n, taps = bake.tap_weight.shape[:2]
+    i, j = _neighbourhoods(points, radius_mm)
+    order = np.argsort(i, kind="stable")
+    i, j = i[order], j[order]
+    start = np.searchsorted(i, np.arange(n + 1))
+    used = np.abs(bake.tap_weight).sum(2) > 0.0
+    used[:, 0] = True
+    src = bake.tap_view.astype(np.float64)
+    out = np.zeros_like(src)
+    for p in range(n):
+        js = j[start[p]:start[p + 1]]
+        mine = np.flatnonzero(used[p])
+        cand = tp[js].reshape(-1, 3)
+        val = src[js].reshape(-1, 3, 4) / len(js)
+        nz = np.abs(val).sum((1, 2)) > 0.0
+        if not nz.any():
+            continue
+        d2 = ((cand[nz, None] - tp[p, mine][None]) ** 2).sum(2)
+        to = mine[np.argmin(d2, 1)]
+        np.add.at(out[p], to, val[nz])
+    return dataclasses.replace(bake, tap_view=out.astype(np.float32), meta=dict(bake.meta, smooth_view_mm=float(radius_mm)))
+
+
 def denoise(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOTH_OWN_MM) -> TransferBake:
     """The bake as shipped (:func:`dermis.subsurface_transfer.store.bake_scene`, round 12): every point's
     own tap averaged over ``radius_mm`` (:func:`smooth_own_taps`: the near-field excess, a sum over ~60 %
@@ -610,8 +697,13 @@ def denoise(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOTH_OW
     against Cycles (benchmarks/RESULTS.md round 12 cv12: front-key's seed-difference high-pass of the
     luminance ratio 0.31 % over all the lit skin the bake changes, 0.21 % beside the thin parts; round
     11's denoise_round11 on its plain walks 0.39 % / 0.28 %). A bake made without the control variate
-    needs :func:`denoise_round11`."""
-    return smooth_own_taps(bake, points, radius_mm)
+    needs :func:`denoise_round11`. Then (round 22) the view term averaged over SMOOTH_VIEW_MM (:func:`smooth_view`)."""
+    own = smooth_own_taps(bake, points, radius_mm)
+    if own.tap_view is None or (own.tap_position is None):
+        return own
+    tp = own.tap_position.astype(np.float64).copy()
+    tp[:, 0] = points.position
+    return smooth_view(own, points, SMOOTH_VIEW_MM, tp)
 
 
 def denoise_round11(bake: TransferBake, points: BakePoints, pool_mm: float = POOL_MM, z: float = SIGNIFICANCE_Z,
@@ -644,12 +736,15 @@ def denoise_round11(bake: TransferBake, points: BakePoints, pool_mm: float = POO
 
 def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFAULT_GRID, walks: int = DEFAULT_WALKS,
                   taps: int = DEFAULT_TAPS, thin_mm: float = THIN_MM, near_mm: float = NEAR_MM, seed: int = 0,
-                  points: BakePoints | None = None, media=None, kernels=None, progress=None, crn: bool = True) -> TransferBake:
+                  points: BakePoints | None = None, media=None, kernels=None, progress=None, crn: bool = True,
+                  views=None) -> TransferBake:
     """The transfer of the module docstring for ``mesh`` (a dermis Mesh or any object with positions,
     normals, indices, uvs, texture_space_uvs; positions x ``mm_per_unit`` = mm). ``points``: bake
     there instead of :func:`bake_points`; ``media`` / ``kernels``: per channel WalkMedium and
     FlatKernel (default: :func:`skin_media`, :func:`flat_kernel`). ``crn``: the flat share's
-    estimate is each walk's flat twin (the module docstring's "The control variate"); False: the deterministic share alone (round 11's estimator and walks)."""
+    estimate is each walk's flat twin (the module docstring's "The control variate"); False: the deterministic share alone (round 11's estimator and walks).
+    ``views`` (n, 3): walk every point along its one view (towards the surface; :func:`walk_exits`) instead of
+    cosine views: the taps' weights are then the transfer seen along that view (the view term is 0: no spread)."""
     if walks < 1 or taps < 2:
         raise DermisError("subsurface transfer: walks must be >= 1 and taps >= 2")
     mm = float(mm_per_unit)
@@ -663,12 +758,13 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
     graph = SurfaceGraph(pos, idx, mesh.normals, uv_ts)
     start_vertex = graph.nearest(pts.position, pts.triangle)
     n = len(pts.position)
-    exits = [walk_exits(walker, pts.position, pts.triangle, pts.normal, m, walks, seed * 3 + c, twin=crn)
+    exits = [walk_exits(walker, pts.position, pts.triangle, pts.normal, m, walks, seed * 3 + c, twin=crn, views=views)
              for c, m in enumerate(media)]
     if progress:
         progress(f"walks done: {n} points x {walks} walks x 3 channels" + (" (and their flat twins)" if crn else ""))
     tap_uv = np.zeros((n, taps, 2), np.float32)
     tap_w = np.zeros((n, taps, 3), np.float32)
+    tap_view = np.zeros((n, taps, 3, 4), np.float32)  # per tap and channel the view term (G_x, G_y, G_z, c): view_basis
     tap_pos = np.zeros((n, taps, 3), np.float32)
     tap_uv[:, 0] = pts.uv
     tap_pos[:, 0] = pts.position
@@ -695,8 +791,10 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
             share = np.stack([k.at(gv[kv]) for k in kernels], 1) * graph.area[fin[kv], None]
             far_flat = share.sum(0)  # S_b per channel
             scale = np.ones(3)  # the far share's factor: 1, or the twins' far transport / its expectation
-            ids, vals = [], []
+            ids, vals, slopes = [], [], []
+            gscale = np.zeros((3, 4))  # per channel the view terms of the twins' far transport / its expectation
             for c, (e, (o, s)) in enumerate(zip(exits, heads)):
+                H = view_basis(e["walk_view"][i * walks:(i + 1) * walks], no, media[c].index)  # (walks, 4): terms = H^T f
                 sel = o[s[i]:s[i + 1]]
                 xe, ne, we = e["point"][sel], e["normal"][sel], e["weight"][sel]
                 same = ne @ no > 0.0
@@ -715,29 +813,39 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
                     fa, fb = _per_walk(tw["sample"][tsel], tw["weight"][tsel] / kernels[c].reflectance,
                                        tw["radius"][tsel] > MIN_SURFACE_MM, walks)
                     scale[c] = fb.mean() / max(1.0 - near_flat[c], 1e-12)
+                    gscale[c] = H.T @ fb / max(1.0 - near_flat[c], 1e-12)
                     a, b = a - fa, b - far_flat[c] / max(1.0 - near_flat[c], 1e-12) * fb
                 moments[i, c] = _walk_moments(a, b) if len(sel) else [a.mean(), b.mean(), np.inf, np.inf, 0.0]
                 tap_w[i, 0, c] = a.mean()
+                tap_view[i, 0, c] = H.T @ a
                 sub[i, c] = kept[i, c] - a.mean() - b.mean()
                 v3 = np.zeros((int(far.sum()), 3))
                 v3[:, c] = we[far]
+                s3 = np.zeros((int(far.sum()), 3, 4))
+                s3[:, c] = (we[far] * walks)[:, None] * H[e["sample"][sel][same][far]]  # each exit x its walk's regressor
                 ids.append(ve[far])
                 vals.append(v3)
+                slopes.append(s3)
+            slope_share = share[:, :, None] * gscale[None]  # the flat share's first-order term, carried as its scale
             share = share * scale
             big = np.abs(share).max(1) > 1e-7
             ids.append(fin[kv][big])
             vals.append(-share[big])
+            slopes.append(-slope_share[big])
             all_ids = np.concatenate(ids)
             if len(all_ids) == 0:
                 continue
             keys, inv = np.unique(all_ids, return_inverse=True)
             cv = np.zeros((len(keys), 3))
             np.add.at(cv, inv, np.concatenate(vals))
-            lab, rep = _compress(graph.position[keys], cv, taps - 1)
+            sv = np.zeros((len(keys), 3, 4))
+            np.add.at(sv, inv, np.concatenate(slopes))
+            lab, rep = _compress(graph.position[keys], cv, taps - 1)  # the taps of the mean (the slope rides along)
             for k in range(min(taps - 1, len(keys))):
                 s_ = lab == k
                 if s_.any():
                     tap_w[i, k + 1] = cv[s_].sum(0)
+                    tap_view[i, k + 1] = sv[s_].sum(0)
                     tap_uv[i, k + 1] = graph.uv[keys[rep[k]]]
                     tap_pos[i, k + 1] = graph.position[keys[rep[k]]]
         if progress and (c1 // chunk) % 16 == 0:
@@ -748,7 +856,56 @@ def bake_transfer(mesh, mm_per_unit: float, profile, albedo, *, grid: int = DEFA
             "single_scattering_albedo": [m.single_scattering_albedo for m in media], "index": media[0].index,
             "flat_reflectance": [k.reflectance for k in kernels], "flat_within_min_surface": near_flat.tolist(),
             "profile": getattr(profile, "name", ""), "albedo": list(map(float, np.asarray(albedo, np.float64)))}
-    return TransferBake(pts.uv.astype(np.float32), tap_uv, tap_w, kept, sub, meta, moments[..., :2], moments[..., 2:], tap_pos)
+    return TransferBake(pts.uv.astype(np.float32), tap_uv, tap_w, kept, sub, meta, moments[..., :2], moments[..., 2:], tap_pos,
+                        tap_view)
+
+
+def view_basis(views, normal, index: float) -> np.ndarray:
+    """The view term's estimator for one point's walks: Q (walks, 4) such that (G_x, G_y, G_z, c) = Q^T f
+    for the walks' tallies f (walks,) started along ``views`` (walks, 3; towards the surface) at a point
+    of outward facet ``normal`` (3,), medium ``index``. The model (module docstring, "The view"): a walk
+    along the view v enters with the Fresnel transmittance 1 - F(v) (all or none: a walk reflected at
+    entry tallies 0, and so does its flat twin, which enters by the same plane on the same random
+    numbers), and what it tallies once in is taken linear in its refracted direction r(v):
+
+        T(v) = (1 - F(v)) (G . r(v) + c)
+
+    fitted by least squares with an intercept to f_s / (1 - F_s) on r_s (the walks' own F and r): G the
+    slope, c = the intercept at the walks' mean r less G . mean r. Zero where the directions do not span
+    3-D (fewer than 5 walks, or one view for all: a fresh walk along a view has no view term)."""
+    from dermis.reference.random_walk import fresnel_unpolarised, refract
+
+    v = np.asarray(views, np.float64)
+    w = len(v)
+    if w < 5:
+        return np.zeros((w, 4))
+    nrm = np.broadcast_to(np.asarray(normal, np.float64), v.shape)
+    F, _ = fresnel_unpolarised(-np.einsum("ij,ij->i", v, nrm), 1.0, float(index))
+    u = 1.0 / np.maximum(1.0 - F, 1e-3)
+    r = refract(v, nrm, 1.0 / float(index))
+    D = r - r.mean(0)
+    S = D.T @ D
+    if np.linalg.cond(S) > 1e8:
+        return np.zeros((w, 4))
+    H = np.linalg.solve(S, D.T).T * u[:, None]  # slope weights
+    q = np.empty((w, 4))
+    q[:, :3] = H
+    q[:, 3] = u / w - H @ r.mean(0)
+    return q
+
+
+def view_term(tap_view, views, normal, index: float) -> np.ndarray:
+    """The taps' weights seen along ``views`` (n, 3; towards the surface) at points of outward
+    ``normal`` (n, 3): (1 - F(v)) (G . r(v) + c) per tap and channel, (n, taps, 3) (the numpy twin of
+    common/subsurface_transfer.glsl's view term)."""
+    from dermis.reference.random_walk import fresnel_unpolarised, refract
+
+    v = np.asarray(views, np.float64)
+    nrm = np.asarray(normal, np.float64)
+    F, _ = fresnel_unpolarised(-np.einsum("ij,ij->i", v, nrm), 1.0, float(index))
+    r = refract(v, nrm, 1.0 / float(index))
+    tv = np.asarray(tap_view, np.float64)
+    return (1.0 - F)[:, None, None] * (np.einsum("ntcj,nj->ntc", tv[..., :3], r) + tv[..., 3])
 
 
 def _per_walk(sample, x, far, walks: int) -> tuple[np.ndarray, np.ndarray]:

@@ -22,16 +22,19 @@ from dermis.geometry.texture_space import texture_space_uvs
 from dermis.subsurface_transfer.bake import TransferBake
 
 CACHE_SUBFOLDER = "subsurface_transfer"
-FORMAT = 2  # 2 (round 11): per-point excess and its covariance; taps denoised (bake.denoise)
+FORMAT = 3  # 2 (round 11): per-point excess and its covariance; taps denoised (bake.denoise). 3 (round 22): tap_view
+# (the first-order view term); the file name carries the format, so a format-2 file is never overwritten or misread
 MEDIUM_TOLERANCE = 0.02  # relative: the scene's mean free path and mean albedo against the bake's
 
 
 def mesh_key(mesh) -> str:
-    """The bake's name: SHA-256 of the mesh's positions, triangles and texture-space uvs."""
+    """The bake's name: SHA-256 of the mesh's positions, triangles and texture-space uvs (and, from format
+    3, the format: a new format's bake gets its own file beside the older one)."""
     from dermis.geometry.atlas import content_hash
 
     uv = texture_space_uvs(mesh)
-    return content_hash(mesh.positions, mesh.indices, "subsurface_transfer", np.asarray(uv, np.float32).tobytes())
+    extra = ("subsurface_transfer",) if FORMAT <= 2 else ("subsurface_transfer", f"format {FORMAT}")
+    return content_hash(mesh.positions, mesh.indices, *extra, np.asarray(uv, np.float32).tobytes())
 
 
 def default_folder() -> Path | None:
@@ -49,8 +52,8 @@ def path_for(mesh, folder: Path | None = None) -> Path | None:
 
 
 def save(bake: TransferBake, path: Path, mesh_key_: str, mm_per_unit: float) -> None:
-    """Write ``bake`` (taps' uv float32, weights float16: the weights are Monte Carlo estimates with
-    several % noise, float16's 0.05 % is below it)."""
+    """Write ``bake`` (taps' uv float32, weights and view terms float16: the weights are Monte Carlo
+    estimates with several % noise, float16's 0.05 % is below it)."""
     meta = dict(bake.meta, format=FORMAT, mesh_key=mesh_key_, mm_per_unit=float(mm_per_unit))
     path.parent.mkdir(parents=True, exist_ok=True)
     from dermis.fileio import atomic_write
@@ -60,7 +63,9 @@ def save(bake: TransferBake, path: Path, mesh_key_: str, mm_per_unit: float) -> 
             np.savez_compressed(f, point_uv=bake.point_uv.astype(np.float32), tap_uv=bake.tap_uv.astype(np.float32),
                                 tap_weight=bake.tap_weight.astype(np.float16), kept=bake.kept.astype(np.float32),
                                 subtracted=bake.subtracted.astype(np.float32), excess=_or_empty(bake.excess, 2),
-                                excess_cov=_or_empty(bake.excess_cov, 3), meta=np.array(json.dumps(meta)))
+                                excess_cov=_or_empty(bake.excess_cov, 3), meta=np.array(json.dumps(meta)),
+                                tap_view=(np.zeros((0, 1, 3, 4), np.float16) if bake.tap_view is None
+                                          else bake.tap_view.astype(np.float16)))
 
     # a temporary name of its own (atomic_write: not path + ".tmp"): two processes baking the same mesh at
     # once (the test suite's workers, pytest -n 2) each write whole files, and the last rename wins
@@ -96,7 +101,8 @@ def load(path: Path) -> TransferBake:
             if meta.get("format") != FORMAT:
                 raise StaleBake(f"{path}: subsurface transfer bake format {meta.get('format')}, expected {FORMAT} {REBUILD}")
             bake = TransferBake(z["point_uv"], z["tap_uv"], z["tap_weight"].astype(np.float32), z["kept"],
-                                z["subtracted"], meta, *(None if len(z[k]) == 0 else z[k] for k in ("excess", "excess_cov")))
+                                z["subtracted"], meta, *(None if len(z[k]) == 0 else z[k] for k in ("excess", "excess_cov")),
+                                tap_view=None if len(z["tap_view"]) == 0 else z["tap_view"].astype(np.float32))
     except (OSError, ValueError, KeyError) as e:
         raise DermisError(f"{path}: not a subsurface transfer bake ({e})") from None
     return bake

@@ -239,6 +239,7 @@ def subsurface_transfer_uniforms(prog, frame, transfer, enabled: bool, unit: int
     tex, level = grid if grid is not None else (transfer.placeholder, -1)
     bind_sampler(prog, "uTransfer", tex, unit)
     set_uniform(prog, "uTransferLevel", float(level))
+    transfer.bind_view(prog, level)  # the view term's images (common/subsurface_transfer.glsl)
 
 
 def surface_detail_uniforms(prog, material, output_mode: int = OutputMode.FULL) -> None:

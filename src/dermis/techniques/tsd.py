@@ -721,8 +721,11 @@ class TextureSpaceDiffusion(Technique):
                                           self.tex[("blur", source_index(profile.variances_mm2))])
             if added:
                 frame.passes_run.append("tsd_subsurface_transfer")
+            # the final pass adds the view term at the same level (common/subsurface_transfer.glsl)
+            self._transfer_level = self.transfer.read_level(trans.size) if added else -1
         else:
             self._fbo(trans).clear(0.0, 0.0, 0.0, 0.0)
+            self._transfer_level = -1
 
     def _translucency_static(self, frame, thickness, size):
         """What of the light through thin parts does not depend on the lighting, per texel
@@ -885,6 +888,11 @@ class TextureSpaceDiffusion(Technique):
             self.ctx.disable(moderngl.CULL_FACE)
             prog = self._final_program(frame)
             bind_sampler(prog, "uTranslucency", self.tex["translucency"], Unit.FIRST_FREE)
+            # the baked transfer's view term (images: this pass has no sampler left), at the level the
+            # translucency target's add read the cosine grid; -1: none
+            level = getattr(self, "_transfer_level", -1)
+            set_uniform(prog, "uTransferLevel", float(level))
+            self.transfer.bind_view(prog, level)
             self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE + 1, frame.keys)
             if prog.get("uSharpShadow", None) is not None:  # p_final and its PIXEL_DETAIL variant
                 bind_sampler(prog, "uSharpShadow", self.tex["sharp_shadow"], Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)

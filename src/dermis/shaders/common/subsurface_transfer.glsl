@@ -29,3 +29,64 @@ vec3 subsurface_transfer(vec2 uv) {
     }
     return 0.25 * sum;
 }
+
+// The view-dependent transfer (round 22, issue 12: the bake's cosine views against the camera's ray:
+// +0.11-0.13 E0 red too much at front-key's mouth line, 1.3x too little at the back-lit ear; benchmarks/
+// RESULTS.md round 21 taps21). The bake's view term (dermis.subsurface_transfer.bake.view_basis): a
+// walk along the view v enters with the Fresnel transmittance 1 - F(v) and what it carries is linear in
+// its refracted direction r(v), so the transfer seen along v is
+//     T(v) = (1 - F(v)) (G . r(v) + c)      per channel, (G, c) gathered with the irradiance at the taps
+// (tsd/transfer_gather.vert: one rgba32f grid per channel, G in the mesh's frame). Its mean over the
+// bake's cosine views is the grid above (uTransfer), so subsurface_transfer_view returns T(v) less that:
+// a reader adds it to what it adds of uTransfer. Read as images (the same tent at uTransferLevel,
+// clamped at the edges as the sampler): tsd's final pass already uses all 16 guaranteed samplers.
+// Units 1-4 (0 is common/mesh_varyings.glsl's triangle frames): dermis.gl.subsurface_transfer.VIEW_IMAGE.
+layout(binding = 1, rgba32f) readonly uniform image2D uTransferCosine;  // uTransfer's grid itself
+layout(binding = 2, rgba32f) readonly uniform image2D uTransferViewR;
+layout(binding = 3, rgba32f) readonly uniform image2D uTransferViewG;
+layout(binding = 4, rgba32f) readonly uniform image2D uTransferViewB;
+uniform float uTransferIndex;  // the bake's medium's refractive index against air (its meta "index"); < 0: no view term
+
+// the unpolarised Fresnel reflectance of a smooth dielectric entered from air at cos_i (the walk's
+// dermis.reference.random_walk.fresnel_unpolarised, its rule for the entry)
+float transfer_fresnel(float cos_i, float eta) {
+    cos_i = clamp(cos_i, 0.0, 1.0);
+    float sin_t = sqrt(max(0.0, 1.0 - cos_i * cos_i)) / eta;
+    if (sin_t >= 1.0 || cos_i < 1e-9) return 1.0;
+    float cos_t = sqrt(max(0.0, 1.0 - sin_t * sin_t));
+    float rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    float rp = (cos_t - eta * cos_i) / (cos_t + eta * cos_i);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// V: unit direction from the surface to the eye; N: the unit geometric normal (the bake's is the
+// facet's: the interpolated one differs by a few degrees on the head's mesh)
+vec3 subsurface_transfer_view(vec2 uv, vec3 V, vec3 N) {
+    if (uTransferLevel < 0.0 || uTransferIndex < 0.0) return vec3(0.0);
+    ivec2 size = imageSize(uTransferCosine);
+    // the tent of subsurface_transfer as texel weights: its reads at +-0.5 texel, each bilinear, are
+    // (1 - f) / 2, 1 / 2, f / 2 on the texels i0, i0 + 1, i0 + 2 per axis (i0 = floor(p - 0.5))
+    vec2 p = uv * vec2(size) - 0.5;
+    vec2 q = p - 0.5;
+    ivec2 i0 = ivec2(floor(q));
+    vec2 f = q - floor(q);
+    vec3 wx = vec3(1.0 - f.x, 1.0, f.x) * 0.5, wy = vec3(1.0 - f.y, 1.0, f.y) * 0.5;
+    vec3 cosine = vec3(0.0);
+    vec4 r = vec4(0.0), g = vec4(0.0), b = vec4(0.0);
+    for (int y = 0; y < 3; ++y) {
+        for (int x = 0; x < 3; ++x) {
+            ivec2 t = clamp(i0 + ivec2(x, y), ivec2(0), size - 1);
+            float w = wx[x] * wy[y];
+            cosine += w * imageLoad(uTransferCosine, t).rgb;
+            r += w * imageLoad(uTransferViewR, t);
+            g += w * imageLoad(uTransferViewG, t);
+            b += w * imageLoad(uTransferViewB, t);
+        }
+    }
+    float eta = uTransferIndex;
+    float cos_v = dot(N, V);
+    float T = 1.0 - transfer_fresnel(cos_v, eta);
+    vec3 rv = refract(-V, N, 1.0 / eta);  // the walk's refracted view (0 past total reflection: T is 0 there)
+    vec3 seen = T * vec3(dot(r.xyz, rv) + r.w, dot(g.xyz, rv) + g.w, dot(b.xyz, rv) + b.w);
+    return seen - cosine;
+}

@@ -388,7 +388,7 @@ void main() {
 
     // + the baked subsurface transfer of thin, curled parts (common/subsurface_transfer.glsl: light
     // leaving the skin, gathered from rho E, so not times the albedo again)
-    vec3 diffuse = (E * albedo + subsurface_transfer(v_uv_ts)) * INV_PI * energy_transmitted(rho_s, ndv, m);
+    vec3 diffuse = (E * albedo + subsurface_transfer(v_uv_ts) + subsurface_transfer_view(v_uv_ts, V, Ngeo)) * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ngeo, Ns, V, m, rho_s, uSpecularTables, v_visibility,
                                        v_blocked_sh0, v_blocked_sh1, v_blocked_sh2);
     vec3 color = uOutputMode == OUTPUT_DIFFUSE ? diffuse : uOutputMode == OUTPUT_SPECULAR ? spec

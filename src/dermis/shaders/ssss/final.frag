@@ -4,7 +4,8 @@
 //   specular = common/skin_specular.glsl, added AFTER the blur (Jimenez et al. 2009, sec. 3)
 //   + T_geo / pi * (1 - rho_s a(N.V, m) / pi): the baked subsurface transfer of thin, curled parts
 //     (common/subsurface_transfer.glsl, gathered from rho E: light leaving the skin), after the blur
-//     as tsd adds it after its blurs
+//     as tsd adds it after its blurs; + its view term (subsurface_transfer_view: the transfer along this
+//     fragment's view less its cosine views' mean, round 22)
 // Drawing the mesh again (instead of a full-screen composite) keeps the depth buffer and the
 // multisampled silhouettes of the other techniques. A fragment whose depth does not match what
 // pass 1 saw at its pixel (an MSAA edge sample of another surface) takes the scattered light of
@@ -59,7 +60,8 @@ void main() {
 
     float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
     vec3 albedo = albedo_at(v_uv);
-    vec3 diffuse = (scattered_here(depth_mm) * albedo_power(albedo, 1.0 - uMix) + subsurface_transfer(v_uv_ts))
+    vec3 diffuse = (scattered_here(depth_mm) * albedo_power(albedo, 1.0 - uMix) + subsurface_transfer(v_uv_ts)
+                    + subsurface_transfer_view(v_uv_ts, V, Ng))
                    * INV_PI * energy_transmitted(rho_s, ndv, m);
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility,
                                        v_blocked_sh0, v_blocked_sh1, v_blocked_sh2);

@@ -1,6 +1,8 @@
 // Final pass of texture-space diffusion (d'Eon & Luebke 2007, 14.4.4 and 14.5), in screen space:
 // diffuse = (sum_k w_k I_k(uv) k(N.V) + translucency) * albedo^(1 - mix) / pi * (1 - rho_s a(N.V, m) / pi)
 // (k: the skin's directional albedo, common/directional_albedo.glsl; k(N.L) weighted the irradiance).
+// translucency holds the baked subsurface transfer's cosine-view mean; its view term (the transfer along
+// this fragment's view less that mean, common/subsurface_transfer.glsl, round 22) is added beside it.
 // specular = sum_lights E_i * sharp shadow * KS_Skin_Specular / pi, on pore-detailed normals.
 // Radiance is physical (d'Eon's BRDFs carry no 1/pi; dermis divides both terms by pi).
 #include "common/shadow.glsl"
@@ -21,6 +23,8 @@
 #include "common/skin_specular.glsl"
 #include "tsd/gaussians.glsl"
 #include "tsd/triangle_uv.glsl"
+// the baked transfer's view term only (its cosine part is in uTranslucency): uTransfer stays inactive
+#include "common/subsurface_transfer.glsl"
 #ifdef PIXEL_DETAIL_BOUNCE
 // The bounce T per mesh vertex that tsd/bounce_splat.frag added to I_0 (dermis.techniques.tsd: its
 // gather's or series' target copied into a buffer, vertex v at v) and the index buffer, as shader
@@ -164,7 +168,7 @@ void main() {
     vec3 Ed = diffuse_irradiance(uv_ts);
 #endif
     vec3 E = Ed * directional_factor(uDirectionalAlbedo * directional_c(albedo), ndv)
-           + texture(uTranslucency, uv_ts).rgb;
+           + texture(uTranslucency, uv_ts).rgb + subsurface_transfer_view(uv_ts, V, Ng);
     vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
     vec3 spec = skin_specular_radiance(v_world, Ng, Ns, V, m, rho_s, uSpecularTables, v_visibility,

@@ -7,13 +7,22 @@
 // where a thin sheet loses light to its far face), I a blurred irradiance I_k (premultiplied by
 // coverage) at the taps' uv. Tap k of point p
 // is the texel (x * K + k, y) with (x, y) = (p mod P, p div P), P = points per row.
+// The view term (round 22, dermis.subsurface_transfer.bake.view_basis): per channel c the sums
+// sum_k (G_x, G_y, G_z, c)_k,c I_c(uv_k) of the taps' view coefficients (uTapView0-2: red, green, blue),
+// which common/subsurface_transfer.glsl turns into the transfer seen along the fragment's view.
 layout(location = 0) in vec2 in_uv;
 uniform sampler2D uTapUv;      // rg32f: the taps' texture-space uv
 uniform sampler2D uTapWeight;  // rgba32f: the taps' RGB weights (0: unused)
+uniform sampler2D uTapView0;   // rgba32f: the taps' view coefficients (G_x, G_y, G_z, c) of red
+uniform sampler2D uTapView1;   // ... of green
+uniform sampler2D uTapView2;   // ... of blue
 uniform sampler2D uIrradiance; // rgb x coverage, coverage
 uniform int uTaps;
 uniform int uPointsPerRow;
 flat out vec3 v_transfer;
+flat out vec4 v_view_r;
+flat out vec4 v_view_g;
+flat out vec4 v_view_b;
 
 // a tap in a texel the layout barely covers at this level: the colour is a ratio of two small
 // numbers (half floats); below this it is left out, as tsd/bounce_gather.frag does
@@ -22,12 +31,23 @@ const float MIN_COVERAGE = 1.0 / 64.0;
 void main() {
     ivec2 base = ivec2((gl_VertexID % uPointsPerRow) * uTaps, gl_VertexID / uPointsPerRow);
     vec3 sum = vec3(0.0);
+    vec4 vr = vec4(0.0), vg = vec4(0.0), vb = vec4(0.0);
     for (int k = 0; k < uTaps; ++k) {
-        vec3 w = texelFetch(uTapWeight, base + ivec2(k, 0), 0).rgb;
+        ivec2 t = base + ivec2(k, 0);
+        vec3 w = texelFetch(uTapWeight, t, 0).rgb;
         if (w == vec3(0.0)) continue;
-        vec4 c = textureLod(uIrradiance, texelFetch(uTapUv, base + ivec2(k, 0), 0).xy, 0.0);
-        if (c.a >= MIN_COVERAGE) sum += w * (c.rgb / c.a);
+        vec4 c = textureLod(uIrradiance, texelFetch(uTapUv, t, 0).xy, 0.0);
+        if (c.a >= MIN_COVERAGE) {
+            vec3 I = c.rgb / c.a;
+            sum += w * I;
+            vr += texelFetch(uTapView0, t, 0) * I.r;
+            vg += texelFetch(uTapView1, t, 0) * I.g;
+            vb += texelFetch(uTapView2, t, 0) * I.b;
+        }
     }
     v_transfer = sum;
+    v_view_r = vr;
+    v_view_g = vg;
+    v_view_b = vb;
     gl_Position = vec4(in_uv * 2.0 - 1.0, 0.0, 1.0);
 }
