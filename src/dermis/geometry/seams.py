@@ -30,6 +30,7 @@ import hashlib
 import numpy as np
 
 SEAM_UV_TOLERANCE_TEXELS = 0.5  # the two sides' UVs of an edge further apart than this (level-0 texels): a seam
+MIN_DENSITY = 0.25  # a seam side whose charts hold the edge at under this fraction of the layout's median texels per mm is skipped
 SAMPLES_PER_TEXEL = 4  # points per texel of length along each seam edge for the nearest-edge search
 _MEMORY: dict = {}
 _KEEP = 4
@@ -103,6 +104,17 @@ def unfold_maps(ua, ub, uc, va, vb, vc, pa, pb, pc):
     return M, perp
 
 
+def edge_density(positions, indices, uvs) -> float:
+    """The layout's median UV length per 3-D length over the mesh's triangle edges (UV units per mesh unit)."""
+    P = np.asarray(positions, np.float64)
+    T = np.asarray(indices, np.int64).reshape(-1, 3)
+    UV = np.asarray(uvs, np.float64)
+    a, b = T.ravel(), np.roll(T, -1, axis=1).ravel()
+    d3 = np.linalg.norm(P[b] - P[a], axis=1)
+    ok = d3 > 0
+    return float(np.median(np.linalg.norm(UV[b] - UV[a], axis=1)[ok] / d3[ok])) if ok.any() else 0.0
+
+
 def uv_charts(indices, uvs) -> np.ndarray:
     """Chart label per triangle: the triangles connected through shared vertices of equal UVs."""
     from scipy.sparse import coo_matrix
@@ -135,6 +147,15 @@ def fill_targets(positions, indices, uvs, size: int, reach_texels) -> dict:
     if len(own_t) == 0:
         return {int(L): empty for L in reach_texels}
     M, perp = unfold_maps(*sides[2:])
+    # a side whose own or neighbour chart squeezes the edge far below the layout's texel density (a
+    # collapsed chart: the scanned head's closed eyelids, 264 triangles in one texel) maps a texel to
+    # a point far over the surface (27-34 mm there): dropped
+    density = edge_density(positions, indices, uvs)
+    d3 = np.linalg.norm(sides[9] - sides[8], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ok = ((np.linalg.norm(ub - ua, axis=1) / d3 >= MIN_DENSITY * density)
+              & (np.linalg.norm(sides[6] - sides[5], axis=1) / d3 >= MIN_DENSITY * density))
+    M[~ok] = np.nan
     tri0, _ = rasterize_uv(uvs, indices, S, S)
     tri0 = tri0[::-1]  # row 0 = v 0, as the GL textures
     chart = uv_charts(indices, uvs)
