@@ -355,23 +355,24 @@ def test_seam_fill_targets_unfold_the_neighbour_chart():
     maps to the point of the other chart at the same distance along the unfolded surface (closed form:
     B's gutter texel at (u, v), s = 60 (v - 160/256) mm < 0 and z = 60 (u - 0.55) mm, is A's point
     (80/256 + s / 60, 0.1 + z / 60); A's gutter texel at u > 80/256 is B's point at s = 60 (u - 80/256)),
-    to float precision; and a chart squeezed in UV (B scaled by 1/20: 12 mm in 2.6 texels; the
+    to float precision, and its distance from the seam; and a chart squeezed in UV (B scaled by 1/20: 12 mm in 2.6 texels; the
     scanned head's closed eyelids) gets no targets and gives none (its unfold would throw texels
     millimetres over the surface; checked: with MIN_DENSITY 0 it gets 166). 0.2-0.6 s."""
     from dermis.geometry.seams import fill_targets
 
     P, N, uv, t = _fold_charts(False)
     S = 256
-    tex, tgt = fill_targets(P, t, uv, S, {0: 12})[0]
+    tex, tgt, dist = fill_targets(P, t, uv, S, {0: 12})[0]
     u, v = (tex[:, 0] + 0.5) / S, (tex[:, 1] + 0.5) / S  # the gutter texels' centres (row 0 = v 0)
     on_b = u > 0.5  # B's gutter lies below B (v < 160/256, u 0.55-0.75), A's right of A (u > 80/256, v 0.1-0.3)
     assert on_b.sum() > 200 and (~on_b).sum() > 200 and np.all(v[on_b] < 160 / 256) and np.all(u[~on_b] > 80 / 256)
     s, z = 60 * (v[on_b] - 160 / 256), 60 * (u[on_b] - 0.55)
     np.testing.assert_allclose(tgt[on_b], np.c_[80 / 256 + s / 60, 0.1 + z / 60], atol=1e-6)
+    np.testing.assert_allclose(dist[on_b], -s, atol=0.25 * 60 / S)  # mm from the seam (the search's samples: 1/4 texel)
     s, z = 60 * (u[~on_b] - 80 / 256), 60 * (v[~on_b] - 0.1)
     np.testing.assert_allclose(tgt[~on_b], np.c_[0.55 + z / 60, 160 / 256 + s / 60], atol=1e-6)
     squeezed = uv.copy()
     b = np.arange(len(uv)) >= len(uv) // 2  # face B's vertices (the second half)
     squeezed[b] = (uv[b] - uv[b].min(0)) * 0.05 + 0.6
-    tex, _ = fill_targets(P, t, squeezed, S, {0: 12})[0]
+    tex = fill_targets(P, t, squeezed, S, {0: 12})[0][0]
     assert len(tex) == 0

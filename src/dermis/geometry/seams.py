@@ -13,9 +13,9 @@ unfold) and the texel's centre mapped by the affine map between the unfolded tri
 neighbour's UVs (extrapolated past the triangle: exact on a developable chart, an approximation where
 the neighbour chart curves within the reach). A target that lands off the neighbour's own chart (past
 its border, or on a third chart) is dropped, so a texel is filled only with light of the surface it
-continues. tsd then copies each blur step's input and overwrites those texels with the input read at
-their targets (dermis.gl.seam_fill, shaders/tsd/seam_fill.*), so each step's Gaussian gathers across
-the seam as far as the gutter reaches. The gutter bounds it: a layout whose gutters are narrower than
+continues. tsd then overwrites those texels of each blur step's input, in place, with the input read at their
+targets (bilinear, less the taps on texels the fill writes: bilinear_taps; dermis.gl.seam_fill,
+shaders/tsd/seam_fill.*), so each step's Gaussian gathers across the seam as far as the gutter reaches. The gutter bounds it: a layout whose gutters are narrower than
 a blur's reach carries only the gutter's width of the other side per step (the generated layouts size
 theirs to 3 sigma of the widest Gaussian: dermis.geometry.texture_space.gutter_texels).
 
@@ -131,10 +131,12 @@ def uv_charts(indices, uvs) -> np.ndarray:
 
 
 def fill_targets(positions, indices, uvs, size: int, reach_texels) -> dict:
-    """{level: (texels (n, 2) int32 (column, row; row 0 = v 0), targets (n, 2) float32 UV)} for the
-    levels L with ``reach_texels[L]`` (texels of that level): the gutter texels within the reach of a
-    seam side, beyond it, and the UV of the same surface point in the neighbouring chart (module
-    docstring). Empty arrays where the layout has no seam."""
+    """{level: (texels (n, 2) int32 (column, row; row 0 = v 0), targets (n, 2) float32 UV, distances (n,)
+    float32)} for the levels L with ``reach_texels[L]`` (texels of that level): the gutter texels within
+    the reach of a seam side, beyond it, the UV of the same surface point in the neighbouring chart
+    (module docstring), and its distance from the seam over the unfolded surface (mesh units: the
+    texel's UV distance to the side over the side's UV length per 3-D length), sorted by that distance
+    (a blur step draws the prefix its own reach needs). Empty arrays where the layout has no seam."""
     from scipy import ndimage
     from scipy.spatial import cKDTree
 
@@ -143,7 +145,7 @@ def fill_targets(positions, indices, uvs, size: int, reach_texels) -> dict:
     S = int(size)
     sides = seam_sides(positions, indices, uvs, SEAM_UV_TOLERANCE_TEXELS / S)
     own_t, other_t, ua, ub, uc = sides[:5]
-    empty = (np.zeros((0, 2), np.int32), np.zeros((0, 2), np.float32))
+    empty = (np.zeros((0, 2), np.int32), np.zeros((0, 2), np.float32), np.zeros(0, np.float32))
     if len(own_t) == 0:
         return {int(L): empty for L in reach_texels}
     M, perp = unfold_maps(*sides[2:])
@@ -191,8 +193,34 @@ def fill_targets(positions, indices, uvs, size: int, reach_texels) -> dict:
         # the target must lie on the neighbour's own chart (level 0 raster)
         tc = np.clip(np.floor(np.nan_to_num(target) * S).astype(np.int64), 0, S - 1)
         good &= chart0[tc[:, 1], tc[:, 0]] == chart[other_t[s]]
-        out[L] = (np.c_[cols[good], rows[good]].astype(np.int32), target[good].astype(np.float32))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            units = dist[ok][good] / SL / (np.linalg.norm(ub - ua, axis=1) / d3)[s[good]]
+        order = np.argsort(units, kind="stable")
+        out[L] = (np.c_[cols[good], rows[good]].astype(np.int32)[order], target[good].astype(np.float32)[order],
+                  units[order].astype(np.float32))
     return out
+
+
+def bilinear_taps(texels, targets, size: int):
+    """(base texel (n, 2) int32, weights (n, 4) float32 of the texels base + (0, 0), (1, 0), (0, 1), (1, 1)):
+    the bilinear read of a ``size``-texel level at each target, less the taps on texels the fill itself
+    writes (``texels``), renormalised, so that the fill can write into the texture it reads: GL 4.5's
+    feedback-loop rule (section 9.3.1) defines a draw whose reads and writes are disjoint sets of texels.
+    Rows whose taps are all written get zero weights (the caller drops them)."""
+    n = len(texels)
+    if n == 0:
+        return np.zeros((0, 2), np.int32), np.zeros((0, 4), np.float32)
+    x = np.asarray(targets, np.float64) * size - 0.5
+    base = np.clip(np.floor(x), 0, max(size - 2, 0)).astype(np.int64)
+    f = np.clip(x - base, 0.0, 1.0)
+    w = np.stack([(1 - f[:, 0]) * (1 - f[:, 1]), f[:, 0] * (1 - f[:, 1]), (1 - f[:, 0]) * f[:, 1], f[:, 0] * f[:, 1]], 1)
+    written = np.zeros((size, size), bool)
+    written[texels[:, 1], texels[:, 0]] = True
+    for i, (dx, dy) in enumerate(((0, 0), (1, 0), (0, 1), (1, 1))):
+        w[written[np.minimum(base[:, 1] + dy, size - 1), np.minimum(base[:, 0] + dx, size - 1)], i] = 0.0
+    total = w.sum(1, keepdims=True)
+    w = np.where(total > 1e-6, w / np.maximum(total, 1e-12), 0.0)
+    return base.astype(np.int32), w.astype(np.float32)
 
 
 def cached_fill_targets(positions, indices, uvs, size: int, reach_texels) -> dict:
@@ -208,12 +236,13 @@ def cached_fill_targets(positions, indices, uvs, size: int, reach_texels) -> dic
     source = bake_cache.source_key(this, rasterize)
     h.update(repr((int(size), reach, source)).encode())
     key = h.hexdigest()
-    names = {f"{kind}_{L}": None for L in reach for kind in ("texels", "targets")}
+    kinds = ("texels", "targets", "distances")
+    names = {f"{kind}_{L}": None for L in reach for kind in kinds}
     path = bake_cache.cache_path("seam_fill", key) if source is not None else None
     arrays = bake_cache.load(_MEMORY, key, path, names, _KEEP)
     if arrays is None:
         got = fill_targets(positions, indices, uvs, size, reach)
-        arrays = {f"{kind}_{L}": got[L][i] for L in reach for i, kind in enumerate(("texels", "targets"))}
+        arrays = {f"{kind}_{L}": got[L][i] for L in reach for i, kind in enumerate(kinds)}
         bake_cache.remember(_MEMORY, key, arrays, _KEEP)
         bake_cache.store(path, arrays)
-    return {L: (arrays[f"texels_{L}"], arrays[f"targets_{L}"]) for L in reach}
+    return {L: tuple(arrays[f"{kind}_{L}"] for kind in kinds) for L in reach}

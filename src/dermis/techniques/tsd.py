@@ -600,7 +600,7 @@ class TextureSpaceDiffusion(Technique):
         level = 0
         narrow = self._narrow_ok(levels, steps)
         if narrow:
-            src, p = self._seam_fill(src, 0, ("seam", "narrow"))
+            src, p = self._seam_fill(src, 0, float(np.sqrt(np.max(np.asarray(steps[0]) + np.asarray(steps[1])))))
             passes += p
             src, p = self._blur_narrow(src, steps)
             passes += p
@@ -621,7 +621,7 @@ class TextureSpaceDiffusion(Technique):
             else:
                 st = self.tex[("stretch", k)]
             if not (narrow and k < 2):
-                src, p = self._seam_fill(src, level, ("seam", k))
+                src, p = self._seam_fill(src, level, float(np.max(sigma)))
                 passes += p
                 src, p = self._blur(src, st, sigma, level, ("blur", k), footprint=(k == 0))
                 passes += p
@@ -646,15 +646,18 @@ class TextureSpaceDiffusion(Technique):
         S = self.tex["stretch_0"].size[0]
         return key if self.seam_fill.prepare(key, self._frame_mesh, S, reach) else None
 
-    def _seam_fill(self, src, level, key):
-        """(the step's input with its seam texels filled, the pass): ``src`` itself and no pass where the
-        level has none (dermis.gl.seam_fill)."""
+    def _seam_fill(self, src, level, sigma_mm):
+        """(``src``, the pass filling its seam texels in place as far as a step of ``sigma_mm`` (its
+        widest axis) at ``level`` reaches: SEAM_REACH_SIGMAS sqrt(2) sigma + 2 texels at the median
+        stretch; none where the level has no seam: dermis.gl.seam_fill)."""
         if not (self.options.seams and self.seam_fill.filled(level)):
             return src, []
-        dst = self._texture(key, src.size)
-        src_fbo, dst_fbo = self._fbo(src), self._fbo(dst)
-        fill = self.seam_fill
-        return dst, [lambda: fill.draw(src, dst, src_fbo, dst_fbo, level)]
+        reach_mm = SEAM_REACH_SIGMAS * math.sqrt(2.0) * sigma_mm + 2.0 * 2.0 ** level / (self.median_stretch or 1.0)
+        reach = reach_mm / float(self._frame_mesh_mm)
+        if self.seam_fill.count(level, reach) == 0:
+            return src, []
+        fbo, fill = self._fbo(src), self.seam_fill
+        return src, [lambda: fill.draw(src, fbo, level, reach)]
 
     def _profile_uniforms(self, prog, profile, first_unit, frame_keys):
         """The profile (common/profile.glsl) and its blurred irradiances I_k (tsd/gaussians.glsl)
@@ -679,6 +682,7 @@ class TextureSpaceDiffusion(Technique):
         S = self.renderer.irradiance_size
         timer = frame.timer
         self._frame_mesh = scene.mesh  # the layout the seam fill maps (_seam_levels)
+        self._frame_mesh_mm = float(scene.mm_per_unit)
         stretch_key = frame.keys["stretch"]
         if stretch_key != self._stretch_key:
             with timer("tsd_stretch"):
