@@ -250,3 +250,129 @@ def test_light_crosses_a_fold_whose_charts_are_joined(gl_ctx):
         got = b[rows * b.shape[0] // S, cols * b.shape[1] // S].mean()
         ref = (EB + (EA - EB) * ndtr(-across[band] / np.sqrt(v[k]))).mean()
         assert got == pytest.approx(ref, rel=0.04), (k + 1, got, ref)
+
+
+def _fold_charts(joined: bool):
+    """The fold of _fold (face A: y = 0, x = -s; face B: x = 0, y = -s; s in [0, 12] mm, z in [0, 12] mm)
+    with its own UVs, 60 mm across the image. Two charts cut along the edge s = 0: A's UVs
+    (80 / 256 - s / 60, 0.1 + z / 60), B's (0.55 + z / 60, 160 / 256 + s / 60), rotated 90 degrees from
+    A's, each seam side facing an empty gutter of > 12 mm (wider than the widest blur's reach);
+    ``joined``: one chart, B unfolded beside A, (80 / 256 + s / 60, 0.1 + z / 60). The edge lies on a texel
+    boundary of every level at 256^2 (80 and 160 texels): a texel holds its centre's side, so an edge
+    between texel centres reads as the mid-point of the nearest centres either side (up to half a texel,
+    0.12 mm, off the true edge: 28 % on k3 at 0.3-2 mm past a seam at u = 0.3, measured)."""
+    L, n = 12.0, 48
+    s, z = np.meshgrid(np.linspace(0.0, L, n + 1), np.linspace(0.0, L, n // 2 + 1), indexing="ij")
+    zero = np.zeros_like(s)
+    uv_b = np.stack([80 / 256 + s / 60.0, 0.1 + z / 60.0], -1) if joined else np.stack([0.55 + z / 60.0, 160 / 256 + s / 60.0], -1)
+    faces = [(np.stack([-s, zero, z], -1), (0.0, 1.0, 0.0), np.stack([80 / 256 - s / 60.0, 0.1 + z / 60.0], -1)),
+             (np.stack([zero, -s, z], -1), (1.0, 0.0, 0.0), uv_b)]
+    P, N, UV, T = [], [], [], []
+    for grid, normal, uv in faces:
+        i, j = np.meshgrid(np.arange(n), np.arange(n // 2), indexing="ij")
+        a = sum(len(p) for p in P) + i * (n // 2 + 1) + j
+        b = a + n // 2 + 1
+        T.append(np.concatenate([np.stack([a, b, b + 1], -1), np.stack([a, b + 1, a + 1], -1)]).reshape(-1, 3))
+        P.append(grid.reshape(-1, 3))
+        N.append(np.tile(normal, (len(P[-1]), 1)))
+        UV.append(uv.reshape(-1, 2))
+    return (np.concatenate(P).astype(np.float32), np.concatenate(N).astype(np.float32), np.concatenate(UV),
+            np.concatenate(T))
+
+
+def _bilinear(level, rows, cols, S):
+    """Red of a blurred level (its colour and coverage, row 0 = top) read at the centres of the level-0
+    texels (rows, cols) of S x S as tsd/gaussians.glsl reads it: bilinear on the premultiplied data,
+    divided by the coverage."""
+    from scipy.ndimage import map_coordinates
+
+    h, w = level.shape[:2]
+    y, x = (rows + 0.5) * h / S - 0.5, (cols + 0.5) * w / S - 0.5
+    red, cov = (map_coordinates(c, [y, x], order=1, mode="nearest") for c in (level[..., 0] * level[..., 3], level[..., 3]))
+    return red / cov
+
+
+def test_light_crosses_a_uv_seam(gl_ctx):
+    """Issue 12 (round 22, seams22): the fold cut into two charts along its edge by its own UVs (the
+    charts rotated 90 degrees from each other in the image); face A lit (N.L = 1), face B edge-on (N.L = 0).
+    tsd's seam fill (dermis.geometry.seams) gives each blur step the other chart's light beyond the seam,
+    so on B, 0.3-2 mm from the edge, I_k (read as the final pass reads it) must match the same fold laid
+    out as one chart within 3 % (k3-k6, sigma 0.43-2.7 mm), and the closed form along the unfolded
+    surface, E_B + (E_A - E_B) Phi(-t / sigma_k), within 4 % (k3-k5; k6 runs at level 4, whose 3.75 mm
+    texels the band lies within: both layouts read it 0.89 of the closed form). Without the fill
+    (seams=false: main's blur) B gets 0 of E_A there. And the fill is a no-op on a layout without a
+    seam: the one-chart fold's tsd image is the same with it on and off, to the bit."""
+    from scipy.special import ndtr
+
+    from dermis.geometry.seams import seam_sides
+
+    S = 256
+    v = None
+    got, img = {}, {}
+    for joined in (False, True):
+        P, N, uv, t = _fold_charts(joined)
+        assert len(seam_sides(P, t, uv, 1e-6)[0]) == (0 if joined else 2 * 24)  # 24 edge segments, a side per chart
+        mesh = finish_mesh(P, N, uv, t, "test:fold-charts", "v-up")
+        mesh.texture_space_uv = "mesh"
+        sc = Scene(mesh=mesh, material=SkinMaterial(albedo_color=(0.8, 0.6, 0.5), rho_s=0.0, pore_strength=0.0),
+                   lights=[Light(direction=(0.0, -1.0, 0.0), intensity=np.pi, cast_shadows=False)],
+                   camera=Camera(position=(40.0, 40.0, 60.0), target=(0.0, 0.0, 6.0), fov_deg=30.0),
+                   environment=Environment(color=(0.0, 0.0, 0.0)), mm_per_unit=1.0)
+        v = sc.profile.normalized().variances_mm2
+        # B's texels 0.3-2 mm from the edge, 3-9 mm along it (rows from the top: v = 1 - (row + 0.5) / S)
+        tex = (np.arange(S) + 0.5) / S
+        if joined:
+            cols = np.nonzero(((tex - 80 / 256) * 60 > 0.3) & ((tex - 80 / 256) * 60 < 2.0))[0]
+            rows = np.nonzero(((1 - tex - 0.1) * 60 > 3.0) & ((1 - tex - 0.1) * 60 < 9.0))[0]
+            across = (tex[cols] - 80 / 256) * 60
+        else:
+            rows = np.nonzero(((1 - tex - 160 / 256) * 60 > 0.3) & ((1 - tex - 160 / 256) * 60 < 2.0))[0]
+            cols = np.nonzero(((tex - 0.55) * 60 > 3.0) & ((tex - 0.55) * 60 < 9.0))[0]
+            across = (1 - tex[rows] - 160 / 256) * 60
+        rr, cc = np.meshgrid(rows, cols, indexing="ij")
+        with Renderer(sc, (32, 32), irradiance_size=S, shadow_size=256, ctx=gl_ctx, samples=0) as r:
+            for seams in (True, False):
+                r.technique("tsd", seams=seams)
+                img[joined, seams] = r.render("tsd")
+                db = r.technique("tsd").debug_buffers()
+                got[joined, seams] = [_bilinear(db[f"blur_{k + 1}"], rr.ravel(), cc.ravel(), S).mean() for k in range(len(v))]
+            I0 = db["irradiance"][..., 0]
+        EA = I0.max()
+        # the closed form over the same texels (the band's distances, each row or column alike)
+        ref = [EA * ndtr(-across / np.sqrt(vk)).mean() for vk in v]
+        got[joined, "ref"] = ref
+    np.testing.assert_array_equal(img[True, True], img[True, False])
+    res = [(k + 1, got[False, True][k] / got[True, True][k], got[False, True][k] / got[False, "ref"][k],
+            got[False, False][k] / got[False, "ref"][k]) for k in range(2, len(v))]
+    for k, vs_one_chart, vs_closed_form, without_fill in res:
+        assert vs_one_chart == pytest.approx(1.0, abs=0.03), res
+        assert k == 6 or vs_closed_form == pytest.approx(1.0, abs=0.04), res
+        assert without_fill < 0.01, res  # main's blur: nothing crosses
+
+
+def test_seam_fill_targets_unfold_the_neighbour_chart():
+    """dermis.geometry.seams on the two-chart fold (_fold_charts): every gutter texel beside the seam
+    maps to the point of the other chart at the same distance along the unfolded surface (closed form:
+    B's gutter texel at (u, v), s = 60 (v - 160/256) mm < 0 and z = 60 (u - 0.55) mm, is A's point
+    (80/256 + s / 60, 0.1 + z / 60); A's gutter texel at u > 80/256 is B's point at s = 60 (u - 80/256)),
+    to float precision, and its distance from the seam; and a chart squeezed in UV (B scaled by 1/20: 12 mm in 2.6 texels; the
+    scanned head's closed eyelids) gets no targets and gives none (its unfold would throw texels
+    millimetres over the surface; checked: with MIN_DENSITY 0 it gets 166). 0.2-0.6 s."""
+    from dermis.geometry.seams import fill_targets
+
+    P, N, uv, t = _fold_charts(False)
+    S = 256
+    tex, tgt, dist = fill_targets(P, t, uv, S, {0: 12})[0]
+    u, v = (tex[:, 0] + 0.5) / S, (tex[:, 1] + 0.5) / S  # the gutter texels' centres (row 0 = v 0)
+    on_b = u > 0.5  # B's gutter lies below B (v < 160/256, u 0.55-0.75), A's right of A (u > 80/256, v 0.1-0.3)
+    assert on_b.sum() > 200 and (~on_b).sum() > 200 and np.all(v[on_b] < 160 / 256) and np.all(u[~on_b] > 80 / 256)
+    s, z = 60 * (v[on_b] - 160 / 256), 60 * (u[on_b] - 0.55)
+    np.testing.assert_allclose(tgt[on_b], np.c_[80 / 256 + s / 60, 0.1 + z / 60], atol=1e-6)
+    np.testing.assert_allclose(dist[on_b], -s, atol=0.25 * 60 / S)  # mm from the seam (the search's samples: 1/4 texel)
+    s, z = 60 * (u[~on_b] - 80 / 256), 60 * (v[~on_b] - 0.1)
+    np.testing.assert_allclose(tgt[~on_b], np.c_[0.55 + z / 60, 160 / 256 + s / 60], atol=1e-6)
+    squeezed = uv.copy()
+    b = np.arange(len(uv)) >= len(uv) // 2  # face B's vertices (the second half)
+    squeezed[b] = (uv[b] - uv[b].min(0)) * 0.05 + 0.6
+    tex = fill_targets(P, t, squeezed, S, {0: 12})[0][0]
+    assert len(tex) == 0

@@ -61,6 +61,7 @@ from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture,
 from dermis.gl.shaders import program
 from dermis.gl.interreflection import BounceGather, BounceSeries, bounce_level, read_per_vertex
 from dermis.gl.irradiance_inputs import BOUNCE_INPUTS, IrradianceInputs, light_pass
+from dermis.gl.seam_fill import SeamFill
 from dermis.gl.subsurface_transfer import SubsurfaceTransfer, source_index
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
@@ -103,6 +104,12 @@ LEVEL_MIN_INPUT_SIGMA_TEXELS_LIGHT = 0.35
 NARROW_MAX_SIGMA_TEXELS = 0.75
 NARROW_STRETCH_PERCENTILE = TAP_STRETCH_PERCENTILE
 NARROW_PASS = True
+# the seam fill (dermis.geometry.seams) covers the gutter texels within SEAM_REACH_SIGMAS sqrt(2) of the
+# widest step at each level (the V pass reads the U pass's output at gutter texels up to its reach
+# away, each of which gathered along u as far: a square of the reach, whose corner is sqrt(2) out) at
+# the SEAM_STRETCH_PERCENTILE of the stretch, + 2 texels (bilinear reads, the reduction's box)
+SEAM_REACH_SIGMAS = 3.0
+SEAM_STRETCH_PERCENTILE = 95.0
 
 
 @dataclass(frozen=True)
@@ -112,12 +119,16 @@ class TsdOptions(TranslucentOptions):
     # the narrow Gaussians' share of the detail I_1's texels cannot hold, from the irradiance at each
     # pixel (tsd/final.frag with PIXEL_DETAIL, tsd/gaussians.glsl: diffuse_irradiance_detail)
     pixel_detail: bool = True
+    # light across UV seams: each blur step's gutter texels beside a seam hold the neighbouring chart's
+    # input at the same surface point (dermis.geometry.seams, dermis.gl.seam_fill; issue 12)
+    seams: bool = True
 
     def validate(self, technique: str) -> None:
         super().validate(technique)
         check_bool(f"{technique}: multires", self.multires)
         check_int(f"{technique}: max_taps", self.max_taps, 1, 64)
         check_bool(f"{technique}: pixel_detail", self.pixel_detail)
+        check_bool(f"{technique}: seams", self.seams)
 
 
 # The lights whose sharp shadows (the specular's) the irradiance pass stores for the final pass
@@ -220,6 +231,7 @@ class TextureSpaceDiffusion(Technique):
         self._narrow_key = None
         self._cache_key = None
         self._stretch_key = None
+        self._frame_mesh = None
         self._plan = None  # (key, levels, step variances) of the blur chain (texture_space)
         self._size = None
         self.tex = {}
@@ -233,6 +245,7 @@ class TextureSpaceDiffusion(Technique):
         # the same-side transport an ear's thin, curled sheet adds to the flat profile, where the mesh
         # has a baked transfer (dermis.subsurface_transfer)
         self.transfer = SubsurfaceTransfer(self.ctx)
+        self.seam_fill = SeamFill(self.ctx)  # light across UV seams (dermis.geometry.seams)
         self._own_filled = None  # (bake key, target) of the last whole translucency_own pass (tsd/translucency.frag)
         self._static_filled = None  # (key, target) of the last translucency_static pass (_translucency_static)
         self._p_trans_static = None
@@ -287,6 +300,7 @@ class TextureSpaceDiffusion(Technique):
         self._inputs.shrink()
         self.thickness.release()
         self.transfer.release()
+        self.seam_fill.release()
 
     def scene_changed(self):
         self._cache_key = None
@@ -321,7 +335,11 @@ class TextureSpaceDiffusion(Technique):
     def _draw(passes):
         """Draw prepared passes (:meth:`_pass`) in order; a uniform is written only when its
         program holds another value (set_uniform's rule: the bytes written are in ``extra``)."""
-        for vao, fbo, writes, binds in passes:
+        for p in passes:
+            if callable(p):  # a seam fill (_seam_fill)
+                p()
+                continue
+            vao, fbo, writes, binds = p
             for u, data in writes:
                 if u.extra != data:
                     u.write(data)
@@ -381,6 +399,7 @@ class TextureSpaceDiffusion(Technique):
         # stretch is larger the taps space out (integer steps, the kernel's variance still exact:
         # tsd/blur.frag) instead of every texel paying for more
         self.tap_stretch = float(np.percentile(vals, TAP_STRETCH_PERCENTILE))
+        self.seam_stretch = float(np.percentile(vals, SEAM_STRETCH_PERCENTILE))
         self.narrow_stretch = np.percentile(vals, NARROW_STRETCH_PERCENTILE, axis=0).astype(np.float64)
         # per axis too: a layout squashed along one axis adds more variance (mm^2) along it when
         # reduced 2x2 (_step_variances)
@@ -569,7 +588,8 @@ class TextureSpaceDiffusion(Technique):
         once per plan, stretch, options and targets, and drawn from that list every frame."""
         # the options too: the stretch's blurs use max_taps's programs (a fresh Renderer's stretch
         # chain is blurred with the current options, so a change must redo it)
-        chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12).ravel()), self.options)
+        seams = self._seam_levels(levels, steps)
+        chain_key = (self._stretch_key, tuple(levels), tuple(np.round(steps, 12).ravel()), self.options, seams)
         redo_stretch = chain_key != self._stretch_chain_key
         passes_key = (chain_key, dil)
         if not redo_stretch and self._chain_passes is not None and self._chain_passes[0] == passes_key:
@@ -580,7 +600,9 @@ class TextureSpaceDiffusion(Technique):
         level = 0
         narrow = self._narrow_ok(levels, steps)
         if narrow:
-            src, p = self._blur_narrow(dil, steps)
+            src, p = self._seam_fill(src, 0, float(np.sqrt(np.max(np.asarray(steps[0]) + np.asarray(steps[1])))))
+            passes += p
+            src, p = self._blur_narrow(src, steps)
             passes += p
         for k, (lvl, var) in enumerate(zip(levels, steps)):
             while level < lvl:
@@ -599,11 +621,43 @@ class TextureSpaceDiffusion(Technique):
             else:
                 st = self.tex[("stretch", k)]
             if not (narrow and k < 2):
+                src, p = self._seam_fill(src, level, float(np.max(sigma)))
+                passes += p
                 src, p = self._blur(src, st, sigma, level, ("blur", k), footprint=(k == 0))
                 passes += p
         self._draw(passes)
         self._stretch_chain_key = chain_key
         self._chain_passes = (passes_key, passes)
+
+    def _seam_levels(self, levels, steps):
+        """The seam fill's key for this plan (None: no fill): the layout (the stretch's key: mesh, scale,
+        size) and each level's reach in its texels; the targets are built here when it changes."""
+        if not self.options.seams or self._frame_mesh is None:
+            return None
+        st = getattr(self, "seam_stretch", None) or self.median_stretch or 1.0
+        reach = {}
+        for k, (lvl, var) in enumerate(zip(levels, steps)):
+            r = SEAM_REACH_SIGMAS * math.sqrt(2.0) * float(np.sqrt(np.max(var))) * st * 2.0 ** -lvl + 2.0
+            reach[int(lvl)] = max(reach.get(int(lvl), 0), int(math.ceil(r)))
+        if self._narrow_ok(levels, steps):  # I_1, I_2 from the level-0 input in one pass
+            r = SEAM_REACH_SIGMAS * math.sqrt(2.0) * float(np.sqrt(np.max(steps[0] + steps[1]))) * st + 2.0
+            reach[0] = max(reach.get(0, 0), int(math.ceil(r)))
+        key = (self._stretch_key, tuple(sorted(reach.items())))
+        S = self.tex["stretch_0"].size[0]
+        return key if self.seam_fill.prepare(key, self._frame_mesh, S, reach) else None
+
+    def _seam_fill(self, src, level, sigma_mm):
+        """(``src``, the pass filling its seam texels in place as far as a step of ``sigma_mm`` (its
+        widest axis) at ``level`` reaches: SEAM_REACH_SIGMAS sqrt(2) sigma + 2 texels at the median
+        stretch; none where the level has no seam: dermis.gl.seam_fill)."""
+        if not (self.options.seams and self.seam_fill.filled(level)):
+            return src, []
+        reach_mm = SEAM_REACH_SIGMAS * math.sqrt(2.0) * sigma_mm + 2.0 * 2.0 ** level / (self.median_stretch or 1.0)
+        reach = reach_mm / float(self._frame_mesh_mm)
+        if self.seam_fill.count(level, reach) == 0:
+            return src, []
+        fbo, fill = self._fbo(src), self.seam_fill
+        return src, [lambda: fill.draw(src, fbo, level, reach)]
 
     def _profile_uniforms(self, prog, profile, first_unit, frame_keys):
         """The profile (common/profile.glsl) and its blurred irradiances I_k (tsd/gaussians.glsl)
@@ -627,6 +681,8 @@ class TextureSpaceDiffusion(Technique):
             raise DermisError(f"profile '{profile.name}' has {profile.k} Gaussians; tsd supports at most {MAX_GAUSSIANS}")
         S = self.renderer.irradiance_size
         timer = frame.timer
+        self._frame_mesh = scene.mesh  # the layout the seam fill maps (_seam_levels)
+        self._frame_mesh_mm = float(scene.mm_per_unit)
         stretch_key = frame.keys["stretch"]
         if stretch_key != self._stretch_key:
             with timer("tsd_stretch"):
