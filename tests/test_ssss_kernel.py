@@ -107,7 +107,12 @@ def test_separable_blur_of_an_impulse_on_a_wide_frame_matches_numpy(gl_ctx):
         ssss.screen_space(r.last_frame, irradiance=irr)
         out = ssss.scattered()
         proj = np.asarray(r.last_frame.proj, np.float64)
-        depth = ssss.debug_buffers()["ssss_depth_mm"][c][0]
+        buffers = ssss.debug_buffers()
+        depth = buffers["ssss_depth_mm"][c][0]
+        # the debug view unpacks the transposed images (unpack_horizontal): the horizontal blur of the dot lies on its row
+        horizontal = buffers[f"ssss_horizontal_{r.scene.profile.k}"]
+        assert horizontal.shape == (H, W, 3)
+        assert horizontal[c[0]].max() > 0.0 and np.count_nonzero(np.delete(horizontal, c[0], axis=0)) == 0
         sc_profile = r.scene.profile
     ppm = (0.5 * W * proj[0, 0] / depth, 0.5 * H * proj[1, 1] / depth)  # pixels per mm along x, y
     np.testing.assert_allclose(ppm, 1.0 / px_mm, rtol=1e-3)
