@@ -1,10 +1,13 @@
 """ssss's blur (the two screen-space passes) against its copy floor, this tree's shaders beside an
 older revision's, in ONE process (so the ratio means something on a loaded machine).
 
-    PYTHONPATH=src python benchmarks/ssss_blur_cost.py [--size 512] [--frames 7] [--before REV |
+    PYTHONPATH=src python benchmarks/ssss_blur_cost.py [--scene TOML] [--size 512] [--frames 7] [--before REV |
         --before-shaders DIR] [--option NAME=VALUE ...] [--json OUT]
 
-The example head (examples/lee-perry-smith.toml), ssss, moving lights (every pass re-runs).
+The example head (examples/lee-perry-smith.toml; ``--scene``: another, e.g. examples/reference/front-key.toml,
+whose head fills 73 % of the frame against the example's 50 %: the blur's cost follows the skin's pixels),
+ssss, moving lights (every pass re-runs). ``--before`` swaps only the shaders: at square sizes only where the
+packed images' layout differs (round 22 stores them transposed: pixel (x, y) at texel (y, x)).
 Timed: ``ssss_blur`` per frame (GL_TIME_ELAPSED on a GPU, wall time around glFinish on llvmpipe),
 median over ``--frames``, the two shader sets interleaved frame by frame; the floor is
 ``dermis.bench_floors``' copy_screen times 2K (one full-screen copy per Gaussian per pass, K = 6).
@@ -60,6 +63,7 @@ def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", default=str(REPO / "examples" / "lee-perry-smith.toml"))
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--frames", type=int, default=7)
     ap.add_argument("--before", default=None, help="git revision whose ssss shaders to time beside this tree's")
@@ -75,7 +79,7 @@ def main(argv=None):
     from dermis.gl.context import create_context
     from dermis.renderer import Renderer
 
-    sc = dermis.load_scene(REPO / "examples" / "lee-perry-smith.toml")
+    sc = dermis.load_scene(a.scene)
     def parse(pairs):
         out = {}
         for o in pairs:

@@ -76,3 +76,62 @@ def test_horizontal_taps_do_not_grow_with_the_kernel_on_screen(gl_ctx):
     print(counts, "taps per side", TAPS)
     for count in counts.values():
         assert 2 * TAPS + 1 - 8 <= count <= 2 * TAPS + 1 + 8, counts
+
+
+def test_separable_blur_of_an_impulse_on_a_wide_frame_matches_numpy(gl_ctx):
+    """Both blur passes against numpy on a frame wider than high (96 x 64), where the horizontal
+    pass's images are stored transposed (H x W, ssss/blur_horizontal.frag) and the vertical pass
+    reads them at q.yx: one lit pixel off the frame's centre and diagonal on a plane facing the
+    camera, the profile's widest Gaussian 2.9 px wide, so it reaches ceil(3.717 sigma) = 11 px <= 12
+    taps (every cell one pixel, no jitter) and no Gaussian is 3 px wide (the grain filter leaves
+    them alone). numpy: per Gaussian, the 1-D weights exp(-i^2 / 2 (sigma_px^2 + 1/12)) over
+    |i| <= P, normalised (ssss/kernel.glsl), horizontal then vertical, summed with the profile's
+    per-channel weights. Within 2e-3 of the peak (the horizontal results are stored as halves).
+    Fails with the packed images W x H or read at q (checked, round 22)."""
+    from dermis.renderer import Renderer
+    from dermis.verification import quad_scene
+    from dermis.scene.model import Camera
+
+    W, H = 96, 64
+    sc = quad_scene(4000.0, 4000.0)  # mm_per_unit = 1: the plane fills the frame
+    fov = 25.0
+    px_mm = np.sqrt(np.max(sc.profile.variances_mm2)) / 2.9  # the widest Gaussian 2.9 px: reach 11 px
+    dist = px_mm * H / (2.0 * np.tan(np.radians(fov) / 2.0))  # mm per pixel on the plane, mm_per_unit = 1
+    sc.camera = Camera(position=(0.0, 0.0, dist), target=(0.0, 0.0, 0.0), fov_deg=fov)
+    c = (20, 75)  # (row from the top, column): off the diagonal, in the columns a W x H packed image lacks
+    with Renderer(sc, (W, H), ctx=gl_ctx, samples=0) as r:
+        r.render("ssss")
+        ssss = r.technique("ssss")
+        irr = np.zeros((H, W, 3), np.float32)
+        irr[c] = 1.0
+        ssss.screen_space(r.last_frame, irradiance=irr)
+        out = ssss.scattered()
+        proj = np.asarray(r.last_frame.proj, np.float64)
+        buffers = ssss.debug_buffers()
+        depth = buffers["ssss_depth_mm"][c][0]
+        # the debug view unpacks the transposed images (unpack_horizontal): the horizontal blur of the dot lies on its row
+        horizontal = buffers[f"ssss_horizontal_{r.scene.profile.k}"]
+        assert horizontal.shape == (H, W, 3)
+        assert horizontal[c[0]].max() > 0.0 and np.count_nonzero(np.delete(horizontal, c[0], axis=0)) == 0
+        sc_profile = r.scene.profile
+    ppm = (0.5 * W * proj[0, 0] / depth, 0.5 * H * proj[1, 1] / depth)  # pixels per mm along x, y
+    np.testing.assert_allclose(ppm, 1.0 / px_mm, rtol=1e-3)
+    var = np.asarray(sc_profile.variances_mm2, np.float64)
+    weights = np.asarray(sc_profile.normalized().weights, np.float64)  # (K, 3)
+    ref = np.zeros((H, W, 3))
+    yy, xx = np.arange(H) - c[0], np.arange(W) - c[1]
+    last = int(np.ceil(3.7169 * np.sqrt(var.max()) * ppm[0]))
+    assert last <= 12  # one pixel per cell: no jitter
+    i = np.arange(-last, last + 1)
+    for k in range(var.size):
+        sigma2 = var[k] * ppm[0] ** 2
+        assert np.sqrt(sigma2) < 3.0  # not filtered
+
+        def g(d):
+            w = np.where(np.abs(d) <= last, np.exp(-d * d / (2.0 * (sigma2 + 1.0 / 12.0))), 0.0)
+            return w / np.exp(-i * i / (2.0 * (sigma2 + 1.0 / 12.0))).sum()
+        ref += np.outer(g(yy), g(xx))[:, :, None] * weights[k]
+    peak = ref.max()
+    err = np.abs(out - ref).max() / peak
+    print(f"max |GL - numpy| / peak {err:.2e}; energy {out.sum(axis=(0, 1))}")
+    assert err < 2e-3, err

@@ -17,7 +17,9 @@ with each pixel's kernel scaled to millimetres by its depth:
                    change: added before the blurs, which scatter it as tsd's; T: light through thin
                    parts from the shadow map's thickness)
   ssss_blur        horizontal pass: one image per Gaussian (g_k(x) * E); vertical pass:
-                   sum_k w_k g_k(y) * (g_k(x) * E). Exact for a sum of Gaussians, where a single
+                   sum_k w_k g_k(y) * (g_k(x) * E) (the horizontal pass's images stored transposed, so
+                   that the vertical taps read along rows: half the vertical pass's time on llvmpipe was
+                   its column-wise fetches). Exact for a sum of Gaussians, where a single
                    separable kernel (Jimenez 2015's rank-1 kernel) is 15% off for skin's red.
                    A fixed number of taps per side (``taps``), whatever the head's size on screen:
                    one pixel each near the centre, wider cells sampled stratified (one jittered
@@ -85,9 +87,11 @@ def packed_texels(k: int) -> int:
 
 
 def unpack_horizontal(textures, k: int) -> list:
-    """The horizontal pass's K images (H, W, 3) float32, row 0 = top, from its packed texels."""
-    w, h = textures[0].size
-    u = np.concatenate([np.frombuffer(t.read(), np.uint32).reshape(h, w, 4) for t in textures], axis=2)[::-1]
+    """The horizontal pass's K images (H, W, 3) float32, row 0 = top, from its packed texels
+    (stored transposed: pixel (x, y) at texel (y, x), ssss/blur_horizontal.frag)."""
+    h, w = textures[0].size  # the packed texture is H texels wide and W high
+    u = np.concatenate([np.frombuffer(t.read(), np.uint32).reshape(w, h, 4) for t in textures], axis=2)
+    u = u.transpose(1, 0, 2)[::-1]
     halves = np.ascontiguousarray(u[:, :, 1:1 + (3 * k + 5) // 2]).view(np.float16).astype(np.float32)
     return [halves[:, :, 3 + 3 * i:6 + 3 * i].copy() for i in range(k)]
 
@@ -177,8 +181,8 @@ class ScreenSpaceSSS(Technique):
         self._release_targets()
         ctx = self.ctx
 
-        def tex(dtype):
-            t = ctx.texture(size, 4, dtype=dtype)
+        def tex(dtype, tex_size=size):
+            t = ctx.texture(tex_size, 4, dtype=dtype)
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
             t.repeat_x = t.repeat_y = False
             return t
@@ -186,7 +190,9 @@ class ScreenSpaceSSS(Technique):
         irradiance = tex("f4")  # a = depth in mm: needs float32 (half: 0.25 mm steps at 500 mm)
         view_normal = tex("f2")  # the geometric normal in view space: the blurs' tissue-path test
         depth = ctx.depth_renderbuffer(size)
-        packed = [tex("u4") for _ in range(packed_texels(k))]  # the horizontal pass's result (ssss/packing.glsl)
+        # the horizontal pass's result (ssss/packing.glsl), transposed: H x W, pixel (x, y) at texel (y, x), so that
+        # the vertical pass's taps read along rows (ssss/blur_horizontal.frag)
+        packed = [tex("u4", (size[1], size[0])) for _ in range(packed_texels(k))]
         scattered = tex("f4")
         self.tex = {"irradiance": irradiance, "view_normal": view_normal, "depth": depth, "packed": packed,
                     "scattered": scattered,

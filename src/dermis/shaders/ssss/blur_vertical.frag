@@ -8,7 +8,8 @@
 #include "ssss/kernel.glsl"
 #include "ssss/packing.glsl"
 
-uniform usampler2D uPacked[SSSS_PACKED];  // the horizontal pass's results (ssss/packing.glsl)
+uniform usampler2D uPacked[SSSS_PACKED];  // the horizontal pass's results (ssss/packing.glsl), transposed:
+                                          // pixel q at texel q.yx (ssss/blur_horizontal.frag says why)
 layout(location = 0) out vec4 f_scattered;
 #if SSSS_GRAIN_FILTER
 layout(location = 1) out vec4 f_wide;
@@ -17,7 +18,7 @@ layout(location = 1) out vec4 f_wide;
 void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS],
                 out float rejected) {
     uvec4 texels[SSSS_PACKED];
-    for (int t = 0; t < SSSS_PACKED; ++t) texels[t] = texelFetch(uPacked[t], q, 0);
+    for (int t = 0; t < SSSS_PACKED; ++t) texels[t] = texelFetch(uPacked[t], q.yx, 0);
     ssss_unpack(texels, depth_mm, normal, light, rejected);
 }
 
