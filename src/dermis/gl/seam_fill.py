@@ -22,7 +22,7 @@ import numpy as np
 
 from dermis.gl.shaders import program
 
-TILE = 4  # texels per cell side: llvmpipe's shading block (merged: 4: 3.1 ms of fills a frame on the head, 8: 3.5, 16: 4.7)
+TILE = 4  # texels per cell side: llvmpipe's shading block (merged: 4: 3.1 ms of fills a frame on the head, 8: 3.5, 16: 4.9)
 NONE = 1e30  # the distance of a texel with nothing to fill
 
 
