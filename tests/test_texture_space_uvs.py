@@ -376,3 +376,66 @@ def test_seam_fill_targets_unfold_the_neighbour_chart():
     squeezed[b] = (uv[b] - uv[b].min(0)) * 0.05 + 0.6
     tex = fill_targets(P, t, squeezed, S, {0: 12})[0][0]
     assert len(tex) == 0
+
+
+def test_seam_fill_draws_each_steps_own_texels(gl_ctx):
+    """dermis.gl.seam_fill (round 22, seamcost22): a step draws only the rectangles of 4 x 4 cells holding
+    its own fill texels (those within its reach), all steps' rectangles in one buffer. On the two-chart
+    fold at 256^2, against numpy: the rectangles cover exactly the cells of the texels within each reach
+    (cell_rectangles merges runs; their union rasterised here), and one draw into a float texture of
+    random values writes every texel within the reach with the renormalised bilinear taps of the input
+    (the weights as stored, unorm8) to 1e-6 and leaves every other texel, fill texels beyond the reach
+    included, bit-identical. Checked: fails with each step drawing half its texels' cells. ~0.3 s."""
+    import moderngl
+
+    from dermis.gl.seam_fill import TILE, SeamFill
+    from dermis.geometry.seams import bilinear_taps, cached_fill_targets
+    from dermis.geometry.texture_space import texture_space_uvs
+
+    P, N, uv, t = _fold_charts(False)
+    mesh = finish_mesh(P, N, uv, t, "test:fold-charts", "v-up")
+    mesh.texture_space_uv = "mesh"
+    S = 256
+    fill = SeamFill(gl_ctx)
+    try:
+        assert fill.prepare("fold", mesh, S, {0: 12})
+        texels, targets, dist = cached_fill_targets(mesh.positions, mesh.indices, texture_space_uvs(mesh), S, {0: 12})[0]
+        base, w = bilinear_taps(texels, targets, S)
+        keep = w.sum(1) > 0
+        texels, base, w, dist = texels[keep], base[keep], w[keep], dist[keep]
+        w = np.round(w * 255.0) / 255.0  # as the weights texture holds them
+        w /= w.sum(1, keepdims=True)
+        rng = np.random.default_rng(5)
+        tex = gl_ctx.texture((S, S), 4, dtype="f4")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        fbo = gl_ctx.framebuffer(color_attachments=[tex])
+        for reach in np.quantile(dist, [0.3, 1.0]):  # a narrow step's and the widest
+            inside = dist <= np.float32(reach)  # the shader compares in float32 (uReach), as count() does
+            assert 0 < fill.prepare_step(0, reach) == inside.sum()
+            first, count = fill._steps[(0, float(reach))]
+            quads = np.concatenate(fill._quads).reshape(-1, 6, 2)[first // 6:(first + count) // 6]
+            lo = np.round((quads[:, 0] + 1) / 2 * S).astype(int)  # corners in texels (x, y)
+            hi = np.round((quads[:, 2] + 1) / 2 * S).astype(int)
+            drawn = np.zeros((S, S), int)
+            for (x0, y0), (x1, y1) in zip(lo, hi):
+                drawn[y0:y1, x0:x1] += 1
+            want = np.zeros((S // TILE, S // TILE), bool)
+            want[texels[inside, 1] // TILE, texels[inside, 0] // TILE] = True
+            assert drawn.max() == 1  # no overlap
+            np.testing.assert_array_equal(drawn.reshape(S // TILE, TILE, S // TILE, TILE).max((1, 3)) > 0, want)
+            src = rng.random((S, S, 4)).astype(np.float32)
+            tex.write(src.tobytes())
+            fill.draw(tex, fbo, 0, reach)
+            out = np.frombuffer(tex.read(), np.float32).reshape(S, S, 4)
+            ref = src.copy()
+            b, ww, tx = base[inside], w[inside], texels[inside]
+            ref[tx[:, 1], tx[:, 0]] = sum(ww[:, i, None] * src[np.minimum(b[:, 1] + dy, S - 1), np.minimum(b[:, 0] + dx, S - 1)]
+                                          for i, (dx, dy) in enumerate(((0, 0), (1, 0), (0, 1), (1, 1))))
+            np.testing.assert_allclose(out, ref, atol=1e-6, rtol=0)
+            changed = np.zeros((S, S), bool)
+            changed[tx[:, 1], tx[:, 0]] = True
+            np.testing.assert_array_equal(out[~changed], src[~changed])
+        fbo.release()
+        tex.release()
+    finally:
+        fill.release()

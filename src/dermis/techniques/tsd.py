@@ -654,7 +654,7 @@ class TextureSpaceDiffusion(Technique):
             return src, []
         reach_mm = SEAM_REACH_SIGMAS * math.sqrt(2.0) * sigma_mm + 2.0 * 2.0 ** level / (self.median_stretch or 1.0)
         reach = reach_mm / float(self._frame_mesh_mm)
-        if self.seam_fill.count(level, reach) == 0:
+        if self.seam_fill.prepare_step(level, reach) == 0:
             return src, []
         fbo, fill = self._fbo(src), self.seam_fill
         return src, [lambda: fill.draw(src, fbo, level, reach)]

@@ -1,7 +1,7 @@
 // Seam fill: a gutter texel beside a UV seam takes the blur step's input at the same surface point in
 // the neighbouring chart (dermis.geometry.seams: its bilinear taps there), premultiplied as the chain's
 // data (tsd/blur.frag), so the next Gaussian gathers light across the seam; a step fills the texels
-// within its own reach of the seam (uReach) and leaves every other texel of the tile (discard).
+// within its own reach of the seam (uReach) and leaves every other texel of its rectangles (discard).
 // Drawn into the texture it reads: no tap lies on a texel any fill writes (bilinear_taps), which GL 4.5
 // defines (9.3.1, disjoint sets of texels).
 uniform sampler2D uSource;
