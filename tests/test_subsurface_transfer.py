@@ -428,11 +428,7 @@ def test_bake_is_found_for_the_head_only(head_bake, monkeypatch):
     sc = dermis.load_scene(REPO / "examples" / "lee-perry-smith.toml")
     # round 22 (format 3, the view term): the file's name carries the format, so a format-2 bake beside it (the
     # shipped one of round 21) is neither overwritten by a new bake nor read
-    store.FORMAT, current = 2, store.FORMAT
-    try:
-        key2 = store.mesh_key(sc.mesh)
-    finally:
-        store.FORMAT = current
+    key2 = store.mesh_key(sc.mesh, 2)
     assert key2 != store.mesh_key(sc.mesh) and store.FORMAT == 3
     old = store.load(head_bake)
     store.FORMAT, current = 1, store.FORMAT
@@ -457,6 +453,16 @@ def test_bake_is_found_for_the_head_only(head_bake, monkeypatch):
                 m.setattr(B, "SMOOTH_MM", B.SMOOTH_MM + 0.5)
             with pytest.warns(UserWarning, match=f"recipe {recipe}, expected [0-9a-f]{{16}}.*rebuild it"):
                 assert find(sc) is None
+    # only a format-2 bake of the mesh (round 21's, under its own name) and none of this format: a warning
+    # naming it and the fix, not a silent loss of the transfer after an update (fails without it: no warning)
+    older = head_bake.with_name(store.mesh_key(sc.mesh, 2)[:24] + ".npz")
+    assert older != head_bake and not older.exists()
+    head_bake.rename(older)
+    try:
+        with pytest.warns(UserWarning, match=r"older format \(2\), expected 3 .*rebuild it"):
+            assert find(sc) is None
+    finally:
+        older.rename(head_bake)
     monkeypatch.setenv("DERMIS_CACHE_DIR", "off")  # the disk cache off: nothing is looked up
     assert find(sc) is None
 

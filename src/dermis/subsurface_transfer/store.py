@@ -27,13 +27,13 @@ FORMAT = 3  # 2 (round 11): per-point excess and its covariance; taps denoised (
 MEDIUM_TOLERANCE = 0.02  # relative: the scene's mean free path and mean albedo against the bake's
 
 
-def mesh_key(mesh) -> str:
+def mesh_key(mesh, format_: int = FORMAT) -> str:
     """The bake's name: SHA-256 of the mesh's positions, triangles and texture-space uvs (and, from format
     3, the format: a new format's bake gets its own file beside the older one)."""
     from dermis.geometry.atlas import content_hash
 
     uv = texture_space_uvs(mesh)
-    extra = ("subsurface_transfer",) if FORMAT <= 2 else ("subsurface_transfer", f"format {FORMAT}")
+    extra = ("subsurface_transfer",) if format_ <= 2 else ("subsurface_transfer", f"format {format_}")
     return content_hash(mesh.positions, mesh.indices, *extra, np.asarray(uv, np.float32).tobytes())
 
 
@@ -136,7 +136,17 @@ def find(scene, folder: Path | None = None) -> TransferBake | None:
     matches the scene (:func:`matches`) and was made by this code's format and recipe
     (:func:`check_recipe`), else None: the scene renders without it."""
     p = path_for(scene.mesh, folder)
-    if p is None or not p.is_file():
+    if p is None:
+        return None
+    if not p.is_file():
+        # a bake of this mesh in an older format (its own file name, from format 3 on): say so, or the
+        # scene would lose its transfer without a word after an update
+        older = p.with_name(mesh_key(scene.mesh, 2)[:24] + ".npz")
+        if older.is_file():
+            import warnings
+
+            warnings.warn(f"dermis: ignoring {older}: a subsurface transfer bake of an older format (2), expected "
+                          f"{FORMAT} {REBUILD}", stacklevel=2)
         return None
     try:
         bake = load(p)
