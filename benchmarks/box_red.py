@@ -20,7 +20,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 BOXES = {  # scene: {name: (x0, y0, x1, y1) inclusive}
     "front-key": {"mouth line": (370, 647, 390, 652), "lid crease": (440, 362, 470, 372)},
-    "back-ears": {"scapha": (340, 292, 362, 310), "helix": (360, 330, 390, 420), "lobe": (290, 520, 330, 565)},
+    "back-ears": {"scapha": (340, 292, 362, 310), "helix": (360, 330, 390, 420), "helix rim": (384, 388, 404, 428), "lobe": (290, 520, 330, 565)},
 }
 
 

@@ -40,6 +40,7 @@ def main(argv=None) -> int:
     ap.add_argument("--walks", type=int, default=1024)
     ap.add_argument("--size", type=int, default=768)
     ap.add_argument("--all-pixels", action="store_true")
+    ap.add_argument("--dump", help="write the per-point rows, N.V (facet normal) and E0 to this .npz")
     a = ap.parse_args(argv)
     import dermis
     from scipy.spatial import cKDTree
@@ -121,6 +122,9 @@ def main(argv=None) -> int:
     uni = {"cosine views": cos.tap_weight.sum(1), "view term at the camera": seen.sum(1), "fresh walks along the camera ray": cam.tap_weight.sum(1)}
     for name, v in uni.items():
         print(f"  uniform {name:26s} " + "  ".join(f"{'RGB'[c]} {v[:, c].mean():+.4f} +- {v[:, c].std() / np.sqrt(n):.4f}" for c in range(3)))
+    if a.dump:
+        np.savez(a.dump, cos_v=-(view * fn).sum(1), E0=E0, **{k.replace(" ", "_"): v for k, v in rows.items()},
+                 **{"uniform_" + k.replace(" ", "_"): v for k, v in uni.items()})
     print(f"{time.time() - t0:.0f} s")
     return 0
 
