@@ -36,9 +36,12 @@ vec3 subsurface_transfer(vec2 uv) {
 // walk along the view v enters with the Fresnel transmittance 1 - F(v) and what it carries is linear in
 // its refracted direction r(v), so the transfer seen along v is
 //     T(v) = (1 - F(v)) (G . r(v) + c)      per channel, (G, c) gathered with the irradiance at the taps
-// (tsd/transfer_gather.vert: one rgba32f grid per channel, G in the mesh's frame). Its mean over the
-// bake's cosine views is the grid above (uTransfer), so subsurface_transfer_view returns T(v) less that:
-// a reader adds it to what it adds of uTransfer. Read as images (the same tent at uTransferLevel,
+// (tsd/transfer_gather.vert: one rgba32f grid per channel, G in the mesh's frame). subsurface_transfer_view
+// returns T(v) less the grid above (uTransfer): a reader adds it to what it adds of uTransfer, so the pixel
+// gets T(v). Caution (round 22, rim22, measured): T's own mean over the cosine views equals uTransfer only
+// in expectation; uTransfer is denoised (bake.denoise: shrinkage, smoothed own taps), (G, c) only smoothed,
+// so where the denoising removed much (the back-lit helix rim: the view grids' cosine mean 1.61x uTransfer)
+// the result carries T's own mean, not uTransfer's. Read as images (the same tent at uTransferLevel,
 // clamped at the edges as the sampler): tsd's final pass already uses all 16 guaranteed samplers.
 // Units 1-4 (0 is common/mesh_varyings.glsl's triangle frames): dermis.gl.subsurface_transfer.VIEW_IMAGE.
 layout(binding = 1, rgba32f) readonly uniform image2D uTransferCosine;  // uTransfer's grid itself
