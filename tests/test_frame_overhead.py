@@ -314,7 +314,7 @@ def test_a_camera_only_frame_prepares_only_the_per_frame_uniforms(gl_ctx, monkey
     per_frame = {"uViewProj", "uCameraPos", "uTranslucency", "uPoreScaleMm", "uPoreStrength", "uOutputMode", "uViewZ",
                  "uScattered", "uDirectionalAlbedo", "uSharpShadow", "uPixelRadians",
                  # round 22 (view22): the baked transfer's view term in the final passes, set every frame, written on change
-                 "uTransferLevel", "uTransferIndex"}
+                 "uTransferLevel", "uTransferIndex", "uTransferViewMean"}
     with Renderer(sc, (32, 32), ctx=gl_ctx, samples=0, irradiance_size=64, shadow_size=256) as r:
         monkeypatch.setattr(resources, "uniform_bytes", lambda u, v: computed.append(u.name) or real_bytes(u, v))
         monkeypatch.setattr(moderngl.Uniform, "write", lambda u, data: written.append(u.name) or real_write(u, data))

@@ -251,6 +251,9 @@ class SubsurfaceTransfer:
         for u, t in enumerate(grids):
             t.bind_to_image(VIEW_IMAGE + u, read=True, write=False, level=int(level) if live else 0)
         set_uniform(prog, "uTransferIndex", float(self.index if live else 1.4))
+        from dermis.subsurface_transfer.bake import view_mean_constants
+
+        set_uniform(prog, "uTransferViewMean", view_mean_constants(self.index if live and self.index > 0 else 1.4))
 
     def per_point(self, view: bool = False) -> np.ndarray:
         """T_geo of the last gather at each bake point, (n, 3) (read back from the grid); ``view``: the

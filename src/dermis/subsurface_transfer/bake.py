@@ -108,6 +108,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import functools
+
 import numpy as np
 
 from dermis.errors import DermisError
@@ -906,6 +908,37 @@ def view_term(tap_view, views, normal, index: float) -> np.ndarray:
     r = refract(v, nrm, 1.0 / float(index))
     tv = np.asarray(tap_view, np.float64)
     return (1.0 - F)[:, None, None] * (np.einsum("ntcj,nj->ntc", tv[..., :3], r) + tv[..., 3])
+
+
+@functools.lru_cache(maxsize=8)  # read per frame by dermis.gl.subsurface_transfer.bind_view
+def view_mean_constants(index: float) -> tuple[float, float]:
+    """(a0, a1): the means of 1 - F(v) and of (1 - F(v)) r(v) . N over the bake's cosine-distributed views
+    (2 mu dmu, mu = -v . N), so the view term's own mean over those views is a0 c + a1 G . N per tap and channel
+    (the mean of (1 - F) r is along N by the views' symmetry about it; r points into the medium: r . N = -cos_t).
+    64-node Gauss-Legendre on mu in [0, 1] (the integrands are smooth: no total reflection entering from air)."""
+    from dermis.reference.random_walk import fresnel_unpolarised
+
+    x, wq = np.polynomial.legendre.leggauss(64)
+    mu, wq = 0.5 * (x + 1.0), 0.5 * wq
+    F, cos_t = fresnel_unpolarised(mu, 1.0, float(index))
+    return float((wq * 2.0 * mu * (1.0 - F)).sum()), float(-(wq * 2.0 * mu * (1.0 - F) * cos_t).sum())
+
+
+def view_deviation(tap_view, views, normal, index: float) -> np.ndarray:
+    """What the view term adds to the cosine mean (the numpy twin of common/subsurface_transfer.glsl's
+    subsurface_transfer_view): :func:`view_term` less its OWN mean over the bake's cosine views (a0 c + a1 G . N,
+    :func:`view_mean_constants`), (n, taps, 3). Why not less ``tap_weight``: :func:`smooth_view` hands each
+    neighbour's taps to the point's nearest taps (only ~20 % of the own tap's weight stays on it), so the view
+    term's cosine mean drifts from ``tap_weight`` (which agrees with fresh cosine-view walks within 0.89-1.04); at
+    back-ears' helix rim (384-404, 388-428) the view grids' cosine mean was 1.61x the cosine grid, so view22's
+    form added that difference at EVERY view (rendered transfer 1.74x the cosine one where fresh walks give
+    1.26x; benchmarks/RESULTS.md round 22 rim22, denoise22). Subtracting the model's own mean adds only the
+    view's deviation."""
+    tv = np.asarray(tap_view, np.float64)
+    nrm = np.asarray(normal, np.float64)
+    a0, a1 = view_mean_constants(index)
+    mean = a0 * tv[..., 3] + a1 * np.einsum("ntcj,nj->ntc", tv[..., :3], nrm)
+    return view_term(tap_view, views, normal, index) - mean
 
 
 def _per_walk(sample, x, far, walks: int) -> tuple[np.ndarray, np.ndarray]:

@@ -36,19 +36,22 @@ vec3 subsurface_transfer(vec2 uv) {
 // walk along the view v enters with the Fresnel transmittance 1 - F(v) and what it carries is linear in
 // its refracted direction r(v), so the transfer seen along v is
 //     T(v) = (1 - F(v)) (G . r(v) + c)      per channel, (G, c) gathered with the irradiance at the taps
-// (tsd/transfer_gather.vert: one rgba32f grid per channel, G in the mesh's frame). subsurface_transfer_view
-// returns T(v) less the grid above (uTransfer): a reader adds it to what it adds of uTransfer, so the pixel
-// gets T(v). Caution (round 22, rim22, measured): T's own mean over the cosine views equals uTransfer only
-// in expectation; uTransfer is denoised (bake.denoise: shrinkage, smoothed own taps), (G, c) only smoothed,
-// so where the denoising removed much (the back-lit helix rim: the view grids' cosine mean 1.61x uTransfer)
-// the result carries T's own mean, not uTransfer's. Read as images (the same tent at uTransferLevel,
+// (tsd/transfer_gather.vert: one rgba32f grid per channel, G in the mesh's frame). Its mean over the
+// bake's cosine views would be the grid above (uTransfer) in expectation, but bake.smooth_view (the 2.5 mm
+// averaging the noisy view term needs) hands each neighbour's taps to the point's nearest taps, so only ~20 %
+// of the own tap's weight stays on it and T's mean drifts from uTransfer (the back-lit helix rim 1.33-1.41x,
+// lid creases 0.78x; uTransfer itself agrees with fresh walks within 0.89-1.04: RESULTS.md round 22 rim22,
+// denoise22). So subsurface_transfer_view returns T(v) less T's OWN mean over the bake's cosine views,
+// a0 c + a1 G . N (uTransferViewMean; bake.view_mean_constants): the view's deviation alone, which a reader
+// adds to what it adds of uTransfer. Read as images (the same tent at uTransferLevel,
 // clamped at the edges as the sampler): tsd's final pass already uses all 16 guaranteed samplers.
 // Units 1-4 (0 is common/mesh_varyings.glsl's triangle frames): dermis.gl.subsurface_transfer.VIEW_IMAGE.
-layout(binding = 1, rgba32f) readonly uniform image2D uTransferCosine;  // uTransfer's grid itself
+layout(binding = 1, rgba32f) readonly uniform image2D uTransferCosine;  // uTransfer's grid itself (its size: the view grids')
 layout(binding = 2, rgba32f) readonly uniform image2D uTransferViewR;
 layout(binding = 3, rgba32f) readonly uniform image2D uTransferViewG;
 layout(binding = 4, rgba32f) readonly uniform image2D uTransferViewB;
 uniform float uTransferIndex;  // the bake's medium's refractive index against air (its meta "index"); < 0: no view term
+uniform vec2 uTransferViewMean;  // (a0, a1): the cosine-view means of 1 - F(v) and (1 - F(v)) r(v) . N (bake.view_mean_constants)
 
 // the unpolarised Fresnel reflectance of a smooth dielectric entered from air at cos_i (the walk's
 // dermis.reference.random_walk.fresnel_unpolarised, its rule for the entry)
@@ -74,13 +77,11 @@ vec3 subsurface_transfer_view(vec2 uv, vec3 V, vec3 N) {
     ivec2 i0 = ivec2(floor(q));
     vec2 f = q - floor(q);
     vec3 wx = vec3(1.0 - f.x, 1.0, f.x) * 0.5, wy = vec3(1.0 - f.y, 1.0, f.y) * 0.5;
-    vec3 cosine = vec3(0.0);
     vec4 r = vec4(0.0), g = vec4(0.0), b = vec4(0.0);
     for (int y = 0; y < 3; ++y) {
         for (int x = 0; x < 3; ++x) {
             ivec2 t = clamp(i0 + ivec2(x, y), ivec2(0), size - 1);
             float w = wx[x] * wy[y];
-            cosine += w * imageLoad(uTransferCosine, t).rgb;
             r += w * imageLoad(uTransferViewR, t);
             g += w * imageLoad(uTransferViewG, t);
             b += w * imageLoad(uTransferViewB, t);
@@ -91,5 +92,7 @@ vec3 subsurface_transfer_view(vec2 uv, vec3 V, vec3 N) {
     float T = 1.0 - transfer_fresnel(cos_v, eta);
     vec3 rv = refract(-V, N, 1.0 / eta);  // the walk's refracted view (0 past total reflection: T is 0 there)
     vec3 seen = T * vec3(dot(r.xyz, rv) + r.w, dot(g.xyz, rv) + g.w, dot(b.xyz, rv) + b.w);
-    return seen - cosine;
+    vec3 mean = uTransferViewMean.x * vec3(r.w, g.w, b.w)
+              + uTransferViewMean.y * vec3(dot(r.xyz, N), dot(g.xyz, N), dot(b.xyz, N));
+    return seen - mean;
 }
