@@ -20,11 +20,37 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "benchmarks"))
 
 
+def smooth_view_relative(bake, points, radius_mm, tp):
+    """bake.smooth_view with each neighbour's taps carried by their offset from the neighbour (the candidate fix)."""
+    from dermis.subsurface_transfer import bake as B
+
+    n = len(points.position)
+    i, j = B._neighbourhoods(points, radius_mm)
+    order = np.argsort(i, kind="stable")
+    i, j = i[order], j[order]
+    start = np.searchsorted(i, np.arange(n + 1))
+    used = np.abs(bake.tap_weight).sum(2) > 0.0
+    used[:, 0] = True
+    src = bake.tap_view.astype(np.float64)
+    out = np.zeros_like(src)
+    for p in range(n):
+        js = j[start[p]:start[p + 1]]
+        mine = np.flatnonzero(used[p])
+        cand = (tp[js] - points.position[js][:, None] + points.position[p]).reshape(-1, 3)
+        val = src[js].reshape(-1, 3, 4) / len(js)
+        nz = np.abs(val).sum((1, 2)) > 0.0
+        d2 = ((cand[nz, None] - tp[p, mine][None]) ** 2).sum(2)
+        np.add.at(out[p], mine[np.argmin(d2, 1)], val[nz])
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--bake", default=str(Path.home() / ".cache/dermis/subsurface_transfer/e8f02f46042d7d6dc4570a4b.npz"))
     ap.add_argument("--irradiance", required=True)
     ap.add_argument("--points", type=int, default=20)
+    ap.add_argument("--relative", action="store_true", help="a candidate fix (not the shipped code): each neighbour j's "
+                    "taps matched to the point's by their offset from j (q - x_j + x_p), so own goes to own")
     a = ap.parse_args(argv)
     import dermis
     from scipy.spatial import cKDTree
@@ -52,7 +78,10 @@ def main(argv=None) -> int:
     tv = np.zeros(bk.tap_view.shape, np.float32)
     tv[..., 3] = bk.tap_weight / a0
     fake = dataclasses.replace(bk, tap_view=tv)
-    sm = B.smooth_view(fake, bp, B.SMOOTH_VIEW_MM, tp).tap_view.astype(np.float64)
+    if a.relative:
+        sm = smooth_view_relative(fake, bp, B.SMOOTH_VIEW_MM, tp)
+    else:
+        sm = B.smooth_view(fake, bp, B.SMOOTH_VIEW_MM, tp).tap_view.astype(np.float64)
     mean = a0 * sm[..., 3]  # G = 0: the cosine-view mean is a0 c
     own_kept = mean[:, 0].sum() / bk.tap_weight[:, 0].astype(np.float64).sum()
     print(f"all {len(bp.position)} points: smooth_view keeps {own_kept:.3f} of the own taps' weight (sum, RGB pooled) on the own tap")
