@@ -20,30 +20,6 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "benchmarks"))
 
 
-def smooth_view_relative(bake, points, radius_mm, tp):
-    """bake.smooth_view with each neighbour's taps carried by their offset from the neighbour (the candidate fix)."""
-    from dermis.subsurface_transfer import bake as B
-
-    n = len(points.position)
-    i, j = B._neighbourhoods(points, radius_mm)
-    order = np.argsort(i, kind="stable")
-    i, j = i[order], j[order]
-    start = np.searchsorted(i, np.arange(n + 1))
-    used = np.abs(bake.tap_weight).sum(2) > 0.0
-    used[:, 0] = True
-    src = bake.tap_view.astype(np.float64)
-    out = np.zeros_like(src)
-    for p in range(n):
-        js = j[start[p]:start[p + 1]]
-        mine = np.flatnonzero(used[p])
-        cand = (tp[js] - points.position[js][:, None] + points.position[p]).reshape(-1, 3)
-        val = src[js].reshape(-1, 3, 4) / len(js)
-        nz = np.abs(val).sum((1, 2)) > 0.0
-        d2 = ((cand[nz, None] - tp[p, mine][None]) ** 2).sum(2)
-        np.add.at(out[p], mine[np.argmin(d2, 1)], val[nz])
-    return out
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--bake", default=str(Path.home() / ".cache/dermis/subsurface_transfer/e8f02f46042d7d6dc4570a4b.npz"))
@@ -53,19 +29,15 @@ def main(argv=None) -> int:
                     "taps matched to the point's by their offset from j (q - x_j + x_p), so own goes to own")
     a = ap.parse_args(argv)
     import dermis
-    from scipy.spatial import cKDTree
 
-    from denoise_truth import REGIONS, uv_locate
-    from dermis.framing import framed_camera
-    from dermis.geometry.raycast import RayCaster
+    from denoise_truth import REGIONS, box_bake_points, uv_locate
     from dermis.geometry.texture_space import texture_space_uvs
     from dermis.gl.subsurface_transfer import transfer_numpy
-    from dermis.reference.render import camera_rays
     from dermis.subsurface_transfer import bake as B
     from dermis.subsurface_transfer import store
 
     bk = store.load(Path(a.bake))
-    a0, a1 = 0.92319, -0.79866
+    a0, a1 = B.view_mean_constants(1.4)
     sc = dermis.load_scene(str(REPO / "examples" / "reference" / "back-ears.toml"))
     mm = float(sc.mm_per_unit)
     pos = np.asarray(sc.mesh.positions, np.float64)
@@ -78,24 +50,13 @@ def main(argv=None) -> int:
     tv = np.zeros(bk.tap_view.shape, np.float32)
     tv[..., 3] = bk.tap_weight / a0
     fake = dataclasses.replace(bk, tap_view=tv)
-    if a.relative:
-        sm = smooth_view_relative(fake, bp, B.SMOOTH_VIEW_MM, tp)
-    else:
-        sm = B.smooth_view(fake, bp, B.SMOOTH_VIEW_MM, tp).tap_view.astype(np.float64)
+    sm = B.smooth_view(fake, bp, B.SMOOTH_VIEW_MM, tp, relative=a.relative).tap_view.astype(np.float64)
     mean = a0 * sm[..., 3]  # G = 0: the cosine-view mean is a0 c
     own_kept = mean[:, 0].sum() / bk.tap_weight[:, 0].astype(np.float64).sum()
     print(f"all {len(bp.position)} points: smooth_view keeps {own_kept:.3f} of the own taps' weight (sum, RGB pooled) on the own tap")
     for name, (sname, (x0, y0, x1, y1)) in REGIONS.items():
         s2 = dermis.load_scene(str(REPO / "examples" / "reference" / f"{sname}.toml"))
-        S = 768
-        o, d, tmax, _ = camera_rays(s2, (S, S), 1, camera=framed_camera(s2.camera, s2.mesh, 1.0))
-        ys, xs = np.mgrid[y0:y1 + 1, x0:x1 + 1]
-        pix = (ys * S + xs).ravel()
-        th, tri, _ = RayCaster(pos, idx).closest_hit(o[pix], d[pix], 0.0, tmax[pix])
-        ok = tri >= 0
-        dist, j = cKDTree(bp.position).query((o[pix] + d[pix] * th[:, None])[ok] * mm)
-        j = np.unique(j[dist < 1.5])
-        j = j[np.linspace(0, len(j) - 1, min(a.points, len(j))).astype(int)]
+        j = box_bake_points(s2, pos, idx, mm, bp, (x0, y0, x1, y1), a.points)
         irr = np.load(Path(a.irradiance) / f"irr_{sname}.npy")
         g = lambda w: transfer_numpy(SimpleNamespace(tap_uv=bk.tap_uv[j], tap_weight=w.astype(np.float32)), irr)
         lit_a, lit_m = g(bk.tap_weight[j]), g(mean[j])

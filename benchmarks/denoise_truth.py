@@ -60,6 +60,26 @@ def uv_locate(uv_tri, pos_tri, q):
     return out, best
 
 
+def box_bake_points(sc, pos, idx, mm: float, bp, box, count: int, size: int = 768) -> np.ndarray:
+    """Up to ``count`` bake points (indices into ``bp``, evenly spread) within 1.5 mm of the surface the
+    768 px frame's pixels in ``box`` (x0, y0, x1, y1) see first (ray cast through the framed camera)."""
+    from scipy.spatial import cKDTree
+
+    from dermis.framing import framed_camera
+    from dermis.geometry.raycast import RayCaster
+    from dermis.reference.render import camera_rays
+
+    x0, y0, x1, y1 = box
+    o, d, tmax, _ = camera_rays(sc, (size, size), 1, camera=framed_camera(sc.camera, sc.mesh, 1.0))
+    ys, xs = np.mgrid[y0:y1 + 1, x0:x1 + 1]
+    pix = (ys * size + xs).ravel()
+    th, tri, _ = RayCaster(pos, idx).closest_hit(o[pix], d[pix], 0.0, tmax[pix])
+    ok = tri >= 0
+    dist, j = cKDTree(bp.position).query((o[pix] + d[pix] * th[:, None])[ok] * mm)
+    j = np.unique(j[dist < 1.5])
+    return j[np.linspace(0, len(j) - 1, min(count, len(j))).astype(int)]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--walks", type=int, default=2048)
@@ -74,10 +94,7 @@ def main(argv=None) -> int:
     import dermis
     from scipy.spatial import cKDTree
 
-    from dermis.framing import framed_camera
-    from dermis.geometry.raycast import RayCaster
     from dermis.geometry.texture_space import texture_space_uvs
-    from dermis.reference.render import camera_rays
     from dermis.scene.model import mean_skin_albedo
     from dermis.subsurface_transfer import bake as B
     from dermis.subsurface_transfer import store
@@ -105,16 +122,7 @@ def main(argv=None) -> int:
         bp = scenes["bp"]
         L = -np.asarray(sc.lights[0].direction, float)
         L /= np.linalg.norm(L)
-        S = 768
-        o, d, tmax, _ = camera_rays(sc, (S, S), 1, camera=framed_camera(sc.camera, sc.mesh, 1.0))
-        ys, xs = np.mgrid[y0:y1 + 1, x0:x1 + 1]
-        pix = (ys * S + xs).ravel()
-        th, tri, bc = RayCaster(pos, idx).closest_hit(o[pix], d[pix], 0.0, tmax[pix])
-        ok = tri >= 0
-        pp = (o[pix] + d[pix] * th[:, None])[ok] * mm
-        dist, j = cKDTree(bp.position).query(pp)
-        j = np.unique(j[dist < 1.5])
-        j = j[np.linspace(0, len(j) - 1, min(a.points, len(j))).astype(int)]
+        j = box_bake_points(sc, pos, idx, mm, bp, (x0, y0, x1, y1), a.points)
         P = bp.position[j]
         # facet normals, outward (as the bake's walks: walker._outward)
         cen = pos[idx].mean(1) * mm

@@ -827,3 +827,14 @@ def test_smooth_view_is_the_neighbourhood_mean_on_the_points_own_taps():
         want /= np.bincount(i, minlength=n)[:, None, None]
         np.testing.assert_allclose(sm.tap_view[:, tap], want, atol=1e-6)
     assert np.bincount(i, minlength=n).min() >= 3  # every point has neighbours: the test averages
+    # round 22 (denoise22): a far tap 0.4 mm from the point (nearer a neighbour's own tap than that neighbour is):
+    # matched by absolute position, the neighbours' own taps land on it; relative=True (by their offset from the
+    # neighbour) keeps every own tap on the own tap: the own taps' sum is the neighbourhood mean exactly
+    tp_near = np.stack([pos, pos + [0.4, 0.0, 0.0], pos + [0.0, -5.0, 0.0]], 1)
+    own = np.zeros((n, 3, 4))
+    np.add.at(own, i, tv[j, 0].astype(np.float64))
+    own /= np.bincount(i, minlength=n)[:, None, None]
+    absolute = B.smooth_view(bake, pts, 1.2, tp_near).tap_view
+    relative = B.smooth_view(bake, pts, 1.2, tp_near, relative=True).tap_view
+    assert np.abs(absolute[:, 0] - own).max() > 0.01
+    np.testing.assert_allclose(relative[:, 0], own, atol=1e-6)

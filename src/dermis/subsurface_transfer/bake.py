@@ -647,7 +647,7 @@ def shrink_insignificant(bake: TransferBake, points: BakePoints, pool_mm: float 
 
 
 def smooth_view(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOTH_VIEW_MM,
-                tap_position: np.ndarray | None = None) -> TransferBake:
+                tap_position: np.ndarray | None = None, relative: bool = False) -> TransferBake:
     """Each point's view term (:attr:`TransferBake.tap_view`) replaced by the mean of its neighbourhood's
     (:func:`_neighbourhoods`, ``radius_mm``), carried on the point's OWN taps: every neighbour's tap (its
     view coefficients / N) goes to the nearest (3-D) of the point's taps that hold weight (tap 0, the
@@ -657,7 +657,10 @@ def smooth_view(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOT
     the scapha's 17 bake points, red under the back light, the view term at the camera 0.25 / 0.40 / 0.20
     for three seeds where the cosine mean is 0.23 / 0.23 / 0.26 and 2048 walks give 0.21 / 0.21), while
     the view dependence varies over millimetres. ``tap_position`` (n, taps, 3) mm: the taps' surface
-    points (default :attr:`TransferBake.tap_position`). Returns a new TransferBake."""
+    points (default :attr:`TransferBake.tap_position`). ``relative``: each neighbour j's taps matched to the
+    point's by their offset from j (q - x_j + x_p), so own goes to own: round 22 denoise22's candidate for the
+    shipped matching by absolute position, which keeps only ~20 % of the own taps' weight on the own tap
+    (benchmarks/denoise_mechanism.py --relative; not the shipped recipe). Returns a new TransferBake."""
     import dataclasses
 
     if bake.tap_view is None:
@@ -678,7 +681,7 @@ def smooth_view(bake: TransferBake, points: BakePoints, radius_mm: float = SMOOT
     for p in range(n):
         js = j[start[p]:start[p + 1]]
         mine = np.flatnonzero(used[p])
-        cand = tp[js].reshape(-1, 3)
+        cand = (tp[js] - points.position[js][:, None] + points.position[p] if relative else tp[js]).reshape(-1, 3)
         val = src[js].reshape(-1, 3, 4) / len(js)
         nz = np.abs(val).sum((1, 2)) > 0.0
         if not nz.any():
