@@ -31,8 +31,8 @@ within 1 mm, so it reads the irradiance averaged over about that footprint, not 
 map (shadow edges, pores)."""
 POINTS_PER_ROW = 256
 VIEW_IMAGE = 1
-"""The first of the four image units common/subsurface_transfer.glsl's view term reads (the cosine grid,
-then the view grids of red, green, blue; unit 0 is the mesh's triangle frames)."""
+"""The first of the three image units common/subsurface_transfer.glsl's view term reads (the view grids of
+red, green, blue; unit 0 is the mesh's triangle frames)."""
 
 
 def source_index(variances_mm2) -> int:
@@ -242,12 +242,12 @@ class SubsurfaceTransfer:
         placeholders, never read) and its uTransferIndex."""
         from dermis.gl.resources import set_uniform
 
-        if prog.get("uTransferCosine", None) is None:
+        if prog.get("uTransferViewR", None) is None:
             return
         live = self.bake is not None and level is not None and level >= 0
         if not live and self.placeholder is None:  # released, then drawn again without a bake
             self.placeholder = self.ctx.texture((1, 1), 4, dtype="f4")
-        grids = [self.grid_texture, *self.view_grids] if live else [self.placeholder] * 4
+        grids = self.view_grids if live else [self.placeholder] * 3
         for u, t in enumerate(grids):
             t.bind_to_image(VIEW_IMAGE + u, read=True, write=False, level=int(level) if live else 0)
         set_uniform(prog, "uTransferIndex", float(self.index if live else 1.4))

@@ -237,6 +237,8 @@ class TextureSpaceDiffusion(Technique):
         self.tex = {}
         self.levels = []
         self.median_stretch = None
+        self.seam_stretch = None  # the stretch's SEAM_STRETCH_PERCENTILE (_seam_levels)
+        self._transfer_level = -1  # the level the final pass reads the transfer's view term at; -1: none
         self.tap_stretch = None
         self.uv_overlap = None
         self._stretch_chain_key = None
@@ -634,7 +636,7 @@ class TextureSpaceDiffusion(Technique):
         size) and each level's reach in its texels; the targets are built here when it changes."""
         if not self.options.seams or self._frame_mesh is None:
             return None
-        st = getattr(self, "seam_stretch", None) or self.median_stretch or 1.0
+        st = self.seam_stretch or self.median_stretch or 1.0
         reach = {}
         for k, (lvl, var) in enumerate(zip(levels, steps)):
             r = SEAM_REACH_SIGMAS * math.sqrt(2.0) * float(np.sqrt(np.max(var))) * st * 2.0 ** -lvl + 2.0
@@ -946,7 +948,7 @@ class TextureSpaceDiffusion(Technique):
             bind_sampler(prog, "uTranslucency", self.tex["translucency"], Unit.FIRST_FREE)
             # the baked transfer's view term (images: this pass has no sampler left), at the level the
             # translucency target's add read the cosine grid; -1: none
-            level = getattr(self, "_transfer_level", -1)
+            level = self._transfer_level
             set_uniform(prog, "uTransferLevel", float(level))
             self.transfer.bind_view(prog, level)
             self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE + 1, frame.keys)

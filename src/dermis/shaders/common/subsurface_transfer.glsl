@@ -45,11 +45,11 @@ vec3 subsurface_transfer(vec2 uv) {
 // a0 c + a1 G . N (uTransferViewMean; bake.view_mean_constants): the view's deviation alone, which a reader
 // adds to what it adds of uTransfer. Read as images (the same tent at uTransferLevel,
 // clamped at the edges as the sampler): tsd's final pass already uses all 16 guaranteed samplers.
-// Units 1-4 (0 is common/mesh_varyings.glsl's triangle frames): dermis.gl.subsurface_transfer.VIEW_IMAGE.
-layout(binding = 1, rgba32f) readonly uniform image2D uTransferCosine;  // uTransfer's grid itself (its size: the view grids')
-layout(binding = 2, rgba32f) readonly uniform image2D uTransferViewR;
-layout(binding = 3, rgba32f) readonly uniform image2D uTransferViewG;
-layout(binding = 4, rgba32f) readonly uniform image2D uTransferViewB;
+// Units 1-3 (0 is common/mesh_varyings.glsl's triangle frames): dermis.gl.subsurface_transfer.VIEW_IMAGE; each
+// the size of uTransfer's grid.
+layout(binding = 1, rgba32f) readonly uniform image2D uTransferViewR;
+layout(binding = 2, rgba32f) readonly uniform image2D uTransferViewG;
+layout(binding = 3, rgba32f) readonly uniform image2D uTransferViewB;
 uniform float uTransferIndex;  // the bake's medium's refractive index against air (its meta "index"); < 0: no view term
 uniform vec2 uTransferViewMean;  // (a0, a1): the cosine-view means of 1 - F(v) and (1 - F(v)) r(v) . N (bake.view_mean_constants)
 
@@ -69,7 +69,7 @@ float transfer_fresnel(float cos_i, float eta) {
 // facet's: the interpolated one differs by a few degrees on the head's mesh)
 vec3 subsurface_transfer_view(vec2 uv, vec3 V, vec3 N) {
     if (uTransferLevel < 0.0 || uTransferIndex < 0.0) return vec3(0.0);
-    ivec2 size = imageSize(uTransferCosine);
+    ivec2 size = imageSize(uTransferViewR);
     // the tent of subsurface_transfer as texel weights: its reads at +-0.5 texel, each bilinear, are
     // (1 - f) / 2, 1 / 2, f / 2 on the texels i0, i0 + 1, i0 + 2 per axis (i0 = floor(p - 0.5))
     vec2 p = uv * vec2(size) - 0.5;
