@@ -100,8 +100,8 @@ def _patch_source(src: str) -> str:
                       "    float tpx_a = length(dFdx(v_uv_ts)) * uDetailTexels, tpx_b = length(dFdy(v_uv_ts)) * uDetailTexels;\n"
                       "    float texels_per_pixel = uGateNorm == 0 ? max(tpx_a, tpx_b) : uGateNorm == 1 ? min(tpx_a, tpx_b) : sqrt(tpx_a * tpx_b);")
     src = re.sub(r"\(1\.0 - smoothstep\([0-9.]+, [0-9.]+, texels_per_pixel\)\)", "(1.0 - smoothstep(uGate.x, uGate.y, texels_per_pixel))", src)
-    src = src.replace("    float texels_per_mm = detail_texels_per_mm();",
-                      "    float texels_per_mm = detail_texels_per_mm();\n"
+    src = src.replace("    float texels_per_mm = detail_texels_per_mm(uv_ts, gl_PrimitiveID);",
+                      "    float texels_per_mm = detail_texels_per_mm(uv_ts, gl_PrimitiveID);\n"
                       "    g_dbg = vec3(texels_per_pixel, detail_weight, texels_per_mm);")
     src = src.replace("f_color = vec4(color, 1.0);", "f_color = uTermPart == 3 ? vec4(g_dbg, 1.0) : vec4(color, 1.0);")
     return src

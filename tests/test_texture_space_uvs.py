@@ -12,7 +12,7 @@ import pytest
 
 import dermis
 from dermis.errors import DermisError
-from dermis.geometry.texture_space import layout_problem, with_texture_space_uvs
+from dermis.geometry.texture_space import corner_surface_metric, layout_problem, with_texture_space_uvs
 from dermis.renderer import Renderer
 from dermis.scene.builtin import cylinder_seam, uv_sphere
 from dermis.scene.loaders import finish_mesh, load_mesh_file
@@ -439,3 +439,37 @@ def test_seam_fill_draws_each_steps_own_texels(gl_ctx):
         tex.release()
     finally:
         fill.release()
+
+
+def test_corner_surface_metric_is_the_first_fundamental_form():
+    """corner_surface_metric (tsd's detail density, tsd/final.frag): for a layout that maps the surface
+    affinely, P = A (u, v) + b, every corner holds A^T A (E, F, G) exactly, whatever the triangles;
+    a corner of a chart's border is not averaged with the same point on another chart (the seam); a
+    vertex averages its triangles' metrics weighted by their surface area."""
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(3, 2)) * np.array([[20.0], [5.0], [9.0]])
+    uv = rng.random((40, 2))
+    from scipy.spatial import Delaunay
+
+    t = Delaunay(uv).simplices
+    p = uv @ A.T + np.array([1.0, -2.0, 0.5])
+    m = corner_surface_metric(p, uv, t)
+    G = A.T @ A
+    assert m.shape == (len(t), 3, 4) and np.all(m[..., 3] == 0)
+    np.testing.assert_allclose(m[..., :3].reshape(-1, 3), np.broadcast_to([G[0, 0], G[0, 1], G[1, 1]], (3 * len(t), 3)),
+                               rtol=1e-5)
+    # two triangles on a shared edge (0-1), the second twice as long along v: their shared vertices
+    # average (1, 0, 1) and (1, 0, 4) by surface area 1 : 2
+    p2 = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -2, 0]], float)
+    uv2 = np.array([[0, 0], [1, 0], [0, 1], [0, -1]], float)
+    t2 = np.array([[0, 1, 2], [0, 3, 1]])
+    m2 = corner_surface_metric(p2, uv2, t2)
+    np.testing.assert_allclose(m2[0, 0, :3], [1.0, 0.0, 3.0], rtol=1e-6)  # (1 x 1 + 4 x 2) / 3 = 3
+    np.testing.assert_allclose(m2[0, 2, :3], [1.0, 0.0, 1.0], rtol=1e-6)  # only the first triangle
+    np.testing.assert_allclose(m2[1, 1, :3], [1.0, 0.0, 4.0], rtol=1e-6)
+    # the same edge on two charts (vertex 1 and 3 split in uv): each side keeps its own metric
+    p3 = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -2, 0], [0, 0, 0], [1, 0, 0]], float)
+    uv3 = np.array([[0, 0], [1, 0], [0, 1], [0.5, -1], [0.5, 0], [1.5, 0]], float)
+    m3 = corner_surface_metric(p3, uv3, np.array([[0, 1, 2], [4, 3, 5]]))
+    np.testing.assert_allclose(m3[0, :, :3], np.broadcast_to([1.0, 0.0, 1.0], (3, 3)), rtol=1e-6)
+    np.testing.assert_allclose(m3[1, :, :3], np.broadcast_to([1.0, 0.0, 4.0], (3, 3)), rtol=1e-6)

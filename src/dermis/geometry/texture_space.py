@@ -104,3 +104,46 @@ def scene_texture_space(scene, resolution: int):
     sized from the scene's profile and scale."""
     return with_texture_space_uvs(scene.mesh, resolution=resolution, mm_per_unit=float(scene.mm_per_unit),
                                   widest_variance_mm2=float(np.max(scene.profile.variances_mm2)))
+
+
+def corner_surface_metric(positions, uvs, indices) -> np.ndarray:
+    """(n_triangles, 3, 4) float32: at each triangle's three corners (index buffer order) the surface's
+    metric in the layout, (E, F, G, 0) = (|dP/du|^2, dP/du . dP/dv, |dP/dv|^2) in scene units^2 per
+    uv unit^2 (the first fundamental form of P(u, v); Do Carmo 1976, 2-5), averaged over the triangles
+    around the corner's vertex weighted by their surface area. A vertex is the corners with the same
+    position AND layout UV: a chart's border is not averaged with the chart across the seam, whose uv
+    axes are unrelated. A triangle's own metric is constant (the layout is affine on it) and steps at
+    its edges; the corners' average, interpolated linearly over each triangle, is continuous across
+    every edge inside a chart and, for a layout that maps the surface smoothly, approaches the smooth
+    metric as the triangles shrink. tsd's final pass reads it (tsd/final.frag: detail_texels_per_mm):
+    its texels per mm, along the coarsest direction, are texels per uv / sqrt(the larger eigenvalue).
+    Triangles with no uv area or no surface area add nothing; a vertex with no other triangle gets 0
+    (the pass then adds no detail there)."""
+    p = np.asarray(positions, np.float64)
+    uv = np.asarray(uvs, np.float64)
+    t = np.asarray(indices, np.int64).reshape(-1, 3)
+    duv = np.stack([uv[t[:, 1]] - uv[t[:, 0]], uv[t[:, 2]] - uv[t[:, 0]]], 1)  # (n, 2 edges, (u, v))
+    dp = np.stack([p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]], 1)  # (n, 2 edges, 3)
+    det = duv[:, 0, 0] * duv[:, 1, 1] - duv[:, 0, 1] * duv[:, 1, 0]
+    area = 0.5 * np.linalg.norm(np.cross(dp[:, 0], dp[:, 1]), axis=1)
+    ok = (np.abs(det) > 0) & (area > 0)
+    J = np.zeros((len(t), 2, 3))
+    # rows dP/du, dP/dv: duv @ J = dp (each edge's surface step is its uv step through the Jacobian)
+    J[ok] = np.linalg.solve(duv[ok], dp[ok])
+    metric = np.stack([np.einsum("ij,ij->i", J[:, 0], J[:, 0]), np.einsum("ij,ij->i", J[:, 0], J[:, 1]),
+                       np.einsum("ij,ij->i", J[:, 1], J[:, 1])], 1)
+    w = np.where(ok & np.all(np.isfinite(metric), axis=1), area, 0.0)
+    metric[w == 0] = 0.0
+    key = np.concatenate([p, uv], 1)
+    _, vertex = np.unique(key, axis=0, return_inverse=True)
+    vertex = vertex.reshape(-1)
+    corner_vertex = vertex[t]  # (n, 3)
+    total = np.zeros((vertex.max() + 1 if len(vertex) else 0, 3))
+    weight = np.zeros(len(total))
+    for c in range(3):
+        np.add.at(total, corner_vertex[:, c], w[:, None] * metric)
+        np.add.at(weight, corner_vertex[:, c], w)
+    per_vertex = np.divide(total, weight[:, None], out=np.zeros_like(total), where=weight[:, None] > 0)
+    out = np.zeros((len(t), 3, 4), np.float32)
+    out[:, :, :3] = per_vertex[corner_vertex]
+    return out

@@ -15,7 +15,7 @@ import numpy as np
 from dermis.camera import light_matrices, normalize
 from dermis.environment import environment_sh
 from dermis.geometry.hull import extreme_points
-from dermis.geometry.texture_space import texture_space_uvs
+from dermis.geometry.texture_space import corner_surface_metric, texture_space_uvs
 from dermis.geometry.visibility import open_visibility
 from dermis.images import as_rgb
 from dermis.invalidation import memo_by_content, read_only
@@ -291,6 +291,7 @@ class GpuScene:
         self.visibility_uploaded = False  # set_visibility() not called yet: open sky
         self.ibo = ctx.buffer(np.ascontiguousarray(m.indices, np.uint32).tobytes())
         self._triangle_uv_ts = None  # triangle_uv_ts(): made on first use (tsd's final pass)
+        self._corner_metric = None  # corner_metric(): the same
         # each triangle's barycentric frame (the screen passes' move of far-extrapolated MSAA edge fragments,
         # common/mesh_varyings.glsl), made with the mesh: a texture made at a later frame would read as a
         # growing GPU object count (tests/test_viewer.py)
@@ -322,6 +323,17 @@ class GpuScene:
             uv = np.asarray(texture_space_uvs(m), np.float32)[np.asarray(m.indices, np.int64).reshape(-1)]
             self._triangle_uv_ts = self.ctx.buffer(np.ascontiguousarray(uv).tobytes())
         return self._triangle_uv_ts
+
+    def corner_metric(self):
+        """A buffer of each triangle's three corners' surface metric in the texture-space layout,
+        float32 (E, F, G, 0) per corner in the index buffer's order (triangle i at 48 i bytes: a std430
+        vec4 array; dermis.geometry.texture_space.corner_surface_metric), made on first use: tsd's
+        final pass interpolates it for a texel density that is continuous across the triangles' edges."""
+        if self._corner_metric is None:
+            m = self.scene.mesh
+            metric = corner_surface_metric(m.positions, texture_space_uvs(m), m.indices)
+            self._corner_metric = self.ctx.buffer(np.ascontiguousarray(metric).tobytes())
+        return self._corner_metric
 
     def triangle_frames(self):
         """Each triangle's barycentric frame (:func:`triangle_frame_image`): the screen passes' move of
@@ -410,6 +422,9 @@ class GpuScene:
         if self._triangle_uv_ts is not None:
             self._triangle_uv_ts.release()
             self._triangle_uv_ts = None
+        if self._corner_metric is not None:
+            self._corner_metric.release()
+            self._corner_metric = None
         if self._triangle_frames is not None:
             self._triangle_frames.release()
             self._triangle_frames = None

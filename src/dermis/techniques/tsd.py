@@ -144,6 +144,10 @@ DETAIL_MAX_GAUSSIANS_STORED = 7
 # ... and of the bounce per vertex and the index buffer (tsd/final.frag with PIXEL_DETAIL_BOUNCE)
 BOUNCE_BINDING = 1
 INDEX_BINDING = 2
+# ... and of the corners' surface metric (tsd/final.frag with PIXEL_DETAIL: detail_texels_per_mm;
+# dermis.gl.resources.GpuScene.corner_metric). A buffer, not the stretch map: the detail program's
+# samplers are all in use with K = 7 (above), and GL 4.5 guarantees 8 storage blocks per fragment shader
+CORNER_METRIC_BINDING = 3
 
 
 def stores_sharp_shadows(light_count: int) -> bool:
@@ -841,7 +845,8 @@ class TextureSpaceDiffusion(Technique):
         stored = stores_sharp_shadows(frame.lights.count) and k <= DETAIL_MAX_GAUSSIANS_STORED
         key = ("detail", stored, self._detail_bounce, k if stored else MAX_GAUSSIANS)
         if key not in self._programs:
-            defines = {"MAX_GAUSSIANS": key[3], "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING, "PIXEL_DETAIL": 1}
+            defines = {"MAX_GAUSSIANS": key[3], "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING, "PIXEL_DETAIL": 1,
+                       "CORNER_METRIC_BINDING": CORNER_METRIC_BINDING}
             if stored:
                 defines["SHARP_SHADOW_READ"] = None
             if self._detail_bounce:
@@ -958,6 +963,7 @@ class TextureSpaceDiffusion(Technique):
                 # I_1's texels across (tsd/final.frag: detail_texels_per_mm), written when it changes
                 texels = float(self.renderer.irradiance_size >> self.levels[0])
                 prepared(prog, "detail_texels", texels, lambda p: set_uniform(p, "uDetailTexels", texels))
+                frame.gpu.corner_metric().bind_to_storage_buffer(CORNER_METRIC_BINDING)
                 if self._detail_bounce:
                     self._detail_buffer.bind_to_storage_buffer(BOUNCE_BINDING)
                     frame.gpu.ibo.bind_to_storage_buffer(INDEX_BINDING)

@@ -71,24 +71,31 @@ in vec3 v_blocked_sh2;
 out vec4 f_color;
 
 #ifdef PIXEL_DETAIL
-// I_1's texels per mm of surface here, along the layout's coarsest surface direction: the smaller
-// singular value of the Jacobian d(texels)/d(mm) on the tangent plane, from the screen derivatives
-// of the position (mm) and of the texture-space UV (affine per triangle). 1e6 (no detail: every a_k
-// below is 0) where the triangle is seen edge-on and the derivatives span no plane.
-float detail_texels_per_mm() {
-    vec3 px = dFdx(v_world) * uMmPerUnit, py = dFdy(v_world) * uMmPerUnit;
-    vec2 tx = dFdx(v_uv_ts) * uDetailTexels, ty = dFdy(v_uv_ts) * uDetailTexels;
-    float lx = length(px);
-    vec3 e1 = px / max(lx, 1e-20);
-    vec3 q = py - dot(py, e1) * e1;
-    float ly = length(q);
-    if (lx < 1e-12 || ly < 1e-6 * length(py) + 1e-20) return 1e6;
-    // the screen steps in the plane's basis (e1, q / |q|): columns (lx, 0) and (py.e1, ly)
-    mat2 P = mat2(lx, 0.0, dot(py, e1), ly);
-    mat2 J = mat2(tx, ty) * inverse(P);
-    float f = dot(J[0], J[0]) + dot(J[1], J[1]);
-    float d = determinant(J);
-    return sqrt(max(0.5 * (f - sqrt(max(f * f - 4.0 * d * d, 0.0))), 0.0));
+// The surface metric in the layout at each triangle's corners, (E, F, G, 0) = (|dP/du|^2, dP/du.dP/dv,
+// |dP/dv|^2) in scene units^2 per uv^2, averaged over the triangles around each vertex
+// (dermis.geometry.texture_space.corner_surface_metric; dermis.gl.resources.GpuScene.corner_metric)
+layout(std430, binding = CORNER_METRIC_BINDING) readonly buffer CornerMetric {
+    vec4 corner_metric[];  // 3 per triangle, in the index buffer's order
+};
+
+// I_1's texels per mm of surface at texture-space uv (on triangle ``primitive``), along the layout's
+// coarsest surface direction: texels per uv unit / the larger singular value of dP/d(uv) (mm per uv
+// unit), i.e. / sqrt of the metric's larger eigenvalue. The metric is the corners' vertex averages
+// interpolated linearly over the triangle, so the density is continuous across the triangles' edges
+// inside a chart. It was each triangle's own (from screen derivatives: constant per triangle), and
+// where R is large (a shadow's edge) a 10-15 % step of it between neighbouring triangles moved
+// sum_k w_k a_k R by a display level or more: a one-pixel dark dip along the finer triangle's edge
+// (issue 12, round 21, dots21: front-key's concha at 768 px, (660, 397) 13 levels beside 17-19).
+// 1e6 (no detail: every a_k below is 0) where the metric is 0 (a vertex of degenerate triangles only).
+float detail_texels_per_mm(vec2 uv, int primitive) {
+    int i = 3 * primitive;
+    vec2 a = triangle_uv_ts[i], b = triangle_uv_ts[i + 1], c = triangle_uv_ts[i + 2];
+    float area = cross2(b - a, c - a);
+    vec3 w = area != 0.0 ? clamp(triangle_weights(uv, a, b, c) / area, 0.0, 1.0) : vec3(1.0 / 3.0);
+    vec3 M = w.x * corner_metric[i].xyz + w.y * corner_metric[i + 1].xyz + w.z * corner_metric[i + 2].xyz;
+    // the larger eigenvalue of [[E, F], [F, G]]
+    float lmax = 0.5 * (M.x + M.z) + sqrt(max(0.25 * (M.x - M.z) * (M.x - M.z) + M.y * M.y, 0.0));
+    return lmax > 0.0 ? uDetailTexels / (sqrt(lmax) * uMmPerUnit) : 1e6;
 }
 #endif
 
@@ -132,7 +139,7 @@ void main() {
     // level) is no better a sample than the texture's
     float texels_per_pixel = max(length(dFdx(v_uv_ts)), length(dFdy(v_uv_ts))) * uDetailTexels;
     float detail_weight = (1.0 - smoothstep(1.0, 2.0, off)) * (1.0 - smoothstep(1.0, 2.0, texels_per_pixel));
-    float texels_per_mm = detail_texels_per_mm();
+    float texels_per_mm = detail_texels_per_mm(uv_ts, gl_PrimitiveID);
     vec3 I0_mix = vec3(0.0);  // I_0 albedo^mix at the pixel (unused where the weight is 0)
     if (detail_weight > 0.0) {
         // I_0 as tsd/irradiance.frag and tsd/bounce_splat.frag put it into the irradiance texture, but
