@@ -91,7 +91,13 @@ with Renderer(sc, (64, 64), irradiance_size=S) as r:
                 names.append(f"down to L{level}")
             if not (narrow and k < 2):
                 names += [f"I{k + 1} U L{lvl}", f"I{k + 1} V L{lvl}"]
-        assert len(names) == len(passes), (names, len(passes))
+        # the seam fills (callables, gl/seam_fill.py) sit before the step they fill for
+        named, j = [], 0
+        for q in passes:
+            named.append(None if callable(q) else names[j])
+            j += not callable(q)
+        assert j == len(names), (names, len(passes))
+        names = [n or f"fill before {next(x for x in named[i:] if x)}" for i, n in enumerate(named)]
         per = [[] for _ in passes]
         for i in range(int(os.environ.get("REPS", 5))):
             for j, q in enumerate(passes):
