@@ -59,10 +59,10 @@ float erf_as(float x) {
 #define REACH 3.0
 #endif
 
-// Texel reads: uSource and uStretch are bound with a NEAREST, CLAMP_TO_EDGE sampler (tsd.py,
-// NEAREST_UNITS) and read at texel centres, which gives the texel clamp(p, 0, size - 1) exactly, as
-// texelFetch of the clamped texel did, bit for bit; on llvmpipe a sampled read costs ~0.3 ms less per
-// tap over 1024^2 texels than texelFetch's (round 23, chain23: its bounds checks), a quarter of a tap.
+// Texel reads: uSource and uStretch are bound with a NEAREST, CLAMP_TO_EDGE sampler object (tsd.py,
+// _pass(nearest=True)) and read at texel centres, which gives the texel clamp(p, 0, size - 1) exactly,
+// as texelFetch of the clamped texel did, bit for bit; on llvmpipe a sampled read costs ~0.3-0.4 ms
+// less per tap over 1024^2 RGBA16F texels than texelFetch (its bounds checks; round 23, chain23).
 vec2 inv_size;  // 1 / the source's size (texels)
 vec4 fetch(ivec2 p) { return textureLod(uSource, (vec2(p) + 0.5) * inv_size, 0.0); }
 
