@@ -251,3 +251,63 @@ def test_binned_variance_is_the_variance_of_the_binned_gaussian():
     j = np.arange(-200, 201, dtype=np.float64)
     ref = np.array([(j * j * binned_gaussian_1d(j, s * s, 1.0)).sum() for s in sig])
     np.testing.assert_allclose(TextureSpaceDiffusion.binned_variance(sig), ref, rtol=0, atol=2e-6)
+
+
+def test_chain_reads_texels_through_its_sampler_exactly(gl_ctx):
+    """tsd's chain (tsd/blur.frag, blur_narrow.frag, the 2x2 reductions) reads texels with textureLod at
+    texel centres through the technique's NEAREST, CLAMP_TO_EDGE sampler object, not texelFetch of a
+    clamped texel (cheaper on llvmpipe; round 23, chain23): a read at p + offset is that texel with the
+    border clamped, bit for bit (numpy's clip of the uploaded array), on an odd, non-power-of-two size,
+    offsets past every border, float16 and float32. And TextureSpaceDiffusion._draw unbinds the sampler
+    after its passes: a later pass on the same unit reads the texture's own bilinear filter again (the
+    final pass reads I_k so), in the same list and after it. Fails with a REPEAT sampler or without the
+    unbinding (checked)."""
+    import moderngl
+
+    from dermis.gl.shaders import load_shader_source
+
+    rng = np.random.default_rng(23)
+    W, H = 37, 23
+    with Renderer(quad_scene(10.0, 10.0), (16, 16), irradiance_size=64, ctx=gl_ctx, samples=0) as r:
+        tsd = r.technique("tsd")
+        vert = load_shader_source("common/fullscreen.vert", {})
+        head = "#version 450 core\nuniform sampler2D uSource;\nuniform ivec2 uOffset;\nout vec4 f_color;\n"
+        sampled = gl_ctx.program(vertex_shader=vert, fragment_shader=head + (
+            "void main() { vec2 inv_size = 1.0 / vec2(textureSize(uSource, 0));\n"
+            "  f_color = textureLod(uSource, (vec2(ivec2(gl_FragCoord.xy) + uOffset) + 0.5) * inv_size, 0.0); }"))
+        # half a texel past the centre along u: a bilinear read is the mean of two texels, a nearest one is one
+        linear = gl_ctx.program(vertex_shader=vert, fragment_shader=head + (
+            "void main() { f_color = texture(uSource, (gl_FragCoord.xy + vec2(0.5, 0.0)) / vec2(textureSize(uSource, 0))); }"))
+        made = [sampled, linear]
+        try:
+            for p in (sampled, linear):
+                tsd.vaos[p] = gl_ctx.vertex_array(p, [])
+            out = gl_ctx.texture((W, H), 4, dtype="f4")
+            made.append(out)
+            for dtype, np_dtype in (("f2", np.float16), ("f4", np.float32)):
+                src = rng.standard_normal((H, W, 4)).astype(np_dtype)
+                tex = gl_ctx.texture((W, H), 4, src.tobytes(), dtype=dtype)
+                made.append(tex)
+                tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+                tex.repeat_x = tex.repeat_y = False
+                for off in ((0, 0), (-5, 3), (4, -7), (W + 2, H + 1), (-W - 3, -H)):
+                    type(tsd)._draw([tsd._pass(sampled, out, {"uOffset": off}, {"uSource": (tex, 0)}, nearest=True)])
+                    got = np.frombuffer(out.read(), np.float32).reshape(H, W, 4)
+                    yy, xx = np.mgrid[:H, :W]
+                    ref = src[np.clip(yy + off[1], 0, H - 1), np.clip(xx + off[0], 0, W - 1)].astype(np.float32)
+                    assert np.array_equal(got.view(np.uint32), ref.view(np.uint32)), (dtype, off)
+                ref = src.astype(np.float32)
+                mean = 0.5 * (ref + ref[:, np.minimum(np.arange(W) + 1, W - 1)])
+                lin = tsd._pass(linear, out, {}, {"uSource": (tex, 0)})
+                near = tsd._pass(sampled, out, {"uOffset": (0, 0)}, {"uSource": (tex, 0)}, nearest=True)
+                for passes in ([near, lin], [lin]):  # after the nearest pass in the list, then in a later list
+                    type(tsd)._draw(passes)
+                    got = np.frombuffer(out.read(), np.float32).reshape(H, W, 4)
+                    np.testing.assert_allclose(got, mean, rtol=0, atol=2e-3 * np.abs(ref).max())
+        finally:
+            for p in (sampled, linear):
+                v = tsd.vaos.pop(p, None)
+                if v is not None:
+                    v.release()
+            for o in made:
+                o.release()

@@ -216,7 +216,7 @@ class TextureSpaceDiffusion(Technique):
             ctx, "common/fullscreen.vert", "tsd/irradiance.frag", defines, per_count=light_pass_defines)
         (self._light_programs if SPLIT_IRRADIANCE else self._irradiance_programs).compile_for(renderer.scene)
         self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
-        self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
+        self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", {**defines, "NEAREST_SAMPLER": 1})
         # a full-screen triangle: the pass reads only gl_FragCoord and textures, so rasterising the
         # mesh's layout (its vertex work and thin triangles) bought nothing; uncovered texels have
         # no far face in the bake and write T = 0, as the cleared target held
@@ -252,6 +252,9 @@ class TextureSpaceDiffusion(Technique):
         # has a baked transfer (dermis.subsurface_transfer)
         self.transfer = SubsurfaceTransfer(self.ctx)
         self.seam_fill = SeamFill(self.ctx)  # light across UV seams (dermis.geometry.seams)
+        # texel reads through the sampler (exact texel centres, the border clamped as texelFetch of a
+        # clamped texel): cheaper than texelFetch on llvmpipe (tsd/blur.frag)
+        self._nearest = ctx.sampler(filter=(moderngl.NEAREST, moderngl.NEAREST), repeat_x=False, repeat_y=False)
         self._own_filled = None  # (bake key, target) of the last whole translucency_own pass (tsd/translucency.frag)
         self._static_filled = None  # (key, target) of the last translucency_static pass (_translucency_static)
         self._p_trans_static = None
@@ -321,14 +324,16 @@ class TextureSpaceDiffusion(Technique):
         fbo.viewport = (0, 0, *target_tex.size)
         self.vaos[prog].render(moderngl.TRIANGLES, vertices=3)
 
-    def _pass(self, prog, targets, uniforms: dict, samplers: dict) -> tuple:
+    def _pass(self, prog, targets, uniforms: dict, samplers: dict, nearest=False) -> tuple:
         """A full-screen pass prepared for :meth:`_draw`: (vertex array, framebuffer, uniform
         writes, texture binds). ``uniforms``: name -> value, kept as the bytes set_uniform would
-        write; ``samplers``: name -> (texture, unit). Only what the program uses is kept."""
+        write; ``samplers``: name -> (texture, unit); ``nearest``: the textures are read through
+        the NEAREST, CLAMP_TO_EDGE sampler object (shaders that read texel centres with textureLod:
+        tsd/blur.frag), bound for the pass only. Only what the program uses is kept."""
         writes, binds = [], []
         for name, (tex, unit) in samplers.items():
             if prog.get(name, None) is not None:
-                binds.append((tex, unit))
+                binds.append((tex, unit, self._nearest if nearest else None))
                 uniforms = {**uniforms, name: unit}
         for name, value in uniforms.items():
             u = prog.get(name, None)
@@ -341,6 +346,7 @@ class TextureSpaceDiffusion(Technique):
     def _draw(passes):
         """Draw prepared passes (:meth:`_pass`) in order; a uniform is written only when its
         program holds another value (set_uniform's rule: the bytes written are in ``extra``)."""
+        bound = {}  # unit -> the sampler object bound there (cleared at the end: later passes read the textures' own filters)
         for p in passes:
             if callable(p):  # a seam fill (_seam_fill)
                 p()
@@ -350,10 +356,18 @@ class TextureSpaceDiffusion(Technique):
                 if u.extra != data:
                     u.write(data)
                     u.extra = data
-            for tex, unit in binds:
+            for tex, unit, sampler in binds:
                 tex.use(unit)
+                if bound.get(unit) is not sampler:
+                    if sampler is None:
+                        bound.pop(unit).clear(unit)
+                    else:
+                        sampler.use(unit)
+                        bound[unit] = sampler
             fbo.use()
             vao.render(moderngl.TRIANGLES, vertices=3)
+        for unit, sampler in bound.items():
+            sampler.clear(unit)
 
     def _uv_pass(self, frame, prog, target_tex, clear=True):
         targets = target_tex if isinstance(target_tex, tuple) else (target_tex,)
@@ -496,7 +510,7 @@ class TextureSpaceDiffusion(Technique):
         """(the 2x2 reduction of ``src``, its pass)."""
         size = (max(1, src.size[0] // 2), max(1, src.size[1] // 2))
         dst = self._texture(key, size)
-        return dst, [self._pass(self.p_down, dst, {}, {"uSource": (src, 0)})]
+        return dst, [self._pass(self.p_down, dst, {}, {"uSource": (src, 0)}, nearest=True)]
 
     def _blur_program(self, sigma_mm, level, footprint, max_taps=None):
         """blur.frag compiled with the fewest taps per side that reach 3 sigma at the widest
@@ -532,9 +546,9 @@ class TextureSpaceDiffusion(Technique):
         # at fractional u add variance along u that U takes off (tsd/blur.frag)
         return out, [self._pass(prog, tmp, {**common, "uSigmaMm": float(sigma_u), "uSigmaOtherMm": float(sigma_v),
                                             "uDirection": (1.0, 0.0)},
-                                {"uStretch": (stretch, 1), "uSource": (src, 0)}),
+                                {"uStretch": (stretch, 1), "uSource": (src, 0)}, nearest=True),
                      self._pass(prog, out, {**common, "uSigmaMm": float(sigma_v), "uSigmaOtherMm": 0.0, "uDirection": (0.0, 1.0)},
-                                {"uStretch": (stretch, 1), "uSource": (tmp, 0)})]
+                                {"uStretch": (stretch, 1), "uSource": (tmp, 0)}, nearest=True)]
 
     def _narrow_ok(self, levels, steps):
         """Whether I_1 and I_2 come from one pass (tsd/blur_narrow.frag): both at level 0 and I_2's
@@ -585,7 +599,8 @@ class TextureSpaceDiffusion(Technique):
         if self._p_narrow is None:
             self._p_narrow = program(self.ctx, "common/fullscreen.vert", "tsd/blur_narrow.frag", {"MAX_GAUSSIANS": MAX_GAUSSIANS})
             self.vaos[self._p_narrow] = self.ctx.vertex_array(self._p_narrow, [])
-        return out2, [self._pass(self._p_narrow, (out1, out2), {}, {"uSource": (dil, 0), "uWeights": (weights, 1)})]
+        return out2, [self._pass(self._p_narrow, (out1, out2), {}, {"uSource": (dil, 0), "uWeights": (weights, 1)},
+                                  nearest=True)]
 
     def _blur_chain(self, dil, levels, steps):
         """I_1..I_K from the dilated irradiance: step k blurs I_(k-1) by variance steps[k] at
@@ -1019,6 +1034,7 @@ class TextureSpaceDiffusion(Technique):
 
     def release(self):
         self.release_textures()
+        self._nearest.release()
         for v in self.vaos.values():
             v.release()
         self._irradiance_programs.release()
