@@ -1,8 +1,9 @@
 """tsd's blur chain against its floor (12 copy passes of the irradiance texture), interleaved in one
-process on the head: REPS rounds of copy, sampled copy, chain, sampled copy, copy; medians of the
-chain, minima of the copies. The copy is dermis bench's (bench/copy.frag, texelFetch); the sampled copy
-reads through a NEAREST sampler at texel centres as the chain does since round 23 (cheaper on
-llvmpipe, a lower floor: cpu_chain_over_12_sampled_copies). IRR=1024 (default), TAG=label.
+process on the head: REPS rounds of copy, texelFetch copy, chain, texelFetch copy, copy; medians of
+the chain, minima of the copies. The copy is dermis bench's floor (bench/copy.frag: a read through a
+NEAREST sampler at texel centres, as the chain reads since round 23); the texelFetch copy is the floor
+dermis bench used before round 23 (on llvmpipe ~10 % dearer: cpu_chain_over_12_texelfetch_copies, for
+comparison with earlier rounds' multiples). IRR=1024 (default), TAG=label.
 Runs with whichever dermis is on PYTHONPATH (before/after: alternate two checkouts).
 
 Both clocks: wall (perf_counter) and the CPU clock dermis bench uses (dermis.gl.context.cpu_busy_ns:
@@ -65,19 +66,17 @@ with Renderer(sc, (64, 64), irradiance_size=S) as r:
     vao = ctx.vertex_array(p, [])
     dst = ctx.texture((S, S), 4, dtype="f2")
     fbo = ctx.framebuffer(color_attachments=[dst])
-    def copy():
-        fbo.use(); fbo.viewport = (0, 0, S, S); dil.use(0); p["uSource"].value = 0; vao.render(vertices=3)
-    # the same copy reading through a NEAREST, CLAMP_TO_EDGE sampler at texel centres, as the chain
-    # reads since round 23 (chain23): on llvmpipe cheaper than texelFetch, so a lower floor, reported
-    # beside dermis bench's (bench/copy.frag, texelFetch)
-    ps = ctx.program(vertex_shader=load_shader_source("common/fullscreen.vert", {}), fragment_shader=(
-        "#version 450 core\nuniform sampler2D uSource;\nout vec4 f_color;\n"
-        "void main() { f_color = textureLod(uSource, (vec2(ivec2(gl_FragCoord.xy)) + 0.5) / vec2(textureSize(uSource, 0)), 0.0); }"))
-    vao_s = ctx.vertex_array(ps, [])
     nearest = ctx.sampler(filter=(moderngl.NEAREST, moderngl.NEAREST), repeat_x=False, repeat_y=False)
-    def sampled_copy():
-        fbo.use(); fbo.viewport = (0, 0, S, S); dil.use(0); nearest.use(0); ps["uSource"].value = 0
-        vao_s.render(vertices=3); nearest.clear(0)
+    def copy():  # dermis bench's floor (dermis.bench_floors: the texture's filtering NEAREST, clamped)
+        fbo.use(); fbo.viewport = (0, 0, S, S); dil.use(0); nearest.use(0); p["uSource"].value = 0
+        vao.render(vertices=3); nearest.clear(0)
+    # the floor before round 23: the same copy through texelFetch (bounds-checked on llvmpipe)
+    pf = ctx.program(vertex_shader=load_shader_source("common/fullscreen.vert", {}), fragment_shader=(
+        "#version 450 core\nuniform sampler2D uSource;\nout vec4 f_color;\n"
+        "void main() { f_color = texelFetch(uSource, ivec2(gl_FragCoord.xy), 0); }"))
+    vao_f = ctx.vertex_array(pf, [])
+    def fetch_copy():
+        fbo.use(); fbo.viewport = (0, 0, S, S); dil.use(0); pf["uSource"].value = 0; vao_f.render(vertices=3)
     def chain():
         t._blur_chain(dil, levels, steps)
     for f in (copy, chain):
@@ -85,7 +84,7 @@ with Renderer(sc, (64, 64), irradiance_size=S) as r:
     tc, tb, cc, cb, ts, cs = [], [], [], [], [], []
     load0 = os.getloadavg()[0]
     for i in range(int(os.environ.get("REPS", 5))):
-        for f, acc, cpu in ((copy, tc, cc), (sampled_copy, ts, cs), (chain, tb, cb), (sampled_copy, ts, cs), (copy, tc, cc)):
+        for f, acc, cpu in ((copy, tc, cc), (fetch_copy, ts, cs), (chain, tb, cb), (fetch_copy, ts, cs), (copy, tc, cc)):
             ctx.finish(); c0 = cpu_busy_ns(); t0 = time.perf_counter(); f(); ctx.finish()
             acc.append(time.perf_counter() - t0); cpu.append(cpu_busy_ns() - c0)
     c, b = statistics.median(tc), statistics.median(tb)
@@ -93,8 +92,8 @@ with Renderer(sc, (64, 64), irradiance_size=S) as r:
            "copy_ms": round(c * 1e3, 2), "chain_ms": round(b * 1e3, 1), "chain_over_12_copies": round(b / (12 * c), 2),
            "cpu_copy_min_ms": round(min(cc) / 1e6, 2), "cpu_chain_ms": round(statistics.median(cb) / 1e6, 1),
            "cpu_chain_over_12_copies": round(statistics.median(cb) / (12 * min(cc)), 2),
-           "cpu_sampled_copy_min_ms": round(min(cs) / 1e6, 2),
-           "cpu_chain_over_12_sampled_copies": round(statistics.median(cb) / (12 * min(cs)), 2)}
+           "cpu_texelfetch_copy_min_ms": round(min(cs) / 1e6, 2),
+           "cpu_chain_over_12_texelfetch_copies": round(statistics.median(cb) / (12 * min(cs)), 2)}
     if os.environ.get("PASSES"):
         passes = t._chain_passes[1]  # the irradiance's passes as _blur_chain draws them every frame
         names, level, k0 = [], 0, 0

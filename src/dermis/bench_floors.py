@@ -89,6 +89,8 @@ class FloorSampler:
         def copy_pass(w, h):
             src = keep(ctx.texture((w, h), 4, dtype="f2"))
             src.write(np.random.default_rng(0).random((h, w, 4)).astype(np.float16).tobytes())
+            src.filter = (moderngl.NEAREST, moderngl.NEAREST)  # bench/copy.frag's read, as tsd's chain's
+            src.repeat_x = src.repeat_y = False
             fbo = keep(ctx.framebuffer(color_attachments=[keep(ctx.texture((w, h), 4, dtype="f2"))]))
 
             def run():
