@@ -62,6 +62,59 @@ def _bake(frame, size: int) -> np.ndarray:
     return bake, islands >= 0
 
 
+# --- The far face's points ---------------------------------------------------------------------
+# Kept here, not in geometry/thickness.py, whose source keys the stored ray cast (_stored_bake).
+# common/transmittance.glsl shadows a thin part's far face over a box of the light's lateral spread
+# about A = P - h N: its taps read, at texels of the layout about P's, the point where THAT texel's
+# ray left the tissue, and keep those that lie within h / 2 of A along N (round 23, shadowbox23).
+# Stored weighted (x valid, valid), so that a bilinear lookup of the texture is the weighted mean of
+# the valid neighbours' points: across a texel whose neighbour's ray left through another surface
+# the mean lies between the two, and the box's depth test drops it when they are far apart.
+
+
+def far_face_points(mesh, size: int, mm_per_unit: float, lights, along_normal=None,
+                    light_path: bool = True) -> np.ndarray:
+    """(size, size, 4) float32, row 0 = top (v = 1): the far face's point X (scene units) behind each texel
+    times the weight, and the weight: along -N (``along_normal``, else texel_thickness) X = P - d N,
+    d its thickness (the rays' median, unsmoothed); where -N finds no far face and ``light_path``, the
+    key light's exit E (light_thickness: the position of E's texel, weighted as there)."""
+    from dermis.geometry.thickness import _texels, key_light, light_thickness, texel_thickness
+
+    S = int(size)
+    b = texel_thickness(mesh, S, mm_per_unit) if along_normal is None else along_normal
+    _, _, _, _, _, cov, p, n = _texels(mesh, S)
+    flat = b.reshape(-1, 4)
+    out = np.zeros((S * S, 4), np.float32)
+    w = flat[cov, 3].astype(np.float64)
+    X = p - n * (flat[cov, 2].astype(np.float64) / mm_per_unit)[:, None]
+    out[cov, 0:3] = X * w[:, None]
+    out[cov, 3] = w
+    if light_path:
+        lt = light_thickness(mesh, S, mm_per_unit, key_light(lights), where=b[..., 3] <= 0.0).reshape(-1, 4)
+        pos = np.full((S * S, 3), np.nan)
+        pos[cov] = p
+        sel = np.nonzero(lt[:, 3] > 0.0)[0]
+        ix = np.clip((lt[sel, 0] * S).astype(np.int64), 0, S - 1)
+        iy = np.clip(((1.0 - lt[sel, 1]) * S).astype(np.int64), 0, S - 1)
+        E = pos[iy * S + ix]
+        ok = np.all(np.isfinite(E), axis=1)  # E's texel covered (an exit at a chart's edge may miss it)
+        sel, E = sel[ok], E[ok]
+        wl = lt[sel, 3].astype(np.float64)
+        out[sel, 0:3] = E * wl[:, None]
+        out[sel, 3] = wl
+    return out.reshape(S, S, 4)
+
+
+def _far_face(frame, size: int) -> np.ndarray:
+    """far_face_points of the frame's mesh (per bake_key, as the smoothed bake)."""
+    sc = frame.scene
+    _bake(frame, size)  # the ray cast along -N, cached
+    normal, _ = _BAKES[("normal", frame.keys["thickness"], int(size))]
+    return _cached(("far face",) + bake_key(frame, size),
+                   lambda: far_face_points(sc.mesh, size, sc.mm_per_unit, sc.lights, along_normal=normal,
+                                           light_path=bool(getattr(sc, "translucency_light_path", False))))
+
+
 def _stored_bake(scene, product_key: str, size: int, make):
     """``make()``'s (bake along -N (S, S, 4) float32, UV islands (S, S) int) through dermis's disk cache
     (geometry.bake_cache; DERMIS_CACHE_DIR, off with "off"), keyed by the product key "thickness" (the mesh's
@@ -99,6 +152,7 @@ class ThicknessTexture:
         self.ctx = ctx
         self.filtered = filtered
         self.tex = None
+        self.far_face = None  # filtered: the far face's points (far_face_points), rgba32f, bilinear
         self.key = None
 
     def get(self, frame, size: int):
@@ -112,6 +166,10 @@ class ThicknessTexture:
                     data = np.stack([bake[..., 2] * bake[..., 3], bake[..., 3]], -1)
                     self.tex = self.ctx.texture((size, size), 2, dtype="f4")
                     self.tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+                    self.far_face = self.ctx.texture((size, size), 4, dtype="f4")
+                    self.far_face.filter = (moderngl.LINEAR, moderngl.LINEAR)
+                    self.far_face.repeat_x = self.far_face.repeat_y = False
+                    self.far_face.write(np.ascontiguousarray(_far_face(frame, size)[::-1], np.float32).tobytes())
                 else:  # uncovered texels: weight -1 (tsd/translucency.frag blends the covered neighbours)
                     data = bake.copy()
                     data[~covered, 3] = -1.0
@@ -126,5 +184,8 @@ class ThicknessTexture:
     def release(self):
         if self.tex is not None:
             self.tex.release()
+        if self.far_face is not None:
+            self.far_face.release()
         self.tex = None
+        self.far_face = None
         self.key = None
