@@ -212,7 +212,7 @@ def head(a):
     import cycles_crops
     import dermis
     from dermis.geometry.texture_space import texture_space_uvs
-    from dermis.geometry.thickness import translucency_thickness
+    from dermis.geometry.thickness import texel_thickness, translucency_thickness
     from dermis.techniques.shared import thin_slab_law
     from ear_regions import REGIONS
     from farface_occluder import bilinear
@@ -221,16 +221,18 @@ def head(a):
     sc = dermis.load_scene(cycles_crops.SCENES["back-ears"])
     sc.material.pore_strength = 0.0
     mesh, mm = sc.mesh, float(sc.mm_per_unit)
-    bake = translucency_thickness(mesh, 512, mm, sc.lights, light_path=bool(getattr(sc, "translucency_light_path", False)))
+    normal = texel_thickness(mesh, 512, mm)
+    bake, completed = translucency_thickness(mesh, 512, mm, sc.lights, along_normal=normal, unsmoothed=True,
+                                             light_path=bool(getattr(sc, "translucency_light_path", False)))
     data = np.stack([bake[..., 2] * bake[..., 3], bake[..., 3]], -1)
     _, law = thin_slab_law(sc)
     L = -np.asarray(sc.lights[0].direction, np.float64)
     L /= np.linalg.norm(L)
     geo = Geometry(mesh.positions, mesh.indices, mesh.normals, mm)
     uv_ts = np.asarray(texture_space_uvs(mesh), np.float64)
-    from dermis.gl.thickness import far_face_points
+    from dermis.gl.thickness import far_face_points, texel_maps
 
-    points = far_face_points(mesh, 512, mm, sc.lights, light_path=bool(getattr(sc, "translucency_light_path", False)))
+    points = far_face_points(completed, normal, texel_maps(mesh, 512), mm)
     for name in a.regions:
         _, _, p, tri, b, n, (N, I) = camera_hits(sc, REGIONS[name])
         w = np.stack([1 - b[:, 0] - b[:, 1], b[:, 0], b[:, 1]], 1)
@@ -252,10 +254,11 @@ def head(a):
         s_new, cos_new = surface_taps(geo, p, n, h, half, L, uv[ok], M, points)
         print(f"[{name} {REGIONS[name]}: bake h {np.median(h):.2f} mm, half-width {np.median(half):.2f} mm]")
         summary(name, r)
-        print(f"    round 23's taps on the far face: s {np.mean(s_new):.3f}, cos at the fitted far face {np.mean(cos_new):.3f}, "
-              f"cos x s {np.mean(s_new * cos_new):.3f}; |s - ref_surface| per px {np.nanmean(np.abs(s_new - r['ref_surface'])):.3f}, "
-              f"|cos x s - ref_surface's| {np.nanmean(np.abs(s_new * cos_new - r['ref_surface_cos'])):.3f} (rounds 18-22: "
-              f"{np.nanmean(np.abs(r['s_box'] * r['cos_P'] - r['ref_surface_cos'])):.3f})")
+        cs = s_new * r["cos_P"]  # the shader's cosine: at -Ng
+        print(f"    round 23's taps on the far face: s {np.mean(s_new):.3f}, cos x s {np.mean(cs):.3f}; |s - ref_surface| per px "
+              f"{np.nanmean(np.abs(s_new - r['ref_surface'])):.3f}, |cos x s - ref_surface's| {np.nanmean(np.abs(cs - r['ref_surface_cos'])):.3f} "
+              f"(rounds 18-22: {np.nanmean(np.abs(r['s_box'] * r['cos_P'] - r['ref_surface_cos'])):.3f}); with the cosine at the "
+              f"kept points' least-squares plane (tried, not kept): {np.mean(cos_new):.3f}, cos x s {np.mean(s_new * cos_new):.3f}")
 
 
 def tube(width_mm, thick_mm, length_mm=60.0, nu=256, nv=24):
