@@ -146,7 +146,7 @@ def _flap_scene(body: bool, width_mm: float = 10.0, thick_mm: float = 5.0, cut_m
         n = np.stack([c * np.cos(t), np.zeros_like(t), a * np.sin(t)], -1)
         return p, n / np.linalg.norm(n, axis=-1, keepdims=True)
 
-    parts = [grid_mesh(96, 48, fn, (0.02, 0.02, 0.98, 0.6))]
+    parts = [grid_mesh(64, 24, fn, (0.02, 0.02, 0.98, 0.6))]
     if body:
         zf = c * np.sin(th1)  # the flap's front where it meets the block
         parts.append(box((-cut_mm - 10.0, 0.0, (zf - 20.0) / 2), (10.0, length_mm / 2, (zf + 20.0) / 2),
