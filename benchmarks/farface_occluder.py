@@ -41,7 +41,7 @@ def shader_bake(sc):
     with Renderer(sc, (SIZE, SIZE), irradiance_size=1024) as r:
         r.render("ssss")
         mesh = r.scene.mesh
-        bake = [v for k, v in _BAKES.items() if k[0] == "lit"][-1]
+        bake = [v for k, v in _BAKES.items() if k[0] == "lit"][-1][0]  # (smoothed, unsmoothed): the smoothed
     return np.stack([bake[..., 2] * bake[..., 3], bake[..., 3]], -1), mesh
 
 

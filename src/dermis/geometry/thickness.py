@@ -231,14 +231,16 @@ def smooth_thickness(bake: np.ndarray, islands: np.ndarray) -> np.ndarray:
 
 
 def translucency_thickness(mesh, size: int, mm_per_unit: float, lights, along_normal=None,
-                           islands=None, light_path: bool = True) -> np.ndarray:
+                           islands=None, light_path: bool = True, unsmoothed: bool = False):
     """What the techniques read (gl/thickness.py): the bake along -N (``along_normal``, else
     texel_thickness), where it has no far face the bake along the key light (light_thickness), the
     two smoothed within each UV island (smooth_thickness; ``islands``, else uv_islands). (size, size,
     4) float32: (u, v) of the far face, thickness in mm, weight in [0, 1]. ``light_path=False``
-    (the scene's ``translucency_light_path``): the bake along -N alone, smoothed."""
+    (the scene's ``translucency_light_path``): the bake along -N alone, smoothed. ``unsmoothed``:
+    also the two before smoothing (the far face's points, gl/thickness.py far_face_points)."""
     b = texel_thickness(mesh, size, mm_per_unit) if along_normal is None else along_normal
     if light_path:
         lt = light_thickness(mesh, size, mm_per_unit, key_light(lights), where=b[..., 3] <= 0.0)
         b = np.where((lt[..., 3] > 0.0)[..., None], lt, b)
-    return smooth_thickness(b, uv_islands(mesh, size) if islands is None else islands)
+    smoothed = smooth_thickness(b, uv_islands(mesh, size) if islands is None else islands)
+    return (smoothed, b) if unsmoothed else smoothed

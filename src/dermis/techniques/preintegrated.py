@@ -122,6 +122,7 @@ GAUSSIANS_DEFINE = "PREINTEGRATED_GAUSSIANS"  # skin.frag: the profile's Gaussia
 UNIT_SHADOW_DEPTH = Unit.FIRST_FREE + 3  # the shadow atlas again, its depths read without comparison (fold_scattering)
 UNIT_NORMAL_LOD = Unit.FIRST_FREE + 4  # the normal map again, through an isotropic sampler (the blurred normals' textureLod)
 UNIT_TRANSFER = Unit.FIRST_FREE + 5  # the baked subsurface transfer's grid (common/subsurface_transfer.glsl)
+UNIT_FAR_FACE = Unit.FIRST_FREE + 6  # the far face's points behind each texel (gl/thickness.py, common/transmittance.glsl)
 
 _TABLE_CACHE: dict = {}
 
@@ -525,6 +526,7 @@ class PreintegratedSkin(Technique):
             bind_sampler(prog, "uPenumbraTable", self.profile_tables["penumbra"], UNIT_PENUMBRA_TABLE)
             bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
                          UNIT_THICKNESS)
+            bind_sampler(prog, "uFarFaceMap", self.thickness.far_face, UNIT_FAR_FACE)
             set_profile_uniforms(prog, profile, MAX_GAUSSIANS)
             translucency_uniforms(prog, self.options.translucency and casts_translucency(frame.scene), self.options.translucency_strength,
                                   frame.scene)

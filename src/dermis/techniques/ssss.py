@@ -268,6 +268,7 @@ class ScreenSpaceSSS(Technique):
                                   scene)
             bind_sampler(prog, "uThicknessMap", self.thickness.get(frame, max(self.renderer.irradiance_size // 2, 1)),
                          Unit.FIRST_FREE)
+            bind_sampler(prog, "uFarFaceMap", self.thickness.far_face, Unit.FIRST_FREE + 1)
             if bounce:
                 bind_interreflection(frame, prog)
             draw_mesh(frame, prog)

@@ -68,7 +68,7 @@ vec2 triangle_barycentrics(vec3 p) {
 #define MOVED(a, s) ((a) + dFdxFine(a) * (s).x + dFdyFine(a) * (s).y)
 
 vec3 mesh_world, mesh_normal, mesh_raw_world, mesh_raw_normal;
-vec2 mesh_uv, mesh_uv1, mesh_uv_ts, mesh_raw_uv;
+vec2 mesh_uv, mesh_uv1, mesh_uv_ts, mesh_raw_uv, mesh_raw_uv_ts;
 vec4 mesh_tangent, mesh_visibility;
 vec3 mesh_blocked_sh0, mesh_blocked_sh1, mesh_blocked_sh2;
 #ifdef DERMIS_VERTEX_CURVATURE
@@ -82,6 +82,7 @@ void load_mesh_varyings() {
     mesh_raw_world = v_world;
     mesh_raw_normal = v_normal;
     mesh_raw_uv = v_uv;
+    mesh_raw_uv_ts = v_uv_ts;
     ivec2 at = ivec2(2 * (gl_PrimitiveID % MESH_TRIANGLES_PER_ROW), gl_PrimitiveID / MESH_TRIANGLES_PER_ROW);
     frame_b = imageLoad(uTriangleFrames, at);
     frame_c = imageLoad(uTriangleFrames, at + ivec2(1, 0));

@@ -336,6 +336,9 @@ void main() {
     float area_uv = abs(duvx.x * duvy.y - duvx.y * duvy.x);
     float area_mm = length(cross(dFdxFine(P_raw_mm), dFdyFine(P_raw_mm)));  // a pixel's footprint, mm^2
     float texels_per_mm = sqrt(area_uv / max(area_mm, 1e-12));
+    // the thickness bake's uv per scene unit on this triangle (the far-face shadow's taps: common/transmittance.glsl)
+    mat3x2 uv_per_unit = texture_space_per_unit(dFdxFine(mesh_raw_world), dFdyFine(mesh_raw_world),
+                                                dFdxFine(mesh_raw_uv_ts), dFdyFine(mesh_raw_uv_ts));
 
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     // blurred normals: channel c's normal is the normal map filtered by channel c's own profile,
@@ -384,7 +387,7 @@ void main() {
     E += bounce_irradiance();  // one bounce: as smooth as the profile's reach, no table (common/interreflection.glsl)
 #endif
     // the exit's k(N.V) on the reflected light; the light through a thin part leaves Lambertian
-    E = E * directional_factor(c, ndv) + transmitted_irradiance(v_world, Ngeo, v_uv_ts);
+    E = E * directional_factor(c, ndv) + transmitted_irradiance(v_world, Ngeo, v_uv_ts, uv_per_unit);
 
     // + the baked subsurface transfer of thin, curled parts (common/subsurface_transfer.glsl: light
     // leaving the skin, gathered from rho E, so not times the albedo again)

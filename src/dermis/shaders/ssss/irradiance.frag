@@ -34,6 +34,8 @@ layout(location = 1) out vec4 f_view_normal;  // the blurs' tissue-path test (ss
 
 void main() {
     vec3 Ng = normalize(v_normal);
+    // the thickness bake's uv per scene unit on this triangle (the far-face shadow's taps: common/transmittance.glsl)
+    mat3x2 uv_per_unit = texture_space_per_unit(dFdxFine(v_world), dFdyFine(v_world), dFdxFine(v_uv_ts), dFdyFine(v_uv_ts));
     vec3 N = perturb_normal(v_normal, v_tangent, v_uv);
     float rho_s = specular_intensity(v_uv);
     float m = roughness_at(v_uv);
@@ -44,7 +46,7 @@ void main() {
 #ifdef DERMIS_INTERREFLECTION
     E_in += bounce_irradiance();  // one bounce, before the blurs, which scatter it (common/interreflection.glsl)
 #endif
-    vec3 E = E_in * directional_factor(c, ndv) + transmitted_irradiance(v_world, Ng, v_uv_ts);
+    vec3 E = E_in * directional_factor(c, ndv) + transmitted_irradiance(v_world, Ng, v_uv_ts, uv_per_unit);
     float depth_mm = max(-dot(uViewZ, vec4(v_world, 1.0)) * uMmPerUnit, 1e-3);
     f_irradiance = vec4(E * albedo_power(albedo, uMix), depth_mm);
     // the FACET's normal (the plane of the triangle, from the screen derivatives of the position:
