@@ -31,8 +31,8 @@ within 1 mm, so it reads the irradiance averaged over about that footprint, not 
 map (shadow edges, pores)."""
 POINTS_PER_ROW = 256
 VIEW_IMAGE = 1
-"""The first of the three image units common/subsurface_transfer.glsl's view term reads (the view grids of
-red, green, blue; unit 0 is the mesh's triangle frames)."""
+"""The first of the three image units common/subsurface_transfer.glsl's view term reads (the view grids' 2 x 2
+box sums of red, green, blue: :meth:`SubsurfaceTransfer.view_box`; unit 0 is the mesh's triangle frames)."""
 
 
 def source_index(variances_mm2) -> int:
@@ -83,6 +83,9 @@ class SubsurfaceTransfer:
         # what a screen pass's uTransfer samples where the scene has no bake (never read: uTransferLevel < 0)
         self.placeholder = ctx.texture((1, 1), 4, dtype="f4")
         self.view_grids = []  # the view term's grids (red, green, blue) of the current bake
+        # their 2 x 2 box sums at the level the readers read (view_box): (textures, framebuffer, level)
+        self._box = None
+        self._box_prog = None
         self.index = 1.4
 
     def _programs(self):
@@ -98,6 +101,13 @@ class SubsurfaceTransfer:
         for o in self._gpu:
             o.release()
         self._gpu = []
+        self._release_box()
+
+    def _release_box(self):
+        if self._box is not None:
+            for o in (*self._box[0], self._box[1]):
+                o.release()
+            self._box = None
 
     def lookup(self, frame):
         """The bake for ``frame``'s scene (or None), looked up once per its product key."""
@@ -200,6 +210,7 @@ class SubsurfaceTransfer:
         from dermis.gl.resources import set_uniform, use_texture
 
         self.gather(irradiance, mipmaps=self.reads_mipmaps(target_size))
+        self.view_box(self.read_level(target_size))
         self._gathered = None
         _, add, vao = self._programs()
         set_uniform(add, "uTransfer", 0)
@@ -232,14 +243,51 @@ class SubsurfaceTransfer:
         if key != self._gathered:
             with frame.timer("subsurface_transfer"):
                 self.gather(source, mipmaps=mipmaps)
+                self.view_box(self.read_level(target_size))
             self._gathered = key
             frame.passes_run.append("subsurface_transfer")
         return self.grid_texture, self.read_level(target_size)
 
+    def view_box(self, level: int) -> None:
+        """The view grids' 2 x 2 box sums at ``level`` (tsd/transfer_view_box.frag), which the readers'
+        view term reads (:meth:`bind_view`, common/subsurface_transfer.glsl: its 3 x 3 tent as a bilinear
+        blend of 2 x 2 of them, 12 image loads instead of 27); after every gather, none for a bake
+        without the view term (uTransferIndex < 0: never read)."""
+        from dermis.gl.resources import set_uniform, use_texture
+        from dermis.gl.shaders import program
+
+        if self.index < 0.0:
+            return
+        level = int(level)
+        size = tuple(max(int(s) >> level, 1) + 1 for s in self.grid_texture.size)  # one texel wider per axis
+        if self._box is None or self._box[0][0].size != size:
+            self._release_box()
+            texs = []
+            for _ in range(3):
+                t = self.ctx.texture(size, 4, dtype="f4")
+                t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                texs.append(t)
+            self._box = (texs, self.ctx.framebuffer(color_attachments=texs), None)
+        if self._box_prog is None:
+            prog = program(self.ctx, "common/fullscreen.vert", "tsd/transfer_view_box.frag")
+            self._box_prog = (prog, self.ctx.vertex_array(prog, []))
+        prog, vao = self._box_prog
+        for u, (name, t) in enumerate(zip(("uViewR", "uViewG", "uViewB"), self.view_grids)):
+            set_uniform(prog, name, u)
+            use_texture(t, u)
+        set_uniform(prog, "uLevel", level)
+        texs, fbo, _ = self._box
+        fbo.use()
+        fbo.viewport = (0, 0, *size)
+        self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        vao.render(moderngl.TRIANGLES, vertices=3)
+        self._box = (texs, fbo, level)
+
     def bind_view(self, prog, level) -> None:
         """The view term's images for a pass that reads common/subsurface_transfer.glsl's
-        subsurface_transfer_view (``level``: the grids' level, uTransferLevel; < 0 or no bake: the
-        placeholders, never read) and its uTransferIndex."""
+        subsurface_transfer_view (``level``: the grids' level, uTransferLevel, whose box sums the last
+        gather made (:meth:`view_box`); < 0, no bake or none with the view term: the placeholders, never
+        read) and its uTransferIndex."""
         from dermis.gl.resources import set_uniform
 
         if prog.get("uTransferViewR", None) is None:
@@ -247,9 +295,13 @@ class SubsurfaceTransfer:
         live = self.bake is not None and level is not None and level >= 0
         if not live and self.placeholder is None:  # released, then drawn again without a bake
             self.placeholder = self.ctx.texture((1, 1), 4, dtype="f4")
-        grids = self.view_grids if live else [self.placeholder] * 3
-        for u, t in enumerate(grids):
-            t.bind_to_image(VIEW_IMAGE + u, read=True, write=False, level=int(level) if live else 0)
+        boxes = [self.placeholder] * 3
+        if live and self.index >= 0.0:
+            if self._box is None or self._box[2] != int(level):
+                raise RuntimeError(f"the view term's box sums are of level {self._box and self._box[2]}, not {level}")
+            boxes = self._box[0]
+        for u, t in enumerate(boxes):
+            t.bind_to_image(VIEW_IMAGE + u, read=True, write=False, level=0)
         set_uniform(prog, "uTransferIndex", float(self.index if live else 1.4))
         from dermis.subsurface_transfer.bake import view_mean_constants
 
@@ -270,6 +322,10 @@ class SubsurfaceTransfer:
     def release(self):
         self._release_gpu()
         self._gathered = None
+        if self._box_prog is not None:
+            for o in reversed(self._box_prog):
+                o.release()
+            self._box_prog = None
         if self.placeholder is not None:
             self.placeholder.release()
             self.placeholder = None
