@@ -385,6 +385,34 @@ def test_gl_add_is_the_tent_of_the_gathered_grid_per_channel(gl_ctx):
             _check_view_term_is_the_tent(gl_ctx, st, level, vgrid, rng)
     finally:
         st.release()
+    # a sparse bake (a block at the grid's edge, scattered points): the box sums are drawn only in the tiles
+    # near its points (dermis.gl.subsurface_transfer.BOX_TILE; checked: fails with the tiles of the points'
+    # own texels alone)
+    cells = np.r_[(np.arange(10, 16)[:, None] * g + np.arange(0, 6)).ravel(), rng.choice(g * g, 20, replace=False)]
+    cells = np.unique(cells)
+    m = len(cells)
+    uv_s = np.c_[(cells % g + 0.5) / g, (cells // g + 0.5) / g].astype(np.float32)
+    view_s = np.zeros((m, 2, 3, 4), np.float32)
+    view_s[:, 0] = rng.normal(0.0, 0.2, (m, 3, 4))
+    w_s = np.zeros((m, 2, 3), np.float32)
+    w_s[:, 0] = 0.1
+    sparse = B.TransferBake(uv_s, np.stack([uv_s, uv_s], 1), w_s, w_s.sum(1), np.zeros((m, 3)), {"grid": g},
+                            tap_view=view_s)
+    st = SubsurfaceTransfer(gl_ctx)
+    try:
+        st.bake = sparse
+        st._upload(sparse)
+        full = np.zeros((g * g, 3, 4))
+        full[cells] = view_s[:, 0]
+        for level in (0, 1):
+            st.gather(irr, mipmaps=True)
+            st.view_box(level)
+            vgrid = full.reshape(g, g, 3, 4)
+            if level:
+                vgrid = vgrid.reshape(g // 2, 2, g // 2, 2, 3, 4).mean((1, 3))
+            _check_view_term_is_the_tent(gl_ctx, st, level, vgrid, rng)
+    finally:
+        st.release()
         irr.release()
 
 
