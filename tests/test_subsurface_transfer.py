@@ -354,7 +354,9 @@ def test_gl_add_is_the_tent_of_the_gathered_grid_per_channel(gl_ctx):
     uv = np.stack(np.meshgrid(c, c), -1).reshape(-1, 2).astype(np.float32)  # point p at texel (p % g, p // g)
     w = np.zeros((g * g, 2, 3), np.float32)
     w[:, 0] = rng.normal(0.0, 1.0, (g * g, 3)) * (0.3, 0.1, 0.05) + (0.1, 0.03, 0.02)
-    bake = B.TransferBake(uv, np.stack([uv, uv], 1), w, w.sum(1), np.zeros((g * g, 3)), {"grid": g})
+    view = np.zeros((g * g, 2, 3, 4), np.float32)  # round 23: the view term's (G, c) per channel, read by the probe
+    view[:, 0] = rng.normal(0.0, 0.2, (g * g, 3, 4))
+    bake = B.TransferBake(uv, np.stack([uv, uv], 1), w, w.sum(1), np.zeros((g * g, 3)), {"grid": g}, tap_view=view)
     irr = gl_ctx.texture((8, 8), 4, dtype="f4")
     irr.write(np.ones((8, 8, 4), np.float32).tobytes())  # colour 1, coverage 1
     grid = w[:, 0].reshape(g, g, 3).astype(np.float64)  # row = v
@@ -376,9 +378,109 @@ def test_gl_add_is_the_tent_of_the_gathered_grid_per_channel(gl_ctx):
             assert np.all(got[..., 3] == 0.0)  # the target's coverage untouched
             np.testing.assert_allclose(got[..., :3], want, atol=1e-4 * np.abs(want).max(), err_msg=f"target {size}")
             gl_ctx.disable(moderngl.BLEND)
+            level = st.read_level((size, size))
+            vgrid = view[:, 0].reshape(g, g, 3, 4).astype(np.float64)
+            if level:
+                vgrid = vgrid.reshape(g // 2, 2, g // 2, 2, 3, 4).mean((1, 3))
+            _check_view_term_is_the_tent(gl_ctx, st, level, vgrid, rng)
+    finally:
+        st.release()
+    # a sparse bake (a block at the grid's edge, scattered points): the box sums are drawn only in the tiles
+    # near its points (dermis.gl.subsurface_transfer.BOX_TILE; checked: fails with the tiles of the points'
+    # own texels alone)
+    cells = np.r_[(np.arange(10, 16)[:, None] * g + np.arange(0, 6)).ravel(), rng.choice(g * g, 20, replace=False)]
+    cells = np.unique(cells)
+    m = len(cells)
+    uv_s = np.c_[(cells % g + 0.5) / g, (cells // g + 0.5) / g].astype(np.float32)
+    view_s = np.zeros((m, 2, 3, 4), np.float32)
+    view_s[:, 0] = rng.normal(0.0, 0.2, (m, 3, 4))
+    w_s = np.zeros((m, 2, 3), np.float32)
+    w_s[:, 0] = 0.1
+    sparse = B.TransferBake(uv_s, np.stack([uv_s, uv_s], 1), w_s, w_s.sum(1), np.zeros((m, 3)), {"grid": g},
+                            tap_view=view_s)
+    st = SubsurfaceTransfer(gl_ctx)
+    try:
+        st.bake = sparse
+        st._upload(sparse)
+        full = np.zeros((g * g, 3, 4))
+        full[cells] = view_s[:, 0]
+        for level in (0, 1):
+            st.gather(irr, mipmaps=True)
+            st.view_box(level)
+            vgrid = full.reshape(g, g, 3, 4)
+            if level:
+                vgrid = vgrid.reshape(g // 2, 2, g // 2, 2, 3, 4).mean((1, 3))
+            _check_view_term_is_the_tent(gl_ctx, st, level, vgrid, rng)
     finally:
         st.release()
         irr.release()
+
+
+def _check_view_term_is_the_tent(gl_ctx, st, level, vgrid, rng):
+    """common/subsurface_transfer.glsl's view term at random uv (interior, edges, just outside [0, 1]), views and
+    normals against numpy: the (1 2 1)^2 tent of the view grids at ``level`` ((n, n, 3, 4): per channel (G, c)),
+    its texels clamped at the edges, at p = uv n - 0.5 (weights (1 - f) / 2, 1 / 2, f / 2 on texels floor(p - 0.5)
+    + 0..2 per axis), then bake.view_deviation. Round 23 reads the tent as 2 x 2 of the grids' box sums
+    (tsd/transfer_view_box.frag; checked: fails with the box texels one off or unclamped)."""
+    import moderngl
+
+    from dermis.gl.resources import set_uniform
+    from dermis.gl.shaders import load_shader_source
+
+    n = vgrid.shape[0]
+    P = 512
+    uv = rng.uniform(-0.03, 1.03, (P, 2))
+    uv[:64] = rng.integers(0, n, (64, 2)) / n + rng.choice([0.0, 0.5, 1.0], (64, 2)) / n  # texel edges and centres
+    nrm = rng.normal(0.0, 1.0, (P, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    eye = rng.normal(0.0, 1.0, (P, 3))
+    eye /= np.linalg.norm(eye, axis=1, keepdims=True)
+    eye = np.where((eye * nrm).sum(1, keepdims=True) < 0.05, eye - 1.2 * (eye * nrm).sum(1, keepdims=True) * nrm, eye)
+    eye /= np.linalg.norm(eye, axis=1, keepdims=True)  # towards the eye, above the surface
+    src = load_shader_source("common/subsurface_transfer.glsl") + """
+uniform sampler2D uProbeUv; uniform sampler2D uProbeV; uniform sampler2D uProbeN;
+out vec4 f_out;
+void main() {
+    ivec2 i = ivec2(gl_FragCoord.xy);
+    f_out = vec4(subsurface_transfer_view(texelFetch(uProbeUv, i, 0).xy, texelFetch(uProbeV, i, 0).xyz,
+                                          texelFetch(uProbeN, i, 0).xyz), 1.0);
+}
+"""
+    prog = gl_ctx.program(vertex_shader=load_shader_source("common/fullscreen.vert"), fragment_shader=src)
+    made = [prog]
+    try:
+        for unit, (name, a) in enumerate((("uProbeUv", np.c_[uv, np.zeros((P, 2))]), ("uProbeV", np.c_[eye, np.zeros(P)]),
+                                          ("uProbeN", np.c_[nrm, np.zeros(P)]))):
+            tex = gl_ctx.texture((P, 1), 4, np.ascontiguousarray(a, np.float32).tobytes(), dtype="f4")
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            made.append(tex)
+            tex.use(unit)
+            set_uniform(prog, name, unit)
+        set_uniform(prog, "uTransferLevel", float(level))
+        st.bind_view(prog, level)
+        out = gl_ctx.texture((P, 1), 4, dtype="f4")
+        fbo = gl_ctx.framebuffer(color_attachments=[out])
+        made += [out, fbo]
+        fbo.use()
+        gl_ctx.disable(moderngl.BLEND)
+        gl_ctx.vertex_array(prog, []).render(moderngl.TRIANGLES, vertices=3)
+        got = np.frombuffer(out.read(), np.float32).reshape(P, 4)[:, :3].astype(np.float64)
+    finally:
+        for o in reversed(made):
+            o.release()
+    p = uv * n - 0.5
+    i0 = np.floor(p - 0.5).astype(int)
+    f = (p - 0.5) - i0
+    wx = np.stack([(1.0 - f[:, 0]) / 2, np.full(P, 0.5), f[:, 0] / 2], 1)
+    wy = np.stack([(1.0 - f[:, 1]) / 2, np.full(P, 0.5), f[:, 1] / 2], 1)
+    tent = np.zeros((P, 3, 4))
+    for y in range(3):
+        for x in range(3):
+            tx, ty = np.clip(i0[:, 0] + x, 0, n - 1), np.clip(i0[:, 1] + y, 0, n - 1)
+            tent += (wx[:, x] * wy[:, y])[:, None, None] * vgrid[ty, tx]
+    want = B.view_deviation(tent[:, None], -eye, nrm, st.index)[:, 0]
+    assert np.abs(want).max() > 0.05
+    np.testing.assert_allclose(got, want, atol=2e-5 * np.abs(want).max(), err_msg=f"view term, level {level}")
 
 
 @pytest.fixture

@@ -200,7 +200,7 @@ def test_pixel_detail_programs_fit_the_guaranteed_samplers(gl_ctx, k, lights):
     drawing a finite image that differs from the plain one only by the detail."""
     import dataclasses
 
-    from dermis.gl.shaders import sampler_count
+    from dermis.gl.shaders import program, sampler_count
     from dermis.techniques import shared
 
     v = 0.0064 * 3.0 ** np.arange(k)  # d'Eon-like spacing, 0.0064 mm^2 on
@@ -217,6 +217,18 @@ def test_pixel_detail_programs_fit_the_guaranteed_samplers(gl_ctx, k, lights):
         (key, prog), = detail
         assert key[1] == (k <= 7 and lights <= 3) and key[2] is True
         assert sampler_count(prog) <= shared.GUARANTEED_TEXTURE_UNITS, sampler_count(prog)
+        # round 23: the lights unrolled for the scene's count (common/lights.glsl DERMIS_FOR_EACH_LIGHT); the same
+        # image as the loop over uLightCount (checked: fails with the count one short; one case: a compile costs ~1 s)
+        vertex, fragment, defines, _ = prog.extra["sources"]
+        assert key[4] == lights and defines[shared.LIGHT_COUNT_DEFINE] == lights
+        if (k, lights) == (7, 3):
+            looped = program(gl_ctx, vertex, fragment, {d: v for d, v in defines.items() if d != shared.LIGHT_COUNT_DEFINE})
+            t._programs[key] = looped
+            try:
+                np.testing.assert_array_equal(r.render("tsd"), img)
+            finally:
+                t._programs[key] = prog
+                looped.release()
         r.technique("tsd", pixel_detail=False)
         plain = r.render("tsd")
     assert np.all(np.isfinite(img)) and img.max() > 0

@@ -30,9 +30,11 @@ mesh subdivided twice, vertices ~0.3-1 mm apart on the ear) and the point's own 
 within 1 mm, so it reads the irradiance averaged over about that footprint, not a point of the raw
 map (shadow edges, pores)."""
 POINTS_PER_ROW = 256
+BOX_TILE = 8
+"""Texels per side of the tiles :meth:`SubsurfaceTransfer.view_box` draws (tsd/transfer_view_box.vert)."""
 VIEW_IMAGE = 1
-"""The first of the three image units common/subsurface_transfer.glsl's view term reads (the view grids of
-red, green, blue; unit 0 is the mesh's triangle frames)."""
+"""The first of the three image units common/subsurface_transfer.glsl's view term reads (the view grids' 2 x 2
+box sums of red, green, blue: :meth:`SubsurfaceTransfer.view_box`; unit 0 is the mesh's triangle frames)."""
 
 
 def source_index(variances_mm2) -> int:
@@ -83,6 +85,10 @@ class SubsurfaceTransfer:
         # what a screen pass's uTransfer samples where the scene has no bake (never read: uTransferLevel < 0)
         self.placeholder = ctx.texture((1, 1), 4, dtype="f4")
         self.view_grids = []  # the view term's grids (red, green, blue) of the current bake
+        # their 2 x 2 box sums at the level the readers read (view_box): (textures, framebuffer, level, tiles'
+        # vertex array, tiles' buffer, tile count)
+        self._box = None
+        self._box_prog = None
         self.index = 1.4
 
     def _programs(self):
@@ -98,6 +104,14 @@ class SubsurfaceTransfer:
         for o in self._gpu:
             o.release()
         self._gpu = []
+        self._release_box()
+
+    def _release_box(self):
+        if self._box is not None:
+            texs, fbo, _, vao, buf, _ = self._box
+            for o in (vao, buf, fbo, *texs):
+                o.release()
+            self._box = None
 
     def lookup(self, frame):
         """The bake for ``frame``'s scene (or None), looked up once per its product key."""
@@ -200,6 +214,7 @@ class SubsurfaceTransfer:
         from dermis.gl.resources import set_uniform, use_texture
 
         self.gather(irradiance, mipmaps=self.reads_mipmaps(target_size))
+        self.view_box(self.read_level(target_size))
         self._gathered = None
         _, add, vao = self._programs()
         set_uniform(add, "uTransfer", 0)
@@ -232,14 +247,66 @@ class SubsurfaceTransfer:
         if key != self._gathered:
             with frame.timer("subsurface_transfer"):
                 self.gather(source, mipmaps=mipmaps)
+                self.view_box(self.read_level(target_size))
             self._gathered = key
             frame.passes_run.append("subsurface_transfer")
         return self.grid_texture, self.read_level(target_size)
 
+    def view_box(self, level: int) -> None:
+        """The view grids' 2 x 2 box sums at ``level`` (tsd/transfer_view_box.frag), which the readers'
+        view term reads (:meth:`bind_view`, common/subsurface_transfer.glsl: its 3 x 3 tent as a bilinear
+        blend of 2 x 2 of them, 12 image loads instead of 27); after every gather, none for a bake
+        without the view term (uTransferIndex < 0: never read). Drawn only over the tiles
+        (:data:`BOX_TILE`) that can hold a non-zero sum (tsd/transfer_view_box.vert): the whole 513^2
+        targets took ~8 ms of llvmpipe's CPU per gather, the head's ~12 % of them ~1/8 of that."""
+        from dermis.gl.resources import set_uniform, use_texture
+        from dermis.gl.shaders import program
+
+        if self.index < 0.0:
+            return
+        level = int(level)
+        if self._box_prog is None:
+            prog = program(self.ctx, "tsd/transfer_view_box.vert", "tsd/transfer_view_box.frag")
+            self._box_prog = (prog,)
+        prog, = self._box_prog
+        g = self.grid_texture.size
+        size = tuple(max(int(s) >> level, 1) + 1 for s in g)  # one texel wider per axis
+        if self._box is None or self._box[2] != level or self._box[0][0].size != size:
+            self._release_box()
+            texs = []
+            for _ in range(3):
+                t = self.ctx.texture(size, 4, dtype="f4")
+                t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                texs.append(t)
+            fbo = self.ctx.framebuffer(color_attachments=texs)
+            fbo.clear(0.0, 0.0, 0.0, 0.0)  # what every texel outside the tiles keeps
+            # the level's texel of each bake point (the gather's pixel: its uv's texel), and the box texels
+            # whose 2 x 2 holds it (t and t + 1 per axis), one texel more each side for safety
+            uv = np.asarray(self.bake.point_uv, np.float64)
+            texel = np.floor(uv * np.asarray(g, np.float64)).astype(np.int64) >> level
+            near = np.concatenate([texel + (dx, dy) for dx in range(-1, 3) for dy in range(-1, 3)])
+            near = np.clip(near, 0, np.asarray(size) - 1)
+            tiles = np.unique(near // BOX_TILE, axis=0).astype(np.float32)
+            buf = self.ctx.buffer(np.ascontiguousarray(tiles).tobytes())
+            vao = self.ctx.vertex_array(prog, [(buf, "2f/i", "in_tile")])
+            self._box = (texs, fbo, level, vao, buf, len(tiles))
+        for u, (name, t) in enumerate(zip(("uViewR", "uViewG", "uViewB"), self.view_grids)):
+            set_uniform(prog, name, u)
+            use_texture(t, u)
+        set_uniform(prog, "uLevel", level)
+        set_uniform(prog, "uBoxSize", tuple(float(s) for s in size))
+        set_uniform(prog, "uTileTexels", float(BOX_TILE))
+        texs, fbo, _, vao, _, count = self._box
+        fbo.use()
+        fbo.viewport = (0, 0, *size)
+        self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        vao.render(moderngl.TRIANGLES, vertices=6, instances=count)
+
     def bind_view(self, prog, level) -> None:
         """The view term's images for a pass that reads common/subsurface_transfer.glsl's
-        subsurface_transfer_view (``level``: the grids' level, uTransferLevel; < 0 or no bake: the
-        placeholders, never read) and its uTransferIndex."""
+        subsurface_transfer_view (``level``: the grids' level, uTransferLevel, whose box sums the last
+        gather made (:meth:`view_box`); < 0, no bake or none with the view term: the placeholders, never
+        read) and its uTransferIndex."""
         from dermis.gl.resources import set_uniform
 
         if prog.get("uTransferViewR", None) is None:
@@ -247,9 +314,13 @@ class SubsurfaceTransfer:
         live = self.bake is not None and level is not None and level >= 0
         if not live and self.placeholder is None:  # released, then drawn again without a bake
             self.placeholder = self.ctx.texture((1, 1), 4, dtype="f4")
-        grids = self.view_grids if live else [self.placeholder] * 3
-        for u, t in enumerate(grids):
-            t.bind_to_image(VIEW_IMAGE + u, read=True, write=False, level=int(level) if live else 0)
+        boxes = [self.placeholder] * 3
+        if live and self.index >= 0.0:
+            if self._box is None or self._box[2] != int(level):
+                raise RuntimeError(f"the view term's box sums are of level {self._box and self._box[2]}, not {level}")
+            boxes = self._box[0]
+        for u, t in enumerate(boxes):
+            t.bind_to_image(VIEW_IMAGE + u, read=True, write=False, level=0)
         set_uniform(prog, "uTransferIndex", float(self.index if live else 1.4))
         from dermis.subsurface_transfer.bake import view_mean_constants
 
@@ -270,6 +341,9 @@ class SubsurfaceTransfer:
     def release(self):
         self._release_gpu()
         self._gathered = None
+        if self._box_prog is not None:
+            self._box_prog[0].release()
+            self._box_prog = None
         if self.placeholder is not None:
             self.placeholder.release()
             self.placeholder = None

@@ -65,7 +65,7 @@ from dermis.gl.seam_fill import SeamFill
 from dermis.gl.subsurface_transfer import SubsurfaceTransfer, source_index
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
-from dermis.techniques.shared import (MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit, bind_sampler, bind_sampler_array,
+from dermis.techniques.shared import (LIGHT_COUNT_DEFINE, MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit, bind_sampler, bind_sampler_array,
                                       TRANSLUCENCY_MIN_VARIANCE_MM2, directional_albedo_uniforms, set_profile_uniforms,
                                       surface_detail_uniforms, thin_slab_law, translucency_uniforms)
 
@@ -222,9 +222,16 @@ class TextureSpaceDiffusion(Technique):
         # no far face in the bake and write T = 0, as the cleared target held
         self.p_trans = program(ctx, "common/fullscreen.vert", "tsd/translucency.frag", defines)
         self.p_trans_tent = program(ctx, "common/fullscreen.vert", "tsd/translucency_tent.frag", defines)
-        self.p_final = program(ctx, "common/mesh.vert", "tsd/final.frag",
-                               {**defines, "SHARP_SHADOW_READ": None, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING})
-        self._programs = {}  # "per_sample" -> the final pass without the stored shadows; ("detail", stored, bounce, K) -> PIXEL_DETAIL's
+        # the final pass per light count, its lights unrolled (LightCountPrograms, as ssss's and
+        # preintegrated's passes): its I_0 lights and specular read the light uniforms and stored sharp
+        # shadows at constant indices; on llvmpipe -14 % of the pass at front-key's one light and 768 px,
+        # -5 % at the head's three and 1024 px, the image bit-identical (round 23, final23)
+        self._final_programs = LightCountPrograms(
+            ctx, "common/mesh.vert", "tsd/final.frag",
+            {**defines, "SHARP_SHADOW_READ": None, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING}).compile_for(renderer.scene)
+        # ("per_sample", n) -> the final pass without the stored shadows; ("detail", stored, bounce, K, n) -> PIXEL_DETAIL's
+        # (n: the light count, unrolled as _final_programs')
+        self._programs = {}
         self._detail_bounce = None  # None: no pixel detail this frame; else whether I_0 holds the bounce
         self._detail_buffer = None  # the bounce per vertex for PIXEL_DETAIL_BOUNCE (_bounce_buffer)
         self.p_combine = program(ctx, "common/fullscreen.vert", "tsd/combine.frag", defines)
@@ -840,11 +847,13 @@ class TextureSpaceDiffusion(Technique):
         else:  # the split's light pass, or the one raster (SPLIT_IRRADIANCE)
             irr = (self._light_programs if self._split_irradiance() else self._irradiance_programs)(n)
         if stores_sharp_shadows(n):
-            return irr, self.p_final
-        if "per_sample" not in self._programs:
-            self._programs["per_sample"] = program(self.ctx, "common/mesh.vert", "tsd/final.frag",
-                                                   {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING})
-        return irr, self._programs["per_sample"]
+            return irr, self._final_programs(n)
+        key = ("per_sample", n)
+        if key not in self._programs:
+            self._programs[key] = program(self.ctx, "common/mesh.vert", "tsd/final.frag",
+                                          {"MAX_GAUSSIANS": MAX_GAUSSIANS, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING,
+                                           LIGHT_COUNT_DEFINE: n})
+        return irr, self._programs[key]
 
     def _final_program(self, frame):
         """The final pass's program: PIXEL_DETAIL's (reading the stored sharp shadows or per sample, as
@@ -853,15 +862,16 @@ class TextureSpaceDiffusion(Technique):
         if self._detail_bounce is None:
             return self._shading_programs(frame)[1]
         # with the stored sharp shadows it reads the shadow atlas as well (I_0's soft shadows): one sampler
-        # more than p_final, so its blur array holds the profile's K textures, not MAX_GAUSSIANS
+        # more than _final_programs, so its blur array holds the profile's K textures, not MAX_GAUSSIANS
         # (16 guaranteed samplers: 7 shared, the translucency, the stored shadows and K <= 7 blurs);
         # a profile of 8 Gaussians or a scene of more than 3 lights takes the per-sample shadows
         k = frame.scene.profile.k
         stored = stores_sharp_shadows(frame.lights.count) and k <= DETAIL_MAX_GAUSSIANS_STORED
-        key = ("detail", stored, self._detail_bounce, k if stored else MAX_GAUSSIANS)
+        n = frame.lights.count
+        key = ("detail", stored, self._detail_bounce, k if stored else MAX_GAUSSIANS, n)
         if key not in self._programs:
             defines = {"MAX_GAUSSIANS": key[3], "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING, "PIXEL_DETAIL": 1,
-                       "CORNER_METRIC_BINDING": CORNER_METRIC_BINDING}
+                       "CORNER_METRIC_BINDING": CORNER_METRIC_BINDING, LIGHT_COUNT_DEFINE: n}
             if stored:
                 defines["SHARP_SHADOW_READ"] = None
             if self._detail_bounce:
@@ -972,7 +982,7 @@ class TextureSpaceDiffusion(Technique):
             set_uniform(prog, "uTransferLevel", float(level))
             self.transfer.bind_view(prog, level)
             self._profile_uniforms(prog, frame.scene.profile, Unit.FIRST_FREE + 1, frame.keys)
-            if prog.get("uSharpShadow", None) is not None:  # p_final and its PIXEL_DETAIL variant
+            if prog.get("uSharpShadow", None) is not None:  # _final_programs and its PIXEL_DETAIL variant
                 bind_sampler(prog, "uSharpShadow", self.tex["sharp_shadow"], Unit.FIRST_FREE + 1 + MAX_GAUSSIANS)
             if self._detail_bounce is not None:
                 # I_1's texels across (tsd/final.frag: detail_texels_per_mm), written when it changes
@@ -1044,7 +1054,7 @@ class TextureSpaceDiffusion(Technique):
             self._detail_buffer.release()
             self._detail_buffer = None
         for p in (self.p_stretch, self.p_dilate, self.p_down, self.p_trans, self.p_trans_tent,
-                  self.p_final,
+                  *self._final_programs.values(),
                   self.p_combine, *self._blur_programs.values(), *([self._p_narrow] if self._p_narrow else []),
                   *(self._p_bounce or ()), *self._programs.values(), *([self._p_trans_static] if self._p_trans_static else [])):
             p.release()

@@ -45,8 +45,11 @@ vec3 subsurface_transfer(vec2 uv) {
 // a0 c + a1 G . N (uTransferViewMean; bake.view_mean_constants): the view's deviation alone, which a reader
 // adds to what it adds of uTransfer. Read as images (the same tent at uTransferLevel,
 // clamped at the edges as the sampler): tsd's final pass already uses all 16 guaranteed samplers.
-// Units 1-3 (0 is common/mesh_varyings.glsl's triangle frames): dermis.gl.subsurface_transfer.VIEW_IMAGE; each
-// the size of uTransfer's grid.
+// The images hold the grids' 2 x 2 box sums at uTransferLevel (tsd/transfer_view_box.frag, one texel wider per
+// axis than the level: texel k sums the level's texels k - 1 and k per axis, clamped), so the tent's 3 x 3
+// texels are 2 x 2 loads per grid: 12 image loads, not 27 (the loads were ~80 % of this term's cost on
+// llvmpipe, about 50 of tsd's ~590 ms single-threaded final pass at 768 px; round 23).
+// Units 1-3 (0 is common/mesh_varyings.glsl's triangle frames): dermis.gl.subsurface_transfer.VIEW_IMAGE.
 layout(binding = 1, rgba32f) readonly uniform image2D uTransferViewR;
 layout(binding = 2, rgba32f) readonly uniform image2D uTransferViewG;
 layout(binding = 3, rgba32f) readonly uniform image2D uTransferViewB;
@@ -69,18 +72,19 @@ float transfer_fresnel(float cos_i, float eta) {
 // facet's: the interpolated one differs by a few degrees on the head's mesh)
 vec3 subsurface_transfer_view(vec2 uv, vec3 V, vec3 N) {
     if (uTransferLevel < 0.0 || uTransferIndex < 0.0) return vec3(0.0);
-    ivec2 size = imageSize(uTransferViewR);
+    ivec2 last = imageSize(uTransferViewR) - 1;  // the box images' last texel = the level's size
     // the tent of subsurface_transfer as texel weights: its reads at +-0.5 texel, each bilinear, are
-    // (1 - f) / 2, 1 / 2, f / 2 on the texels i0, i0 + 1, i0 + 2 per axis (i0 = floor(p - 0.5))
-    vec2 p = uv * vec2(size) - 0.5;
+    // (1 - f) / 2, 1 / 2, f / 2 on the texels i0, i0 + 1, i0 + 2 per axis (i0 = floor(p - 0.5)), i.e.
+    // (1 - f) / 2 on the box sum of i0 and i0 + 1 (box texel i0 + 1) and f / 2 on that of i0 + 1 and i0 + 2
+    vec2 p = uv * vec2(last) - 0.5;
     vec2 q = p - 0.5;
-    ivec2 i0 = ivec2(floor(q));
+    ivec2 i0 = ivec2(floor(q)) + 1;
     vec2 f = q - floor(q);
-    vec3 wx = vec3(1.0 - f.x, 1.0, f.x) * 0.5, wy = vec3(1.0 - f.y, 1.0, f.y) * 0.5;
+    vec2 wx = vec2(1.0 - f.x, f.x) * 0.5, wy = vec2(1.0 - f.y, f.y) * 0.5;
     vec4 r = vec4(0.0), g = vec4(0.0), b = vec4(0.0);
-    for (int y = 0; y < 3; ++y) {
-        for (int x = 0; x < 3; ++x) {
-            ivec2 t = clamp(i0 + ivec2(x, y), ivec2(0), size - 1);
+    for (int y = 0; y < 2; ++y) {
+        for (int x = 0; x < 2; ++x) {
+            ivec2 t = clamp(i0 + ivec2(x, y), ivec2(0), last);
             float w = wx[x] * wy[y];
             r += w * imageLoad(uTransferViewR, t);
             g += w * imageLoad(uTransferViewG, t);
