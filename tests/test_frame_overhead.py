@@ -326,7 +326,7 @@ def test_a_camera_only_frame_prepares_only_the_per_frame_uniforms(gl_ctx, monkey
             written.clear()
             r.render(tech)
             assert set(written) == {"uViewProj", "uCameraPos"}, (tech, written)
-            assert set(computed) <= per_frame | {"uDiffuseTable", "uPenumbraTable", "uThicknessMap", "uTranslucencyMinVariance",
+            assert set(computed) <= per_frame | {"uDiffuseTable", "uPenumbraTable", "uThicknessMap", "uFarFaceMap", "uTranslucencyMinVariance",
                                                  "uTranslucencyStrength", "uCurvatureMaxPerMm", "uPenumbraWidthRangeMm",
                                                  "uCurvatureFromMesh", "uScatterRadiusMm", "uBlurredNormals",
                                                  "uPenumbraScattering", "uGaussianCount", "uWeights", "uVariances",
