@@ -213,8 +213,13 @@ def main(argv=None) -> int:
             dd = dump[f"{name}|{k}|lit"] - ref
             print(f"  lit {k} / (c): {(dump[f'{name}|{k}|lit'].sum(0) / ref.sum(0)).round(3)}; paired diff "
                   f"{dd.mean(0).round(4)} +- {(dd.std(0) / np.sqrt(n)).round(4)}", flush=True)
-    if a.dump:
-        np.savez(a.dump, **dump)
+    return finish(a.dump, dump, t0)
+
+
+def finish(path, dump, t0) -> int:
+    """Save the per-point arrays (``--dump``) and print the run's time; main's exit status."""
+    if path:
+        np.savez(path, **dump)
     print(f"{time.time() - t0:.0f} s")
     return 0
 

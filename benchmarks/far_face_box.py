@@ -100,14 +100,21 @@ class Geometry:
         return self._lit
 
 
+def box_frame(geo: Geometry, p, n, h, half):
+    """(off, A, t1, t2): the box's tap offsets in scene units ((k, m, 3): box_offsets on each pixel's tangent plane
+    (t1, t2), scaled to the half-width ``half`` mm) and the far-face points A = p - h n ((k, 3)), as
+    common/transmittance.glsl places them."""
+    F = box_offsets()
+    t1, t2 = tangent_frame(n)
+    off = (F[None, :, 0:1] * t1[:, None, :] + F[None, :, 1:2] * t2[:, None, :]) * (half / geo.mm)[:, None, None]
+    return off, p - n * (h / geo.mm)[:, None], t1, t2
+
+
 def replica(geo: Geometry, p, n, h, half, L):
     """Per pixel (front points p, unit normals n, thickness h mm, box half-width half mm, unit L towards the light):
     the shader's box and the references (module docstring). Returns a dict of (k,) arrays."""
     mm = geo.mm
-    F = box_offsets()
-    t1, t2 = tangent_frame(n)
-    off = (F[None, :, 0:1] * t1[:, None, :] + F[None, :, 1:2] * t2[:, None, :]) * (half / mm)[:, None, None]
-    A = p - n * (h / mm)[:, None]
+    off, A, t1, t2 = box_frame(geo, p, n, h, half)
     k, m = off.shape[:2]
 
     def taps(Q):
@@ -167,10 +174,7 @@ def surface_taps(geo: Geometry, p, n, h, half, L, uv, M, points, ramp=(0.4, 0.6)
     from farface_occluder import bilinear
 
     mm = geo.mm
-    F = box_offsets()
-    t1, t2 = tangent_frame(n)
-    off = (F[None, :, 0:1] * t1[:, None, :] + F[None, :, 1:2] * t2[:, None, :]) * (half / mm)[:, None, None]
-    A = p - n * (h / mm)[:, None]
+    off, A, t1, t2 = box_frame(geo, p, n, h, half)
     k, m = off.shape[:2]
     uvk = uv[:, None] + np.einsum("nij,nkj->nki", M, off)
     f = bilinear(points, uvk.reshape(-1, 2)).reshape(k, m, 4)

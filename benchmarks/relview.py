@@ -56,7 +56,7 @@ def main(argv=None) -> int:
     import dermis
     from scipy.spatial import cKDTree
 
-    from denoise_truth import REGIONS, box_bake_points
+    from denoise_truth import REGIONS, box_bake_points, finish
     from dermis.framing import framed_camera
     from dermis.gl.subsurface_transfer import transfer_numpy
     from dermis.reference.render import camera_rays
@@ -184,10 +184,7 @@ def main(argv=None) -> int:
             se = np.sqrt(e.var(0, ddof=1) / len(seeds) + wse ** 2) if len(seeds) > 1 else wse
             print(f"  {match:18s} over {len(seeds)} seeds: region mean less the walks {e.mean(0).round(4)} +- {se.round(4)}; "
                   f"seed-to-seed s.d. {e.std(0, ddof=1).round(4) if len(seeds) > 1 else '-'}; rms over seeds {np.sqrt((e ** 2).mean(0)).round(4)}", flush=True)
-    if a.dump:
-        np.savez(a.dump, **dump)
-    print(f"{time.time() - t0:.0f} s")
-    return 0
+    return finish(a.dump, dump, t0)
 
 
 if __name__ == "__main__":
