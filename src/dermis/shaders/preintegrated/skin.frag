@@ -161,8 +161,6 @@ float wide_penumbra_width_mm(int i, vec3 P) {
 // both estimate the same integral, each missing what it cannot see (D S: any geometry beyond P's
 // ring and P's own shadow value; G: the unresolved Gaussians and the tissue behind P), so a flat or
 // convex lit surface keeps D S (G <= N.L there) and a fold gets what crosses it.
-// TEXEL: uShadowDepth's sampler object is NEAREST, CLAMP_TO_EDGE (preintegrated.py depth_sampler)
-#include "common/texel.glsl"
 uniform sampler2D uShadowDepth;  // the shadow atlas's depths, read without comparison (a sampler object)
 uniform float uFoldScattering;  // 1: light across concave folds (G above), 0: Penner's D S alone
 const float FOLD_MIN_COS = 0.5;
@@ -183,7 +181,7 @@ bool fold_tap(int i, mat4 Minv, vec3 c, mat3 J, vec3 P, vec3 n, vec3 N, vec3 y,
     vec2 t = floor((c.xy + (J * y).xy) * tile);
     if (any(lessThan(t, vec2(0.0))) || any(greaterThanEqual(t, vec2(tile)))) return false;
     ivec2 texel = ivec2(uShadowTile[i].xy * vec2(textureSize(uShadowDepth, 0)) + 0.5) + ivec2(t);
-    float d = TEXEL(uShadowDepth, texel).r;
+    float d = texelFetch(uShadowDepth, texel, 0).r;
     if (d >= 1.0) return false;  // cleared: nothing there
     vec4 q = Minv * vec4(vec3((t + 0.5) / tile, d) * 2.0 - 1.0, 1.0);
     vec3 Q = q.xyz / q.w;

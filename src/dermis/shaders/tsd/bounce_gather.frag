@@ -8,9 +8,6 @@
 // uExitant holds rho T_(n-1) (tsd/bounce_splat.frag with BOUNCE_EXITANT) and the pass writes
 //   T_n = E_b + (1 / K) sum_k rho T_(n-1)(y_k) = E_b + G T_(n-1),
 // E_b the one bounce (uBase, this layout): after n - 1 steps, E_b + G E_b + ... + G^(n-1) E_b.
-// uHits, uHeader, uEntries and uBase are filtered NEAREST (dermis.gl.interreflection) and read inside
-// their bounds: TEXEL reads their texels, cheaper than texelFetch on llvmpipe (common/texel.glsl)
-#include "common/texel.glsl"
 uniform sampler2D uHits;     // rg32f, K texels per vertex: the hits' texture-space (u, v)
 uniform sampler2D uExitant;  // rho E, premultiplied (rgb x coverage, coverage)
 uniform int uRays;
@@ -36,9 +33,9 @@ void main() {
     vec3 sum = vec3(0.0);
 #ifdef BOUNCE_MERGED
     if (p.y * uVerticesPerRow + p.x < uVertexCount) {
-        ivec2 oc = TEXEL(uHeader, p).xy;
+        ivec2 oc = texelFetch(uHeader, p, 0).xy;
         for (int e = oc.x; e < oc.x + oc.y; ++e) {
-            vec3 h = TEXEL(uEntries, ivec2(e & 4095, e >> 12)).xyz;
+            vec3 h = texelFetch(uEntries, ivec2(e & 4095, e >> 12), 0).xyz;
             vec4 c = textureLod(uExitant, h.xy, 0.0);
             if (c.a >= MIN_COVERAGE) sum += h.z * (c.rgb / c.a);
         }
@@ -47,7 +44,7 @@ void main() {
 #else
     if (p.y * uVerticesPerRow + p.x < uVertexCount) {
         for (int k = 0; k < uRays; ++k) {
-            vec2 uv = TEXEL(uHits, ivec2(p.x * uRays + k, p.y)).xy;
+            vec2 uv = texelFetch(uHits, ivec2(p.x * uRays + k, p.y), 0).xy;
             if (uv.x < 0.0) continue;
             vec4 c = textureLod(uExitant, uv, 0.0);
             if (c.a >= MIN_COVERAGE) sum += c.rgb / c.a;
@@ -56,7 +53,7 @@ void main() {
     vec3 e = sum / float(max(uRays, 1));
 #endif
 #ifdef BOUNCE_BASE
-    e += TEXEL(uBase, p).rgb;
+    e += texelFetch(uBase, p, 0).rgb;
 #endif
     f_bounce = vec4(e, 1.0);
 }
