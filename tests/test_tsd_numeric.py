@@ -311,3 +311,81 @@ def test_chain_reads_texels_through_its_sampler_exactly(gl_ctx):
                     v.release()
             for o in made:
                 o.release()
+
+
+def test_texel_reads_equal_clamped_texel_fetch(gl_ctx):
+    """common/texel.glsl's TEXEL (textureLod at texel centres, round 23 fetch23) reads exactly the texel
+    texelFetch of the clamped texel read, bit for bit (numpy's clip of the uploaded array), offsets past
+    every border, wherever the passes now read so: (a) through dermis.gl.resources.nearest_sampler on a
+    LINEAR texture (tsd's chain and dilation); (b) ssss's own targets, NEAREST and CLAMP_TO_EDGE without a
+    sampler object (its blurs, grain filter, final pass); (c) LevelChain.reduce (the bounce's 2x2
+    reductions), against numpy's 2x2 mean. The data holds +-inf: a bilinear read at a centre weights the
+    neighbour by 0 but 0 * inf is NaN, so a missing sampler (the texture's LINEAR filter) fails, as a
+    REPEAT one fails at the borders (both checked)."""
+    import moderngl
+
+    from dermis.gl.interreflection import SOURCE_FINER_LEVELS, LevelChain
+    from dermis.gl.resources import nearest_sampler
+    from dermis.gl.shaders import load_shader_source
+
+    rng = np.random.default_rng(14)
+    W, H = 37, 23
+    src = rng.standard_normal((H, W, 4)).astype(np.float32)
+    src[3, 5, 0] = np.inf  # beside interior texels and on the borders: a bilinear read there is NaN
+    src[0, 9, 1] = -np.inf
+    src[H - 1, W - 1, 2] = np.inf
+    src[11, 0, 3] = np.inf
+    frag = load_shader_source("common/texel.glsl").replace("#version 450 core\n", "") + (
+        "uniform sampler2D uSource;\nuniform ivec2 uOffset;\nout vec4 f_color;\n"
+        "void main() { f_color = TEXEL(uSource, ivec2(gl_FragCoord.xy) + uOffset); }\n")
+    prog = gl_ctx.program(vertex_shader=load_shader_source("common/fullscreen.vert"),
+                          fragment_shader="#version 450 core\n" + frag)
+    vao = gl_ctx.vertex_array(prog, [])
+    out = gl_ctx.texture((W, H), 4, dtype="f4")
+    fbo = gl_ctx.framebuffer(color_attachments=[out])
+    linear = gl_ctx.texture((W, H), 4, src.tobytes(), dtype="f4")
+    linear.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    linear.repeat_x = linear.repeat_y = False
+    sampler = nearest_sampler(gl_ctx)
+    made = [prog, vao, out, fbo, linear, sampler]
+    yy, xx = np.mgrid[:H, :W]
+
+    def check(tex, what):
+        tex.use(0)
+        prog["uSource"] = 0
+        for off in ((0, 0), (-5, 3), (4, -7), (W + 2, H + 1), (-W - 3, -H)):
+            prog["uOffset"] = off
+            fbo.use()
+            fbo.viewport = (0, 0, W, H)
+            vao.render(moderngl.TRIANGLES, vertices=3)
+            got = np.frombuffer(out.read(), np.float32).reshape(H, W, 4)
+            ref = src[np.clip(yy + off[1], 0, H - 1), np.clip(xx + off[0], 0, W - 1)]
+            assert np.array_equal(got.view(np.uint32), ref.view(np.uint32)), (what, off)
+
+    try:
+        sampler.use(0)
+        check(linear, "nearest_sampler")
+        sampler.clear(0)
+        with Renderer(quad_scene(10.0, 10.0), (16, 16), irradiance_size=64, ctx=gl_ctx, samples=0) as r:
+            ssss = r.technique("ssss")
+            ssss._ensure_targets((W, H), 1, False)
+            scattered = ssss.tex["scattered"]  # float32 like irradiance; view_normal float16 (same state)
+            scattered.write(src.tobytes())
+            check(scattered, "ssss target")
+        # LevelChain: a 16^2 raster reduced to the gather's level (SOURCE_FINER_LEVELS coarser), every
+        # reduced texel the exact mean of its block
+        chain = LevelChain(gl_ctx)
+        made.append(chain)
+        levels = chain.levels(16, SOURCE_FINER_LEVELS)
+        assert len(levels) == SOURCE_FINER_LEVELS + 1 >= 2
+        top = src[:16, :16]
+        levels[0][0].write(top.tobytes())
+        n = 16 >> SOURCE_FINER_LEVELS
+        got = np.frombuffer(chain.reduce(levels).read(), np.float32).reshape(n, n, 4)
+        ref = top
+        for _ in range(len(levels) - 1):
+            ref = 0.25 * (ref[0::2, 0::2] + ref[0::2, 1::2] + ref[1::2, 0::2] + ref[1::2, 1::2])
+        np.testing.assert_array_equal(got, ref)  # the same four terms in the same order: exact
+    finally:
+        for o in reversed(made):
+            o.release()

@@ -259,11 +259,13 @@ class LevelChain:
     :class:`BounceSeries`."""
 
     def __init__(self, ctx):
+        from dermis.gl.resources import nearest_sampler
         from dermis.gl.shaders import program
 
         self.ctx = ctx
         self._down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag")
         self._down_vao = ctx.vertex_array(self._down, [])
+        self._nearest = nearest_sampler(ctx)  # the reduction's texel reads (tsd/downsample.frag)
         self._levels = [self._level_texture(1) for _ in range(SOURCE_FINER_LEVELS + 1)]
 
     def _level_texture(self, n: int):
@@ -290,9 +292,11 @@ class LevelChain:
         set_uniform(self._down, "uSource", 0)
         for (src, _), (dst, dfbo) in zip(levels, levels[1:]):
             use_texture(src, 0)
+            self._nearest.use(0)
             dfbo.use()
             dfbo.viewport = (0, 0, *dst.size)
             self._down_vao.render(moderngl.TRIANGLES, vertices=3)
+            self._nearest.clear(0)  # the gather reads the last level bilinearly (tsd/bounce_gather.frag)
         return levels[-1][0]
 
     def release(self):
@@ -302,6 +306,7 @@ class LevelChain:
         self._levels = []
         self._down_vao.release()
         self._down.release()
+        self._nearest.release()
 
 
 # ---------------------------------------------------------------------- the higher bounces

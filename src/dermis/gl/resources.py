@@ -176,6 +176,17 @@ def use_texture(tex, unit: int) -> None:
         binds.append((tex, unit))
 
 
+def nearest_sampler(ctx):
+    """The sampler object for texel reads at texel centres (common/texel.glsl TEXEL) of textures
+    whose own filter is linear: NEAREST, CLAMP_TO_EDGE, so a read gives the texel (the border
+    clamped) bit for bit, as texelFetch of the clamped texel did, and costs less on llvmpipe
+    (round 23, chain23). Bound on a unit for the passes that read so, cleared after them: later
+    passes read the textures' own filters."""
+    import moderngl
+
+    return ctx.sampler(filter=(moderngl.NEAREST, moderngl.NEAREST), repeat_x=False, repeat_y=False)
+
+
 def prepared(prog, slot: str, key, setup) -> None:
     """``setup(prog)`` (uniform writes through set_uniform, texture binds through use_texture),
     skipped when this program's ``slot`` last ran it with an equal ``key``: the program still holds

@@ -57,7 +57,7 @@ import numpy as np
 
 from dermis.errors import DermisError
 from dermis.geometry.texture_space import UV_RANGE_TOLERANCE, texture_space_uvs
-from dermis.gl.resources import maps_without_anisotropy, prepared, read_texture, set_uniform, uniform_bytes
+from dermis.gl.resources import maps_without_anisotropy, nearest_sampler, prepared, read_texture, set_uniform, uniform_bytes
 from dermis.gl.shaders import program
 from dermis.gl.interreflection import BounceGather, BounceSeries, bounce_level, read_per_vertex
 from dermis.gl.irradiance_inputs import BOUNCE_INPUTS, IrradianceInputs, light_pass
@@ -216,7 +216,7 @@ class TextureSpaceDiffusion(Technique):
             ctx, "common/fullscreen.vert", "tsd/irradiance.frag", defines, per_count=light_pass_defines)
         (self._light_programs if SPLIT_IRRADIANCE else self._irradiance_programs).compile_for(renderer.scene)
         self.p_dilate = program(ctx, "common/fullscreen.vert", "tsd/dilate.frag", defines)
-        self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", {**defines, "NEAREST_SAMPLER": 1})
+        self.p_down = program(ctx, "common/fullscreen.vert", "tsd/downsample.frag", defines)
         # a full-screen triangle: the pass reads only gl_FragCoord and textures, so rasterising the
         # mesh's layout (its vertex work and thin triangles) bought nothing; uncovered texels have
         # no far face in the bake and write T = 0, as the cleared target held
@@ -261,7 +261,7 @@ class TextureSpaceDiffusion(Technique):
         self.seam_fill = SeamFill(self.ctx)  # light across UV seams (dermis.geometry.seams)
         # texel reads through the sampler (exact texel centres, the border clamped as texelFetch of a
         # clamped texel): cheaper than texelFetch on llvmpipe (tsd/blur.frag)
-        self._nearest = ctx.sampler(filter=(moderngl.NEAREST, moderngl.NEAREST), repeat_x=False, repeat_y=False)
+        self._nearest = nearest_sampler(ctx)
         self._own_filled = None  # (bake key, target) of the last whole translucency_own pass (tsd/translucency.frag)
         self._static_filled = None  # (key, target) of the last translucency_static pass (_translucency_static)
         self._p_trans_static = None
@@ -770,8 +770,7 @@ class TextureSpaceDiffusion(Technique):
                 self._bounce_buffer()
         with timer("tsd_irradiance"):
             dil = self._texture("irradiance_dilated", (S, S))
-            bind_sampler(self.p_dilate, "uSource", irr, 0)
-            self._fullscreen(self.p_dilate, dil)
+            self._draw([self._pass(self.p_dilate, dil, {}, {"uSource": (irr, 0)}, nearest=True)])
         frame.passes_run.append("tsd_irradiance")
         # chained blurs of the irradiance and (once per mesh) of the stretch
         with timer("tsd_blur"):

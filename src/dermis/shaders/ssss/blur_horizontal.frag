@@ -15,15 +15,15 @@ layout(location = 0) out uvec4 f_packed[SSSS_PACKED];
 void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS],
                 out float rejected) {
     rejected = 0.0;
-    vec4 t = texelFetch(uIrradiance, q, 0);
+    vec4 t = TEXEL(uIrradiance, q);
     depth_mm = t.a;
-    normal = centre ? texelFetch(uViewNormal, q, 0).xyz : ssss_tap_normal(q);
+    normal = centre ? TEXEL(uViewNormal, q).xyz : ssss_tap_normal(q);
     for (int k = 0; k < MAX_GAUSSIANS; ++k) light[k] = t.rgb;  // the pre-scatter light, the same for every Gaussian
 }
 
 void main() {
     ivec2 p = ivec2(gl_FragCoord.yx);  // the frame's pixel (the target is transposed, above)
-    vec4 c = texelFetch(uIrradiance, p, 0);
+    vec4 c = TEXEL(uIrradiance, p);
     vec3 blurred[MAX_GAUSSIANS];
     bool wide[MAX_GAUSSIANS];
     float rejected = 0.0;
@@ -32,5 +32,5 @@ void main() {
     } else {
         for (int k = 0; k < MAX_GAUSSIANS; ++k) blurred[k] = c.rgb;
     }
-    ssss_pack(c.a, texelFetch(uViewNormal, p, 0).xyz, blurred, rejected, f_packed);
+    ssss_pack(c.a, TEXEL(uViewNormal, p).xyz, blurred, rejected, f_packed);
 }

@@ -18,13 +18,13 @@ layout(location = 1) out vec4 f_wide;
 void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS],
                 out float rejected) {
     uvec4 texels[SSSS_PACKED];
-    for (int t = 0; t < SSSS_PACKED; ++t) texels[t] = texelFetch(uPacked[t], q.yx, 0);
+    for (int t = 0; t < SSSS_PACKED; ++t) texels[t] = TEXEL(uPacked[t], q.yx);
     ssss_unpack(texels, depth_mm, normal, light, rejected);
 }
 
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
-    float depth = texelFetch(uIrradiance, p, 0).a;
+    float depth = TEXEL(uIrradiance, p).a;
     if (depth <= 0.0) {
         f_scattered = vec4(0.0);
 #if SSSS_GRAIN_FILTER

@@ -18,6 +18,8 @@
 #include "common/energy.glsl"
 #include "common/skin_specular.glsl"
 #include "common/subsurface_transfer.glsl"
+// TEXEL: uScattered is NEAREST, CLAMP_TO_EDGE (ssss.py): the border texel for a pixel past it
+#include "common/texel.glsl"
 
 uniform sampler2D uScattered;   // rgb scattered light, a = view depth mm (0: none)
 uniform vec4 uViewZ;
@@ -31,14 +33,13 @@ const float SAME_SURFACE_MM = 1.0;
 
 vec3 scattered_here(float depth_mm) {
     ivec2 p = ivec2(gl_FragCoord.xy);
-    ivec2 size = textureSize(uScattered, 0);
-    vec4 c = texelFetch(uScattered, clamp(p, ivec2(0), size - 1), 0);
+    vec4 c = TEXEL(uScattered, p);
     if (c.a > 0.0 && abs(c.a - depth_mm) < SAME_SURFACE_MM) return c.rgb;
     vec3 best = c.rgb;
     float best_dz = c.a > 0.0 ? abs(c.a - depth_mm) : 1e30;
     for (int y = -1; y <= 1; ++y)
         for (int x = -1; x <= 1; ++x) {
-            vec4 t = texelFetch(uScattered, clamp(p + ivec2(x, y), ivec2(0), size - 1), 0);
+            vec4 t = TEXEL(uScattered, p + ivec2(x, y));
             float dz = abs(t.a - depth_mm);
             if (t.a > 0.0 && dz < best_dz) {
                 best_dz = dz;

@@ -31,12 +31,12 @@ const float SSSS_FILTER_JUMP = 0.15;
 float ssss_filter_accept(ivec2 q, ivec2 size, vec4 c, vec3 pp, vec3 np, float mask, float r, vec3 share, out vec3 light) {
     light = vec3(0.0);
     if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) return 0.0;
-    vec4 t = texelFetch(uIrradiance, q, 0);
-    vec4 tw = texelFetch(uWide, q, 0);
+    vec4 t = TEXEL(uIrradiance, q);
+    vec4 tw = TEXEL(uWide, q);
     light = tw.rgb;
     float tmask = floor(tw.a);
     if (t.a <= 0.0 || tmask != mask || abs(t.a - c.a) > uDepthCutoffMm
-        || !ssss_same_tissue(pp, np, q, texelFetch(uViewNormal, q, 0).xyz, t.a, size)) return 0.0;
+        || !ssss_same_tissue(pp, np, q, TEXEL(uViewNormal, q).xyz, t.a, size)) return 0.0;
     vec3 jump = max(r, 2.0 * (tw.a - tmask)) * abs(t.rgb - c.rgb) * share;
     return 1.0 - smoothstep(0.0, SSSS_FILTER_JUMP, max(jump.r, max(jump.g, jump.b)));
 }
@@ -44,17 +44,17 @@ float ssss_filter_accept(ivec2 q, ivec2 size, vec4 c, vec3 pp, vec3 np, float ma
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     ivec2 size = textureSize(uNarrow, 0);
-    vec4 narrow = texelFetch(uNarrow, p, 0);
+    vec4 narrow = TEXEL(uNarrow, p);
     if (narrow.a <= 0.0) {
         f_scattered = vec4(0.0);
         return;
     }
-    vec4 wide = texelFetch(uWide, p, 0);
+    vec4 wide = TEXEL(uWide, p);
     float mask = floor(wide.a);
     float r = 2.0 * (wide.a - mask);
     float cz = narrow.a;
-    vec3 np = texelFetch(uViewNormal, p, 0).xyz;
-    vec4 c = texelFetch(uIrradiance, p, 0);
+    vec3 np = TEXEL(uViewNormal, p).xyz;
+    vec4 c = TEXEL(uIrradiance, p);
     vec3 w_wide = vec3(0.0);  // the wide Gaussians' share of the profile (its weights are normalised per channel)
     for (int k = 0; k < MAX_GAUSSIANS; ++k)
         if (k < uGaussianCount && ((int(mask) >> k) & 1) != 0) w_wide += uWeights[k];

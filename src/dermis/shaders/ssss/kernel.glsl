@@ -78,6 +78,8 @@
 // crease's hidden walls taken as dark) was tried: the wide red Gaussians lost the most weight,
 // and cyan lines appeared along every crease (nose wings, eye sockets).
 #include "common/profile.glsl"
+// TEXEL: every texture the passes read is NEAREST, CLAMP_TO_EDGE (ssss.py _ensure_targets)
+#include "common/texel.glsl"
 
 uniform sampler2D uIrradiance;          // pass 1: rgb pre-scatter irradiance, a = view depth mm (0: none)
 uniform float uPixelsPerMmAtUnitDepth;  // along this pass's axis
@@ -243,7 +245,7 @@ bool ssss_same_tissue(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size) 
 // return before reading it otherwise: tissue_paths or follow_surface off, surface_measure off).
 vec3 ssss_tap_normal(ivec2 q) {
     bool needed = uTissueTau <= 1.0 || (uFollowSurface != 0.0 && uSurfaceMeasure != 0.0);
-    return needed ? texelFetch(uViewNormal, q, 0).xyz : vec3(0.0, 0.0, 1.0);
+    return needed ? TEXEL(uViewNormal, q).xyz : vec3(0.0, 0.0, 1.0);
 }
 
 // What a pass reads at pixel q: its view depth in mm (0: no surface), its normal (where the
