@@ -63,22 +63,20 @@ float erf_as(float x) {
 // _pass(nearest=True)) and read at texel centres, which gives the texel clamp(p, 0, size - 1) exactly,
 // as texelFetch of the clamped texel did, bit for bit; on llvmpipe a sampled read costs ~0.3-0.4 ms
 // less per tap over 1024^2 RGBA16F texels than texelFetch (its bounds checks; round 23, chain23).
-vec2 inv_size;  // 1 / the source's size (texels)
-vec4 fetch(ivec2 p) { return textureLod(uSource, (vec2(p) + 0.5) * inv_size, 0.0); }
+#include "common/texel.glsl"
 
 // the source at ip + j (skew, 1) along V, u rounded to the nearest texel (one fetch; the rounding's
 // spread along u is taken off by the U pass), ip + j (1, 0) along U
 vec4 tap(ivec2 ip, ivec2 dir, float skew, int j) {
     ivec2 o = dir * j;
     o.x += int(floor(skew * float(j) + 0.5));  // the same rounding as the U pass's account of it
-    return fetch(ip + o);
+    return TEXEL(uSource, ip + o);
 }
 
 void main() {
     ivec2 ip = ivec2(gl_FragCoord.xy);
-    inv_size = 1.0 / vec2(textureSize(uSource, 0));
-    vec4 center = fetch(ip);
-    vec3 st = textureLod(uStretch, (vec2(ip) + 0.5) / vec2(textureSize(uStretch, 0)), 0.0).xyz;
+    vec4 center = TEXEL(uSource, ip);
+    vec3 st = TEXEL(uStretch, ip).xyz;
     // V: along the direction orthogonal to u on the surface (see above); |c| <= 0.95 keeps it finite
     float cz = clamp(st.z, -0.95, 0.95);
     float c = uDirection.y > 0.5 ? cz : 0.0;

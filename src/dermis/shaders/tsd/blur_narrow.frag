@@ -10,8 +10,8 @@
 // +-d texels, d the smallest integer with V_2 <= 2/3 d^2, and a = V / (2 d^2): the variance stays
 // exact, as tsd/blur.frag spaces its taps. Premultiplied in and out.
 // Both textures are bound with a NEAREST, CLAMP_TO_EDGE sampler (tsd.py) and read at texel centres
-// (FETCH): the same texels, bit for bit, cheaper than texelFetch on llvmpipe (tsd/blur.frag).
-#define FETCH(t, q) textureLod(t, (vec2(q) + 0.5) * inv_size, 0.0)
+// (common/texel.glsl): the same texels, bit for bit, cheaper than texelFetch on llvmpipe.
+#include "common/texel.glsl"
 uniform sampler2D uSource;   // premultiplied rgb, a = coverage (tsd/dilate.frag)
 uniform sampler2D uWeights;  // per texel: binned variance (texel^2) of I_1 along u, v; of I_2 along u, v
 layout(location = 0) out vec4 f_first;
@@ -20,18 +20,17 @@ layout(location = 1) out vec4 f_second;
 void main() {
     ivec2 ip = ivec2(gl_FragCoord.xy);
     ivec2 imax = textureSize(uSource, 0) - 1;
-    vec2 inv_size = 1.0 / vec2(imax + 1);  // uWeights has the same size
-    vec4 V = FETCH(uWeights, ip);
+    vec4 V = TEXEL(uWeights, ip);
     vec2 d = max(vec2(1.0), ceil(sqrt(1.5 * V.zw) - 1e-4));  // tap spacing (texels) per axis
     vec4 a = 0.5 * V / vec4(d * d, d * d);
     ivec2 id = ivec2(d);
     ivec2 lo = max(ip - id, ivec2(0)), hi = min(ip + id, imax);  // clamped at the border, like blur.frag
-    vec4 s00 = FETCH(uSource, ivec2(lo.x, lo.y)), s10 = FETCH(uSource, ivec2(ip.x, lo.y)),
-         s20 = FETCH(uSource, ivec2(hi.x, lo.y));
-    vec4 s01 = FETCH(uSource, ivec2(lo.x, ip.y)), s11 = FETCH(uSource, ip),
-         s21 = FETCH(uSource, ivec2(hi.x, ip.y));
-    vec4 s02 = FETCH(uSource, ivec2(lo.x, hi.y)), s12 = FETCH(uSource, ivec2(ip.x, hi.y)),
-         s22 = FETCH(uSource, ivec2(hi.x, hi.y));
+    vec4 s00 = TEXEL(uSource, ivec2(lo.x, lo.y)), s10 = TEXEL(uSource, ivec2(ip.x, lo.y)),
+         s20 = TEXEL(uSource, ivec2(hi.x, lo.y));
+    vec4 s01 = TEXEL(uSource, ivec2(lo.x, ip.y)), s11 = TEXEL(uSource, ip),
+         s21 = TEXEL(uSource, ivec2(hi.x, ip.y));
+    vec4 s02 = TEXEL(uSource, ivec2(lo.x, hi.y)), s12 = TEXEL(uSource, ivec2(ip.x, hi.y)),
+         s22 = TEXEL(uSource, ivec2(hi.x, hi.y));
     // the u sums of each row first, then v
     vec4 e0 = s00 + s20 - 2.0 * s10, e1 = s01 + s21 - 2.0 * s11, e2 = s02 + s22 - 2.0 * s12;
     vec4 r0 = s10 + a.x * e0, r1 = s11 + a.x * e1, r2 = s12 + a.x * e2;
