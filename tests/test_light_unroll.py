@@ -1,5 +1,5 @@
-"""The light loops of lambert (lambert.frag), ssss (its irradiance pass, common/skin_irradiance.glsl)
-and preintegrated (preintegrated/skin.frag) unrolled at constant indices: SKIN_LIGHT_COUNT,
+"""The light loops of lambert (lambert.frag), ssss (its irradiance pass, common/skin_irradiance.glsl,
+and its final pass's specular, common/skin_specular.glsl) and preintegrated (preintegrated/skin.frag) unrolled at constant indices: SKIN_LIGHT_COUNT,
 DERMIS_FOR_EACH_LIGHT in common/lights.glsl, one program per light count through
 dermis.techniques.shared.LightCountPrograms (tsd's irradiance pass: tests/test_tsd_light_unroll.py).
 The reference is the loop over uLightCount compiled from the same sources and defines but
@@ -28,26 +28,37 @@ REL = 1e-5
 TECHNIQUES = ("lambert", "ssss", "preintegrated")
 
 
+def _swapped(gl_ctx, lcp, n, count):
+    """``lcp``'s program for n lights compiled again without SKIN_LIGHT_COUNT (``count`` None: the
+    loop over uLightCount) or unrolled for ``count`` lights."""
+    vertex, fragment, defines, _ = lcp(n).extra["sources"]
+    defines = {k: v for k, v in defines.items() if k != LIGHT_COUNT_DEFINE}
+    if count is not None:
+        defines[LIGHT_COUNT_DEFINE] = count
+    return program(gl_ctx, vertex, fragment, defines)
+
+
 def _render(sc, gl_ctx, technique, count=None, loop=False):
     """The technique's image; with ``loop`` its light loop drawn from the program without
-    SKIN_LIGHT_COUNT, with ``count`` from the program unrolled for ``count`` lights."""
+    SKIN_LIGHT_COUNT, with ``count`` from the program unrolled for ``count`` lights. ssss's final
+    pass (its specular's light loop, per count as well: ScreenSpaceSSS.p_finals) is swapped alike."""
     with Renderer(sc, (W, H), ctx=gl_ctx, **KW) as r:
         t = r.technique(technique)
-        prog = None
+        prog = final = None
         if loop or count is not None:
-            lcp = t.light_programs(sc, interreflection_on(sc))
-            vertex, fragment, defines, _ = lcp(len(sc.lights)).extra["sources"]
-            defines = {k: v for k, v in defines.items() if k != LIGHT_COUNT_DEFINE}
-            if count is not None:
-                defines[LIGHT_COUNT_DEFINE] = count
-            prog = program(gl_ctx, vertex, fragment, defines)
+            prog = _swapped(gl_ctx, t.light_programs(sc, interreflection_on(sc)), len(sc.lights), count)
             t.override_light_program(prog)
+            if technique == "ssss":
+                final = t.p_final = _swapped(gl_ctx, t.p_finals, len(sc.lights), count)
         try:
             return r.render(technique).astype(np.float64)
         finally:
             if prog is not None:
                 t.override_light_program(None)
                 prog.release()
+            if final is not None:
+                t.p_final = None
+                final.release()
 
 
 def _close(a, b):
@@ -92,6 +103,9 @@ def test_light_count_change_in_a_live_renderer(gl_ctx, technique):
         b3 = r.render(technique)
         lcp = r.technique(technique).light_programs(sc3, interreflection_on(sc3))
         assert sorted(p.extra["sources"][2][LIGHT_COUNT_DEFINE] for p in lcp.values()) == [1, 3, 5]
+        if technique == "ssss":  # its final pass too: one program per count, none compiled per frame
+            finals = r.technique(technique).p_finals
+            assert sorted(p.extra["sources"][2][LIGHT_COUNT_DEFINE] for p in finals.values()) == [1, 3, 5]
     fresh = {}
     for n, sc in ((1, sc1), (5, sc5)):
         with Renderer(sc, (W, H), ctx=gl_ctx, **KW) as r:

@@ -140,9 +140,12 @@ class ScreenSpaceSSS(Technique):
 
     def __init__(self, renderer, **options):
         super().__init__(renderer, **options)
-        self.p_final = program(self.ctx, "common/mesh.vert", "ssss/final.frag")
+        # the final pass per light count, its specular's light loop unrolled (LightCountPrograms), as tsd's
+        # final pass (round 23, final23/unroll23); the scene's count compiled now, not on the first frame
+        self.p_finals = LightCountPrograms(self.ctx, "common/mesh.vert", "ssss/final.frag").compile_for(renderer.scene)
         self._programs = {}  # (K, taps) -> the passes that loop over the profile, compiled for exactly K Gaussians and taps
         self.p_irradiance = None  # when set (benchmarks and tests swap shaders in), drawn instead of pass 1's own
+        self.p_final = None  # likewise for the final pass (tests: the loop over uLightCount), instead of p_finals
         self.vaos = {}
         self.tex = {}
         self._targets_key = None
@@ -308,14 +311,13 @@ class ScreenSpaceSSS(Technique):
 
     def render(self, frame: Frame, output_mode: int = OutputMode.FULL) -> None:
         self.screen_space(frame)
-        prog = self.p_final
+        prog = self.p_final if self.p_final is not None else self.p_finals(frame.lights.count)
         # the baked transfer of thin, curled parts (gathered only on a lighting change; before the target is bound)
         subsurface_transfer_uniforms(prog, frame, self.transfer, self.options.translucency, Unit.FIRST_FREE + 1)
         with frame.timer("ssss_final"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            prog = self.p_final
             set_uniform(prog, "uViewZ", view_z_row(frame.view))
             bind_sampler(prog, "uScattered", self.tex["scattered"], Unit.FIRST_FREE)
             surface_detail_uniforms(prog, frame.scene.material, output_mode)
@@ -352,4 +354,4 @@ class ScreenSpaceSSS(Technique):
             for p in progs:
                 if p is not None:
                     p.release()
-        self.p_final.release()
+        self.p_finals.release()
