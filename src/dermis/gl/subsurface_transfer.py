@@ -266,9 +266,8 @@ class SubsurfaceTransfer:
             return
         level = int(level)
         if self._box_prog is None:
-            prog = program(self.ctx, "tsd/transfer_view_box.vert", "tsd/transfer_view_box.frag")
-            self._box_prog = (prog,)
-        prog, = self._box_prog
+            self._box_prog = program(self.ctx, "tsd/transfer_view_box.vert", "tsd/transfer_view_box.frag")
+        prog = self._box_prog
         g = self.grid_texture.size
         size = tuple(max(int(s) >> level, 1) + 1 for s in g)  # one texel wider per axis
         if self._box is None or self._box[2] != level or self._box[0][0].size != size:
@@ -342,7 +341,7 @@ class SubsurfaceTransfer:
         self._release_gpu()
         self._gathered = None
         if self._box_prog is not None:
-            self._box_prog[0].release()
+            self._box_prog.release()
             self._box_prog = None
         if self.placeholder is not None:
             self.placeholder.release()

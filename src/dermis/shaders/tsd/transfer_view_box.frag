@@ -14,14 +14,17 @@ layout(location = 0) out vec4 f_box_r;
 layout(location = 1) out vec4 f_box_g;
 layout(location = 2) out vec4 f_box_b;
 
+// grid g's texels a, (b.x, a.y), (a.x, b.y), b at uLevel, summed
+vec4 box_sum(sampler2D g, ivec2 a, ivec2 b) {
+    return texelFetch(g, a, uLevel) + texelFetch(g, ivec2(b.x, a.y), uLevel)
+         + texelFetch(g, ivec2(a.x, b.y), uLevel) + texelFetch(g, b, uLevel);
+}
+
 void main() {
     ivec2 size = textureSize(uViewR, uLevel);
     ivec2 k = ivec2(gl_FragCoord.xy);
     ivec2 a = clamp(k - 1, ivec2(0), size - 1), b = clamp(k, ivec2(0), size - 1);
-    f_box_r = texelFetch(uViewR, a, uLevel) + texelFetch(uViewR, ivec2(b.x, a.y), uLevel)
-            + texelFetch(uViewR, ivec2(a.x, b.y), uLevel) + texelFetch(uViewR, b, uLevel);
-    f_box_g = texelFetch(uViewG, a, uLevel) + texelFetch(uViewG, ivec2(b.x, a.y), uLevel)
-            + texelFetch(uViewG, ivec2(a.x, b.y), uLevel) + texelFetch(uViewG, b, uLevel);
-    f_box_b = texelFetch(uViewB, a, uLevel) + texelFetch(uViewB, ivec2(b.x, a.y), uLevel)
-            + texelFetch(uViewB, ivec2(a.x, b.y), uLevel) + texelFetch(uViewB, b, uLevel);
+    f_box_r = box_sum(uViewR, a, b);
+    f_box_g = box_sum(uViewG, a, b);
+    f_box_b = box_sum(uViewB, a, b);
 }
