@@ -272,7 +272,7 @@ float shadow_soft_penumbra(int i, vec3 P, vec3 N, out float width_mm) {
     return shadow_pcf(i, P, N, true, width_mm);
 }
 
-// The shadow box-filtered over a square of half-width half_mm (mm) of P's tangent plane (normal N):
+// shadow_box_curved (below) with kappa = 0: the shadow box-filtered over a square of half-width half_mm (mm) of P's tangent plane (normal N):
 // the mean of SHADOW_BOX_GRID^2 bilinear-compare taps at the cell midpoints of the square, each compared
 // against the receiver plane's own depth there (shadow_receiver's gradient). For light that entered a
 // thin part's far face anywhere within the square (a box of per-axis variance half_mm^2 / 3, in any
@@ -288,13 +288,15 @@ float shadow_soft_penumbra(int i, vec3 P, vec3 N, out float width_mm) {
 // 1 where the light casts no shadow.
 const int SHADOW_BOX_GRID = 6;
 const vec2 SHADOW_BOX_TURN = vec2(6.0, 1.0) / 6.0827625;  // (cos, sin) of atan(1/6); 6.0827625 = sqrt(37)
+// The turned grid's tap at cell g (in [-1, 1]^2 of the unturned square): its offset in units of the half-width
+#define SHADOW_BOX_OFFSET(g) vec2(SHADOW_BOX_TURN.x * (g).x - SHADOW_BOX_TURN.y * (g).y, SHADOW_BOX_TURN.y * (g).x + SHADOW_BOX_TURN.x * (g).y)
 //
 // shadow_box_curved: the same over a receiver that is not a plane: each tap compares against the
 // tangent plane lifted along N by the rise kappa r^2 / 2 (mm) that a concave quadric of curvature
 // kappa (1/mm, unsigned: the larger lift of the two signs) has at the tap's distance r from P, in
 // map depth h ((J N).z - dz . (J N).xy) (N moves the uv as well as the depth). Without it a box
 // millimetres wide on a concave surface (an eye socket, the nose's side) compares against a plane the
-// surface itself rises above and calls its own surface an occluder. kappa = 0 is shadow_box.
+// surface itself rises above and calls its own surface an occluder. kappa = 0: the plane's box (above).
 // probe in [0, 1]: a shadow value at P known to the caller (its PCF); where the square's four corner
 // taps and it are all 1 (all 0) the box returns 1 (0) without the other 32 taps. A shadow that
 // touches neither the corners nor the PCF's disc is then missed (a speck narrower than the gaps,
@@ -332,7 +334,7 @@ float shadow_box_curved(int i, vec3 P, vec3 N, float half_mm, float curvature_pe
         float corners = 0.0;
         for (int k = 0; k < 4; ++k) {
             vec2 gk = vec2((k & 1) == 0 ? -g : g, k < 2 ? -g : g);
-            vec2 f = vec2(SHADOW_BOX_TURN.x * gk.x - SHADOW_BOX_TURN.y * gk.y, SHADOW_BOX_TURN.y * gk.x + SHADOW_BOX_TURN.x * gk.y);
+            vec2 f = SHADOW_BOX_OFFSET(gk);
             vec2 delta = f.x * e1 + f.y * e2;
             corners += shadow_tap(i, c.xy + delta, z + dot(dz, delta) - lifted_rise(f, shift, r2));
         }
@@ -342,16 +344,12 @@ float shadow_box_curved(int i, vec3 P, vec3 N, float half_mm, float curvature_pe
     for (int ky = 0; ky < SHADOW_BOX_GRID; ++ky) {
         for (int kx = 0; kx < SHADOW_BOX_GRID; ++kx) {
             vec2 g = (vec2(kx, ky) + 0.5) * (2.0 / float(SHADOW_BOX_GRID)) - 1.0;
-            vec2 f = vec2(SHADOW_BOX_TURN.x * g.x - SHADOW_BOX_TURN.y * g.y, SHADOW_BOX_TURN.y * g.x + SHADOW_BOX_TURN.x * g.y);
+            vec2 f = SHADOW_BOX_OFFSET(g);
             vec2 delta = f.x * e1 + f.y * e2;
             sum += shadow_tap(i, c.xy + delta, z + dot(dz, delta) - lifted_rise(f, shift, r2));
         }
     }
     return sum / float(SHADOW_BOX_GRID * SHADOW_BOX_GRID);
-}
-
-float shadow_box(int i, vec3 P, vec3 N, float half_mm) {
-    return shadow_box_curved(i, P, N, half_mm, 0.0, -1.0);
 }
 
 // The soft shadow (shadow_soft) and the sharp one (shadow_sharp) of light i from ONE receiver

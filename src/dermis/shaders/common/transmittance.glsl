@@ -72,7 +72,7 @@ vec3 transmittance_profile(float d_mm) {
 // half-width along the light, which clears a second layer close behind the far face when the first
 // point lies inside it (round 18, farface18: the back-lit scapha; benchmarks/farface_occluder.py).
 // An occluder is missed only if it lies within those lifts of the far face; occluders centimetres
-// away (the head behind an ear) still shadow it. Each tap is one bilinear compare (as shadow_box's, a
+// away (the head behind an ear) still shadow it. Each tap is one bilinear compare (as shadow_box_curved's, a
 // 6 x 6 grid turned by atan(1/6), common/shadow.glsl) against its point's depth less the far face's
 // receiver-plane footprint.
 const float FAR_FACE_LIFT_MM = 2.5;
@@ -108,7 +108,7 @@ float far_face_shadow(int i, vec3 P, vec3 Ng, vec2 uv_ts, mat3x2 M, float h_mm, 
     for (int ky = 0; ky < SHADOW_BOX_GRID; ++ky) {
         for (int kx = 0; kx < SHADOW_BOX_GRID; ++kx) {
             vec2 g = (vec2(kx, ky) + 0.5) * (2.0 / float(SHADOW_BOX_GRID)) - 1.0;
-            vec2 f = vec2(SHADOW_BOX_TURN.x * g.x - SHADOW_BOX_TURN.y * g.y, SHADOW_BOX_TURN.y * g.x + SHADOW_BOX_TURN.x * g.y);
+            vec2 f = SHADOW_BOX_OFFSET(g);
             vec3 delta = (f.x * t1 + f.y * t2) * (half_mm / uMmPerUnit);
             vec4 ff = textureLod(uFarFaceMap, uv_ts + M * delta, 0.0);
             if (ff.w <= 0.0) continue;  // no far face behind this tap's texel
