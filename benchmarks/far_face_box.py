@@ -21,7 +21,7 @@ nothing: the shadow map's compare without filtering or bias) and sets beside it,
 - taps: the taps' mean of the shader's two planes, and which of them lie inside tissue (the ray towards the
   light leaves tissue first).
 
-    PYTHONPATH=src python benchmarks/far_face_box.py head [--regions lobe helix scapha concha]
+    PYTHONPATH=src python benchmarks/far_face_box.py head [--regions lobe helix scapha concha] [--box X0 Y0 X1 Y1] [--lattice]
     PYTHONPATH=src python benchmarks/far_face_box.py part [--width-mm 10 --thickness-mm 5 --angle-deg 40]
 
 `head`: back-ears' 768 px frame, ear_regions.py's boxes, the thickness bake the two techniques read (512^2,
@@ -203,6 +203,55 @@ def surface_taps(geo: Geometry, p, n, h, half, L, uv, M, points, ramp=(0.4, 0.6)
     return s, np.maximum(nf @ L, 0.0)
 
 
+def lattice_taps(geo: Geometry, p, n, h, half, L, uv, M, points, per_side=6.0, nmax=11, edge=0.75, ramp=(0.4, 0.6)):
+    """A candidate, not the shader (round 24, pre24): the far-face taps on a lattice FIXED in texture space instead of
+    moving with P. The shader's taps sit at uv + M delta_k, so as P moves each tap's far-face point X_k slides over an
+    irregular far face and its lit test flips at scattered places: steps of 1/36 at 1-2 px (the back-lit helix fold's
+    mottle). Here the taps are the lattice points q = (i + 1/2) d of the layout's uv (one spacing d for the whole
+    call: the region's median box width / per_side), weighted by a box over P's square with smooth edges (from
+    ``edge`` x the half-width; f = (M [t1 t2])^-1 (q - uv) on P's tangent plane), the depth window and the points'
+    weights as the shader: each lattice point's lit test is fixed, only the weights move with P. nmax^2 candidates.
+    Returns (s, taps used per pixel). A shader needs a d that is constant over large areas (a per-draw spacing, or
+    levels blended): a per-pixel d moves the whole lattice."""
+    from farface_occluder import bilinear
+
+    def sstep(e0, e1, x):
+        t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+        return t * t * (3.0 - 2.0 * t)
+
+    mm = geo.mm
+    _, A, t1, t2 = box_frame(geo, p, n, h, half)
+    B = M @ (np.stack([t1, t2], 2) / mm)  # (k, 2, 2): P's tangent plane (mm) -> uv
+    d = np.median(2.0 * half * np.sqrt(np.abs(np.linalg.det(B)))) / per_side
+    g = np.arange(nmax)
+    gx, gy = np.meshgrid(g, g)
+    q = (np.floor(uv / d - nmax / 2.0)[:, None, :] + np.stack([gx.ravel(), gy.ravel()], 1)[None] + 0.5) * d
+    f = np.einsum("kij,kmj->kmi", np.linalg.inv(B), q - uv[:, None])
+    wb = (1 - sstep(edge, 1.0, np.abs(f[..., 0]) / half[:, None])) * (1 - sstep(edge, 1.0, np.abs(f[..., 1]) / half[:, None]))
+    k, m = q.shape[:2]
+    fp = bilinear(points, q.reshape(-1, 2)).reshape(k, m, 4)
+    X = fp[..., :3] / np.maximum(fp[..., 3], 1e-12)[..., None]
+    dz = np.abs(np.einsum("kmc,kc->km", (X - A[:, None]) * mm, n)) / h[:, None]
+    w = np.where((fp[..., 3] > 0) & (wb > 0), fp[..., 3] * wb * (1 - sstep(ramp[0], ramp[1], dz)), 0.0)
+    use = w > 0
+    lit = np.zeros((k, m))
+    lit[use] = np.maximum(geo.sees_light((X - n[:, None] * (LIFT_MM / mm))[use], L)[0],
+                          geo.sees_light((X + L * ((LIFT_ALONG_LIGHT_MM + 0.5 * half) / mm)[:, None, None])[use], L)[0])
+    ws = w.sum(1)
+    return np.where(ws > 0, (w * lit).sum(1) / np.maximum(ws, 1e-12), 0.0), use.sum(1)
+
+
+def high_pass(s, box, sigma=1.5):
+    """Mean |s - G_sigma(s)| of a per-pixel map over the region ``box`` (x0, y0, x1, y1), 2 px in from its border;
+    None unless every pixel of the box was kept."""
+    from scipy.ndimage import gaussian_filter
+
+    x0, y0, x1, y1 = box
+    if len(s) != (x1 - x0) * (y1 - y0):
+        return None
+    S = np.asarray(s, np.float64).reshape(y1 - y0, x1 - x0)
+    return float(np.abs(S - gaussian_filter(S, sigma))[2:-2, 2:-2].mean())
+
 def summary(name, r):
     q = lambda v: f"{np.nanmean(v):.3f}"  # noqa: E731
     print(f"{name}: {len(r['s_box'])} px; box s {q(r['s_box'])} (plane 1 {q(r['plane1'])}, its taps inside tissue "
@@ -237,8 +286,12 @@ def head(a):
     from dermis.gl.thickness import far_face_points, texel_maps
 
     points = far_face_points(completed, normal, texel_maps(mesh, 512), mm)
+    regions = dict(REGIONS)
+    if getattr(a, "box", None):
+        regions["box"] = tuple(a.box)
+        a.regions = list(a.regions) + ["box"]
     for name in a.regions:
-        _, _, p, tri, b, n, (N, I) = camera_hits(sc, REGIONS[name])
+        _, _, p, tri, b, n, (N, I) = camera_hits(sc, regions[name])
         w = np.stack([1 - b[:, 0] - b[:, 1], b[:, 0], b[:, 1]], 1)
         uv = np.einsum("ij,ijk->ik", w, uv_ts[I[np.maximum(tri, 0)]])
         th = bilinear(data, uv)
@@ -256,13 +309,19 @@ def head(a):
         PmT = np.transpose(Pm, (0, 2, 1))
         M = Um @ np.linalg.inv(PmT @ Pm) @ PmT
         s_new, cos_new = surface_taps(geo, p, n, h, half, L, uv[ok], M, points)
-        print(f"[{name} {REGIONS[name]}: bake h {np.median(h):.2f} mm, half-width {np.median(half):.2f} mm]")
+        print(f"[{name} {regions[name]}: bake h {np.median(h):.2f} mm, half-width {np.median(half):.2f} mm]")
         summary(name, r)
         cs = s_new * r["cos_P"]  # the shader's cosine: at -Ng
         print(f"    round 23's taps on the far face: s {np.mean(s_new):.3f}, cos x s {np.mean(cs):.3f}; |s - ref_surface| per px "
               f"{np.nanmean(np.abs(s_new - r['ref_surface'])):.3f}, |cos x s - ref_surface's| {np.nanmean(np.abs(cs - r['ref_surface_cos'])):.3f} "
               f"(rounds 18-22: {np.nanmean(np.abs(r['s_box'] * r['cos_P'] - r['ref_surface_cos'])):.3f}); with the cosine at the "
               f"kept points' least-squares plane (tried, not kept): {np.mean(cos_new):.3f}, cos x s {np.mean(s_new * cos_new):.3f}")
+        if getattr(a, "lattice", False):
+            s_lat, used = lattice_taps(geo, p, n, h, half, L, uv[ok], M, points)
+            hp = lambda v: "n/a" if high_pass(v, regions[name]) is None else f"{high_pass(v, regions[name]):.4f}"  # noqa: E731
+            print(f"    taps on a lattice fixed in texture space (candidate): s {np.mean(s_lat):.3f} ({np.mean(used):.1f} taps), "
+                  f"|s - ref_surface| per px {np.nanmean(np.abs(s_lat - r['ref_surface'])):.3f}; high-pass of s (1.5 px): "
+                  f"lattice {hp(s_lat)}, round 23's taps {hp(s_new)}, rounds 18-22's planes {hp(r['s_box'])}")
 
 
 def tube(width_mm, thick_mm, length_mm=60.0, nu=256, nv=24):
@@ -354,6 +413,9 @@ def main(argv=None):
     sub = ap.add_subparsers(dest="cmd", required=True)
     h = sub.add_parser("head")
     h.add_argument("--regions", nargs="+", default=["lobe", "helix", "scapha", "concha"])
+    h.add_argument("--box", nargs=4, type=int, default=None, metavar=("X0", "Y0", "X1", "Y1"),
+                   help="also a region 'box' of these frame pixels (e.g. review23's helix fold: 372 346 387 375)")
+    h.add_argument("--lattice", action="store_true", help="also the taps on a lattice fixed in texture space (lattice_taps)")
     t = sub.add_parser("part")
     t.add_argument("--width-mm", type=float, default=10.0)
     t.add_argument("--thickness-mm", type=float, default=5.0)
