@@ -77,7 +77,12 @@ def test_shader_constants_are_the_table():
     np.testing.assert_allclose(arr["DA_C"], want_c, atol=1e-6)
 
 
-def test_tsd_on_a_flat_plane_is_k_at_entry_times_k_at_exit(gl_ctx):
+# 128 texels at 32 px: texels of 0.31 mm, 5.3 per pixel (1.66 mm): the blurred textures alone. 64 texels at
+# 96 px: texels of 0.625 mm, 0.88 per pixel (0.55 mm): tsd/final.frag's pixel detail (PIXEL_DETAIL) at
+# full weight, whose I_0 at the pixel must weigh the light by k(N.L) as the irradiance pass does (the
+# residual I_0 - I_1 is then 0 on the plane; with the Lambertian k = 1 there it moves the ratio 1-3 %)
+@pytest.mark.parametrize("irradiance_size, pixels", [(128, 32), (64, 96)])
+def test_tsd_on_a_flat_plane_is_k_at_entry_times_k_at_exit(gl_ctx, irradiance_size, pixels):
     from dermis.renderer import Renderer
     from dermis.verification import quad_scene
 
@@ -89,9 +94,15 @@ def test_tsd_on_a_flat_plane_is_k_at_entry_times_k_at_exit(gl_ctx):
         sc.material.albedo_color = tuple(albedo)
         sc.lights[0].direction = (0.0, -math.sin(theta_l), -math.cos(theta_l))
         sc.directional_albedo = on
-        with Renderer(sc, (32, 32), ctx=gl_ctx, irradiance_size=128, shadow_size=256) as r:
-            out[on] = r.render("tsd")[12:20, 12:20, :3].astype(np.float64)
+        with Renderer(sc, (pixels, pixels), ctx=gl_ctx, irradiance_size=irradiance_size, shadow_size=256) as r:
+            c = pixels // 2
+            out[on] = r.render("tsd")[c - 4:c + 4, c - 4:c + 4, :3].astype(np.float64)
     # the camera looks down the normal: N.V = cos of the pixel's ray (>= 0.998 in the middle)
+    # texels per pixel (the detail's weight is 1 up to 1, 0 from 2): irradiance_size over the quad's 40 mm,
+    # times a pixel, 2 d tan(fov / 2) / pixels at the camera's distance d (quad_scene)
+    cam = sc.camera
+    texels_per_pixel = irradiance_size / 40.0 * 2.0 * cam.position[2] * math.tan(math.radians(cam.fov_deg) / 2.0) / pixels
+    assert texels_per_pixel < 1.0 if pixels == 96 else texels_per_pixel > 2.0
     want = da.factor(albedo, math.cos(theta_l)) * da.factor(albedo, 1.0)
     got = out[True].mean(axis=(0, 1)) / out[False].mean(axis=(0, 1))
     np.testing.assert_allclose(got, want, rtol=2e-3)

@@ -115,6 +115,10 @@ void main() {
     vec2 uv_ts = uv_on_triangle(v_uv_ts, gl_PrimitiveID);
 
     vec3 albedo = albedo_at(v_uv);
+    // the directional albedo's c (common/directional_albedo.glsl), once: the exit's k(N.V) below and,
+    // with PIXEL_DETAIL, the entry's k(N.L) of I_0 at the pixel (computed in the detail's branch as
+    // well, it ran twice: ~4 CPU ms of front-key's 768 px on llvmpipe, round 24)
+    vec3 c_dir = uDirectionalAlbedo * directional_c(albedo);
     // k(N.V) is the half-space's REFLECTION (dermis.profiles.directional_albedo): the light that
     // entered on this side; the light through a thin part (translucency) is left Lambertian
 #ifdef SHARP_SHADOW_READ
@@ -153,7 +157,6 @@ void main() {
         vec3 n_c = interpolateAtCentroid(v_normal);
         vec3 Ng_c = normalize(n_c);
         vec3 N_c = tangent_to_world(n_c, interpolateAtCentroid(v_tangent), normal_map_texel);
-        vec3 c_in = uDirectionalAlbedo * directional_c(albedo);
         // the lights' soft (PCF) shadows at P_c, as the irradiance pass has them per texel, evaluated
         // here everywhere. Not only inside the stored sharp shadow's bilinear band (a texel each side of
         // its edge) with its 0 or 1 elsewhere: the PCF's penumbra on the surface is often wider than
@@ -162,7 +165,7 @@ void main() {
         // as single dark pixels along shadow edges (issue 12, round 21, dots21: front-key's nose
         // shadow (399, 525), stored sharp 0.00 against the PCF's 0.28: green 51 levels, irradiance
         // 4096 106; tests/test_tsd_pixel_detail.py's penumbra test)
-        vec3 I0 = skin_lights_directional(P_c, Ng_c, N_c, rho_s, m, c_in);
+        vec3 I0 = skin_lights_directional(P_c, Ng_c, N_c, rho_s, m, c_dir);
         I0 += skin_ambient(N_c, Ng_c, rho_s, m, interpolateAtCentroid(v_visibility));
 #ifdef PIXEL_DETAIL_BOUNCE
         I0 += bounce_on_triangle(uv_ts, gl_PrimitiveID);
@@ -174,7 +177,7 @@ void main() {
 #else
     vec3 Ed = diffuse_irradiance(uv_ts);
 #endif
-    vec3 E = Ed * directional_factor(uDirectionalAlbedo * directional_c(albedo), ndv)
+    vec3 E = Ed * directional_factor(c_dir, ndv)
            + texture(uTranslucency, uv_ts).rgb + subsurface_transfer_view(uv_ts, V, Ng);
     vec3 diffuse = E * albedo_power(albedo, 1.0 - uMix) * INV_PI * energy_transmitted(rho_s, ndv, m);
 
