@@ -279,7 +279,8 @@ float shadow_pcf_at(int i, ShadowReceiver r, bool want_width, out float width_mm
     const float fit = float(PCF_GRID) - 0.51;
     bool box = kernel == SHADOW_FILTER_RUNTIME ? a_par >= fit : kernel == SHADOW_FILTER_BOX;
     float a = box ? a_box : a_par;
-    float stride = max(a / fit, 1.0);
+    // a known parabola has a < fit (dermis.gl.shadows.pcf_filter, by a margin): stride 1 exactly, as max() gives
+    float stride = kernel == SHADOW_FILTER_PARABOLA ? 1.0 : max(a / fit, 1.0);
     float wsum;
     vec2 sd, dsum;
     mat2 C;
