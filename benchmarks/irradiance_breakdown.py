@@ -12,7 +12,7 @@ round 24 (irr24: the shader's current function signatures, the CPU clock, any sc
     PYTHONPATH=src python benchmarks/irradiance_breakdown.py [S=1024] [frames=3] [variant,variant,...]
     SCENE=examples/reference/front-key.toml SIZE=768 ...   (default: the head example, 1024 x 1024)
 
-Variants that change the image are timing probes only ("no PCF", "PCF weights, no taps", "PCF grid 2x2",
+Variants that change the image are timing probes only ("no PCF", "PCF weights without taps", "PCF grid 2x2",
 ...). ``RASTER=1`` times the one-raster program (tsd.SPLIT_IRRADIANCE = False) instead; the variants made
 for the split pass's own lines then print "did not apply".
 """
@@ -41,7 +41,7 @@ V = {
     + [(f"TEXEL(uBounceInputs[{k}], t)", f"texelFetch(uBounceInputs[{k}], t, 0)") for k in range(5)]
     + [("TEXEL(uAlbedoRest, t)", "texelFetch(uAlbedoRest, t, 0)")],
  "no PCF (sharp tap as soft)": [(PCF_CALL, "return want_soft ? sharp : 1.0;")],
- "PCF weights, no taps": [(TAP, "            float s = 0.5 + 1e-9 * (delta.x + delta.y + z);")],
+ "PCF weights without taps": [(TAP, "            float s = 0.5 + 1e-9 * (delta.x + delta.y + z);")],
  "PCF grid 2x2 (4 taps)": [("const int PCF_GRID = 3;", "const int PCF_GRID = 2;")],
  "no sharp tap": [(SHARP_CALL, "    sharp = 1.0 - 1e-9 * (r.c.x + r.dz.x);\n")],
  "receiver solve only (no taps)": [(PCF_CALL, "return want_soft ? 1.0 + 1e-9 * (r.c.x + r.dz.x + r.T[0][0] + r.graze) : 1.0;"),
