@@ -19,6 +19,34 @@ from dermis.gl.shaders import program
 from dermis.techniques.shared import MAX_LIGHTS, Unit, bind_sampler
 
 
+# common/shadow.glsl's SHADOW_FILTER_* (a light's kernel, SKIN_SHADOW_FILTERS)
+SHADOW_FILTER_RUNTIME, SHADOW_FILTER_NONE, SHADOW_FILTER_PARABOLA, SHADOW_FILTER_BOX = -1, 0, 1, 2
+PCF_DISC_SCALE = 1.307  # common/shadow.glsl
+PCF_GRID = 3  # common/shadow.glsl
+PCF_FILTER_MARGIN = 1e-3
+"""pcf_filter leaves a kernel to run time where a_par is this close (texels) to the fit: the shader's
+float32 may round the other way there."""
+
+
+def pcf_filter(cast_shadows: bool, softness: float) -> int:
+    """The kernel common/shadow.glsl's shadow_pcf_at picks for a light of ``softness`` (shadow texels),
+    known before the draw so that the light pass can be compiled for it (SKIN_SHADOW_FILTERS):
+    NONE without a shadow map, PARABOLA where the variance-matched parabola's half-width
+    a_par = sqrt(5 (R^2 / 4 + 1/12)), R = PCF_DISC_SCALE softness, fits the grid (< PCF_GRID - 0.51),
+    BOX where it does not; RUNTIME (the shader decides) for softness <= 0 (one tap) and within
+    PCF_FILTER_MARGIN of the fit, where float32 rounding could decide otherwise."""
+    if not cast_shadows:
+        return SHADOW_FILTER_NONE
+    R = PCF_DISC_SCALE * float(softness)
+    if not R > 0.0:
+        return SHADOW_FILTER_RUNTIME
+    a_par = math.sqrt(5.0 * (0.25 * R * R + 1.0 / 12.0))
+    fit = PCF_GRID - 0.51
+    if abs(a_par - fit) < PCF_FILTER_MARGIN:
+        return SHADOW_FILTER_RUNTIME
+    return SHADOW_FILTER_BOX if a_par >= fit else SHADOW_FILTER_PARABOLA
+
+
 def normal_offset(softness: float, half_extent: float, tile_size: int) -> float:
     """Normal offset (scene units) against acne (King 2004): it must cover the PCF footprint.
 

@@ -256,6 +256,25 @@ LIGHT_COUNT_DEFINE = "SKIN_LIGHT_COUNT"
 """The define that unrolls a shader's light loop (DERMIS_FOR_EACH_LIGHT, common/lights.glsl)."""
 
 
+def light_signature(lights) -> tuple:
+    """Per light (kind, shadow kernel): what a program compiled for the scene's lights may fold at
+    compile time (SKIN_LIGHT_KINDS, common/lights.glsl; SKIN_SHADOW_FILTERS, common/shadow.glsl).
+    ``lights``: the scene's Light objects (as LightUniforms packs them). The kernel
+    is dermis.gl.shadows.pcf_filter's; a light's direction, colour, intensity are not in it: moving or
+    recolouring a light keeps its program."""
+    from dermis.gl.shadows import pcf_filter
+
+    return tuple((LIGHT_TYPES[L.kind], pcf_filter(L.cast_shadows, L.shadow_softness)) for L in lights)
+
+
+def signature_defines(signature: tuple) -> dict:
+    """SKIN_LIGHT_KINDS and SKIN_SHADOW_FILTERS for :func:`light_signature`'s tuple (none for 0 lights)."""
+    if not signature:
+        return {}
+    return {"SKIN_LIGHT_KINDS": ", ".join(str(int(k)) for k, _ in signature),
+            "SKIN_SHADOW_FILTERS": ", ".join(str(int(f)) for _, f in signature)}
+
+
 class LightCountPrograms:
     """One shader pair compiled per scene light count, with LIGHT_COUNT_DEFINE = n: its loop over
     the lights (DERMIS_FOR_EACH_LIGHT) written out with constant indices into the light uniforms.
@@ -265,32 +284,46 @@ class LightCountPrograms:
     counts recompiles nothing); :meth:`release` frees them all, with the technique.
     ``defines``: the pair's other defines; ``per_count(n)``: more defines for n lights (or None).
     The pore-free variant (:func:`shading_program`) is compiled from the per-count program's own
-    sources, so it is unrolled for the same count."""
+    sources, so it is unrolled for the same count.
+    ``signature=True``: compiled per :func:`light_signature` too (the lights' kinds and shadow kernels
+    as constants: :func:`signature_defines`), called with the scene's lights; the same floats, less
+    arithmetic on llvmpipe (tsd's irradiance light pass, round 24, irr24). A light whose kind, shadow
+    flag or kernel changes (the viewer's softness across ~1.65 texels) compiles once more (~1 s on llvmpipe)."""
 
-    def __init__(self, ctx, vertex: str, fragment: str, defines: dict | None = None, per_count=None):
+    def __init__(self, ctx, vertex: str, fragment: str, defines: dict | None = None, per_count=None,
+                 signature: bool = False):
         self.ctx, self.vertex, self.fragment = ctx, vertex, fragment
         self.defines = dict(defines or {})
         self.per_count = per_count
-        self._programs = {}  # light count -> program
+        self.signature = bool(signature)
+        self._programs = {}  # light count (and light_signature) -> program
 
-    def __call__(self, n: int):
-        """The program for a scene of ``n`` lights (0..MAX_LIGHTS)."""
+    def __call__(self, n: int, lights=None):
+        """The program for a scene of ``n`` lights (0..MAX_LIGHTS); with ``signature``, ``lights`` (the
+        scene's Light objects, n of them) is required."""
         n = int(n)
         if not 0 <= n <= MAX_LIGHTS:
             raise DermisError(f"a scene holds 0 to {MAX_LIGHTS} lights, got {n}")
-        if n not in self._programs:
+        sig = None
+        if self.signature:
+            if lights is None or len(lights) != n:
+                raise DermisError(f"programs compiled per light signature need the scene's {n} lights")
+            sig = light_signature(lights)
+        key = n if sig is None else (n, sig)
+        if key not in self._programs:
             from dermis.gl.shaders import program
 
-            defines = {**self.defines, **(self.per_count(n) if self.per_count else {}), LIGHT_COUNT_DEFINE: n}
-            self._programs[n] = program(self.ctx, self.vertex, self.fragment, defines)
-        return self._programs[n]
+            defines = {**self.defines, **(self.per_count(n) if self.per_count else {}), LIGHT_COUNT_DEFINE: n,
+                       **(signature_defines(sig) if sig else {})}
+            self._programs[key] = program(self.ctx, self.vertex, self.fragment, defines)
+        return self._programs[key]
 
     def compile_for(self, scene) -> "LightCountPrograms":
         """Compile ``scene``'s light count now (``scene`` None: nothing), as the techniques compile
         their other programs up front: the first frame, or a technique switched to in the viewer
         mid-drag, does not wait on a compile (~1.3 s for tsd's irradiance program on llvmpipe)."""
         if scene is not None:
-            self(len(scene.lights))
+            self(len(scene.lights), scene.lights)
         return self
 
     def values(self):

@@ -12,9 +12,29 @@ uniform vec4 uLightRadiance[MAX_LIGHTS];  // rgb colour * intensity, w = casts s
 uniform vec4 uLightSpot[MAX_LIGHTS];      // x cos(outer half-angle), y cos(inner), z/w unused
 uniform float uMmPerUnit;
 
+// Light i's kind (LIGHT_DIRECTIONAL / _POINT / _SPOT). With SKIN_LIGHT_KINDS defined (beside
+// SKIN_LIGHT_COUNT: the scene's kinds as "k0, k1, ...", -1 where left to run time;
+// dermis.techniques.shared.light_signature), a constant wherever i is one (DERMIS_FOR_EACH_LIGHT's
+// light_i), so the other kinds' arithmetic folds away at compile time: llvmpipe runs both sides of a
+// branch, even one on a uniform, under a lane mask (benchmarks/results/round-24.md, irr24: tsd's
+// irradiance pass -7 ms of 133 on the head's three directional lights). Else read from uLightPosType.w.
+#ifdef SKIN_LIGHT_KINDS
+#ifndef SKIN_LIGHT_COUNT
+#error "SKIN_LIGHT_KINDS needs SKIN_LIGHT_COUNT"
+#endif
+const int DERMIS_LIGHT_KINDS[SKIN_LIGHT_COUNT] = int[SKIN_LIGHT_COUNT](SKIN_LIGHT_KINDS);
+int light_kind(int i) {
+    return DERMIS_LIGHT_KINDS[i] >= 0 ? DERMIS_LIGHT_KINDS[i] : int(uLightPosType[i].w + 0.5);
+}
+#else
+int light_kind(int i) {
+    return int(uLightPosType[i].w + 0.5);
+}
+#endif
+
 // Direction to the light (unit) and the irradiance it brings at normal incidence, at point P.
 vec3 light_incident(int i, vec3 P, out vec3 L) {
-    int type = int(uLightPosType[i].w + 0.5);
+    int type = light_kind(i);
     vec3 E = uLightRadiance[i].rgb;
     if (type == LIGHT_DIRECTIONAL) {
         L = -uLightDir[i].xyz;

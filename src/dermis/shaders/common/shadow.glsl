@@ -29,6 +29,35 @@ uniform vec4 uShadowTile[MAX_LIGHTS];   // xy atlas offset, zw scale (atlas uv =
 uniform vec4 uShadowParams[MAX_LIGHTS]; // x soft radius (texels), y depth bias, z normal offset (scene units), w = 1/tile size
 uniform sampler2DShadow uShadowAtlas;
 
+// Light i's shadow filter, known at compile time where SKIN_SHADOW_FILTERS is defined (with
+// SKIN_LIGHT_KINDS: "f0, f1, ...", dermis.gl.shadows.pcf_filter): SHADOW_FILTER_NONE the light
+// casts no shadow, _PARABOLA / _BOX shadow_pcf_at's kernel for the light's softness (> 0), _RUNTIME
+// decided from the uniforms as without the define. A constant index (DERMIS_FOR_EACH_LIGHT) then folds
+// the other kernel's arithmetic and the single-tap branch of softness 0, which llvmpipe otherwise
+// evaluates under a mask for every texel (benchmarks/results/round-24.md, irr24).
+const int SHADOW_FILTER_RUNTIME = -1;
+const int SHADOW_FILTER_NONE = 0;
+const int SHADOW_FILTER_PARABOLA = 1;
+const int SHADOW_FILTER_BOX = 2;
+#ifdef SKIN_SHADOW_FILTERS
+#ifndef SKIN_LIGHT_KINDS
+#error "SKIN_SHADOW_FILTERS comes with SKIN_LIGHT_KINDS"
+#endif
+const int DERMIS_SHADOW_FILTERS[SKIN_LIGHT_COUNT] = int[SKIN_LIGHT_COUNT](SKIN_SHADOW_FILTERS);
+int shadow_filter(int i) {
+    return DERMIS_SHADOW_FILTERS[i];
+}
+#else
+int shadow_filter(int i) {
+    return SHADOW_FILTER_RUNTIME;
+}
+#endif
+
+bool light_casts_shadow(int i) {
+    int f = shadow_filter(i);
+    return f == SHADOW_FILTER_RUNTIME ? !(uLightRadiance[i].w < 0.5) : f != SHADOW_FILTER_NONE;
+}
+
 float shadow_tap(int i, vec2 uv, float z) {
     vec2 h = vec2(0.5 * uShadowParams[i].w);  // stay half a texel inside the tile
     uv = clamp(uv, h, 1.0 - h);
@@ -45,6 +74,17 @@ float shadow_tap(int i, vec2 uv, float z) {
 bool shadow_coords_jacobian(int i, vec3 P, out vec3 c, out mat3 J) {
     mat4 M = uLightViewProj[i];
     vec4 q = M * vec4(P, 1.0);
+#ifdef SKIN_LIGHT_KINDS
+    // a directional light's map is orthographic: M's last row is exactly (0, 0, 0, 1)
+    // (dermis.camera.light_matrices: proj @ view, both of last row (0, 0, 0, 1), in float64, then
+    // float32), so q.w = 1 and b = 0 exactly and the general form below gives these same floats
+    // (tests/test_tsd_pipeline.py); a compile-time kind drops its divisions and outer product
+    if (light_kind(i) == LIGHT_DIRECTIONAL) {
+        c = q.xyz * 0.5 + 0.5;
+        J = 0.5 * mat3(M);
+        return all(greaterThanEqual(c, vec3(0.0))) && all(lessThanEqual(c, vec3(1.0)));
+    }
+#endif
     c = q.xyz / q.w * 0.5 + 0.5;
     vec3 b = vec3(M[0].w, M[1].w, M[2].w);
     J = (0.5 / q.w) * (mat3(M) - outerProduct(q.xyz / q.w, b));
@@ -97,7 +137,7 @@ bool shadow_receiver(int i, vec3 P, vec3 N, out ShadowReceiver r) {
     r.T = mat2(0.0);
     r.J = mat3(0.0);
     r.graze = 0.0;
-    if (uLightRadiance[i].w < 0.5) return false;  // the light casts no shadow: no map to read
+    if (!light_casts_shadow(i)) return false;  // no map to read
     if (!shadow_coords_jacobian(i, P, r.c, r.J)) return false;
     mat3 J = r.J;
     vec3 t1 = normalize(cross(N, abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
@@ -230,15 +270,17 @@ float shadow_pcf_at(int i, ShadowReceiver r, bool want_width, out float width_mm
     vec2 dz = r.dz;
     float z = c.z - 2.0 * length(dz) * uShadowParams[i].w;  // the bilinear 2x2 footprint of each tap, and curvature
     float R = PCF_DISC_SCALE * uShadowParams[i].x;  // the disc's radius, texels
-    if (R <= 0.0) return shadow_tap(i, c.xy, z);
+    int kernel = shadow_filter(i);
+    if (kernel == SHADOW_FILTER_RUNTIME && R <= 0.0) return shadow_tap(i, c.xy, z);  // a known kernel has R > 0
     // per light (uniform): the half-widths (texels) of the same variance; the parabola where the
     // grid holds it, else the box; a box wider than the grid strides its cells over the texels
     float a_par = sqrt(5.0 * (0.25 * R * R + 1.0 / 12.0));
     float a_box = 0.5 * sqrt(3.0 * R * R + 1.0);
     const float fit = float(PCF_GRID) - 0.51;
-    bool box = a_par >= fit;
+    bool box = kernel == SHADOW_FILTER_RUNTIME ? a_par >= fit : kernel == SHADOW_FILTER_BOX;
     float a = box ? a_box : a_par;
-    float stride = max(a / fit, 1.0);
+    // a known parabola has a < fit (dermis.gl.shadows.pcf_filter, by a margin): stride 1 exactly, as max() gives
+    float stride = kernel == SHADOW_FILTER_PARABOLA ? 1.0 : max(a / fit, 1.0);
     float wsum;
     vec2 sd, dsum;
     mat2 C;

@@ -41,7 +41,11 @@ in vec4 v_visibility;  // (ambient occlusion, visible fraction RGB): common/envi
 // benchmarks/RESULTS.md), with its sharp shadows (SKIN_SHARP_SHADOWS) and rho E (SKIN_EXITANT_LOCATION,
 // from a sixth input, SKIN_INPUTS_ALBEDO_REST: albedo^(1 - mix)). On llvmpipe
 // the mesh raster of ~18k triangles of ~14 texels each shades many half-covered blocks and fetches 4
-// filtered maps per texel; the full-screen pass shades each texel once with 5 texel fetches.
+// filtered maps per texel; the full-screen pass shades each texel once with 5 texel reads.
+// The reads are TEXEL (common/texel.glsl: textureLod at the texel's centre; the inputs are NEAREST,
+// dermis.gl.irradiance_inputs, and drawn at this pass's size), the same floats as texelFetch and
+// ~5 ms less of tsd's ~125 ms pass on the head at 1024^2 (benchmarks/results/round-24.md, irr24).
+#include "common/texel.glsl"
 uniform sampler2D uBounceInputs[5];
 #endif
 #if defined(SKIN_BOUNCE_INPUTS)
@@ -92,7 +96,7 @@ void main() {
 #elif defined(SKIN_BOUNCE_FROM_INPUTS)
 void main() {
     ivec2 t = ivec2(gl_FragCoord.xy);
-    vec4 ng = texelFetch(uBounceInputs[2], t, 0);
+    vec4 ng = TEXEL(uBounceInputs[2], t);
     if (ng.xyz == vec3(0.0)) {  // off the mesh: as the raster's clear
         f_irradiance = vec4(0.0);
 #ifdef SKIN_SHARP_SHADOWS
@@ -103,8 +107,8 @@ void main() {
 #endif
         return;
     }
-    vec4 p = texelFetch(uBounceInputs[0], t, 0), n = texelFetch(uBounceInputs[1], t, 0);
-    vec4 c = texelFetch(uBounceInputs[3], t, 0), am = texelFetch(uBounceInputs[4], t, 0);
+    vec4 p = TEXEL(uBounceInputs[0], t), n = TEXEL(uBounceInputs[1], t);
+    vec4 c = TEXEL(uBounceInputs[3], t), am = TEXEL(uBounceInputs[4], t);
     vec3 E = skin_lights_directional(p.xyz, ng.xyz, n.xyz, p.w, n.w, c.rgb);
     E += vec3(c.a, am.a, ng.a);
     f_irradiance = vec4(E * am.rgb, 1.0);
@@ -114,7 +118,7 @@ void main() {
     f_sharp = vec4(1.0, skin_sharp_shadow.xyz);
 #endif
 #ifdef SKIN_EXITANT_LOCATION
-    f_exitant = vec4(f_irradiance.rgb * texelFetch(uAlbedoRest, t, 0).rgb, 1.0);
+    f_exitant = vec4(f_irradiance.rgb * TEXEL(uAlbedoRest, t).rgb, 1.0);
 #endif
 }
 #else
