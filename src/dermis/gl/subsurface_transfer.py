@@ -44,6 +44,34 @@ def source_index(variances_mm2) -> int:
     return int(big[0]) if len(big) else len(v) - 1
 
 
+def add_tiles(point_uv, grid_size, level: int, target_size, tile: int = BOX_TILE) -> np.ndarray:
+    """The tiles (``tile`` texels a side; (m, 2) float32 indices per axis, unique) of a target of
+    ``target_size`` whose texels can read a non-zero grid texel through the add's tent
+    (common/subsurface_transfer.glsl at ``level``), where the grid's level 0 is non-zero only at the
+    points' texels (``point_uv``: the gather's pixels) and level L at their texels >> L (its box mipmap).
+    The tent's four bilinear reads at the target texel's centre u +- 0.5 level texel reach the level's
+    texels j with |(j + 0.5) / g - u| < 1.5 / g (g: the level's texels per axis); taken with 2 / g, so
+    target texel x is drawn where floor((i - 1.5) T / g - 0.5) <= x <= ceil((i + 2.5) T / g - 0.5) for a
+    non-zero texel i (T the target's texels). The other texels add 0: drawn or not, the target keeps
+    its value."""
+    uv = np.asarray(point_uv, np.float64).reshape(-1, 2)
+    grid = np.asarray(grid_size, np.int64)
+    g = np.maximum(grid >> int(level), 1)
+    T = np.asarray(target_size, np.float64)
+    i = np.unique(np.clip(np.floor(uv * grid).astype(np.int64), 0, grid - 1) >> int(level), axis=0)
+    i = np.minimum(i, g - 1).astype(np.float64)
+    lo = np.floor((i - 1.5) * T / g - 0.5).astype(np.int64)
+    hi = np.ceil((i + 2.5) * T / g - 0.5).astype(np.int64)
+    n_tiles = -(-np.asarray(target_size, np.int64) // tile)
+    t0 = np.clip(lo // tile, 0, n_tiles - 1)
+    t1 = np.clip(hi // tile, 0, n_tiles - 1)
+    span = int((t1 - t0).max()) + 1 if len(i) else 0
+    out = [np.minimum(t0 + (dx, dy), t1) for dx in range(span) for dy in range(span)]
+    if not out:
+        return np.zeros((0, 2), np.float32)
+    return np.unique(np.concatenate(out), axis=0).astype(np.float32)
+
+
 def tap_layout(n_points: int, taps: int) -> tuple[int, int]:
     """(points per row, rows) of the tap textures."""
     return POINTS_PER_ROW, max(1, -(-int(n_points) // POINTS_PER_ROW))
@@ -89,6 +117,7 @@ class SubsurfaceTransfer:
         # vertex array, tiles' buffer, tile count)
         self._box = None
         self._box_prog = None
+        self._add = None  # the add's tiles: ((target size, level), vertex array, buffer, tile count)
         self.index = 1.4
 
     def _programs(self):
@@ -96,8 +125,9 @@ class SubsurfaceTransfer:
             from dermis.gl.shaders import program
 
             gather = program(self.ctx, "tsd/transfer_gather.vert", "tsd/transfer_gather.frag")
-            add = program(self.ctx, "common/fullscreen.vert", "tsd/transfer_add.frag")
-            self._progs = (gather, add, self.ctx.vertex_array(add, []))
+            # drawn over the tiles that can receive transfer (add_tiles), as the view box's
+            add = program(self.ctx, "tsd/transfer_view_box.vert", "tsd/transfer_add.frag")
+            self._progs = (gather, add)
         return self._progs
 
     def _release_gpu(self):
@@ -105,6 +135,14 @@ class SubsurfaceTransfer:
             o.release()
         self._gpu = []
         self._release_box()
+        self._release_add()
+
+    def _release_add(self):
+        if self._add is not None:
+            _, vao, buf, _ = self._add
+            vao.release()
+            buf.release()
+            self._add = None
 
     def _release_box(self):
         if self._box is not None:
@@ -157,7 +195,12 @@ class SubsurfaceTransfer:
             grids.append(target)
         target = grids[0]
         fbo = self.ctx.framebuffer(color_attachments=grids)
-        gather, _, _ = self._programs()
+        # cleared once here, not per gather: every gather writes the same texels (the bake points' own, fixed by
+        # point_uv; where two share a texel the later point's, in the same draw order) and no other, so the rest
+        # keep this 0 (the mipmap rebuilds write only levels >= 1). On llvmpipe the per-gather clear of the four
+        # 512^2 rgba32f grids was ~2.5 of the pass's ~18 CPU ms (round 24, xfer24)
+        fbo.clear(0.0, 0.0, 0.0, 0.0)
+        gather, _ = self._programs()
         buf = self.ctx.buffer(np.ascontiguousarray(bake.point_uv, np.float32).tobytes())
         vao = self.ctx.vertex_array(gather, [(buf, "2f", "in_uv")])
         self._gpu = [*texs, fbo, *grids, vao, buf]
@@ -186,7 +229,7 @@ class SubsurfaceTransfer:
         on llvmpipe the rebuild of the 512^2 rgba32f grid was ~1.6 ms of the pass's ~12)."""
         from dermis.gl.resources import set_uniform, use_texture
 
-        gather, _, _ = self._programs()
+        gather, _ = self._programs()
         per_row, k, n = self._layout
         for name, value in (("uTapUv", 0), ("uTapWeight", 1), ("uIrradiance", 2), ("uTapView0", 3), ("uTapView1", 4),
                             ("uTapView2", 5), ("uTaps", k), ("uPointsPerRow", per_row)):
@@ -197,8 +240,7 @@ class SubsurfaceTransfer:
         for u, t in enumerate(self._tap_view):
             use_texture(t, 3 + u)
         self._fbo.use()
-        self._fbo.viewport = (0, 0, *self.grid_texture.size)
-        self._fbo.clear(0.0, 0.0, 0.0, 0.0)
+        self._fbo.viewport = (0, 0, *self.grid_texture.size)  # no clear: the texels off the points stay 0 (_upload)
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         self._vao.render(moderngl.POINTS, vertices=n)
         if mipmaps:
@@ -216,16 +258,30 @@ class SubsurfaceTransfer:
         self.gather(irradiance, mipmaps=self.reads_mipmaps(target_size))
         self.view_box(self.read_level(target_size))
         self._gathered = None
-        _, add, vao = self._programs()
+        _, add = self._programs()
+        level = self.read_level(target_size)
+        size = tuple(int(s) for s in target_size)
+        if self._add is None or self._add[0] != (size, level):
+            # the target's texels that can receive transfer, in tiles (the rest add 0): on the head ~15 % of
+            # the 512^2 translucency target; the full-screen add was ~6 of the pass's ~18 CPU ms on llvmpipe
+            # (round 24, xfer24)
+            self._release_add()
+            tiles = add_tiles(self.bake.point_uv, self.grid_texture.size, level, size)
+            buf = self.ctx.buffer(np.ascontiguousarray(tiles).tobytes() or np.zeros(2, np.float32).tobytes())
+            self._add = ((size, level), self.ctx.vertex_array(add, [(buf, "2f/i", "in_tile")]), buf, len(tiles))
+        _, vao, _, count = self._add
         set_uniform(add, "uTransfer", 0)
-        set_uniform(add, "uTransferLevel", float(self.read_level(target_size)))
-        set_uniform(add, "uTargetSize", tuple(float(s) for s in target_size))
+        set_uniform(add, "uTransferLevel", float(level))
+        set_uniform(add, "uTargetSize", tuple(float(s) for s in size))
+        set_uniform(add, "uBoxSize", tuple(float(s) for s in size))
+        set_uniform(add, "uTileTexels", float(BOX_TILE))
         use_texture(self.grid_texture, 0)
         target_fbo.use()
-        target_fbo.viewport = (0, 0, *target_size)
+        target_fbo.viewport = (0, 0, *size)
         self.ctx.enable(moderngl.BLEND)
         self.ctx.blend_func = moderngl.ONE, moderngl.ONE
-        vao.render(moderngl.TRIANGLES, vertices=3)
+        if count:
+            vao.render(moderngl.TRIANGLES, vertices=6, instances=count)
         self.ctx.disable(moderngl.BLEND)
         return True
 
