@@ -1,11 +1,15 @@
 """The baked subsurface transfer (dermis.subsurface_transfer) at run time, in tsd's texture space:
 the same-side transport that an ear's thin, curled geometry adds to (or takes from) the flat profile
 tsd's blur chain applies, gathered from the blurred irradiance map and added to the translucency
-target. Two passes, only where a bake exists (tsd/transfer_gather.vert, tsd/transfer_add.frag):
+target. Passes, only where a bake exists (tsd/transfer_gather.frag, tsd/transfer_view_box.frag,
+tsd/transfer_add.frag), each drawn as tiles near the bake points only (tsd/transfer_tiles.vert):
 
-  gather: one GL point per bake point, at its texel of the bake's grid: sum_k w_k I(uv_k)
+  gather: at each texel of the bake's grid that holds a bake point (tsd/transfer_index.vert's map, drawn
+          once per bake: one GL point per bake point, the last drawn where two share a texel):
+          sum_k w_k I(uv_k); the grid's other texels stay the 0 they were cleared to at upload
+  view box: the view grids' 2 x 2 box sums (:meth:`SubsurfaceTransfer.view_box`)
   add:    the grid read (trilinear: its mipmaps where the target is coarser) at each texel of the
-          translucency target, additive blending
+          translucency target that can receive transfer (:func:`add_tiles`), additive blending
 
 ssss and preintegrated (round 21, ears21) read the same grid at each fragment's texture-space uv
 (:meth:`SubsurfaceTransfer.screen_grid`, common/subsurface_transfer.glsl: the add pass's tent), gathered
@@ -31,7 +35,8 @@ within 1 mm, so it reads the irradiance averaged over about that footprint, not 
 map (shadow edges, pores)."""
 POINTS_PER_ROW = 256
 BOX_TILE = 8
-"""Texels per side of the tiles :meth:`SubsurfaceTransfer.view_box` draws (tsd/transfer_view_box.vert)."""
+"""Texels per side of the tiles the gather, :meth:`SubsurfaceTransfer.view_box` and the add draw
+(tsd/transfer_tiles.vert)."""
 VIEW_IMAGE = 1
 """The first of the three image units common/subsurface_transfer.glsl's view term reads (the view grids' 2 x 2
 box sums of red, green, blue: :meth:`SubsurfaceTransfer.view_box`; unit 0 is the mesh's triangle frames)."""
@@ -124,10 +129,11 @@ class SubsurfaceTransfer:
         if self._progs is None:
             from dermis.gl.shaders import program
 
-            gather = program(self.ctx, "tsd/transfer_gather.vert", "tsd/transfer_gather.frag")
+            gather = program(self.ctx, "tsd/transfer_tiles.vert", "tsd/transfer_gather.frag")
             # drawn over the tiles that can receive transfer (add_tiles), as the view box's
-            add = program(self.ctx, "tsd/transfer_view_box.vert", "tsd/transfer_add.frag")
-            self._progs = (gather, add)
+            add = program(self.ctx, "tsd/transfer_tiles.vert", "tsd/transfer_add.frag")
+            index = program(self.ctx, "tsd/transfer_index.vert", "tsd/transfer_index.frag")
+            self._progs = (gather, add, index)
         return self._progs
 
     def _release_gpu(self):
@@ -200,11 +206,29 @@ class SubsurfaceTransfer:
         # keep this 0 (the mipmap rebuilds write only levels >= 1). On llvmpipe the per-gather clear of the four
         # 512^2 rgba32f grids was ~2.5 of the pass's ~18 CPU ms (round 24, xfer24)
         fbo.clear(0.0, 0.0, 0.0, 0.0)
-        gather, _ = self._programs()
+        gather, _, index = self._programs()
+        # the bake point at each texel of the grid (-1: none), drawn once: one GL point per bake point, the
+        # last drawn where two share a texel (tsd/transfer_index.vert); until round 23 the gather drew these
+        # points every frame
+        point_map = self.ctx.texture((grid, grid), 1, np.full(grid * grid, -1, np.int32).tobytes(), dtype="i4")
+        point_map.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        map_fbo = self.ctx.framebuffer(color_attachments=[point_map])
         buf = self.ctx.buffer(np.ascontiguousarray(bake.point_uv, np.float32).tobytes())
-        vao = self.ctx.vertex_array(gather, [(buf, "2f", "in_uv")])
-        self._gpu = [*texs, fbo, *grids, vao, buf]
+        points = self.ctx.vertex_array(index, [(buf, "2f", "in_uv")])
+        map_fbo.use()
+        map_fbo.viewport = (0, 0, grid, grid)
+        self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        points.render(moderngl.POINTS, vertices=n)
+        held = np.argwhere(np.frombuffer(point_map.read(), np.int32).reshape(grid, grid) >= 0)[:, ::-1]  # (x, y)
+        for o in (points, buf, map_fbo):
+            o.release()
+        # the gather's tiles: those holding a point's texel (on the head 429 of 64^2, 19358 points in 27456 texels)
+        tiles = np.unique(held // BOX_TILE, axis=0).astype(np.float32) if len(held) else np.zeros((1, 2), np.float32)
+        tile_buf = self.ctx.buffer(np.ascontiguousarray(tiles).tobytes())
+        vao = self.ctx.vertex_array(gather, [(tile_buf, "2f/i", "in_tile")])
+        self._gpu = [*texs, fbo, *grids, point_map, vao, tile_buf]
         self._tap_uv, self._tap_weight, self.grid_texture, self._fbo, self._vao = texs[0], texs[1], target, fbo, vao
+        self._point_map, self._gather_tiles = point_map, len(tiles) if len(held) else 0
         self._tap_view = texs[2:]
         self.view_grids = grids[1:]
         # uTransferIndex < 0: a bake without the view term (the cosine grid alone, as before round 22)
@@ -226,14 +250,19 @@ class SubsurfaceTransfer:
     def gather(self, irradiance, mipmaps: bool = True) -> None:
         """T_geo per bake point into :attr:`grid_texture` from ``irradiance`` (premultiplied);
         ``mipmaps``: rebuild the grid's mipmaps (False where only level 0 is read: :meth:`reads_mipmaps`;
-        on llvmpipe the rebuild of the 512^2 rgba32f grid was ~1.6 ms of the pass's ~12)."""
+        on llvmpipe the rebuild of the 512^2 rgba32f grid was ~1.6 ms of the pass's ~12). Drawn over the
+        tiles holding a bake point's texel (tsd/transfer_gather.frag); the grids' other texels keep the 0
+        of the upload's clear."""
         from dermis.gl.resources import set_uniform, use_texture
 
-        gather, _ = self._programs()
+        gather, _, _ = self._programs()
         per_row, k, n = self._layout
         for name, value in (("uTapUv", 0), ("uTapWeight", 1), ("uIrradiance", 2), ("uTapView0", 3), ("uTapView1", 4),
-                            ("uTapView2", 5), ("uTaps", k), ("uPointsPerRow", per_row)):
+                            ("uTapView2", 5), ("uPoint", 6), ("uTaps", k), ("uPointsPerRow", per_row)):
             set_uniform(gather, name, int(value))
+        set_uniform(gather, "uBoxSize", tuple(float(s) for s in self.grid_texture.size))
+        set_uniform(gather, "uTileTexels", float(BOX_TILE))
+        use_texture(self._point_map, 6)
         use_texture(self._tap_uv, 0)
         use_texture(self._tap_weight, 1)
         use_texture(irradiance, 2)
@@ -242,7 +271,8 @@ class SubsurfaceTransfer:
         self._fbo.use()
         self._fbo.viewport = (0, 0, *self.grid_texture.size)  # no clear: the texels off the points stay 0 (_upload)
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-        self._vao.render(moderngl.POINTS, vertices=n)
+        if self._gather_tiles:
+            self._vao.render(moderngl.TRIANGLES, vertices=6, instances=self._gather_tiles)
         if mipmaps:
             self.grid_texture.build_mipmaps()
             for t in self.view_grids:
@@ -258,7 +288,7 @@ class SubsurfaceTransfer:
         self.gather(irradiance, mipmaps=self.reads_mipmaps(target_size))
         self.view_box(self.read_level(target_size))
         self._gathered = None
-        _, add = self._programs()
+        _, add, _ = self._programs()
         level = self.read_level(target_size)
         size = tuple(int(s) for s in target_size)
         if self._add is None or self._add[0] != (size, level):
@@ -313,7 +343,7 @@ class SubsurfaceTransfer:
         view term reads (:meth:`bind_view`, common/subsurface_transfer.glsl: its 3 x 3 tent as a bilinear
         blend of 2 x 2 of them, 12 image loads instead of 27); after every gather, none for a bake
         without the view term (uTransferIndex < 0: never read). Drawn only over the tiles
-        (:data:`BOX_TILE`) that can hold a non-zero sum (tsd/transfer_view_box.vert): the whole 513^2
+        (:data:`BOX_TILE`) that can hold a non-zero sum (tsd/transfer_tiles.vert): the whole 513^2
         targets took ~8 ms of llvmpipe's CPU per gather, the head's ~12 % of them ~1/8 of that."""
         from dermis.gl.resources import set_uniform, use_texture
         from dermis.gl.shaders import program
@@ -322,7 +352,7 @@ class SubsurfaceTransfer:
             return
         level = int(level)
         if self._box_prog is None:
-            self._box_prog = program(self.ctx, "tsd/transfer_view_box.vert", "tsd/transfer_view_box.frag")
+            self._box_prog = program(self.ctx, "tsd/transfer_tiles.vert", "tsd/transfer_view_box.frag")
         prog = self._box_prog
         g = self.grid_texture.size
         size = tuple(max(int(s) >> level, 1) + 1 for s in g)  # one texel wider per axis
