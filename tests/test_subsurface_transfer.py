@@ -344,6 +344,20 @@ def test_gl_gather_is_its_numpy_twin(gl_ctx):
         np.testing.assert_allclose(got, w_, atol=2e-3 * np.abs(w_).max(), err_msg=f"grid {c}")
 
 
+def test_tile_runs_cover_the_tiles_exactly():
+    """tile_runs (tsd/transfer_tiles.vert's instances) expanded back are the tiles given, each once, runs
+    along x only over consecutive tiles of one row (round 24)."""
+    from dermis.gl.subsurface_transfer import tile_runs
+
+    rng = np.random.default_rng(24)
+    tiles = np.unique(np.r_[rng.integers(0, 12, (90, 2)), [[0, 0], [1, 0], [2, 0], [11, 11]]], axis=0)
+    runs = tile_runs(tiles[rng.permutation(len(tiles))])
+    back = np.concatenate([np.c_[x + np.arange(int(n)), np.full(int(n), y)] for x, y, n in runs.astype(int)])
+    assert len(back) == len(tiles) and len(runs) < len(tiles)
+    np.testing.assert_array_equal(np.unique(back, axis=0), tiles)
+    assert tile_runs(np.zeros((0, 2))).shape == (0, 3)
+
+
 def _flat_irradiance(ctx):
     """A 4 x 4 irradiance texture of colour 3, coverage 1 (a gather from it fills every point's texel)."""
     t = ctx.texture((4, 4), 4, np.tile([3.0, 3.0, 3.0, 1.0], 16).astype(np.float32).tobytes(), dtype="f4")
