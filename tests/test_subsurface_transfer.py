@@ -298,8 +298,10 @@ def test_gl_gather_is_its_numpy_twin(gl_ctx):
 
     rng = np.random.default_rng(4)
     n, k, grid = 300, 8, 64
-    cells = rng.choice(grid * grid, n, replace=False)
-    point_uv = np.c_[(cells % grid + 0.5) / grid, (cells // grid + 0.5) / grid].astype(np.float32)
+    cells = rng.choice(grid * grid, n - 20, replace=False)
+    cells = np.r_[cells, cells[rng.choice(n - 20, 20, replace=False)]]  # 20 points on another's texel, drawn later
+    point_uv = np.c_[(cells % grid + rng.uniform(0.1, 0.9, n)) / grid,
+                     (cells // grid + rng.uniform(0.1, 0.9, n)) / grid].astype(np.float32)
     tap_w = rng.normal(0.0, 0.1, (n, k, 3)).astype(np.float32)
     tap_w[:, -2:] = 0.0  # unused taps
     tap_view = rng.normal(0.0, 0.1, (n, k, 3, 4)).astype(np.float32)  # round 22: the view term's coefficients
@@ -316,18 +318,51 @@ def test_gl_gather_is_its_numpy_twin(gl_ctx):
     try:
         st.bake = bake
         st._upload(bake)
+        flat = _flat_irradiance(gl_ctx)
+        st.gather(flat)  # a first gather: the second must leave nothing of it
+        flat.release()
         st.gather(tex)
-        got = st.per_point()
-        got_view = st.per_point(view=True)
+        grids = [np.frombuffer(t.read(), np.float32).reshape(grid, grid, 4).astype(np.float64)
+                 for t in (st.grid_texture, *st.view_grids)]
     finally:
         st.release()
         tex.release()
     want = transfer_numpy(bake, irr)
     assert np.abs(want).max() > 0.1
-    np.testing.assert_allclose(got, want, atol=2e-3 * np.abs(want).max())
     want_view = transfer_numpy(bake, irr, view=True)  # per channel its own irradiance times (G_x, G_y, G_z, c)
     assert want_view.shape == (n, 3, 4) and np.abs(want_view).max() > 0.1
-    np.testing.assert_allclose(got_view, want_view, atol=2e-3 * np.abs(want_view).max())
+    # the whole grids (round 24: the sums run per grid texel over tiles, tsd/transfer_gather.frag): each point's
+    # texel holds its sums (alpha 1), the later point's where two share one (as when the points themselves were
+    # drawn), every other texel 0 (checked: fails with the first point kept, the tiles one texel short, or the
+    # texels off the tiles' points not 0)
+    want_grid = np.zeros((4, grid, grid, 4))
+    x, y = cells % grid, cells // grid
+    for i in range(n):  # in draw order: the later point overwrites
+        want_grid[0, y[i], x[i]] = (*want[i], 1.0)
+        want_grid[1:, y[i], x[i]] = want_view[i]
+    for c, (got, w_) in enumerate(zip(grids, want_grid)):
+        np.testing.assert_allclose(got, w_, atol=2e-3 * np.abs(w_).max(), err_msg=f"grid {c}")
+
+
+def test_tile_runs_cover_the_tiles_exactly():
+    """tile_runs (tsd/transfer_tiles.vert's instances) expanded back are the tiles given, each once, runs
+    along x only over consecutive tiles of one row (round 24)."""
+    from dermis.gl.subsurface_transfer import tile_runs
+
+    rng = np.random.default_rng(24)
+    tiles = np.unique(np.r_[rng.integers(0, 12, (90, 2)), [[0, 0], [1, 0], [2, 0], [11, 11]]], axis=0)
+    runs = tile_runs(tiles[rng.permutation(len(tiles))])
+    back = np.concatenate([np.c_[x + np.arange(int(n)), np.full(int(n), y)] for x, y, n in runs.astype(int)])
+    assert len(back) == len(tiles) and len(runs) < len(tiles)
+    np.testing.assert_array_equal(np.unique(back, axis=0), tiles)
+    assert tile_runs(np.zeros((0, 2))).shape == (0, 3)
+
+
+def _flat_irradiance(ctx):
+    """A 4 x 4 irradiance texture of colour 3, coverage 1 (a gather from it fills every point's texel)."""
+    t = ctx.texture((4, 4), 4, np.tile([3.0, 3.0, 3.0, 1.0], 16).astype(np.float32).tobytes(), dtype="f4")
+    t.repeat_x = t.repeat_y = False
+    return t
 
 
 def _tent_clamped(a):
@@ -411,6 +446,45 @@ def test_gl_add_is_the_tent_of_the_gathered_grid_per_channel(gl_ctx):
             if level:
                 vgrid = vgrid.reshape(g // 2, 2, g // 2, 2, 3, 4).mean((1, 3))
             _check_view_term_is_the_tent(gl_ctx, st, level, vgrid, rng)
+    finally:
+        st.release()
+        irr.release()
+    _check_sparse_add_is_the_tent(gl_ctx, rng)
+
+
+def _check_sparse_add_is_the_tent(gl_ctx, rng):
+    """The add over the tiles whose tent can reach a bake point (round 24, add_tiles; elsewhere it adds 0): every
+    texel of targets of the grid's size and half of it against numpy's tent of a sparse 64 x 64 grid, points at
+    the 8 x 8 tiles' edges and the grid's (checked: fails with the tiles of the points' own texels alone)."""
+    from dermis.gl.subsurface_transfer import SubsurfaceTransfer
+
+    g = 64
+    xy = np.array([(7, 7), (8, 20), (40, 39), (63, 0), (0, 63), (31, 16), (15, 47), (56, 55)])
+    cells = np.unique(np.r_[xy[:, 1] * g + xy[:, 0], rng.choice(g * g, 6, replace=False)])
+    m = len(cells)
+    uv = np.c_[(cells % g + 0.5) / g, (cells // g + 0.5) / g].astype(np.float32)
+    w = np.zeros((m, 1, 3), np.float32)
+    w[:, 0] = rng.uniform(0.05, 1.0, (m, 3))
+    bake = B.TransferBake(uv, uv[:, None], w, w.sum(1), np.zeros((m, 3)), {"grid": g})
+    grid = np.zeros((g * g, 3))
+    grid[cells] = w[:, 0]
+    grid = grid.reshape(g, g, 3)
+    irr = gl_ctx.texture((4, 4), 4, np.ones(64, np.float32).tobytes(), dtype="f4")
+    st = SubsurfaceTransfer(gl_ctx)
+    try:
+        st.bake = bake
+        st._upload(bake)
+        st.lookup = lambda frame: bake
+        for size, want in ((g, _tent_clamped(grid)), (g // 2, _tent_clamped(grid.reshape(g // 2, 2, g // 2, 2, 3).mean((1, 3))))):
+            tgt = gl_ctx.texture((size, size), 4, dtype="f4")
+            fbo = gl_ctx.framebuffer(color_attachments=[tgt])
+            fbo.use()
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            assert st.add(None, fbo, (size, size), irr)
+            got = np.frombuffer(tgt.read(), np.float32).reshape(size, size, 4).astype(np.float64)
+            fbo.release()
+            tgt.release()
+            np.testing.assert_allclose(got[..., :3], want, atol=1e-5 * np.abs(want).max(), err_msg=f"sparse add, target {size}")
     finally:
         st.release()
         irr.release()

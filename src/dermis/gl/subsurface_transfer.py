@@ -1,11 +1,15 @@
 """The baked subsurface transfer (dermis.subsurface_transfer) at run time, in tsd's texture space:
 the same-side transport that an ear's thin, curled geometry adds to (or takes from) the flat profile
 tsd's blur chain applies, gathered from the blurred irradiance map and added to the translucency
-target. Two passes, only where a bake exists (tsd/transfer_gather.vert, tsd/transfer_add.frag):
+target. Passes, only where a bake exists (tsd/transfer_gather.frag, tsd/transfer_view_box.frag,
+tsd/transfer_add.frag), each drawn as tiles near the bake points only (tsd/transfer_tiles.vert):
 
-  gather: one GL point per bake point, at its texel of the bake's grid: sum_k w_k I(uv_k)
+  gather: at each texel of the bake's grid that holds a bake point (tsd/transfer_index.vert's map, drawn
+          once per bake: one GL point per bake point, the last drawn where two share a texel):
+          sum_k w_k I(uv_k); the grid's other texels stay the 0 they were cleared to at upload
+  view box: the view grids' 2 x 2 box sums (:meth:`SubsurfaceTransfer.view_box`)
   add:    the grid read (trilinear: its mipmaps where the target is coarser) at each texel of the
-          translucency target, additive blending
+          translucency target that can receive transfer (:func:`add_tiles`), additive blending
 
 ssss and preintegrated (round 21, ears21) read the same grid at each fragment's texture-space uv
 (:meth:`SubsurfaceTransfer.screen_grid`, common/subsurface_transfer.glsl: the add pass's tent), gathered
@@ -31,7 +35,8 @@ within 1 mm, so it reads the irradiance averaged over about that footprint, not 
 map (shadow edges, pores)."""
 POINTS_PER_ROW = 256
 BOX_TILE = 8
-"""Texels per side of the tiles :meth:`SubsurfaceTransfer.view_box` draws (tsd/transfer_view_box.vert)."""
+"""Texels per side of the tiles the gather, :meth:`SubsurfaceTransfer.view_box` and the add draw
+(tsd/transfer_tiles.vert)."""
 VIEW_IMAGE = 1
 """The first of the three image units common/subsurface_transfer.glsl's view term reads (the view grids' 2 x 2
 box sums of red, green, blue: :meth:`SubsurfaceTransfer.view_box`; unit 0 is the mesh's triangle frames)."""
@@ -42,6 +47,50 @@ def source_index(variances_mm2) -> int:
     v = np.asarray(variances_mm2, np.float64)
     big = np.nonzero(v >= TAP_VARIANCE_MM2)[0]
     return int(big[0]) if len(big) else len(v) - 1
+
+
+def add_tiles(point_uv, grid_size, level: int, target_size, tile: int = BOX_TILE) -> np.ndarray:
+    """The tiles (``tile`` texels a side; (m, 2) float32 indices per axis, unique) of a target of
+    ``target_size`` whose texels can read a non-zero grid texel through the add's tent
+    (common/subsurface_transfer.glsl at ``level``), where the grid's level 0 is non-zero only at the
+    points' texels (``point_uv``: the gather's pixels) and level L at their texels >> L (its box mipmap).
+    The tent's four bilinear reads at the target texel's centre u +- 0.5 level texel reach the level's
+    texels j with |(j + 0.5) / g - u| < 1.5 / g (g: the level's texels per axis); taken with 2 / g, so
+    target texel x is drawn where floor((i - 1.5) T / g - 0.5) <= x <= ceil((i + 2.5) T / g - 0.5) for a
+    non-zero texel i (T the target's texels). The other texels add 0: drawn or not, the target keeps
+    its value."""
+    uv = np.asarray(point_uv, np.float64).reshape(-1, 2)
+    grid = np.asarray(grid_size, np.int64)
+    g = np.maximum(grid >> int(level), 1)
+    T = np.asarray(target_size, np.float64)
+    i = np.unique(np.clip(np.floor(uv * grid).astype(np.int64), 0, grid - 1) >> int(level), axis=0)
+    i = np.minimum(i, g - 1).astype(np.float64)
+    lo = np.floor((i - 1.5) * T / g - 0.5).astype(np.int64)
+    hi = np.ceil((i + 2.5) * T / g - 0.5).astype(np.int64)
+    n_tiles = -(-np.asarray(target_size, np.int64) // tile)
+    t0 = np.clip(lo // tile, 0, n_tiles - 1)
+    t1 = np.clip(hi // tile, 0, n_tiles - 1)
+    span = int((t1 - t0).max()) + 1 if len(i) else 0
+    out = [np.minimum(t0 + (dx, dy), t1) for dx in range(span) for dy in range(span)]
+    if not out:
+        return np.zeros((0, 2), np.float32)
+    return np.unique(np.concatenate(out), axis=0).astype(np.float32)
+
+
+def tile_runs(tiles) -> np.ndarray:
+    """``tiles`` ((m, 2) tile indices per axis, unique) as runs along x, (r, 3) float32 (first tile's x, y,
+    tiles in the run): what tsd/transfer_tiles.vert draws, one quad per run. The same texels as a quad per
+    tile, in fewer triangles: on the head 429 tiles are 88 runs, and the gather's draw 4.7 -> 3.9 CPU ms on
+    llvmpipe (its per-triangle setup, round 24)."""
+    t = np.asarray(tiles, np.int64).reshape(-1, 2)
+    if not len(t):
+        return np.zeros((0, 3), np.float32)
+    t = np.unique(t, axis=0)
+    t = t[np.lexsort((t[:, 0], t[:, 1]))]  # by y, then x
+    start = np.r_[True, (np.diff(t[:, 1]) != 0) | (np.diff(t[:, 0]) != 1)]
+    first = np.nonzero(start)[0]
+    length = np.diff(np.r_[first, len(t)])
+    return np.c_[t[first], length].astype(np.float32)
 
 
 def tap_layout(n_points: int, taps: int) -> tuple[int, int]:
@@ -86,18 +135,21 @@ class SubsurfaceTransfer:
         self.placeholder = ctx.texture((1, 1), 4, dtype="f4")
         self.view_grids = []  # the view term's grids (red, green, blue) of the current bake
         # their 2 x 2 box sums at the level the readers read (view_box): (textures, framebuffer, level, tiles'
-        # vertex array, tiles' buffer, tile count)
+        # vertex array, tiles' buffer, run count: tile_runs)
         self._box = None
         self._box_prog = None
+        self._add = None  # the add's tiles: ((target size, level), vertex array, buffer, run count: tile_runs)
         self.index = 1.4
 
     def _programs(self):
         if self._progs is None:
             from dermis.gl.shaders import program
 
-            gather = program(self.ctx, "tsd/transfer_gather.vert", "tsd/transfer_gather.frag")
-            add = program(self.ctx, "common/fullscreen.vert", "tsd/transfer_add.frag")
-            self._progs = (gather, add, self.ctx.vertex_array(add, []))
+            gather = program(self.ctx, "tsd/transfer_tiles.vert", "tsd/transfer_gather.frag")
+            # drawn over the tiles that can receive transfer (add_tiles), as the view box's
+            add = program(self.ctx, "tsd/transfer_tiles.vert", "tsd/transfer_add.frag")
+            index = program(self.ctx, "tsd/transfer_index.vert", "tsd/transfer_index.frag")
+            self._progs = (gather, add, index)
         return self._progs
 
     def _release_gpu(self):
@@ -105,6 +157,14 @@ class SubsurfaceTransfer:
             o.release()
         self._gpu = []
         self._release_box()
+        self._release_add()
+
+    def _release_add(self):
+        if self._add is not None:
+            _, vao, buf, _ = self._add
+            vao.release()
+            buf.release()
+            self._add = None
 
     def _release_box(self):
         if self._box is not None:
@@ -157,11 +217,34 @@ class SubsurfaceTransfer:
             grids.append(target)
         target = grids[0]
         fbo = self.ctx.framebuffer(color_attachments=grids)
-        gather, _, _ = self._programs()
+        # cleared once here, not per gather: every gather writes the same texels (the bake points' own, fixed by
+        # point_uv; where two share a texel the later point's, in the same draw order) and no other, so the rest
+        # keep this 0 (the mipmap rebuilds write only levels >= 1). On llvmpipe the per-gather clear of the four
+        # 512^2 rgba32f grids was ~2.5 of the pass's ~18 CPU ms (round 24, xfer24)
+        fbo.clear(0.0, 0.0, 0.0, 0.0)
+        gather, _, index = self._programs()
+        # the bake point at each texel of the grid (-1: none), drawn once: one GL point per bake point, the
+        # last drawn where two share a texel (tsd/transfer_index.vert); until round 23 the gather drew these
+        # points every frame
+        point_map = self.ctx.texture((grid, grid), 1, np.full(grid * grid, -1, np.int32).tobytes(), dtype="i4")
+        point_map.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        map_fbo = self.ctx.framebuffer(color_attachments=[point_map])
         buf = self.ctx.buffer(np.ascontiguousarray(bake.point_uv, np.float32).tobytes())
-        vao = self.ctx.vertex_array(gather, [(buf, "2f", "in_uv")])
-        self._gpu = [*texs, fbo, *grids, vao, buf]
+        points = self.ctx.vertex_array(index, [(buf, "2f", "in_uv")])
+        map_fbo.use()
+        map_fbo.viewport = (0, 0, grid, grid)
+        self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        points.render(moderngl.POINTS, vertices=n)
+        held = np.argwhere(np.frombuffer(point_map.read(), np.int32).reshape(grid, grid) >= 0)[:, ::-1]  # (x, y)
+        for o in (points, buf, map_fbo):
+            o.release()
+        # the gather's tiles: those holding a point's texel (on the head 429 of 64^2, 19358 points in 27456 texels), in 88 runs
+        runs = tile_runs(held // BOX_TILE)
+        tile_buf = self.ctx.buffer(np.ascontiguousarray(runs).tobytes() or np.zeros(3, np.float32).tobytes())
+        vao = self.ctx.vertex_array(gather, [(tile_buf, "3f/i", "in_tile")])
+        self._gpu = [*texs, fbo, *grids, point_map, vao, tile_buf]
         self._tap_uv, self._tap_weight, self.grid_texture, self._fbo, self._vao = texs[0], texs[1], target, fbo, vao
+        self._point_map, self._gather_tiles = point_map, len(runs)
         self._tap_view = texs[2:]
         self.view_grids = grids[1:]
         # uTransferIndex < 0: a bake without the view term (the cosine grid alone, as before round 22)
@@ -183,24 +266,29 @@ class SubsurfaceTransfer:
     def gather(self, irradiance, mipmaps: bool = True) -> None:
         """T_geo per bake point into :attr:`grid_texture` from ``irradiance`` (premultiplied);
         ``mipmaps``: rebuild the grid's mipmaps (False where only level 0 is read: :meth:`reads_mipmaps`;
-        on llvmpipe the rebuild of the 512^2 rgba32f grid was ~1.6 ms of the pass's ~12)."""
+        on llvmpipe the rebuild of the 512^2 rgba32f grid was ~1.6 ms of the pass's ~12). Drawn over the
+        tiles holding a bake point's texel (tsd/transfer_gather.frag); the grids' other texels keep the 0
+        of the upload's clear."""
         from dermis.gl.resources import set_uniform, use_texture
 
         gather, _, _ = self._programs()
         per_row, k, n = self._layout
         for name, value in (("uTapUv", 0), ("uTapWeight", 1), ("uIrradiance", 2), ("uTapView0", 3), ("uTapView1", 4),
-                            ("uTapView2", 5), ("uTaps", k), ("uPointsPerRow", per_row)):
+                            ("uTapView2", 5), ("uPoint", 6), ("uTaps", k), ("uPointsPerRow", per_row)):
             set_uniform(gather, name, int(value))
+        set_uniform(gather, "uBoxSize", tuple(float(s) for s in self.grid_texture.size))
+        set_uniform(gather, "uTileTexels", float(BOX_TILE))
+        use_texture(self._point_map, 6)
         use_texture(self._tap_uv, 0)
         use_texture(self._tap_weight, 1)
         use_texture(irradiance, 2)
         for u, t in enumerate(self._tap_view):
             use_texture(t, 3 + u)
         self._fbo.use()
-        self._fbo.viewport = (0, 0, *self.grid_texture.size)
-        self._fbo.clear(0.0, 0.0, 0.0, 0.0)
+        self._fbo.viewport = (0, 0, *self.grid_texture.size)  # no clear: the texels off the points stay 0 (_upload)
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-        self._vao.render(moderngl.POINTS, vertices=n)
+        if self._gather_tiles:
+            self._vao.render(moderngl.TRIANGLES, vertices=6, instances=self._gather_tiles)
         if mipmaps:
             self.grid_texture.build_mipmaps()
             for t in self.view_grids:
@@ -216,16 +304,30 @@ class SubsurfaceTransfer:
         self.gather(irradiance, mipmaps=self.reads_mipmaps(target_size))
         self.view_box(self.read_level(target_size))
         self._gathered = None
-        _, add, vao = self._programs()
+        _, add, _ = self._programs()
+        level = self.read_level(target_size)
+        size = tuple(int(s) for s in target_size)
+        if self._add is None or self._add[0] != (size, level):
+            # the target's texels that can receive transfer, in tiles (the rest add 0): on the head ~15 % of
+            # the 512^2 translucency target; the full-screen add was ~6 of the pass's ~18 CPU ms on llvmpipe
+            # (round 24, xfer24)
+            self._release_add()
+            runs = tile_runs(add_tiles(self.bake.point_uv, self.grid_texture.size, level, size))
+            buf = self.ctx.buffer(np.ascontiguousarray(runs).tobytes() or np.zeros(3, np.float32).tobytes())
+            self._add = ((size, level), self.ctx.vertex_array(add, [(buf, "3f/i", "in_tile")]), buf, len(runs))
+        _, vao, _, count = self._add
         set_uniform(add, "uTransfer", 0)
-        set_uniform(add, "uTransferLevel", float(self.read_level(target_size)))
-        set_uniform(add, "uTargetSize", tuple(float(s) for s in target_size))
+        set_uniform(add, "uTransferLevel", float(level))
+        set_uniform(add, "uTargetSize", tuple(float(s) for s in size))
+        set_uniform(add, "uBoxSize", tuple(float(s) for s in size))
+        set_uniform(add, "uTileTexels", float(BOX_TILE))
         use_texture(self.grid_texture, 0)
         target_fbo.use()
-        target_fbo.viewport = (0, 0, *target_size)
+        target_fbo.viewport = (0, 0, *size)
         self.ctx.enable(moderngl.BLEND)
         self.ctx.blend_func = moderngl.ONE, moderngl.ONE
-        vao.render(moderngl.TRIANGLES, vertices=3)
+        if count:
+            vao.render(moderngl.TRIANGLES, vertices=6, instances=count)
         self.ctx.disable(moderngl.BLEND)
         return True
 
@@ -257,7 +359,7 @@ class SubsurfaceTransfer:
         view term reads (:meth:`bind_view`, common/subsurface_transfer.glsl: its 3 x 3 tent as a bilinear
         blend of 2 x 2 of them, 12 image loads instead of 27); after every gather, none for a bake
         without the view term (uTransferIndex < 0: never read). Drawn only over the tiles
-        (:data:`BOX_TILE`) that can hold a non-zero sum (tsd/transfer_view_box.vert): the whole 513^2
+        (:data:`BOX_TILE`) that can hold a non-zero sum (tsd/transfer_tiles.vert): the whole 513^2
         targets took ~8 ms of llvmpipe's CPU per gather, the head's ~12 % of them ~1/8 of that."""
         from dermis.gl.resources import set_uniform, use_texture
         from dermis.gl.shaders import program
@@ -266,7 +368,7 @@ class SubsurfaceTransfer:
             return
         level = int(level)
         if self._box_prog is None:
-            self._box_prog = program(self.ctx, "tsd/transfer_view_box.vert", "tsd/transfer_view_box.frag")
+            self._box_prog = program(self.ctx, "tsd/transfer_tiles.vert", "tsd/transfer_view_box.frag")
         prog = self._box_prog
         g = self.grid_texture.size
         size = tuple(max(int(s) >> level, 1) + 1 for s in g)  # one texel wider per axis
@@ -285,10 +387,10 @@ class SubsurfaceTransfer:
             texel = np.floor(uv * np.asarray(g, np.float64)).astype(np.int64) >> level
             near = np.concatenate([texel + (dx, dy) for dx in range(-1, 3) for dy in range(-1, 3)])
             near = np.clip(near, 0, np.asarray(size) - 1)
-            tiles = np.unique(near // BOX_TILE, axis=0).astype(np.float32)
-            buf = self.ctx.buffer(np.ascontiguousarray(tiles).tobytes())
-            vao = self.ctx.vertex_array(prog, [(buf, "2f/i", "in_tile")])
-            self._box = (texs, fbo, level, vao, buf, len(tiles))
+            runs = tile_runs(near // BOX_TILE)
+            buf = self.ctx.buffer(np.ascontiguousarray(runs).tobytes())
+            vao = self.ctx.vertex_array(prog, [(buf, "3f/i", "in_tile")])
+            self._box = (texs, fbo, level, vao, buf, len(runs))
         for u, (name, t) in enumerate(zip(("uViewR", "uViewG", "uViewB"), self.view_grids)):
             set_uniform(prog, name, u)
             use_texture(t, u)

@@ -1,6 +1,6 @@
 // The baked subsurface transfer (dermis.subsurface_transfer; dermis/gl/subsurface_transfer.py) read at a
 // texture-space uv: T_geo, the same-side light that a thin, curled sheet (the ear) carries beyond the
-// flat profile, gathered per bake point into a grid (tsd/transfer_gather.vert). One read for every
+// flat profile, gathered per bake point into a grid (tsd/transfer_gather.frag). One read for every
 // technique: tsd adds it into its translucency target (tsd/transfer_add.frag), ssss's final pass and
 // preintegrated read it at the fragment's texture-space uv (the light leaving the skin, after any blur,
 // as tsd adds it after its blurs).
@@ -36,7 +36,7 @@ vec3 subsurface_transfer(vec2 uv) {
 // walk along the view v enters with the Fresnel transmittance 1 - F(v) and what it carries is linear in
 // its refracted direction r(v), so the transfer seen along v is
 //     T(v) = (1 - F(v)) (G . r(v) + c)      per channel, (G, c) gathered with the irradiance at the taps
-// (tsd/transfer_gather.vert: one rgba32f grid per channel, G in the mesh's frame). Its mean over the
+// (tsd/transfer_gather.frag: one rgba32f grid per channel, G in the mesh's frame). Its mean over the
 // bake's cosine views would be the grid above (uTransfer) in expectation, but bake.smooth_view (the 2.5 mm
 // averaging the noisy view term needs) hands each neighbour's taps to the point's nearest taps, so only ~20 %
 // of the own tap's weight stays on it and T's mean drifts from uTransfer (the back-lit helix rim 1.33-1.41x,

@@ -1,4 +1,4 @@
-// Subsurface transfer, step 2: the grid of T_geo (tsd/transfer_gather.vert) read at each texel of
+// Subsurface transfer, step 2: the grid of T_geo (tsd/transfer_gather.frag) read at each texel of
 // tsd's translucency target (common/subsurface_transfer.glsl: the tent at the target's level, set by
 // dermis/gl/subsurface_transfer.py) and added to it (additive blending; alpha 0 leaves the target's
 // coverage as it was), so the final pass adds it to the diffused irradiance as it adds the light
