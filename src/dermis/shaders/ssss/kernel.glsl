@@ -93,6 +93,7 @@ uniform float uTissueTau;               // sin of the largest angle above the ta
 uniform float uSurfaceMeasure;          // 1: weigh taps by their surface per pixel (below); 0: off
 
 const float SSSS_REACH_SIGMAS = 3.7169;  // sqrt(2 ln 1000): a Gaussian at 1e-3 of its peak
+const float SSSS_LOG2_E = 1.4426950409;  // exp(x) = exp2(x log2(e))
 // SSSS_GRAIN_FILTER (0/1), compiled in: the grain filter (above)
 const float SSSS_FILTER_SIGMA_PX = 3.0;      // a Gaussian this wide (px) is blurred less, then filtered
 const float SSSS_FILTER_VARIANCE_PX2 = 0.5;  // the binomial [1 2 1] / 4's variance, px^2
@@ -100,8 +101,9 @@ const float SSSS_FILTER_VARIANCE_PX2 = 0.5;  // the binomial [1 2 1] / 4's varia
 struct SsssKernel {
     float ppm;                           // pixels per mm at this pixel's depth
     int last_px;                         // P: the last pixel of each side with weight
-    float inv_2var_px[MAX_GAUSSIANS];    // 1 / (2 (sigma_k^2 + 1/12)), 1/px^2: a pixel's share (above)
-    float inv_2var[MAX_GAUSSIANS];       // 1 / (2 sigma_k^2), 1/px^2: the depth factor
+    // exp2 arguments, log2(e) folded in (a tap's weight is one exp2 per Gaussian, ssss_blur):
+    float x2_coef[MAX_GAUSSIANS];        // -log2(e) / (2 (sigma_k^2 + 1/12)), 1/px^2: a pixel's share (above)
+    float dz2_coef[MAX_GAUSSIANS];       // -log2(e) / (2 sigma_k^2), 1/px^2: the depth factor
     float jitter;                        // [0, 1): this pixel's draw in its cells
     bool wide[MAX_GAUSSIANS];            // blurred with the filter's variance taken off (grain filter)
 };
@@ -131,8 +133,8 @@ SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index, int size_px) {
         float sigma_px = max(sqrt(uVariances[k]) * K.ppm, 1e-4);
         K.wide[k] = ssss_filtered(sigma_px);
         float var_px = sigma_px * sigma_px - (K.wide[k] ? SSSS_FILTER_VARIANCE_PX2 : 0.0);
-        K.inv_2var_px[k] = 0.5 / (var_px + 1.0 / 12.0);
-        K.inv_2var[k] = 0.5 / var_px;
+        K.x2_coef[k] = -SSSS_LOG2_E * 0.5 / (var_px + 1.0 / 12.0);
+        K.dz2_coef[k] = -SSSS_LOG2_E * 0.5 / var_px;
         if (k < uGaussianCount) widest = max(widest, sigma_px);
     }
     // at most the frame's size (taps beyond the frame are skipped in any case)
@@ -159,7 +161,7 @@ float ssss_tap_dz_px(SsssKernel K, float depth_mm, float tap_depth_mm) {
 // View-space position (mm) of pixel p at view depth z_mm (a symmetric perspective frustum):
 // x_view = (p + 0.5 - size / 2) z / pixels-per-mm-at-unit-depth, likewise y; z_view = -z.
 vec3 ssss_view_position_mm(ivec2 p, ivec2 size, float z_mm) {
-    vec2 c = (vec2(p) + 0.5 - 0.5 * vec2(size)) * z_mm / uPixelsPerMmXY;
+    vec2 c = (vec2(p) + 0.5 - 0.5 * vec2(size)) * (z_mm * (1.0 / uPixelsPerMmXY));
     return vec3(c, -z_mm);
 }
 
@@ -178,6 +180,9 @@ vec3 ssss_view_position_mm(ivec2 p, ivec2 size, float z_mm) {
 // to be a gain; the eye close-up's mean error against the tissue-path reference 0.0213 -> 0.0205.
 const float SSSS_MAX_MEASURE = 5.0;
 float ssss_measure(vec3 n) {
+#if !SSSS_SURFACE_MEASURE
+    return 1.0;
+#endif
     if (uFollowSurface == 0.0 || uSurfaceMeasure == 0.0) return 1.0;
     float na = dot(n.xy, vec2(uDirection));
     return min(sqrt(na * na + n.z * n.z) / max(abs(n.z), 1e-6), SSSS_MAX_MEASURE);
@@ -213,22 +218,32 @@ float ssss_tissue_path(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size,
     vec3 n_q = nq;
     float h_q = dot(d, n_p);
     float h_p = -dot(d, n_q);
-    float tol = uTissueTau * sqrt(c2);
-    if (h_q <= tol && h_p <= tol) return 0.0;
+    // Every test below compares squares (x |x| keeps the sign): no square root, one division
+    // (llvmpipe runs every branch's arithmetic for all pixels, so the early returns save nothing).
+    // h <= tau c  <=>  h |h| <= tau^2 c^2
+    float tol2 = uTissueTau * uTissueTau * c2;
+    float sq = h_q * abs(h_q);
+    float sp = h_p * abs(h_p);
+    if (sq <= tol2 && sp <= tol2) return 0.0;
     share = 0.0;
-    if (h_q < -tol || h_p < -tol) return 0.0;
-    vec3 axis = cross(n_p, n_q);
-    float sin_phi = length(axis);
-    if (sin_phi < 1e-3) return 0.0;  // facing sheets: s > 250 c, nothing passes
-    float t = dot(d, axis) / sin_phi;
-    float a = max(h_p, 0.0) / sin_phi;  // p's distance from the fold line, mm
-    float b = max(h_q, 0.0) / sin_phi;  // q's
+    if (sq < -tol2 || sp < -tol2) return 0.0;
+    vec3 axis = cross(n_p, n_q);  // |axis| = sin phi
+    float sin2_phi = dot(axis, axis);
+    if (sin2_phi < 1e-6) return 0.0;  // facing sheets (sin phi < 1e-3): s > 250 c, nothing passes
+    float inv_sin2 = 1.0 / sin2_phi;
+    float dt = dot(d, axis);
+    float t2 = dt * dt * inv_sin2;  // t^2, t = d.axis / sin phi
+    float hp = max(h_p, 0.0);       // a = hp / sin phi: p's distance from the fold line, mm
+    float hq = max(h_q, 0.0);       // b = hq / sin phi: q's
     float cos_phi = dot(n_p, n_q);
-    float across = sqrt(max(c2 - t * t, 0.0));
-    float wedge = sqrt(a * a + b * b + 2.0 * a * b * cos_phi);
-    if (abs(wedge - across) > uTissueTau * across) return 0.0;
+    float across2 = max(c2 - t2, 0.0);
+    float wedge2 = (hp * hp + hq * hq + 2.0 * hp * hq * cos_phi) * inv_sin2;
+    // |wedge - across| > tau across  <=>  wedge > (1 + tau) across or wedge < (1 - tau) across (tau <= 1)
+    float hi = 1.0 + uTissueTau;
+    float lo = 1.0 - uTissueTau;
+    if (wedge2 > hi * hi * across2 || wedge2 < lo * lo * across2) return 0.0;
     share = clamp(2.0 * cos_phi, 0.0, 1.0);
-    return max((a + b) * (a + b) + t * t - c2, 0.0);
+    return max((hp + hq) * (hp + hq) * inv_sin2 + t2 - c2, 0.0);  // (a + b)^2 + t^2 - c^2
 }
 
 // True where the tissue joins the pixel to q by the chord or a bend all its light takes, at most
@@ -285,16 +300,15 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
     // (dermis.profiles.SumOfGaussians) and ssss compiles for exactly its K: a constant index
     const int kw = MAX_GAUSSIANS - 1;
     rejected = 0.0;
-    float w_rejected = 0.0;  // its weight on rejected taps
     float r_sum = 0.0;       // sum of its weights times the horizontal pass's rejected share
     vec3 pp = ssss_view_position_mm(p, size, cz);
     vec3 sum[MAX_GAUSSIANS];
     float wsum[MAX_GAUSSIANS];
-    float own[MAX_GAUSSIANS];    // weight carried by the pixel's own light (its own pixel and rejected taps)
+    float own[MAX_GAUSSIANS];    // weight carried by the pixel's own light on rejected taps (its own pixel's 1: below)
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         sum[k] = vec3(0.0);
         wsum[k] = 0.0;
-        own[k] = 1.0;  // exp(0): the pixel itself
+        own[k] = 0.0;
     }
     float log2_end = log2(float(K.last_px + 1));
     int next = 1;  // the next cell's first pixel
@@ -304,6 +318,7 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
         next = min(ssss_cell_start(j + 1, K.last_px, log2_end), K.last_px + 1);
         int n = next - start;  // the cell's pixels
         float cell = float(n);
+        float log2_cell = log2(cell);  // its tap stands for n pixels: n times the weight (below)
         // this pixel's draw in cell j: a golden-ratio sequence from its jitter (decorrelates the
         // cells); the other side takes the opposite draw
         float u = fract(K.jitter + 0.61803399 * float(j));
@@ -320,45 +335,39 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
             float dz_px = ssss_tap_dz_px(K, cz, tz);
             float share = 0.0;  // of the light that reaches q's surface through the tissue
             float extra = dz_px < 0.0 ? 0.0 : ssss_tissue_path(pp, np, q, nq, tz, size, share);
-            bool other = share <= 0.0;  // another surface
+            // share: 0 on another surface (a rejected tap, dz_px < 0 or no tissue path), in (0, 1] across
+            // a bend, 1 elsewhere; its weight's rest (1 - share) brings the pixel's own light (a 60-90
+            // degree fold's far side is another tissue)
+            bool other = share <= 0.0;
             float x2 = float(i * i);
             // the kernel at the tissue path s: x^2 + dz^2 is the chord c^2, the path round a bend
-            // adds s^2 - c^2 (0 elsewhere)
+            // adds s^2 - c^2 (0 elsewhere); a tap on another surface keeps its kernel weight (dz 0)
             float dz2 = other ? 0.0 : dz_px * dz_px + extra * K.ppm * K.ppm;
-            float measure = ssss_measure(nq);
+            float reach = share * ssss_measure(nq);  // the weight's part that brings q's light
+            float stay = 1.0 - share;                // the part that brings the pixel's own
+            // branch-free: llvmpipe runs both sides of a branch for every pixel and blends each
+            // variable they write (round 24, ssss24)
             for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-                float w = cell * exp(-(x2 * K.inv_2var_px[k] + dz2 * K.inv_2var[k]));
-                if (other) {
-                    own[k] += w;
+                // cell * exp(-(x^2 / 2 (sigma^2 + 1/12) + dz^2 / 2 sigma^2))
+                float w = exp2(x2 * K.x2_coef[k] + (dz2 * K.dz2_coef[k] + log2_cell));
+                own[k] += w * stay;
+                float wq = w * reach;
+                sum[k] += wq * light[k];
+                wsum[k] += wq;
 #if SSSS_GRAIN_FILTER
-                    if (k == kw) w_rejected += w;
+                if (k == kw) r_sum += wq * tap_rejected;
 #endif
-                } else {
-                    // a bend's share of the weight reaches q; the rest (a 60-90 degree fold, whose
-                    // far side is another tissue) brings the pixel's own light, as a rejected tap
-                    float fold = w * (1.0 - share);
-                    own[k] += fold;
-#if SSSS_GRAIN_FILTER
-                    if (k == kw) w_rejected += fold;
-#endif
-                    w *= share * measure;
-                    sum[k] += w * light[k];
-                    wsum[k] += w;
-#if SSSS_GRAIN_FILTER
-                    if (k == kw) r_sum += w * tap_rejected;
-#endif
-                }
             }
         }
     }
     float own_measure = ssss_measure(np);
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         wide[k] = K.wide[k];
-        float w = own[k] * own_measure;
+        float w = (1.0 + own[k]) * own_measure;  // exp(0): the pixel itself, and the rejected taps
         result[k] = (sum[k] + w * centre[k]) / max(wsum[k] + w, 1e-20);
         if (k == kw) {
             float total = max(wsum[k] + w, 1e-20);
-            rejected = 1.0 - (1.0 - w_rejected * own_measure / total) * (1.0 - (r_sum + w * centre_rejected) / total);
+            rejected = 1.0 - (1.0 - own[k] * own_measure / total) * (1.0 - (r_sum + w * centre_rejected) / total);
         }
     }
 }
