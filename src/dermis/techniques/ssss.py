@@ -93,7 +93,8 @@ def unpack_horizontal(textures, k: int) -> list:
     u = np.concatenate([np.frombuffer(t.read(), np.uint32).reshape(w, h, 4) for t in textures], axis=2)
     u = u.transpose(1, 0, 2)[::-1]
     halves = np.ascontiguousarray(u[:, :, 1:1 + (3 * k + 5) // 2]).view(np.float16).astype(np.float32)
-    return [halves[:, :, 3 + 3 * i:6 + 3 * i].copy() for i in range(k)]
+    # the widest first: Gaussian i's rgb at halves 4 + 3 (K - 1 - i) .. + 3 (ssss/packing.glsl)
+    return [halves[:, :, 4 + 3 * (k - 1 - i):7 + 3 * (k - 1 - i)].copy() for i in range(k)]
 
 
 def tap_cells(last_px: int, taps: int) -> np.ndarray:

@@ -94,6 +94,9 @@ uniform float uSurfaceMeasure;          // 1: weigh taps by their surface per pi
 
 const float SSSS_REACH_SIGMAS = 3.7169;  // sqrt(2 ln 1000): a Gaussian at 1e-3 of its peak
 const float SSSS_LOG2_E = 1.4426950409;  // exp(x) = exp2(x log2(e))
+// The tiers of Gaussians (ssss_blur): 0..SSSS_TIER1-1, SSSS_TIER1..SSSS_TIER2-1, SSSS_TIER2..K-1
+#define SSSS_TIER1 (MAX_GAUSSIANS / 3)
+#define SSSS_TIER2 ((2 * MAX_GAUSSIANS) / 3)
 // SSSS_GRAIN_FILTER (0/1), compiled in: the grain filter (above)
 const float SSSS_FILTER_SIGMA_PX = 3.0;      // a Gaussian this wide (px) is blurred less, then filtered
 const float SSSS_FILTER_VARIANCE_PX2 = 0.5;  // the binomial [1 2 1] / 4's variance, px^2
@@ -104,6 +107,7 @@ struct SsssKernel {
     // exp2 arguments, log2(e) folded in (a tap's weight is one exp2 per Gaussian, ssss_blur):
     float x2_coef[MAX_GAUSSIANS];        // -log2(e) / (2 (sigma_k^2 + 1/12)), 1/px^2: a pixel's share (above)
     float dz2_coef[MAX_GAUSSIANS];       // -log2(e) / (2 sigma_k^2), 1/px^2: the depth factor
+    int tier_reach_px[2];                // the last pixel of tiers 0 and 1's Gaussians (ssss_blur)
     float jitter;                        // [0, 1): this pixel's draw in its cells
     bool wide[MAX_GAUSSIANS];            // blurred with the filter's variance taken off (grain filter)
 };
@@ -129,8 +133,13 @@ SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index, int size_px) {
     SsssKernel K;
     K.ppm = uPixelsPerMmAtUnitDepth / depth_mm;
     float widest = 0.0;
+    float tier_widest[2] = float[2](0.0, 0.0);  // the widest pixel share's sigma of tiers 0 and 1, px
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         float sigma_px = max(sqrt(uVariances[k]) * K.ppm, 1e-4);
+        // a pixel's share reaches further than the Gaussian (sigma^2 + 1/12 px^2, above)
+        float share_sigma = sqrt(sigma_px * sigma_px + 1.0 / 12.0);
+        if (k < SSSS_TIER1) tier_widest[0] = max(tier_widest[0], share_sigma);
+        if (k < SSSS_TIER2) tier_widest[1] = max(tier_widest[1], share_sigma);
         K.wide[k] = ssss_filtered(sigma_px);
         float var_px = sigma_px * sigma_px - (K.wide[k] ? SSSS_FILTER_VARIANCE_PX2 : 0.0);
         K.x2_coef[k] = -SSSS_LOG2_E * 0.5 / (var_px + 1.0 / 12.0);
@@ -139,6 +148,7 @@ SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index, int size_px) {
     }
     // at most the frame's size (taps beyond the frame are skipped in any case)
     K.last_px = int(min(ceil(SSSS_REACH_SIGMAS * widest), float(size_px)));
+    for (int t = 0; t < 2; ++t) K.tier_reach_px[t] = min(int(ceil(SSSS_REACH_SIGMAS * tier_widest[t])), K.last_px);
     K.jitter = ssss_hash01(p, pass_index);
     return K;
 }
@@ -269,8 +279,10 @@ vec3 ssss_tap_normal(ivec2 q) {
 // vertical pass: the horizontal pass's packed texels, ssss/packing.glsl, 3 fetches for K = 6
 // where the separate images took K + 2) and the rejected share of the horizontal pass there (0 in
 // the horizontal pass).
-void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS],
-                out float rejected);
+// first_k (a constant): the first Gaussian whose light is read (the vertical pass fetches only the
+// texels that hold Gaussians first_k..K-1, ssss/packing.glsl); light[k < first_k] is left undefined.
+void ssss_fetch(ivec2 q, bool centre, const int first_k, out float depth_mm, out vec3 normal,
+                out vec3 light[MAX_GAUSSIANS], out float rejected);
 
 // The 1-D blur along uDirection at pixel p, per Gaussian: out[k] = sum_taps w E_k / sum_taps w
 // (pass_index 0 horizontal, 1 vertical), for a pixel on the skin (depth > 0); wide[k]: Gaussian k
@@ -287,6 +299,91 @@ void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out v
 // pass at the taps: 1 - (1 - this pass's) (1 - the horizontal pass's). Where it is large the
 // blurred light jumps with the pixel's own light from one pixel to the next (beside a crease the
 // hidden side continues with each pixel's own light), and the grain filter backs off.
+// The sums of a blur (ssss_blur): per Gaussian the weighted light of the taps on the same surface,
+// their weight, and the weight whose light is the pixel's own (rejected taps; its own pixel's 1 is
+// added at the end); r_sum: the widest Gaussian's weights times the horizontal pass's rejected share.
+struct SsssSums {
+    vec3 sum[MAX_GAUSSIANS];
+    float wsum[MAX_GAUSSIANS];
+    float own[MAX_GAUSSIANS];
+    float r_sum;
+};
+
+// One tap at signed offset i pixels along uDirection, standing for a cell of 2^log2_cell pixels,
+// for Gaussians first_k..K-1 (first_k a constant: the loop unrolls over those alone).
+void ssss_tap(const int first_k, ivec2 p, int i, float log2_cell, SsssKernel K, float cz, vec3 pp, vec3 np,
+              ivec2 size, inout SsssSums S) {
+    ivec2 q = p + uDirection * i;
+    if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) return;
+    float tz;
+    vec3 nq;
+    vec3 light[MAX_GAUSSIANS];
+    float tap_rejected;
+    ssss_fetch(q, false, first_k, tz, nq, light, tap_rejected);
+    float dz_px = ssss_tap_dz_px(K, cz, tz);
+    float share = 0.0;  // of the light that reaches q's surface through the tissue
+    float extra = dz_px < 0.0 ? 0.0 : ssss_tissue_path(pp, np, q, nq, tz, size, share);
+    // share: 0 on another surface (a rejected tap, dz_px < 0 or no tissue path), in (0, 1] across
+    // a bend, 1 elsewhere; its weight's rest (1 - share) brings the pixel's own light (a 60-90
+    // degree fold's far side is another tissue)
+    bool other = share <= 0.0;
+    float x2 = float(i * i);
+    // the kernel at the tissue path s: x^2 + dz^2 is the chord c^2, the path round a bend
+    // adds s^2 - c^2 (0 elsewhere); a tap on another surface keeps its kernel weight (dz 0)
+    float dz2 = other ? 0.0 : dz_px * dz_px + extra * K.ppm * K.ppm;
+    float reach = share * ssss_measure(nq);  // the weight's part that brings q's light
+    float stay = 1.0 - share;                // the part that brings the pixel's own
+    // branch-free: llvmpipe runs both sides of a branch for every pixel and blends each
+    // variable they write (round 24, ssss24)
+    for (int k = first_k; k < MAX_GAUSSIANS; ++k) {
+        // cell * exp(-(x^2 / 2 (sigma^2 + 1/12) + dz^2 / 2 sigma^2))
+        float w = exp2(x2 * K.x2_coef[k] + (dz2 * K.dz2_coef[k] + log2_cell));
+        S.own[k] += w * stay;
+        float wq = w * reach;
+        S.sum[k] += wq * light[k];
+        S.wsum[k] += wq;
+#if SSSS_GRAIN_FILTER
+        if (k == MAX_GAUSSIANS - 1) S.r_sum += wq * tap_rejected;
+#endif
+    }
+}
+
+// Cell j (its first pixel start, n pixels) of both sides, for Gaussians first_k..K-1: this pixel's
+// draw in it is a golden-ratio sequence from its jitter (decorrelates the cells); the other side
+// takes the opposite draw.
+void ssss_cell(const int first_k, int j, int start, int n, ivec2 p, SsssKernel K, float cz, vec3 pp, vec3 np,
+               ivec2 size, inout SsssSums S) {
+    float cell = float(n);
+    float log2_cell = log2(cell);  // its tap stands for n pixels: n times the weight
+    float u = fract(K.jitter + 0.61803399 * float(j));
+    ssss_tap(first_k, p, -(start + min(int(u * cell), n - 1)), log2_cell, K, cz, pp, np, size, S);
+    ssss_tap(first_k, p, start + min(int((1.0 - u) * cell), n - 1), log2_cell, K, cz, pp, np, size, S);
+}
+
+// The 1-D blur along uDirection at pixel p, per Gaussian: out[k] = sum_taps w E_k / sum_taps w
+// (pass_index 0 horizontal, 1 vertical), for a pixel on the skin (depth > 0); wide[k]: Gaussian k
+// was blurred for the grain filter (its variance less SSSS_FILTER_VARIANCE_PX2).
+// Written so that a GPU compiler keeps everything in registers: every loop over the Gaussians has
+// a constant trip count and no loop inside, so it unrolls and each array is indexed by constants.
+// Per tap: the texel(s) with q's depth, normal and light (ssss_fetch) and one exp2 per Gaussian:
+// exp(-(x^2 / 2 (sigma^2 + 1/12) + dz^2 / 2 sigma^2)), the pixel's share times the depth factor.
+// A tap on another surface has dz taken as 0 (its kernel weight) and brings the pixel's own light.
+//
+// Tiers (round 24, ssss24): the cells are walked outwards in three loops, the first with every
+// Gaussian while a cell starts within tier 0's reach (Gaussians 0..SSSS_TIER1-1), the second with
+// Gaussians SSSS_TIER1.. while within tier 1's (..SSSS_TIER2-1), the third with the widest
+// (SSSS_TIER2..K-1) out to the last pixel: a Gaussian is evaluated only out to its own reach,
+// ceil(3.717 sqrt(sigma^2 + 1/12)) px (the widest pixel share of its tier, 1e-3 of its peak)
+// instead of the widest Gaussian's (d'Eon's profile at 768 px: 44-46 of 72 Gaussian-taps), and the
+// vertical pass's outer taps fetch only the texels of the wide Gaussians (2 or 1 of 3). The
+// narrow Gaussians lose the pixels beyond 3.717 of their widths: < 2e-4 of their weight
+// (erfc(3.717 / sqrt 2)), renormalised over the taps kept as before.
+//
+// rejected: the share of the widest Gaussian's weight that fell on another surface (the pixel's own
+// light stood in for it), in this pass and, averaged with the same weights, in the horizontal
+// pass at the taps: 1 - (1 - this pass's) (1 - the horizontal pass's). Where it is large the
+// blurred light jumps with the pixel's own light from one pixel to the next (beside a crease the
+// hidden side continues with each pixel's own light), and the grain filter backs off.
 void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool wide[MAX_GAUSSIANS],
                out float rejected) {
     ivec2 size = textureSize(uIrradiance, 0);
@@ -294,80 +391,53 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
     vec3 np;
     vec3 centre[MAX_GAUSSIANS];  // the pixel's own light: what a tap on another surface brings
     float centre_rejected;
-    ssss_fetch(p, true, cz, np, centre, centre_rejected);
+    ssss_fetch(p, true, 0, cz, np, centre, centre_rejected);
     SsssKernel K = ssss_kernel(cz, p, pass_index, max(size.x, size.y));
     // the widest Gaussian (its weight's rejected share): the last, the profile's variances increase
     // (dermis.profiles.SumOfGaussians) and ssss compiles for exactly its K: a constant index
     const int kw = MAX_GAUSSIANS - 1;
     rejected = 0.0;
-    float r_sum = 0.0;       // sum of its weights times the horizontal pass's rejected share
     vec3 pp = ssss_view_position_mm(p, size, cz);
-    vec3 sum[MAX_GAUSSIANS];
-    float wsum[MAX_GAUSSIANS];
-    float own[MAX_GAUSSIANS];    // weight carried by the pixel's own light on rejected taps (its own pixel's 1: below)
+    SsssSums S;
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-        sum[k] = vec3(0.0);
-        wsum[k] = 0.0;
-        own[k] = 0.0;
+        S.sum[k] = vec3(0.0);
+        S.wsum[k] = 0.0;
+        S.own[k] = 0.0;
     }
+    S.r_sum = 0.0;
     float log2_end = log2(float(K.last_px + 1));
     int next = 1;  // the next cell's first pixel
-    for (int j = 0; j < SSSS_TAPS; ++j) {
+    int j = 0;
+#if SSSS_TIER1 > 0
+    for (; j < SSSS_TAPS; ++j) {
+        int start = next;
+        if (start > K.tier_reach_px[0]) break;
+        next = min(ssss_cell_start(j + 1, K.last_px, log2_end), K.last_px + 1);
+        ssss_cell(0, j, start, next - start, p, K, cz, pp, np, size, S);
+    }
+#endif
+#if SSSS_TIER2 > SSSS_TIER1
+    for (; j < SSSS_TAPS; ++j) {
+        int start = next;
+        if (start > K.tier_reach_px[1]) break;
+        next = min(ssss_cell_start(j + 1, K.last_px, log2_end), K.last_px + 1);
+        ssss_cell(SSSS_TIER1, j, start, next - start, p, K, cz, pp, np, size, S);
+    }
+#endif
+    for (; j < SSSS_TAPS; ++j) {
         int start = next;
         if (start > K.last_px) break;
         next = min(ssss_cell_start(j + 1, K.last_px, log2_end), K.last_px + 1);
-        int n = next - start;  // the cell's pixels
-        float cell = float(n);
-        float log2_cell = log2(cell);  // its tap stands for n pixels: n times the weight (below)
-        // this pixel's draw in cell j: a golden-ratio sequence from its jitter (decorrelates the
-        // cells); the other side takes the opposite draw
-        float u = fract(K.jitter + 0.61803399 * float(j));
-        for (int side = -1; side <= 1; side += 2) {
-            float v = side < 0 ? u : 1.0 - u;
-            int i = start + min(int(v * cell), n - 1);
-            ivec2 q = p + uDirection * (side * i);
-            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
-            float tz;
-            vec3 nq;
-            vec3 light[MAX_GAUSSIANS];
-            float tap_rejected;
-            ssss_fetch(q, false, tz, nq, light, tap_rejected);
-            float dz_px = ssss_tap_dz_px(K, cz, tz);
-            float share = 0.0;  // of the light that reaches q's surface through the tissue
-            float extra = dz_px < 0.0 ? 0.0 : ssss_tissue_path(pp, np, q, nq, tz, size, share);
-            // share: 0 on another surface (a rejected tap, dz_px < 0 or no tissue path), in (0, 1] across
-            // a bend, 1 elsewhere; its weight's rest (1 - share) brings the pixel's own light (a 60-90
-            // degree fold's far side is another tissue)
-            bool other = share <= 0.0;
-            float x2 = float(i * i);
-            // the kernel at the tissue path s: x^2 + dz^2 is the chord c^2, the path round a bend
-            // adds s^2 - c^2 (0 elsewhere); a tap on another surface keeps its kernel weight (dz 0)
-            float dz2 = other ? 0.0 : dz_px * dz_px + extra * K.ppm * K.ppm;
-            float reach = share * ssss_measure(nq);  // the weight's part that brings q's light
-            float stay = 1.0 - share;                // the part that brings the pixel's own
-            // branch-free: llvmpipe runs both sides of a branch for every pixel and blends each
-            // variable they write (round 24, ssss24)
-            for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-                // cell * exp(-(x^2 / 2 (sigma^2 + 1/12) + dz^2 / 2 sigma^2))
-                float w = exp2(x2 * K.x2_coef[k] + (dz2 * K.dz2_coef[k] + log2_cell));
-                own[k] += w * stay;
-                float wq = w * reach;
-                sum[k] += wq * light[k];
-                wsum[k] += wq;
-#if SSSS_GRAIN_FILTER
-                if (k == kw) r_sum += wq * tap_rejected;
-#endif
-            }
-        }
+        ssss_cell(SSSS_TIER2, j, start, next - start, p, K, cz, pp, np, size, S);
     }
     float own_measure = ssss_measure(np);
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         wide[k] = K.wide[k];
-        float w = (1.0 + own[k]) * own_measure;  // exp(0): the pixel itself, and the rejected taps
-        result[k] = (sum[k] + w * centre[k]) / max(wsum[k] + w, 1e-20);
+        float w = (1.0 + S.own[k]) * own_measure;  // exp(0): the pixel itself, and the rejected taps
+        result[k] = (S.sum[k] + w * centre[k]) / max(S.wsum[k] + w, 1e-20);
         if (k == kw) {
-            float total = max(wsum[k] + w, 1e-20);
-            rejected = 1.0 - (1.0 - own[k] * own_measure / total) * (1.0 - (r_sum + w * centre_rejected) / total);
+            float total = max(S.wsum[k] + w, 1e-20);
+            rejected = 1.0 - (1.0 - S.own[k] * own_measure / total) * (1.0 - (S.r_sum + w * centre_rejected) / total);
         }
     }
 }
