@@ -8,15 +8,19 @@
 // outer taps, which read only the wide Gaussians (ssss/kernel.glsl ssss_blur's tiers), fetch only
 // the first ssss_packed_texels(first_k) texels.
 
-// A half's bits -> float, exactly for every finite half (zero and subnormals included): the half's
-// exponent and mantissa shifted into a float's, times 2^112 (= 2^(127 - 15), the exponent biases'
-// difference), and the sign (F. Giesen, "half_to_float_fast2", 2012). None of the halves stored is
-// infinite or NaN (the frame's check rejects such light) and those are not handled. On llvmpipe
-// (Mesa 22.3) unpackHalf2x16 costs several times this: the vertical pass 146 -> 115 CPU ms at 768 px,
-// the image unchanged (round 24, ssss24).
+// A half's bits -> float, exactly for every finite half: the half's exponent and mantissa shifted
+// into a float's and its exponent rebased (+ 127 - 15); a zero or subnormal half (exponent 0) as
+// the normal float 2^-14 (1 + m / 1024) less 2^-14, so that no float subnormal is formed (llvmpipe
+// flushes those to zero); then the sign (F. Giesen, "half_to_float_fast3", 2012). None of the halves
+// stored is infinite or NaN (the frame's check rejects such light) and those are not handled. On
+// llvmpipe (Mesa 22.3) unpackHalf2x16 costs several times this: the vertical pass 146 -> 115 CPU ms
+// at 768 px (round 24, ssss24). tests/test_ssss_kernel.py checks every finite half against numpy.
 vec2 ssss_unpack_half2(uint u) {
     uvec2 h = uvec2(u & 0xffffu, u >> 16);
-    vec2 f = uintBitsToFloat((h & 0x7fffu) << 13) * 5.192296858534828e+33;  // 2^112
+    uvec2 m = (h & 0x7fffu) << 13;
+    uvec2 o = m + ((127u - 15u) << 23);
+    vec2 small = uintBitsToFloat(o + (1u << 23)) - uintBitsToFloat(113u << 23);  // 2^-14 (m / 1024)
+    vec2 f = mix(uintBitsToFloat(o), small, equal(m & (0x1fu << 23), uvec2(0u)));
     return uintBitsToFloat(floatBitsToUint(f) | ((h & 0x8000u) << 16));
 }
 
