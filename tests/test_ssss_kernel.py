@@ -145,8 +145,9 @@ def test_each_gaussian_of_the_horizontal_blur_matches_numpy_out_to_its_reach(gl_
     filter, so that every cell is one pixel out to the widest Gaussian's 45 px (no jitter, no
     variance taken off): the narrow tiers' cut (d'Eon's profile: tier 0 at 4 px, tier 1 at 13 px of
     45) costs < 2e-4 of each Gaussian's weight; within 2e-3 of each one's peak (the results are
-X
-    peak; checked) or with the packed images' Gaussians in the order of round 23 (unpacking)."""
+    stored as halves; measured 0.7-4.6e-4). Fails with the tiers' reach taken as 1 sigma instead
+    of 3.717 (0.32 of G3's peak; the two-pass test above then fails too) and with the packed
+    images unpacked in round 23's order (narrowest first; both checked)."""
     from dermis.renderer import Renderer
     from dermis.scene.model import Camera
     from dermis.verification import quad_scene
