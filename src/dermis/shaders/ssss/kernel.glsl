@@ -10,7 +10,8 @@
 // term comes here from following the surface (below).
 // Reach: the widest Gaussian is followed out to where it falls below 1e-3 of its peak,
 // sqrt(2 ln 1000) = 3.717 sigma (so the whole profile is covered to below 1e-3 of its own peak):
-// the last pixel with weight is P = ceil(3.717 sigma_max ppm).
+// the last pixel with weight is P = ceil(3.717 sigma_max ppm); each narrower Gaussian is followed only
+// to its own tier's reach (ssss_blur, round 24).
 // A FIXED number of taps, SSSS_TAPS per side (Jimenez et al. 2015 use 11-25 in all; the cost must not
 // grow with the head's size on screen): the pixels 1..P of each side are split into SSSS_TAPS cells,
 // cell j = pixels [a_j, a_(j+1)), a_j = max(j + 1, round((P + 1)^(j / SSSS_TAPS)))
