@@ -143,10 +143,10 @@ def test_each_gaussian_of_the_horizontal_blur_matches_numpy_out_to_its_reach(gl_
     every Gaussian out to the WIDEST one's reach, ceil(3.717 sigma_max) px, the kernel before the
     tiers, exp(-i^2 / 2 (sigma_k^2 + 1/12)) normalised over those pixels. Taps = 64 and no grain
     filter, so that every cell is one pixel out to the widest Gaussian's 45 px (no jitter, no
-    variance taken off): the narrow tiers' cut (d'Eon's profile: tier 0 at 4 px, tier 1 at 13 px of
-    45) costs < 2e-4 of each Gaussian's weight; within 2e-3 of each one's peak (the results are
-    stored as halves; measured 0.7-4.6e-4). Fails with the tiers' reach taken as 1 sigma instead
-    of 3.717 (0.32 of G3's peak; the two-pass test above then fails too) and with the packed
+    variance taken off): the narrow Gaussians' cut (d'Eon's profile: 8 px of 45) costs < 2e-4 of
+    each one's weight; within 2e-3 of each one's peak (the results are stored as halves; measured
+    0.7-4.6e-4). Fails with the narrow reach taken as 1 sigma instead of 3.717 (0.30 of G2's peak;
+    the two-pass test above passes that at 5.5e-4) and with the packed
     images unpacked in round 23's order (narrowest first; both checked)."""
     from dermis.renderer import Renderer
     from dermis.scene.model import Camera

@@ -11,7 +11,7 @@
 // Reach: the widest Gaussian is followed out to where it falls below 1e-3 of its peak,
 // sqrt(2 ln 1000) = 3.717 sigma (so the whole profile is covered to below 1e-3 of its own peak):
 // the last pixel with weight is P = ceil(3.717 sigma_max ppm); each narrower Gaussian is followed only
-// to its own tier's reach (ssss_blur, round 24).
+// to its own reach (the narrow half: ssss_blur, round 24).
 // A FIXED number of taps, SSSS_TAPS per side (Jimenez et al. 2015 use 11-25 in all; the cost must not
 // grow with the head's size on screen): the pixels 1..P of each side are split into SSSS_TAPS cells,
 // cell j = pixels [a_j, a_(j+1)), a_j = max(j + 1, round((P + 1)^(j / SSSS_TAPS)))
@@ -95,9 +95,8 @@ uniform float uSurfaceMeasure;          // 1: weigh taps by their surface per pi
 
 const float SSSS_REACH_SIGMAS = 3.7169;  // sqrt(2 ln 1000): a Gaussian at 1e-3 of its peak
 const float SSSS_LOG2_E = 1.4426950409;  // exp(x) = exp2(x log2(e))
-// The tiers of Gaussians (ssss_blur): 0..SSSS_TIER1-1, SSSS_TIER1..SSSS_TIER2-1, SSSS_TIER2..K-1
-#define SSSS_TIER1 (MAX_GAUSSIANS / 3)
-#define SSSS_TIER2 ((2 * MAX_GAUSSIANS) / 3)
+// The narrow Gaussians 0..SSSS_NARROW-1, taken only out to their own reach (ssss_blur's two tiers)
+#define SSSS_NARROW (MAX_GAUSSIANS / 2)
 // SSSS_GRAIN_FILTER (0/1), compiled in: the grain filter (above)
 const float SSSS_FILTER_SIGMA_PX = 3.0;      // a Gaussian this wide (px) is blurred less, then filtered
 const float SSSS_FILTER_VARIANCE_PX2 = 0.5;  // the binomial [1 2 1] / 4's variance, px^2
@@ -108,7 +107,7 @@ struct SsssKernel {
     // exp2 arguments, log2(e) folded in (a tap's weight is one exp2 per Gaussian, ssss_blur):
     float x2_coef[MAX_GAUSSIANS];        // -log2(e) / (2 (sigma_k^2 + 1/12)), 1/px^2: a pixel's share (above)
     float dz2_coef[MAX_GAUSSIANS];       // -log2(e) / (2 sigma_k^2), 1/px^2: the depth factor
-    int tier_reach_px[2];                // the last pixel of tiers 0 and 1's Gaussians (ssss_blur)
+    int narrow_reach_px;                 // the last pixel of the narrow Gaussians' reach (ssss_blur)
     float jitter;                        // [0, 1): this pixel's draw in its cells
     bool wide[MAX_GAUSSIANS];            // blurred with the filter's variance taken off (grain filter)
 };
@@ -134,13 +133,12 @@ SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index, int size_px) {
     SsssKernel K;
     K.ppm = uPixelsPerMmAtUnitDepth / depth_mm;
     float widest = 0.0;
-    float tier_widest[2] = float[2](0.0, 0.0);  // the widest pixel share's sigma of tiers 0 and 1, px
+    float narrow_widest = 0.0;  // the narrow Gaussians' widest pixel share's sigma, px
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         float sigma_px = max(sqrt(uVariances[k]) * K.ppm, 1e-4);
         // a pixel's share reaches further than the Gaussian (sigma^2 + 1/12 px^2, above)
         float share_sigma = sqrt(sigma_px * sigma_px + 1.0 / 12.0);
-        if (k < SSSS_TIER1) tier_widest[0] = max(tier_widest[0], share_sigma);
-        if (k < SSSS_TIER2) tier_widest[1] = max(tier_widest[1], share_sigma);
+        if (k < SSSS_NARROW) narrow_widest = max(narrow_widest, share_sigma);
         K.wide[k] = ssss_filtered(sigma_px);
         float var_px = sigma_px * sigma_px - (K.wide[k] ? SSSS_FILTER_VARIANCE_PX2 : 0.0);
         K.x2_coef[k] = -SSSS_LOG2_E * 0.5 / (var_px + 1.0 / 12.0);
@@ -149,7 +147,7 @@ SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index, int size_px) {
     }
     // at most the frame's size (taps beyond the frame are skipped in any case)
     K.last_px = int(min(ceil(SSSS_REACH_SIGMAS * widest), float(size_px)));
-    for (int t = 0; t < 2; ++t) K.tier_reach_px[t] = min(int(ceil(SSSS_REACH_SIGMAS * tier_widest[t])), K.last_px);
+    K.narrow_reach_px = min(int(ceil(SSSS_REACH_SIGMAS * narrow_widest)), K.last_px);
     K.jitter = ssss_hash01(p, pass_index);
     return K;
 }
@@ -370,15 +368,15 @@ void ssss_cell(const int first_k, int j, int start, int n, ivec2 p, SsssKernel K
 // exp(-(x^2 / 2 (sigma^2 + 1/12) + dz^2 / 2 sigma^2)), the pixel's share times the depth factor.
 // A tap on another surface has dz taken as 0 (its kernel weight) and brings the pixel's own light.
 //
-// Tiers (round 24, ssss24): the cells are walked outwards in three loops, the first with every
-// Gaussian while a cell starts within tier 0's reach (Gaussians 0..SSSS_TIER1-1), the second with
-// Gaussians SSSS_TIER1.. while within tier 1's (..SSSS_TIER2-1), the third with the widest
-// (SSSS_TIER2..K-1) out to the last pixel: a Gaussian is evaluated only out to its own reach,
-// ceil(3.717 sqrt(sigma^2 + 1/12)) px (the widest pixel share of its tier, 1e-3 of its peak)
-// instead of the widest Gaussian's (d'Eon's profile at 768 px: 44-46 of 72 Gaussian-taps), and the
-// vertical pass's outer taps fetch only the texels of the wide Gaussians (2 or 1 of 3). The
-// narrow Gaussians lose the pixels beyond 3.717 of their widths: < 2e-4 of their weight
-// (erfc(3.717 / sqrt 2)), renormalised over the taps kept as before.
+// Two tiers (round 24, ssss24): the cells are walked outwards in two loops, the first with every
+// Gaussian while a cell starts within the narrow Gaussians' reach (0..SSSS_NARROW-1,
+// ceil(3.717 sqrt(sigma^2 + 1/12)) px of the widest of them: its pixel share at 1e-3 of its peak),
+// the second with the wide ones (SSSS_NARROW..K-1) out to the last pixel: d'Eon's profile at
+// front-key 768 px (P = 50 px, the narrow reach 8 px) 57 of 72 Gaussian-taps, and the vertical
+// pass's outer taps fetch only the texels of the wide Gaussians (2 of 3). The narrow Gaussians
+// lose the pixels beyond 3.717 of their widths: < 2e-4 of their weight (erfc(3.717 / sqrt 2)),
+// renormalised over the taps kept as before. Three tiers (K/3, 2K/3) measured 4 % slower, one per
+// Gaussian 17 % slower (each loop's own overhead on llvmpipe) and slower to compile.
 //
 // rejected: the share of the widest Gaussian's weight that fell on another surface (the pixel's own
 // light stood in for it), in this pass and, averaged with the same weights, in the horizontal
@@ -409,27 +407,19 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
     float log2_end = log2(float(K.last_px + 1));
     int next = 1;  // the next cell's first pixel
     int j = 0;
-#if SSSS_TIER1 > 0
+#if SSSS_NARROW > 0
     for (; j < SSSS_TAPS; ++j) {
         int start = next;
-        if (start > K.tier_reach_px[0]) break;
+        if (start > K.narrow_reach_px) break;
         next = min(ssss_cell_start(j + 1, K.last_px, log2_end), K.last_px + 1);
         ssss_cell(0, j, start, next - start, p, K, cz, pp, np, size, S);
-    }
-#endif
-#if SSSS_TIER2 > SSSS_TIER1
-    for (; j < SSSS_TAPS; ++j) {
-        int start = next;
-        if (start > K.tier_reach_px[1]) break;
-        next = min(ssss_cell_start(j + 1, K.last_px, log2_end), K.last_px + 1);
-        ssss_cell(SSSS_TIER1, j, start, next - start, p, K, cz, pp, np, size, S);
     }
 #endif
     for (; j < SSSS_TAPS; ++j) {
         int start = next;
         if (start > K.last_px) break;
         next = min(ssss_cell_start(j + 1, K.last_px, log2_end), K.last_px + 1);
-        ssss_cell(SSSS_TIER2, j, start, next - start, p, K, cz, pp, np, size, S);
+        ssss_cell(SSSS_NARROW, j, start, next - start, p, K, cz, pp, np, size, S);
     }
     float own_measure = ssss_measure(np);
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
