@@ -135,3 +135,87 @@ def test_separable_blur_of_an_impulse_on_a_wide_frame_matches_numpy(gl_ctx):
     err = np.abs(out - ref).max() / peak
     print(f"max |GL - numpy| / peak {err:.2e}; energy {out.sum(axis=(0, 1))}")
     assert err < 2e-3, err
+
+
+def test_each_gaussian_of_the_horizontal_blur_matches_numpy_out_to_its_reach(gl_ctx):
+    """Every Gaussian's own horizontal blur of a lit pixel against numpy's 1-D kernel, where each is
+    evaluated only out to its own tier's reach (ssss/kernel.glsl ssss_blur, round 24): numpy takes
+    every Gaussian out to the WIDEST one's reach, ceil(3.717 sigma_max) px, the kernel before the
+    tiers, exp(-i^2 / 2 (sigma_k^2 + 1/12)) normalised over those pixels. Taps = 64 and no grain
+    filter, so that every cell is one pixel out to the widest Gaussian's 45 px (no jitter, no
+    variance taken off): the narrow Gaussians' cut (d'Eon's profile: 8 px of 45) costs < 2e-4 of
+    each one's weight; within 2e-3 of each one's peak (the results are stored as halves; measured
+    0.7-4.6e-4). Fails with the narrow reach taken as 1 sigma instead of 3.717 (0.30 of G2's peak;
+    the two-pass test above passes that at 5.5e-4) and with the packed
+    images unpacked in round 23's order (narrowest first; both checked)."""
+    from dermis.renderer import Renderer
+    from dermis.scene.model import Camera
+    from dermis.verification import quad_scene
+
+    W, H = 128, 24
+    sc = quad_scene(4000.0, 4000.0)  # mm_per_unit = 1: the plane fills the frame
+    fov = 25.0
+    var = np.asarray(sc.profile.variances_mm2, np.float64)
+    px_mm = np.sqrt(var.max()) / 12.0  # the widest Gaussian 12 px wide: reach 45 px
+    dist = px_mm * H / (2.0 * np.tan(np.radians(fov) / 2.0))
+    sc.camera = Camera(position=(0.0, 0.0, dist), target=(0.0, 0.0, 0.0), fov_deg=fov)
+    c = (11, 61)
+    with Renderer(sc, (W, H), ctx=gl_ctx, samples=0) as r:
+        ssss = r.technique("ssss", taps=64, grain_filter=False)
+        r.render("ssss")
+        irr = np.zeros((H, W, 3), np.float32)
+        irr[c] = 1.0
+        ssss.screen_space(r.last_frame, irradiance=irr)
+        buffers = ssss.debug_buffers()
+        proj = np.asarray(r.last_frame.proj, np.float64)
+        depth = buffers["ssss_depth_mm"][c][0]
+        rows = [buffers[f"ssss_horizontal_{k + 1}"][c[0], :, 0] for k in range(var.size)]
+    ppm = 0.5 * W * proj[0, 0] / depth
+    np.testing.assert_allclose(ppm, 1.0 / px_mm, rtol=1e-3)
+    last = int(np.ceil(3.7169 * np.sqrt(var.max()) * ppm))
+    assert last == 45 and last <= 64
+    x = np.arange(W) - c[1]
+    i = np.arange(-last, last + 1)
+    errors = []
+    for k in range(var.size):
+        s2 = var[k] * ppm ** 2 + 1.0 / 12.0
+        # the response at pixel p to the dot at c: p's tap at offset c - p, weight g(c - p)
+        ref = np.where(np.abs(x) <= last, np.exp(-x * x / (2.0 * s2)), 0.0) / np.exp(-i * i / (2.0 * s2)).sum()
+        errors.append(float(np.abs(rows[k] - ref).max() / ref.max()))
+    print("max |GL - numpy| / peak per Gaussian", np.round(errors, 5))
+    assert max(errors) < 2e-3, errors
+
+
+def test_halves_unpacked_by_bits_equal_numpy_float16(gl_ctx):
+    """ssss/packing.glsl ssss_unpack_half2 (the bits shifted and scaled by 2^112, round 24) against
+    numpy's float16 -> float32, bit for bit, over every finite half (zero, both signs, subnormals)."""
+    import moderngl
+
+    from dermis.gl.shaders import program
+
+    h = np.arange(65536, dtype=np.uint32)
+    h = h[(h & 0x7C00) != 0x7C00]  # finite halves only (inf / NaN are never stored)
+    h = np.concatenate([h, np.zeros((-h.size) % 2, np.uint32)])
+    words = h[0::2] | (h[1::2] << 16)
+    n = words.size
+    w = 256
+    rows = -(-n // w)
+    data = np.zeros(w * rows, np.uint32)
+    data[:n] = words
+    src = gl_ctx.texture((w, rows), 1, data.tobytes(), dtype="u4")
+    src.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    out = gl_ctx.texture((w, rows), 2, dtype="f4")
+    fbo = gl_ctx.framebuffer(color_attachments=[out])
+    prog = program(gl_ctx, "common/fullscreen.vert", "ssss/unpack_check.frag", {"MAX_GAUSSIANS": 1})
+    vao = gl_ctx.vertex_array(prog, [])
+    try:
+        src.use(0)
+        prog["uWords"].value = 0
+        fbo.use()
+        vao.render(moderngl.TRIANGLES, vertices=3)
+        got = np.frombuffer(out.read(), np.float32).reshape(-1, 2)[:n].reshape(-1)
+    finally:
+        for obj in (vao, prog, fbo, out, src):
+            obj.release()
+    want = h.astype(np.uint16).view(np.float16).astype(np.float32)
+    np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))

@@ -93,7 +93,8 @@ def unpack_horizontal(textures, k: int) -> list:
     u = np.concatenate([np.frombuffer(t.read(), np.uint32).reshape(w, h, 4) for t in textures], axis=2)
     u = u.transpose(1, 0, 2)[::-1]
     halves = np.ascontiguousarray(u[:, :, 1:1 + (3 * k + 5) // 2]).view(np.float16).astype(np.float32)
-    return [halves[:, :, 3 + 3 * i:6 + 3 * i].copy() for i in range(k)]
+    # the widest first: Gaussian i's rgb at halves 4 + 3 (K - 1 - i) .. + 3 (ssss/packing.glsl)
+    return [halves[:, :, 4 + 3 * (k - 1 - i):7 + 3 * (k - 1 - i)].copy() for i in range(k)]
 
 
 def tap_cells(last_px: int, taps: int) -> np.ndarray:
@@ -158,13 +159,18 @@ class ScreenSpaceSSS(Technique):
         """(irradiance, horizontal, vertical, irradiance with the bounce, grain filter or None)
         programs for a K-Gaussian profile, the irradiance ones as LightCountPrograms (called with the
         light count). Compiled with MAX_GAUSSIANS = K, SSSS_TAPS = the taps option (the loops over
-        Gaussians and taps unroll) and SSSS_GRAIN_FILTER = the grain_filter option."""
+        Gaussians and taps unroll), SSSS_GRAIN_FILTER = the grain_filter option and SSSS_SURFACE_MEASURE =
+        surface_measure (with follow_surface)."""
         if k > MAX_GAUSSIANS:
             raise DermisError(f"profile has {k} Gaussians; ssss supports at most {MAX_GAUSSIANS}")
         grain = bool(self.options.grain_filter)
-        key = (k, self.options.taps, grain)
+        measure = bool(self.options.surface_measure and self.options.follow_surface)
+        key = (k, self.options.taps, grain, measure)
         if key not in self._programs:
-            ctx, defines = self.ctx, {"MAX_GAUSSIANS": k, "SSSS_TAPS": self.options.taps, "SSSS_GRAIN_FILTER": int(grain)}
+            # SSSS_SURFACE_MEASURE compiled in: llvmpipe would run the measure's sqrt and division per tap
+            # even when a uniform turns it off (ssss/kernel.glsl ssss_measure)
+            ctx, defines = self.ctx, {"MAX_GAUSSIANS": k, "SSSS_TAPS": self.options.taps, "SSSS_GRAIN_FILTER": int(grain),
+                                      "SSSS_SURFACE_MEASURE": int(measure)}
             # the irradiance pass per light count, its lights unrolled (LightCountPrograms)
             progs = (LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_horizontal.frag", defines),

@@ -12,8 +12,8 @@
 
 layout(location = 0) out uvec4 f_packed[SSSS_PACKED];
 
-void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS],
-                out float rejected) {
+void ssss_fetch(ivec2 q, bool centre, const int first_k, out float depth_mm, out vec3 normal,
+                out vec3 light[MAX_GAUSSIANS], out float rejected) {
     rejected = 0.0;
     vec4 t = TEXEL(uIrradiance, q);
     depth_mm = t.a;

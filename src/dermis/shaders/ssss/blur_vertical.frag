@@ -15,10 +15,12 @@ layout(location = 0) out vec4 f_scattered;
 layout(location = 1) out vec4 f_wide;
 #endif
 
-void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS],
-                out float rejected) {
+void ssss_fetch(ivec2 q, bool centre, const int first_k, out float depth_mm, out vec3 normal,
+                out vec3 light[MAX_GAUSSIANS], out float rejected) {
     uvec4 texels[SSSS_PACKED];
-    for (int t = 0; t < SSSS_PACKED; ++t) texels[t] = TEXEL(uPacked[t], q.yx);
+    // only the texels of Gaussians first_k.. (a constant: the others are not fetched)
+    int used = ssss_packed_texels(first_k);
+    for (int t = 0; t < SSSS_PACKED; ++t) texels[t] = t < used ? TEXEL(uPacked[t], q.yx) : uvec4(0u);
     ssss_unpack(texels, depth_mm, normal, light, rejected);
 }
 

@@ -75,8 +75,8 @@ void main() {
 }
 
 // not read here (ssss/kernel.glsl declares it for the blurs)
-void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS],
-                out float rejected) {
+void ssss_fetch(ivec2 q, bool centre, const int first_k, out float depth_mm, out vec3 normal,
+                out vec3 light[MAX_GAUSSIANS], out float rejected) {
     depth_mm = 0.0;
     normal = vec3(0.0, 0.0, 1.0);
     rejected = 0.0;

@@ -10,7 +10,8 @@
 // term comes here from following the surface (below).
 // Reach: the widest Gaussian is followed out to where it falls below 1e-3 of its peak,
 // sqrt(2 ln 1000) = 3.717 sigma (so the whole profile is covered to below 1e-3 of its own peak):
-// the last pixel with weight is P = ceil(3.717 sigma_max ppm).
+// the last pixel with weight is P = ceil(3.717 sigma_max ppm); each narrower Gaussian is followed only
+// to its own reach (the narrow half: ssss_blur, round 24).
 // A FIXED number of taps, SSSS_TAPS per side (Jimenez et al. 2015 use 11-25 in all; the cost must not
 // grow with the head's size on screen): the pixels 1..P of each side are split into SSSS_TAPS cells,
 // cell j = pixels [a_j, a_(j+1)), a_j = max(j + 1, round((P + 1)^(j / SSSS_TAPS)))
@@ -93,6 +94,9 @@ uniform float uTissueTau;               // sin of the largest angle above the ta
 uniform float uSurfaceMeasure;          // 1: weigh taps by their surface per pixel (below); 0: off
 
 const float SSSS_REACH_SIGMAS = 3.7169;  // sqrt(2 ln 1000): a Gaussian at 1e-3 of its peak
+const float SSSS_LOG2_E = 1.4426950409;  // exp(x) = exp2(x log2(e))
+// The narrow Gaussians 0..SSSS_NARROW-1, taken only out to their own reach (ssss_blur's two tiers)
+#define SSSS_NARROW (MAX_GAUSSIANS / 2)
 // SSSS_GRAIN_FILTER (0/1), compiled in: the grain filter (above)
 const float SSSS_FILTER_SIGMA_PX = 3.0;      // a Gaussian this wide (px) is blurred less, then filtered
 const float SSSS_FILTER_VARIANCE_PX2 = 0.5;  // the binomial [1 2 1] / 4's variance, px^2
@@ -100,8 +104,10 @@ const float SSSS_FILTER_VARIANCE_PX2 = 0.5;  // the binomial [1 2 1] / 4's varia
 struct SsssKernel {
     float ppm;                           // pixels per mm at this pixel's depth
     int last_px;                         // P: the last pixel of each side with weight
-    float inv_2var_px[MAX_GAUSSIANS];    // 1 / (2 (sigma_k^2 + 1/12)), 1/px^2: a pixel's share (above)
-    float inv_2var[MAX_GAUSSIANS];       // 1 / (2 sigma_k^2), 1/px^2: the depth factor
+    // exp2 arguments, log2(e) folded in (a tap's weight is one exp2 per Gaussian, ssss_blur):
+    float x2_coef[MAX_GAUSSIANS];        // -log2(e) / (2 (sigma_k^2 + 1/12)), 1/px^2: a pixel's share (above)
+    float dz2_coef[MAX_GAUSSIANS];       // -log2(e) / (2 sigma_k^2), 1/px^2: the depth factor
+    int narrow_reach_px;                 // the last pixel of the narrow Gaussians' reach (ssss_blur)
     float jitter;                        // [0, 1): this pixel's draw in its cells
     bool wide[MAX_GAUSSIANS];            // blurred with the filter's variance taken off (grain filter)
 };
@@ -127,16 +133,21 @@ SsssKernel ssss_kernel(float depth_mm, ivec2 p, int pass_index, int size_px) {
     SsssKernel K;
     K.ppm = uPixelsPerMmAtUnitDepth / depth_mm;
     float widest = 0.0;
+    float narrow_widest = 0.0;  // the narrow Gaussians' widest pixel share's sigma, px
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         float sigma_px = max(sqrt(uVariances[k]) * K.ppm, 1e-4);
+        // a pixel's share reaches further than the Gaussian (sigma^2 + 1/12 px^2, above)
+        float share_sigma = sqrt(sigma_px * sigma_px + 1.0 / 12.0);
+        if (k < SSSS_NARROW) narrow_widest = max(narrow_widest, share_sigma);
         K.wide[k] = ssss_filtered(sigma_px);
         float var_px = sigma_px * sigma_px - (K.wide[k] ? SSSS_FILTER_VARIANCE_PX2 : 0.0);
-        K.inv_2var_px[k] = 0.5 / (var_px + 1.0 / 12.0);
-        K.inv_2var[k] = 0.5 / var_px;
+        K.x2_coef[k] = -SSSS_LOG2_E * 0.5 / (var_px + 1.0 / 12.0);
+        K.dz2_coef[k] = -SSSS_LOG2_E * 0.5 / var_px;
         if (k < uGaussianCount) widest = max(widest, sigma_px);
     }
     // at most the frame's size (taps beyond the frame are skipped in any case)
     K.last_px = int(min(ceil(SSSS_REACH_SIGMAS * widest), float(size_px)));
+    K.narrow_reach_px = min(int(ceil(SSSS_REACH_SIGMAS * narrow_widest)), K.last_px);
     K.jitter = ssss_hash01(p, pass_index);
     return K;
 }
@@ -159,7 +170,7 @@ float ssss_tap_dz_px(SsssKernel K, float depth_mm, float tap_depth_mm) {
 // View-space position (mm) of pixel p at view depth z_mm (a symmetric perspective frustum):
 // x_view = (p + 0.5 - size / 2) z / pixels-per-mm-at-unit-depth, likewise y; z_view = -z.
 vec3 ssss_view_position_mm(ivec2 p, ivec2 size, float z_mm) {
-    vec2 c = (vec2(p) + 0.5 - 0.5 * vec2(size)) * z_mm / uPixelsPerMmXY;
+    vec2 c = (vec2(p) + 0.5 - 0.5 * vec2(size)) * (z_mm * (1.0 / uPixelsPerMmXY));
     return vec3(c, -z_mm);
 }
 
@@ -178,6 +189,9 @@ vec3 ssss_view_position_mm(ivec2 p, ivec2 size, float z_mm) {
 // to be a gain; the eye close-up's mean error against the tissue-path reference 0.0213 -> 0.0205.
 const float SSSS_MAX_MEASURE = 5.0;
 float ssss_measure(vec3 n) {
+#if !SSSS_SURFACE_MEASURE
+    return 1.0;
+#endif
     if (uFollowSurface == 0.0 || uSurfaceMeasure == 0.0) return 1.0;
     float na = dot(n.xy, vec2(uDirection));
     return min(sqrt(na * na + n.z * n.z) / max(abs(n.z), 1e-6), SSSS_MAX_MEASURE);
@@ -213,22 +227,32 @@ float ssss_tissue_path(vec3 pp, vec3 np, ivec2 q, vec3 nq, float zq, ivec2 size,
     vec3 n_q = nq;
     float h_q = dot(d, n_p);
     float h_p = -dot(d, n_q);
-    float tol = uTissueTau * sqrt(c2);
-    if (h_q <= tol && h_p <= tol) return 0.0;
+    // Every test below compares squares (x |x| keeps the sign): no square root, one division
+    // (llvmpipe runs every branch's arithmetic for all pixels, so the early returns save nothing).
+    // h <= tau c  <=>  h |h| <= tau^2 c^2
+    float tol2 = uTissueTau * uTissueTau * c2;
+    float sq = h_q * abs(h_q);
+    float sp = h_p * abs(h_p);
+    if (sq <= tol2 && sp <= tol2) return 0.0;
     share = 0.0;
-    if (h_q < -tol || h_p < -tol) return 0.0;
-    vec3 axis = cross(n_p, n_q);
-    float sin_phi = length(axis);
-    if (sin_phi < 1e-3) return 0.0;  // facing sheets: s > 250 c, nothing passes
-    float t = dot(d, axis) / sin_phi;
-    float a = max(h_p, 0.0) / sin_phi;  // p's distance from the fold line, mm
-    float b = max(h_q, 0.0) / sin_phi;  // q's
+    if (sq < -tol2 || sp < -tol2) return 0.0;
+    vec3 axis = cross(n_p, n_q);  // |axis| = sin phi
+    float sin2_phi = dot(axis, axis);
+    if (sin2_phi < 1e-6) return 0.0;  // facing sheets (sin phi < 1e-3): s > 250 c, nothing passes
+    float inv_sin2 = 1.0 / sin2_phi;
+    float dt = dot(d, axis);
+    float t2 = dt * dt * inv_sin2;  // t^2, t = d.axis / sin phi
+    float hp = max(h_p, 0.0);       // a = hp / sin phi: p's distance from the fold line, mm
+    float hq = max(h_q, 0.0);       // b = hq / sin phi: q's
     float cos_phi = dot(n_p, n_q);
-    float across = sqrt(max(c2 - t * t, 0.0));
-    float wedge = sqrt(a * a + b * b + 2.0 * a * b * cos_phi);
-    if (abs(wedge - across) > uTissueTau * across) return 0.0;
+    float across2 = max(c2 - t2, 0.0);
+    float wedge2 = (hp * hp + hq * hq + 2.0 * hp * hq * cos_phi) * inv_sin2;
+    // |wedge - across| > tau across  <=>  wedge > (1 + tau) across or wedge < (1 - tau) across (tau <= 1)
+    float hi = 1.0 + uTissueTau;
+    float lo = 1.0 - uTissueTau;
+    if (wedge2 > hi * hi * across2 || wedge2 < lo * lo * across2) return 0.0;
     share = clamp(2.0 * cos_phi, 0.0, 1.0);
-    return max((a + b) * (a + b) + t * t - c2, 0.0);
+    return max((hp + hq) * (hp + hq) * inv_sin2 + t2 - c2, 0.0);  // (a + b)^2 + t^2 - c^2
 }
 
 // True where the tissue joins the pixel to q by the chord or a bend all its light takes, at most
@@ -254,8 +278,10 @@ vec3 ssss_tap_normal(ivec2 q) {
 // vertical pass: the horizontal pass's packed texels, ssss/packing.glsl, 3 fetches for K = 6
 // where the separate images took K + 2) and the rejected share of the horizontal pass there (0 in
 // the horizontal pass).
-void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out vec3 light[MAX_GAUSSIANS],
-                out float rejected);
+// first_k (a constant): the first Gaussian whose light is read (the vertical pass fetches only the
+// texels that hold Gaussians first_k..K-1, ssss/packing.glsl); light[k < first_k] is left undefined.
+void ssss_fetch(ivec2 q, bool centre, const int first_k, out float depth_mm, out vec3 normal,
+                out vec3 light[MAX_GAUSSIANS], out float rejected);
 
 // The 1-D blur along uDirection at pixel p, per Gaussian: out[k] = sum_taps w E_k / sum_taps w
 // (pass_index 0 horizontal, 1 vertical), for a pixel on the skin (depth > 0); wide[k]: Gaussian k
@@ -272,6 +298,91 @@ void ssss_fetch(ivec2 q, bool centre, out float depth_mm, out vec3 normal, out v
 // pass at the taps: 1 - (1 - this pass's) (1 - the horizontal pass's). Where it is large the
 // blurred light jumps with the pixel's own light from one pixel to the next (beside a crease the
 // hidden side continues with each pixel's own light), and the grain filter backs off.
+// The sums of a blur (ssss_blur): per Gaussian the weighted light of the taps on the same surface,
+// their weight, and the weight whose light is the pixel's own (rejected taps; its own pixel's 1 is
+// added at the end); r_sum: the widest Gaussian's weights times the horizontal pass's rejected share.
+struct SsssSums {
+    vec3 sum[MAX_GAUSSIANS];
+    float wsum[MAX_GAUSSIANS];
+    float own[MAX_GAUSSIANS];
+    float r_sum;
+};
+
+// One tap at signed offset i pixels along uDirection, standing for a cell of 2^log2_cell pixels,
+// for Gaussians first_k..K-1 (first_k a constant: the loop unrolls over those alone).
+void ssss_tap(const int first_k, ivec2 p, int i, float log2_cell, SsssKernel K, float cz, vec3 pp, vec3 np,
+              ivec2 size, inout SsssSums S) {
+    ivec2 q = p + uDirection * i;
+    if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) return;
+    float tz;
+    vec3 nq;
+    vec3 light[MAX_GAUSSIANS];
+    float tap_rejected;
+    ssss_fetch(q, false, first_k, tz, nq, light, tap_rejected);
+    float dz_px = ssss_tap_dz_px(K, cz, tz);
+    float share = 0.0;  // of the light that reaches q's surface through the tissue
+    float extra = dz_px < 0.0 ? 0.0 : ssss_tissue_path(pp, np, q, nq, tz, size, share);
+    // share: 0 on another surface (a rejected tap, dz_px < 0 or no tissue path), in (0, 1] across
+    // a bend, 1 elsewhere; its weight's rest (1 - share) brings the pixel's own light (a 60-90
+    // degree fold's far side is another tissue)
+    bool other = share <= 0.0;
+    float x2 = float(i * i);
+    // the kernel at the tissue path s: x^2 + dz^2 is the chord c^2, the path round a bend
+    // adds s^2 - c^2 (0 elsewhere); a tap on another surface keeps its kernel weight (dz 0)
+    float dz2 = other ? 0.0 : dz_px * dz_px + extra * K.ppm * K.ppm;
+    float reach = share * ssss_measure(nq);  // the weight's part that brings q's light
+    float stay = 1.0 - share;                // the part that brings the pixel's own
+    // branch-free: llvmpipe runs both sides of a branch for every pixel and blends each
+    // variable they write (round 24, ssss24)
+    for (int k = first_k; k < MAX_GAUSSIANS; ++k) {
+        // cell * exp(-(x^2 / 2 (sigma^2 + 1/12) + dz^2 / 2 sigma^2))
+        float w = exp2(x2 * K.x2_coef[k] + (dz2 * K.dz2_coef[k] + log2_cell));
+        S.own[k] += w * stay;
+        float wq = w * reach;
+        S.sum[k] += wq * light[k];
+        S.wsum[k] += wq;
+#if SSSS_GRAIN_FILTER
+        if (k == MAX_GAUSSIANS - 1) S.r_sum += wq * tap_rejected;
+#endif
+    }
+}
+
+// Cell j (its first pixel start, n pixels) of both sides, for Gaussians first_k..K-1: this pixel's
+// draw in it is a golden-ratio sequence from its jitter (decorrelates the cells); the other side
+// takes the opposite draw.
+void ssss_cell(const int first_k, int j, int start, int n, ivec2 p, SsssKernel K, float cz, vec3 pp, vec3 np,
+               ivec2 size, inout SsssSums S) {
+    float cell = float(n);
+    float log2_cell = log2(cell);  // its tap stands for n pixels: n times the weight
+    float u = fract(K.jitter + 0.61803399 * float(j));
+    ssss_tap(first_k, p, -(start + min(int(u * cell), n - 1)), log2_cell, K, cz, pp, np, size, S);
+    ssss_tap(first_k, p, start + min(int((1.0 - u) * cell), n - 1), log2_cell, K, cz, pp, np, size, S);
+}
+
+// The 1-D blur along uDirection at pixel p, per Gaussian: out[k] = sum_taps w E_k / sum_taps w
+// (pass_index 0 horizontal, 1 vertical), for a pixel on the skin (depth > 0); wide[k]: Gaussian k
+// was blurred for the grain filter (its variance less SSSS_FILTER_VARIANCE_PX2).
+// Written so that a GPU compiler keeps everything in registers: every loop over the Gaussians has
+// a constant trip count and no loop inside, so it unrolls and each array is indexed by constants.
+// Per tap: the texel(s) with q's depth, normal and light (ssss_fetch) and one exp2 per Gaussian:
+// exp(-(x^2 / 2 (sigma^2 + 1/12) + dz^2 / 2 sigma^2)), the pixel's share times the depth factor.
+// A tap on another surface has dz taken as 0 (its kernel weight) and brings the pixel's own light.
+//
+// Two tiers (round 24, ssss24): the cells are walked outwards in two loops, the first with every
+// Gaussian while a cell starts within the narrow Gaussians' reach (0..SSSS_NARROW-1,
+// ceil(3.717 sqrt(sigma^2 + 1/12)) px of the widest of them: its pixel share at 1e-3 of its peak),
+// the second with the wide ones (SSSS_NARROW..K-1) out to the last pixel: d'Eon's profile at
+// front-key 768 px (P = 50 px, the narrow reach 8 px) 57 of 72 Gaussian-taps, and the vertical
+// pass's outer taps fetch only the texels of the wide Gaussians (2 of 3). The narrow Gaussians
+// lose the pixels beyond 3.717 of their widths: < 2e-4 of their weight (erfc(3.717 / sqrt 2)),
+// renormalised over the taps kept as before. Three tiers (K/3, 2K/3) measured 4 % slower, one per
+// Gaussian 17 % slower (each loop's own overhead on llvmpipe) and slower to compile.
+//
+// rejected: the share of the widest Gaussian's weight that fell on another surface (the pixel's own
+// light stood in for it), in this pass and, averaged with the same weights, in the horizontal
+// pass at the taps: 1 - (1 - this pass's) (1 - the horizontal pass's). Where it is large the
+// blurred light jumps with the pixel's own light from one pixel to the next (beside a crease the
+// hidden side continues with each pixel's own light), and the grain filter backs off.
 void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool wide[MAX_GAUSSIANS],
                out float rejected) {
     ivec2 size = textureSize(uIrradiance, 0);
@@ -279,86 +390,45 @@ void ssss_blur(ivec2 p, int pass_index, out vec3 result[MAX_GAUSSIANS], out bool
     vec3 np;
     vec3 centre[MAX_GAUSSIANS];  // the pixel's own light: what a tap on another surface brings
     float centre_rejected;
-    ssss_fetch(p, true, cz, np, centre, centre_rejected);
+    ssss_fetch(p, true, 0, cz, np, centre, centre_rejected);
     SsssKernel K = ssss_kernel(cz, p, pass_index, max(size.x, size.y));
     // the widest Gaussian (its weight's rejected share): the last, the profile's variances increase
     // (dermis.profiles.SumOfGaussians) and ssss compiles for exactly its K: a constant index
     const int kw = MAX_GAUSSIANS - 1;
     rejected = 0.0;
-    float w_rejected = 0.0;  // its weight on rejected taps
-    float r_sum = 0.0;       // sum of its weights times the horizontal pass's rejected share
     vec3 pp = ssss_view_position_mm(p, size, cz);
-    vec3 sum[MAX_GAUSSIANS];
-    float wsum[MAX_GAUSSIANS];
-    float own[MAX_GAUSSIANS];    // weight carried by the pixel's own light (its own pixel and rejected taps)
+    SsssSums S;
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-        sum[k] = vec3(0.0);
-        wsum[k] = 0.0;
-        own[k] = 1.0;  // exp(0): the pixel itself
+        S.sum[k] = vec3(0.0);
+        S.wsum[k] = 0.0;
+        S.own[k] = 0.0;
     }
+    S.r_sum = 0.0;
     float log2_end = log2(float(K.last_px + 1));
     int next = 1;  // the next cell's first pixel
-    for (int j = 0; j < SSSS_TAPS; ++j) {
+    int j = 0;
+#if SSSS_NARROW > 0
+    for (; j < SSSS_TAPS; ++j) {
+        int start = next;
+        if (start > K.narrow_reach_px) break;
+        next = min(ssss_cell_start(j + 1, K.last_px, log2_end), K.last_px + 1);
+        ssss_cell(0, j, start, next - start, p, K, cz, pp, np, size, S);
+    }
+#endif
+    for (; j < SSSS_TAPS; ++j) {
         int start = next;
         if (start > K.last_px) break;
         next = min(ssss_cell_start(j + 1, K.last_px, log2_end), K.last_px + 1);
-        int n = next - start;  // the cell's pixels
-        float cell = float(n);
-        // this pixel's draw in cell j: a golden-ratio sequence from its jitter (decorrelates the
-        // cells); the other side takes the opposite draw
-        float u = fract(K.jitter + 0.61803399 * float(j));
-        for (int side = -1; side <= 1; side += 2) {
-            float v = side < 0 ? u : 1.0 - u;
-            int i = start + min(int(v * cell), n - 1);
-            ivec2 q = p + uDirection * (side * i);
-            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
-            float tz;
-            vec3 nq;
-            vec3 light[MAX_GAUSSIANS];
-            float tap_rejected;
-            ssss_fetch(q, false, tz, nq, light, tap_rejected);
-            float dz_px = ssss_tap_dz_px(K, cz, tz);
-            float share = 0.0;  // of the light that reaches q's surface through the tissue
-            float extra = dz_px < 0.0 ? 0.0 : ssss_tissue_path(pp, np, q, nq, tz, size, share);
-            bool other = share <= 0.0;  // another surface
-            float x2 = float(i * i);
-            // the kernel at the tissue path s: x^2 + dz^2 is the chord c^2, the path round a bend
-            // adds s^2 - c^2 (0 elsewhere)
-            float dz2 = other ? 0.0 : dz_px * dz_px + extra * K.ppm * K.ppm;
-            float measure = ssss_measure(nq);
-            for (int k = 0; k < MAX_GAUSSIANS; ++k) {
-                float w = cell * exp(-(x2 * K.inv_2var_px[k] + dz2 * K.inv_2var[k]));
-                if (other) {
-                    own[k] += w;
-#if SSSS_GRAIN_FILTER
-                    if (k == kw) w_rejected += w;
-#endif
-                } else {
-                    // a bend's share of the weight reaches q; the rest (a 60-90 degree fold, whose
-                    // far side is another tissue) brings the pixel's own light, as a rejected tap
-                    float fold = w * (1.0 - share);
-                    own[k] += fold;
-#if SSSS_GRAIN_FILTER
-                    if (k == kw) w_rejected += fold;
-#endif
-                    w *= share * measure;
-                    sum[k] += w * light[k];
-                    wsum[k] += w;
-#if SSSS_GRAIN_FILTER
-                    if (k == kw) r_sum += w * tap_rejected;
-#endif
-                }
-            }
-        }
+        ssss_cell(SSSS_NARROW, j, start, next - start, p, K, cz, pp, np, size, S);
     }
     float own_measure = ssss_measure(np);
     for (int k = 0; k < MAX_GAUSSIANS; ++k) {
         wide[k] = K.wide[k];
-        float w = own[k] * own_measure;
-        result[k] = (sum[k] + w * centre[k]) / max(wsum[k] + w, 1e-20);
+        float w = (1.0 + S.own[k]) * own_measure;  // exp(0): the pixel itself, and the rejected taps
+        result[k] = (S.sum[k] + w * centre[k]) / max(S.wsum[k] + w, 1e-20);
         if (k == kw) {
-            float total = max(wsum[k] + w, 1e-20);
-            rejected = 1.0 - (1.0 - w_rejected * own_measure / total) * (1.0 - (r_sum + w * centre_rejected) / total);
+            float total = max(S.wsum[k] + w, 1e-20);
+            rejected = 1.0 - (1.0 - S.own[k] * own_measure / total) * (1.0 - (S.r_sum + w * centre_rejected) / total);
         }
     }
 }
