@@ -157,7 +157,7 @@ class ScreenSpaceSSS(Technique):
     def _profile_programs(self, k: int):
         """(irradiance, horizontal, vertical, irradiance with the bounce, grain filter or None)
         programs for a K-Gaussian profile, the irradiance ones as LightCountPrograms (called with the
-        light count). Compiled with MAX_GAUSSIANS = K, SSSS_TAPS = the taps option (the loops over
+        light count and lights). Compiled with MAX_GAUSSIANS = K, SSSS_TAPS = the taps option (the loops over
         Gaussians and taps unroll) and SSSS_GRAIN_FILTER = the grain_filter option."""
         if k > MAX_GAUSSIANS:
             raise DermisError(f"profile has {k} Gaussians; ssss supports at most {MAX_GAUSSIANS}")
@@ -165,12 +165,14 @@ class ScreenSpaceSSS(Technique):
         key = (k, self.options.taps, grain)
         if key not in self._programs:
             ctx, defines = self.ctx, {"MAX_GAUSSIANS": k, "SSSS_TAPS": self.options.taps, "SSSS_GRAIN_FILTER": int(grain)}
-            # the irradiance pass per light count, its lights unrolled (LightCountPrograms)
-            progs = (LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines),
+            # the irradiance pass per light count, its lights unrolled (LightCountPrograms), and per light
+            # signature (the kinds and shadow kernels as constants: the same floats; round 24, sig24)
+            progs = (LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines, signature=True),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_horizontal.frag", defines),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines),
                      # pass 1 with the shared one bounce added to its irradiance (common/interreflection.glsl)
-                     LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", {**defines, INTERREFLECTION_DEFINE: 1}),
+                     LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", {**defines, INTERREFLECTION_DEFINE: 1},
+                                        signature=True),
                      program(ctx, "common/fullscreen.vert", "ssss/grain_filter.frag", defines) if grain else None)
             for p in (progs[1], progs[2], progs[4]):
                 if p is not None:
@@ -252,7 +254,7 @@ class ScreenSpaceSSS(Technique):
         _, p_horizontal, p_vertical, _, p_grain = self._profile_programs(profile.k)
         bounce = prepare_interreflection(frame)  # the shared one bounce, rebuilt only on a lighting change
         p_irradiance = (self.p_irradiance if self.p_irradiance is not None
-                        else self.light_programs(scene, bounce)(frame.lights.count))
+                        else self.light_programs(scene, bounce)(frame.lights.count, frame.lights.lights))
         self._ensure_targets(tuple(frame.size), profile.k, p_grain is not None)
         t = self.tex
         with frame.timer("ssss_irradiance"):
