@@ -184,7 +184,8 @@ def test_preintegrated_programs_follow_the_profiles_gaussian_count(gl_ctx):
 # kernels read from the uniforms at run time (its sources without SKIN_LIGHT_KINDS / SKIN_SHADOW_FILTERS):
 # the same arithmetic on each light's path, so the image and rho E must be equal BIT FOR BIT on the scene
 # that takes every kind and kernel (a point light's box, a spot's one tap, the key's parabola); a kernel
-# compiled wrong (the box as a parabola, the one tap as a box) differs by > 0.1 %.
+# compiled wrong (the box as a parabola, the one tap as a box) differs. Fails with light_signature's
+# kernels swapped (box <-> parabola) or every kind taken as directional (both checked, round 24).
 def _without_signature(gl_ctx, prog, signature=None):
     """``prog`` compiled from its own sources with the kinds and kernels left to run time, or with the
     defines ``signature`` (signature_defines' names) in their place."""
@@ -202,7 +203,17 @@ def _targets(r, technique):
     return {"image": img, "rho_e": np.frombuffer(rho_e.read(), np.float32).astype(np.float64)}
 
 
-@pytest.mark.parametrize("technique", TECHNIQUES)
+def _swap(r, t, technique, prog):
+    """Draw ``prog`` as the technique's light loop (tsd: its pixel detail's program); returns the undo."""
+    if technique != "tsd":
+        t.override_light_program(prog)
+        return lambda: t.override_light_program(None)
+    key, = [k for k in t._programs if k[0] == "detail"]
+    own, t._programs[key] = t._programs[key], prog
+    return lambda: t._programs.__setitem__(key, own)
+
+
+@pytest.mark.parametrize("technique", ("tsd",) + TECHNIQUES)
 def test_light_signature_passes_equal_the_runtime_kernels_bit_for_bit(gl_ctx, technique):
     from test_tsd_light_unroll import _signature_scene
 
@@ -213,8 +224,11 @@ def test_light_signature_passes_equal_the_runtime_kernels_bit_for_bit(gl_ctx, te
     wrong = {**signature_defines(sig), "SKIN_SHADOW_FILTERS": "1, 2, 2"}  # box -> parabola, one tap -> box
     with Renderer(sc, (W, H), ctx=gl_ctx, **KW) as r:
         t = r.technique(technique)
-        lcp = t.light_programs(sc, interreflection_on(sc))
-        own_prog = lcp(len(sc.lights), sc.lights)
+        if technique == "tsd":  # its pixel detail (tsd/final.frag PIXEL_DETAIL), compiled on the first frame
+            r.render(technique)
+            own_prog, = [p for k, p in t._programs.items() if k[0] == "detail"]
+        else:
+            own_prog = t.light_programs(sc, interreflection_on(sc))(len(sc.lights), sc.lights)
         assert set(SIGNATURE_DEFINES) <= set(own_prog.extra["sources"][2])
         bounce = r.interreflection.programs
         bounce_prog = bounce(len(sc.lights), sc.lights)
@@ -223,12 +237,12 @@ def test_light_signature_passes_equal_the_runtime_kernels_bit_for_bit(gl_ctx, te
         outs = []
         for defines in (None, wrong):
             prog, bprog = _without_signature(gl_ctx, own_prog, defines), _without_signature(gl_ctx, bounce_prog, defines)
-            t.override_light_program(prog)
+            undo = _swap(r, t, technique, prog)
             r.interreflection.programs = lambda n, lights=None, p=bprog: p
             try:
                 outs.append(_targets(r, technique))
             finally:
-                t.override_light_program(None)
+                undo()
                 r.interreflection.programs = bounce
                 prog.release()
                 bprog.release()
