@@ -42,7 +42,7 @@ def main(argv=None):
         r.render("tsd")
         r.render("lambert")
         tsd, lam = r.technique("tsd"), r.technique("lambert")
-        progs = {"this tree": (tsd._irradiance_programs(len(sc.lights)), lam.programs(len(sc.lights)))}
+        progs = {"this tree": (tsd._irradiance_programs(len(sc.lights)), lam.programs(len(sc.lights), sc.lights))}
         for rev in a.against:
             dd = {**d, "SKIN_SHARP_SHADOWS": STORED_SHARP_SHADOWS} if len(sc.lights) <= STORED_SHARP_SHADOWS else d
             progs[f"@{rev}"] = (

@@ -156,7 +156,7 @@ def main(argv=None):
                 tex, fbo = levels[0]
                 draw_light_pass(ctx, sb._vaos, prog, fbo, tex.size)  # the renderer's own
             return fn
-        fns["rho E, this tree: light pass (full-screen, per lighting change)"] = light_pass(sb.programs(n))
+        fns["rho E, this tree: light pass (full-screen, per lighting change)"] = light_pass(sb.programs(n, sc.lights))
 
         def inputs():
             sb.inputs.forget()

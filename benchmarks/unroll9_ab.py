@@ -45,9 +45,9 @@ def main(argv=None):
         for tech in a.techniques:
             r.render(tech)
             t = r.technique(tech)
-            mine = t.light_programs(sc, interreflection_on(sc))(n)
+            mine = t.light_programs(sc, interreflection_on(sc))(n, sc.lights)
             vertex, fragment, defines, _ = mine.extra["sources"]
-            old_defines = {k: v for k, v in defines.items() if k != LIGHT_COUNT_DEFINE}
+            old_defines = {k: v for k, v in defines.items() if k not in (LIGHT_COUNT_DEFINE, "SKIN_LIGHT_KINDS", "SKIN_SHADOW_FILTERS")}
             theirs = r.ctx.program(vertex_shader=load_shader_source(vertex, old_defines),
                                    fragment_shader=source_at(a.against, fragment, old_defines))
             progs = {"unrolled (this tree)": None, f"loop (@{a.against})": theirs}

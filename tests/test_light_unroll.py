@@ -28,11 +28,14 @@ REL = 1e-5
 TECHNIQUES = ("lambert", "ssss", "preintegrated")
 
 
-def _swapped(gl_ctx, lcp, n, count):
-    """``lcp``'s program for n lights compiled again without SKIN_LIGHT_COUNT (``count`` None: the
-    loop over uLightCount) or unrolled for ``count`` lights."""
-    vertex, fragment, defines, _ = lcp(n).extra["sources"]
-    defines = {k: v for k, v in defines.items() if k != LIGHT_COUNT_DEFINE}
+SIGNATURE_DEFINES = ("SKIN_LIGHT_KINDS", "SKIN_SHADOW_FILTERS")  # dermis.techniques.shared.signature_defines
+
+
+def _swapped(gl_ctx, lcp, lights, count):
+    """``lcp``'s program for ``lights`` compiled again without SKIN_LIGHT_COUNT and the light signature
+    (``count`` None: the loop over uLightCount) or unrolled for ``count`` lights."""
+    vertex, fragment, defines, _ = lcp(len(lights), lights).extra["sources"]
+    defines = {k: v for k, v in defines.items() if k not in (LIGHT_COUNT_DEFINE, *SIGNATURE_DEFINES)}
     if count is not None:
         defines[LIGHT_COUNT_DEFINE] = count
     return program(gl_ctx, vertex, fragment, defines)
@@ -46,10 +49,10 @@ def _render(sc, gl_ctx, technique, count=None, loop=False):
         t = r.technique(technique)
         prog = final = None
         if loop or count is not None:
-            prog = _swapped(gl_ctx, t.light_programs(sc, interreflection_on(sc)), len(sc.lights), count)
+            prog = _swapped(gl_ctx, t.light_programs(sc, interreflection_on(sc)), sc.lights, count)
             t.override_light_program(prog)
             if technique == "ssss":
-                final = t.p_final = _swapped(gl_ctx, t.p_finals, len(sc.lights), count)
+                final = t.p_final = _swapped(gl_ctx, t.p_finals, sc.lights, count)
         try:
             return r.render(technique).astype(np.float64)
         finally:
@@ -130,11 +133,12 @@ def test_pore_free_variant_is_unrolled_for_the_same_count(gl_ctx):
         frame = r.last_frame
         assert pores_invisible(frame)
         lcp = r.technique("preintegrated").programs
-        variants = {n: shading_program(frame, lcp(n)) for n in (3, 5)}
+        lights = {3: sc.lights, 5: _scene(4, 5)[0].lights}
+        variants = {n: shading_program(frame, lcp(n, lights[n])) for n in (3, 5)}
         for n, v in variants.items():
-            assert v is not lcp(n)
+            assert v is not lcp(n, lights[n])
             assert v.extra["sources"][2][LIGHT_COUNT_DEFINE] == n
-            assert {**lcp(n).extra["sources"][2], "DERMIS_PORES_INVISIBLE": None} == v.extra["sources"][2]
+            assert {**lcp(n, lights[n]).extra["sources"][2], "DERMIS_PORES_INVISIBLE": None} == v.extra["sources"][2]
 
 
 def test_preintegrated_programs_follow_the_profiles_gaussian_count(gl_ctx):
@@ -158,7 +162,7 @@ def test_preintegrated_programs_follow_the_profiles_gaussian_count(gl_ctx):
         for name, profile in (("three", three), ("six", six), ("three again", three)):
             sc.profile = profile
             live[name] = r.render("preintegrated").astype(np.float64)
-            vertex, fragment, defines, _ = t.light_programs(sc, interreflection_on(sc))(len(sc.lights)).extra["sources"]
+            vertex, fragment, defines, _ = t.light_programs(sc, interreflection_on(sc))(len(sc.lights), sc.lights).extra["sources"]
             assert defines[GAUSSIANS_DEFINE] == profile.k
             loop = program(gl_ctx, vertex, fragment, {k: v for k, v in defines.items() if k != GAUSSIANS_DEFINE})
             t.override_light_program(loop)
@@ -170,3 +174,83 @@ def test_preintegrated_programs_follow_the_profiles_gaussian_count(gl_ctx):
             assert _close(live[name], reference), (name, np.abs(live[name] - reference).max())
     assert np.abs(live["three"] - live["six"]).max() > 0.002 * live["six"].max()  # the count matters (0.7% here)
     np.testing.assert_array_equal(live["three again"], live["three"])
+
+
+# ---------------------------------------------------------------------- the light passes per light signature
+# Round 24 (sig24): the light loops above, the shared bounce's light pass (dermis.gl.interreflection, rho E
+# from tsd/irradiance.frag) and tsd's pixel detail (tsd/final.frag PIXEL_DETAIL) are compiled per light
+# signature as tsd's irradiance light pass is (shared.light_signature: each light's kind and shadow kernel
+# as constants; tests/test_tsd_light_unroll.py, irr24). The reference is the same program with the kinds and
+# kernels read from the uniforms at run time (its sources without SKIN_LIGHT_KINDS / SKIN_SHADOW_FILTERS):
+# the same arithmetic on each light's path, so the image and rho E must be equal BIT FOR BIT on the scene
+# that takes every kind and kernel (a point light's box, a spot's one tap, the key's parabola); a kernel
+# compiled wrong (the box as a parabola, the one tap as a box) differs. Fails with light_signature's
+# kernels swapped (box <-> parabola) or every kind taken as directional (both checked, round 24).
+def _without_signature(gl_ctx, prog, signature=None):
+    """``prog`` compiled from its own sources with the kinds and kernels left to run time, or with the
+    defines ``signature`` (signature_defines' names) in their place."""
+    vertex, fragment, defines, _ = prog.extra["sources"]
+    defines = {k: v for k, v in defines.items() if k not in SIGNATURE_DEFINES}
+    return program(gl_ctx, vertex, fragment, {**defines, **(signature or {})})
+
+
+def _targets(r, technique):
+    """The technique's image and the shared bounce's rho E (bytes), every pass drawn again."""
+    r.invalidate()
+    r.interreflection._exitant_key = None  # rho E drawn again (its key holds across invalidate)
+    img = r.render(technique)
+    rho_e = r.interreflection.exitant(r.last_frame)
+    return {"image": img, "rho_e": np.frombuffer(rho_e.read(), np.float32).astype(np.float64)}
+
+
+def _swap(r, t, technique, prog):
+    """Draw ``prog`` as the technique's light loop (tsd: its pixel detail's program); returns the undo."""
+    if technique != "tsd":
+        t.override_light_program(prog)
+        return lambda: t.override_light_program(None)
+    key, = [k for k in t._programs if k[0] == "detail"]
+    own, t._programs[key] = t._programs[key], prog
+    return lambda: t._programs.__setitem__(key, own)
+
+
+@pytest.mark.parametrize("technique", ("tsd",) + TECHNIQUES)
+def test_light_signature_passes_equal_the_runtime_kernels_bit_for_bit(gl_ctx, technique):
+    from test_tsd_light_unroll import _signature_scene
+
+    from dermis.techniques.shared import light_signature, signature_defines
+
+    sc = _signature_scene("three")
+    sig = light_signature(sc.lights)
+    wrong = {**signature_defines(sig), "SKIN_SHADOW_FILTERS": "1, 2, 2"}  # box -> parabola, one tap -> box
+    with Renderer(sc, (W, H), ctx=gl_ctx, **KW) as r:
+        t = r.technique(technique)
+        if technique == "tsd":  # its pixel detail (tsd/final.frag PIXEL_DETAIL), compiled on the first frame
+            r.render(technique)
+            own_prog, = [p for k, p in t._programs.items() if k[0] == "detail"]
+        else:
+            own_prog = t.light_programs(sc, interreflection_on(sc))(len(sc.lights), sc.lights)
+        assert set(SIGNATURE_DEFINES) <= set(own_prog.extra["sources"][2])
+        bounce = r.interreflection.programs
+        bounce_prog = bounce(len(sc.lights), sc.lights)
+        assert set(SIGNATURE_DEFINES) <= set(bounce_prog.extra["sources"][2])
+        own = _targets(r, technique)
+        outs = []
+        for defines in (None, wrong):
+            prog, bprog = _without_signature(gl_ctx, own_prog, defines), _without_signature(gl_ctx, bounce_prog, defines)
+            undo = _swap(r, t, technique, prog)
+            r.interreflection.programs = lambda n, lights=None, p=bprog: p
+            try:
+                outs.append(_targets(r, technique))
+            finally:
+                undo()
+                r.interreflection.programs = bounce
+                prog.release()
+                bprog.release()
+    ref, bad = outs
+    assert ref["image"].max() > 0.05 and ref["rho_e"].max() > 0.05
+    for k in own:
+        assert np.array_equal(own[k], ref[k]), (k, np.abs(own[k] - ref[k]).max())
+    # the wrong kernels are seen: in rho E by > 0.1 %, in the image at all (ssss's blurs spread the
+    # penumbrae's change to < 0.1 %: 0.0005 of 0.55)
+    assert np.abs(bad["rho_e"] - ref["rho_e"]).max() > 1e-3 * ref["rho_e"].max()
+    assert not np.array_equal(bad["image"], ref["image"])

@@ -469,9 +469,11 @@ class SharedBounce:
         self._gather = BounceGather(ctx)
         self._series = BounceSeries(ctx)
         self._out = self._gather.target  # the per-vertex bounce the techniques read (every order)
-        # per light count, its lights unrolled as tsd's own irradiance pass (shared.LightCountPrograms)
+        # per light count, its lights unrolled as tsd's own irradiance pass (shared.LightCountPrograms),
+        # and per light signature as tsd's light pass (the kinds and shadow kernels as constants: the
+        # same floats, less arithmetic on llvmpipe; benchmarks/results/round-24.md, irr24 and sig24)
         self.programs = LightCountPrograms(ctx, "common/fullscreen.vert", "tsd/irradiance.frag",
-                                           {"SKIN_BOUNCE_FROM_INPUTS": 1})
+                                           {"SKIN_BOUNCE_FROM_INPUTS": 1}, signature=True)
         self.inputs = IrradianceInputs(ctx)  # rho E's light-independent inputs (dermis.gl.irradiance_inputs)
         self._vaos = {}  # light-pass program -> its attribute-less vertex array
         self._chain = LevelChain(ctx)  # rho E from the raster's level to the gather's
@@ -508,7 +510,7 @@ class SharedBounce:
         # mix = 1: E albedo^1 = rho E
         self.inputs.draw(frame, tex.size, mix=1.0, pass_name="interreflection_inputs")
         with frame.timer("interreflection"):
-            prog = self.programs(frame.lights.count)
+            prog = self.programs(frame.lights.count, frame.lights.lights)
             bind_scene(frame, prog)
             self.inputs.bind(prog, Unit.FIRST_FREE)
             light_pass(self.ctx, self._vaos, prog, fbo, tex.size)

@@ -27,10 +27,13 @@ class Lambert(Technique):
 
     def __init__(self, renderer):
         super().__init__(renderer)
-        # one program per light count, its light loop unrolled (LightCountPrograms)
-        self.programs = LightCountPrograms(self.ctx, "common/mesh.vert", "lambert/lambert.frag").compile_for(renderer.scene)
+        # one program per light count, its light loop unrolled (LightCountPrograms), and per light
+        # signature (the kinds and shadow kernels as constants: the same floats; round 24, sig24)
+        self.programs = LightCountPrograms(self.ctx, "common/mesh.vert", "lambert/lambert.frag",
+                                           signature=True).compile_for(renderer.scene)
         # with the shared one bounce (the Renderer's, made with the first technique that reads it)
-        self._programs_bounce = LightCountPrograms(self.ctx, "common/mesh.vert", "lambert/lambert.frag", {INTERREFLECTION_DEFINE: 1}).compile_for(renderer.scene)
+        self._programs_bounce = LightCountPrograms(self.ctx, "common/mesh.vert", "lambert/lambert.frag", {INTERREFLECTION_DEFINE: 1},
+                                                   signature=True).compile_for(renderer.scene)
         renderer.interreflection  # the shared one bounce: made with the first technique that reads it
         self.prog = None  # when set (benchmarks and tests swap shaders in), drawn instead of the above
 
@@ -48,7 +51,7 @@ class Lambert(Technique):
         if output_mode != OutputMode.FULL:
             raise DermisError(f"technique '{self.name}' renders only the full image (output mode {OutputMode.FULL.name.lower()})")
         bounce = prepare_interreflection(frame)  # albedo / pi times the shared bounce E_b
-        prog = self.prog if self.prog is not None else self.light_programs(frame.scene, bounce)(frame.lights.count)
+        prog = self.prog if self.prog is not None else self.light_programs(frame.scene, bounce)(frame.lights.count, frame.lights.lights)
         with frame.timer("lambert"):
             frame.target.use()
             self.ctx.enable(moderngl.DEPTH_TEST)

@@ -490,7 +490,9 @@ class PreintegratedSkin(Technique):
                 defines[INTERREFLECTION_DEFINE] = 1
             if fold:
                 defines[FOLD_DEFINE] = 1
-            self._program_sets[key] = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag", defines)
+            # per light signature too (the kinds and shadow kernels as constants: the same floats; round 24, sig24)
+            self._program_sets[key] = LightCountPrograms(self.ctx, "common/mesh.vert", "preintegrated/skin.frag", defines,
+                                                         signature=True)
         return self._program_sets[key]
 
     def light_programs(self, scene, bounce: bool) -> LightCountPrograms:
@@ -512,7 +514,7 @@ class PreintegratedSkin(Technique):
         # vertex: no terminator for the ring to wrap, no shadow-map edge for the penumbra table, no
         # normal-map detail for the blurred normals; common/interreflection.glsl)
         bounce = prepare_interreflection(frame)
-        prog = self.prog if self.prog is not None else self.light_programs(frame.scene, bounce)(frame.lights.count)
+        prog = self.prog if self.prog is not None else self.light_programs(frame.scene, bounce)(frame.lights.count, frame.lights.lights)
         vao = self._vao(frame, prog)
         # the baked transfer of thin, curled parts (gathered only on a lighting change; before the target is bound)
         subsurface_transfer_uniforms(prog, frame, self.transfer, self.options.translucency, UNIT_TRANSFER)

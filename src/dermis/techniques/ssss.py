@@ -158,7 +158,7 @@ class ScreenSpaceSSS(Technique):
     def _profile_programs(self, k: int):
         """(irradiance, horizontal, vertical, irradiance with the bounce, grain filter or None)
         programs for a K-Gaussian profile, the irradiance ones as LightCountPrograms (called with the
-        light count). Compiled with MAX_GAUSSIANS = K, SSSS_TAPS = the taps option (the loops over
+        light count and lights). Compiled with MAX_GAUSSIANS = K, SSSS_TAPS = the taps option (the loops over
         Gaussians and taps unroll), SSSS_GRAIN_FILTER = the grain_filter option and SSSS_SURFACE_MEASURE =
         surface_measure (with follow_surface)."""
         if k > MAX_GAUSSIANS:
@@ -171,12 +171,14 @@ class ScreenSpaceSSS(Technique):
             # even when a uniform turns it off (ssss/kernel.glsl ssss_measure)
             ctx, defines = self.ctx, {"MAX_GAUSSIANS": k, "SSSS_TAPS": self.options.taps, "SSSS_GRAIN_FILTER": int(grain),
                                       "SSSS_SURFACE_MEASURE": int(measure)}
-            # the irradiance pass per light count, its lights unrolled (LightCountPrograms)
-            progs = (LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines),
+            # the irradiance pass per light count, its lights unrolled (LightCountPrograms), and per light
+            # signature (the kinds and shadow kernels as constants: the same floats; round 24, sig24)
+            progs = (LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", defines, signature=True),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_horizontal.frag", defines),
                      program(ctx, "common/fullscreen.vert", "ssss/blur_vertical.frag", defines),
                      # pass 1 with the shared one bounce added to its irradiance (common/interreflection.glsl)
-                     LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", {**defines, INTERREFLECTION_DEFINE: 1}),
+                     LightCountPrograms(ctx, "common/mesh.vert", "ssss/irradiance.frag", {**defines, INTERREFLECTION_DEFINE: 1},
+                                        signature=True),
                      program(ctx, "common/fullscreen.vert", "ssss/grain_filter.frag", defines) if grain else None)
             for p in (progs[1], progs[2], progs[4]):
                 if p is not None:
@@ -258,7 +260,7 @@ class ScreenSpaceSSS(Technique):
         _, p_horizontal, p_vertical, _, p_grain = self._profile_programs(profile.k)
         bounce = prepare_interreflection(frame)  # the shared one bounce, rebuilt only on a lighting change
         p_irradiance = (self.p_irradiance if self.p_irradiance is not None
-                        else self.light_programs(scene, bounce)(frame.lights.count))
+                        else self.light_programs(scene, bounce)(frame.lights.count, frame.lights.lights))
         self._ensure_targets(tuple(frame.size), profile.k, p_grain is not None)
         t = self.tex
         with frame.timer("ssss_irradiance"):

@@ -66,6 +66,7 @@ from dermis.gl.subsurface_transfer import SubsurfaceTransfer, source_index
 from dermis.gl.thickness import ThicknessTexture
 from dermis.techniques.base import Frame, Technique, TranslucentOptions, bind_scene, check_bool, check_int, draw_mesh, draw_surfaces
 from dermis.techniques.shared import (LIGHT_COUNT_DEFINE, MAX_GAUSSIANS, LightCountPrograms, OutputMode, Unit, bind_sampler, bind_sampler_array,
+                                      light_signature, signature_defines,
                                       TRANSLUCENCY_MIN_VARIANCE_MM2, directional_albedo_uniforms, set_profile_uniforms,
                                       surface_detail_uniforms, thin_slab_law, translucency_uniforms)
 
@@ -232,7 +233,7 @@ class TextureSpaceDiffusion(Technique):
         self._final_programs = LightCountPrograms(
             ctx, "common/mesh.vert", "tsd/final.frag",
             {**defines, "SHARP_SHADOW_READ": None, "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING}).compile_for(renderer.scene)
-        # ("per_sample", n) -> the final pass without the stored shadows; ("detail", stored, bounce, K, n) -> PIXEL_DETAIL's
+        # ("per_sample", n) -> the final pass without the stored shadows; ("detail", stored, bounce, K, n, light_signature) -> PIXEL_DETAIL's
         # (n: the light count, unrolled as _final_programs')
         self._programs = {}
         self._detail_bounce = None  # None: no pixel detail this frame; else whether I_0 holds the bounce
@@ -870,10 +871,14 @@ class TextureSpaceDiffusion(Technique):
         k = frame.scene.profile.k
         stored = stores_sharp_shadows(frame.lights.count) and k <= DETAIL_MAX_GAUSSIANS_STORED
         n = frame.lights.count
-        key = ("detail", stored, self._detail_bounce, k if stored else MAX_GAUSSIANS, n)
+        # per light signature too (the kinds and shadow kernels as constants, shared.light_signature): the
+        # detail's per-pixel PCF of I_0's soft shadows folds as the light pass's does, the same floats
+        # (benchmarks/results/round-24.md, sig24)
+        sig = light_signature(frame.lights.lights)
+        key = ("detail", stored, self._detail_bounce, k if stored else MAX_GAUSSIANS, n, sig)
         if key not in self._programs:
             defines = {"MAX_GAUSSIANS": key[3], "TRIANGLE_UV_BINDING": TRIANGLE_UV_BINDING, "PIXEL_DETAIL": 1,
-                       "CORNER_METRIC_BINDING": CORNER_METRIC_BINDING, LIGHT_COUNT_DEFINE: n}
+                       "CORNER_METRIC_BINDING": CORNER_METRIC_BINDING, LIGHT_COUNT_DEFINE: n, **signature_defines(sig)}
             if stored:
                 defines["SHARP_SHADOW_READ"] = None
             if self._detail_bounce:
