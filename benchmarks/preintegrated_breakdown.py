@@ -22,7 +22,7 @@ import dermis
 from dermis.bench import HEAD_TOML
 from dermis.gl.shaders import load_shader_source
 from dermis.renderer import Renderer
-from dermis.techniques.shared import INTERREFLECTION_DEFINE, LIGHT_COUNT_DEFINE
+from dermis.techniques.shared import INTERREFLECTION_DEFINE, LIGHT_COUNT_DEFINE, light_signature, signature_defines
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from pass_breakdown import source_at, timed_all  # noqa: E402
@@ -89,7 +89,9 @@ def main(argv=None):
     with Renderer(sc, (a.size, a.size), irradiance_size=a.irradiance_size) as r:
         r.render("preintegrated")
         t, frame, ctx = r.technique("preintegrated"), r.last_frame, r.ctx
-        d = {**t.light_programs(sc, True).defines, LIGHT_COUNT_DEFINE: len(sc.lights), INTERREFLECTION_DEFINE: 1}
+        # as shipped: per light count and light signature (round 24, sig24)
+        d = {**t.light_programs(sc, True).defines, LIGHT_COUNT_DEFINE: len(sc.lights), INTERREFLECTION_DEFINE: 1,
+             **signature_defines(light_signature(sc.lights))}
         vs = load_shader_source("common/mesh.vert", d)
         v = variants(load_shader_source("preintegrated/skin.frag", d))
         if a.only:

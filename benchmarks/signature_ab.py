@@ -15,8 +15,8 @@ import dermis
 from dermis.bench import HEAD_TOML
 from dermis.gl.shaders import program
 from dermis.renderer import Renderer
+from dermis.techniques.shared import SIGNATURE_DEFINES
 
-SIGNATURE_DEFINES = ("SKIN_LIGHT_KINDS", "SKIN_SHADOW_FILTERS")
 PASS = {"lambert": "lambert", "ssss": "ssss_irradiance", "preintegrated": "preintegrated", "tsd": "tsd_final"}
 
 

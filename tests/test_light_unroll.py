@@ -18,7 +18,7 @@ import pytest
 
 from dermis.gl.shaders import program
 from dermis.renderer import Renderer
-from dermis.techniques.shared import LIGHT_COUNT_DEFINE, interreflection_on
+from dermis.techniques.shared import LIGHT_COUNT_DEFINE, SIGNATURE_DEFINES, interreflection_on
 
 from test_shadow_edge_rim import H, W
 from test_tsd_sharp_shadow import _scene
@@ -26,9 +26,6 @@ from test_tsd_sharp_shadow import _scene
 KW = dict(samples=0, irradiance_size=256, shadow_size=1024)
 REL = 1e-5
 TECHNIQUES = ("lambert", "ssss", "preintegrated")
-
-
-SIGNATURE_DEFINES = ("SKIN_LIGHT_KINDS", "SKIN_SHADOW_FILTERS")  # dermis.techniques.shared.signature_defines
 
 
 def _swapped(gl_ctx, lcp, lights, count):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from dermis.gl.shadows import PCF_DISC_SCALE, PCF_FIT_INSET, PCF_GRID  # the disc: rounds 1-5's 16 Poisson taps
 from dermis.renderer import Renderer
 from dermis.scene.builtin import box_over_plane, merge, plane_xy
 from dermis.scene.loaders import finish_mesh
@@ -61,7 +62,6 @@ def test_lit_plane_at_a_grazing_light_has_no_self_shadow(gl_ctx, azimuth_deg):
     assert rel.max() < 0.005, (rel.max(), (rel > 0.005).mean())  # measured 0.0004
 
 
-PCF_DISC_SCALE = 1.307  # common/shadow.glsl: the disc of rounds 1-5's 16 Poisson taps (sqrt(2 mean |p|^2))
 
 
 def _disc_step_profile(p, c0, radius, n=400):
@@ -145,14 +145,13 @@ def _pcf_weight_cdf(x, a, box):
     return x if box else x - x ** 3 / (3.0 * a * a)
 
 
-PCF_GRID = 3  # shadow.glsl: taps per axis
 
 
 def _pcf_kernel(R):
     """shadow.glsl's choice for a softness of R texels: (half-width in cells, box, stride in texels)."""
     Rd = PCF_DISC_SCALE * R
     a_par, a_box = np.sqrt(5.0 * (0.25 * Rd * Rd + 1.0 / 12.0)), 0.5 * np.sqrt(3.0 * Rd * Rd + 1.0)
-    fit = PCF_GRID - 0.51
+    fit = PCF_GRID - PCF_FIT_INSET
     box = a_par >= fit
     a = a_box if box else a_par
     stride = max(a / fit, 1.0)
@@ -238,3 +237,18 @@ def test_pcf_penumbra_at_any_edge_angle_matches_the_disc(R, bound, angle_deg):
         p = c * n + x * n + side
         errs.append(abs(_pcf(p, R, lit) - _disc_filter_2d(p, PCF_DISC_SCALE * R, lit)))
     assert max(errs) < bound, max(errs)
+
+
+def test_python_pcf_constants_are_the_shaders():
+    """dermis.gl.shadows.pcf_filter picks each light's kernel before the draw (the light passes are
+    compiled for it, round 24); it must use common/shadow.glsl's own disc scale, grid and fit, or a
+    light compiled as PARABOLA would be filtered where the shader itself picks BOX (read from the
+    shader's text: a change to either side fails here)."""
+    import re
+
+    from dermis.gl.shaders import load_shader_source
+
+    src = load_shader_source("common/shadow.glsl", {})
+    assert float(re.search(r"const float PCF_DISC_SCALE = ([0-9.]+);", src).group(1)) == PCF_DISC_SCALE
+    assert int(re.search(r"const int PCF_GRID = ([0-9]+);", src).group(1)) == PCF_GRID
+    assert float(re.search(r"const float fit = float\(PCF_GRID\) - ([0-9.]+);", src).group(1)) == PCF_FIT_INSET

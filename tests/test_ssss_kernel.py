@@ -187,7 +187,7 @@ def test_each_gaussian_of_the_horizontal_blur_matches_numpy_out_to_its_reach(gl_
 
 
 def test_halves_unpacked_by_bits_equal_numpy_float16(gl_ctx):
-    """ssss/packing.glsl ssss_unpack_half2 (the bits shifted and scaled by 2^112, round 24) against
+    """ssss/packing.glsl ssss_unpack_half2 (the half's exponent rebased into a float's, round 24) against
     numpy's float16 -> float32, bit for bit, over every finite half (zero, both signs, subnormals)."""
     import moderngl
 

@@ -16,7 +16,7 @@ import pytest
 
 from dermis.gl.shaders import program
 from dermis.renderer import Renderer
-from dermis.techniques.shared import MAX_GAUSSIANS
+from dermis.techniques.shared import MAX_GAUSSIANS, SIGNATURE_DEFINES
 from dermis.techniques.tsd import STORED_SHARP_SHADOWS
 
 from test_shadow_edge_rim import H, W
@@ -140,7 +140,7 @@ def _round23_light_pass(gl_ctx, prog, signature_defines=None):
     from dermis.gl.shaders import load_shader_source
 
     vert, frag, defines, _ = prog.extra["sources"]
-    defines = {k: v for k, v in defines.items() if k not in ("SKIN_LIGHT_KINDS", "SKIN_SHADOW_FILTERS")}
+    defines = {k: v for k, v in defines.items() if k not in SIGNATURE_DEFINES}
     fs = load_shader_source(frag, {**defines, **(signature_defines or {})})
     if signature_defines is None:
         for old, new in [(f"TEXEL(uBounceInputs[{k}], t)", f"texelFetch(uBounceInputs[{k}], t, 0)") for k in range(5)] \

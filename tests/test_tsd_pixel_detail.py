@@ -22,9 +22,8 @@ from dermis.renderer import Renderer
 from dermis.scene.builtin import grid_mesh
 from dermis.scene.loaders import finish_mesh
 from dermis.scene.model import Camera, Environment, Light, Scene, SkinMaterial
-from dermis.techniques.shared import OutputMode
+from dermis.techniques.shared import OutputMode, SIGNATURE_DEFINES
 
-SIGNATURE_DEFINES = ("SKIN_LIGHT_KINDS", "SKIN_SHADOW_FILTERS")  # dermis.techniques.shared.signature_defines
 
 SIZE_MM = 16.0  # the plane's side; mm_per_unit = 1
 COARSE, FINE, PIXELS = 64, 512, 256  # irradiance texels across; the frame (16 px per mm)

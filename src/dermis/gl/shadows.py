@@ -21,8 +21,10 @@ from dermis.techniques.shared import MAX_LIGHTS, Unit, bind_sampler
 
 # common/shadow.glsl's SHADOW_FILTER_* (a light's kernel, SKIN_SHADOW_FILTERS)
 SHADOW_FILTER_RUNTIME, SHADOW_FILTER_NONE, SHADOW_FILTER_PARABOLA, SHADOW_FILTER_BOX = -1, 0, 1, 2
-PCF_DISC_SCALE = 1.307  # common/shadow.glsl
-PCF_GRID = 3  # common/shadow.glsl
+# common/shadow.glsl's constants, which pcf_filter decides with (tests/test_shadow_pcf.py reads them from the shader)
+PCF_DISC_SCALE = 1.307  # the disc's radius per unit of softness
+PCF_GRID = 3  # taps per axis
+PCF_FIT_INSET = 0.51  # the parabola fits the grid where a_par < PCF_GRID - PCF_FIT_INSET
 PCF_FILTER_MARGIN = 1e-3
 """pcf_filter leaves a kernel to run time where a_par is this close (texels) to the fit: the shader's
 float32 may round the other way there."""
@@ -32,7 +34,7 @@ def pcf_filter(cast_shadows: bool, softness: float) -> int:
     """The kernel common/shadow.glsl's shadow_pcf_at picks for a light of ``softness`` (shadow texels),
     known before the draw so that the light pass can be compiled for it (SKIN_SHADOW_FILTERS):
     NONE without a shadow map, PARABOLA where the variance-matched parabola's half-width
-    a_par = sqrt(5 (R^2 / 4 + 1/12)), R = PCF_DISC_SCALE softness, fits the grid (< PCF_GRID - 0.51),
+    a_par = sqrt(5 (R^2 / 4 + 1/12)), R = PCF_DISC_SCALE softness, fits the grid (< PCF_GRID - PCF_FIT_INSET),
     BOX where it does not; RUNTIME (the shader decides) for softness <= 0 (one tap) and within
     PCF_FILTER_MARGIN of the fit, where float32 rounding could decide otherwise."""
     if not cast_shadows:
@@ -41,7 +43,7 @@ def pcf_filter(cast_shadows: bool, softness: float) -> int:
     if not R > 0.0:
         return SHADOW_FILTER_RUNTIME
     a_par = math.sqrt(5.0 * (0.25 * R * R + 1.0 / 12.0))
-    fit = PCF_GRID - 0.51
+    fit = PCF_GRID - PCF_FIT_INSET
     if abs(a_par - fit) < PCF_FILTER_MARGIN:
         return SHADOW_FILTER_RUNTIME
     return SHADOW_FILTER_BOX if a_par >= fit else SHADOW_FILTER_PARABOLA

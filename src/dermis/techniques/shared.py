@@ -267,12 +267,17 @@ def light_signature(lights) -> tuple:
     return tuple((LIGHT_TYPES[L.kind], pcf_filter(L.cast_shadows, L.shadow_softness)) for L in lights)
 
 
+SIGNATURE_DEFINES = ("SKIN_LIGHT_KINDS", "SKIN_SHADOW_FILTERS")
+"""The defines :func:`signature_defines` sets (common/lights.glsl, common/shadow.glsl)."""
+
+
 def signature_defines(signature: tuple) -> dict:
     """SKIN_LIGHT_KINDS and SKIN_SHADOW_FILTERS for :func:`light_signature`'s tuple (none for 0 lights)."""
     if not signature:
         return {}
-    return {"SKIN_LIGHT_KINDS": ", ".join(str(int(k)) for k, _ in signature),
-            "SKIN_SHADOW_FILTERS": ", ".join(str(int(f)) for _, f in signature)}
+    kinds, filters = SIGNATURE_DEFINES
+    return {kinds: ", ".join(str(int(k)) for k, _ in signature),
+            filters: ", ".join(str(int(f)) for _, f in signature)}
 
 
 class LightCountPrograms:

@@ -13,7 +13,7 @@ uniform vec4 uLightSpot[MAX_LIGHTS];      // x cos(outer half-angle), y cos(inne
 uniform float uMmPerUnit;
 
 // Light i's kind (LIGHT_DIRECTIONAL / _POINT / _SPOT). With SKIN_LIGHT_KINDS defined (beside
-// SKIN_LIGHT_COUNT: the scene's kinds as "k0, k1, ...", -1 where left to run time;
+// SKIN_LIGHT_COUNT: the scene's kinds as "k0, k1, ...";
 // dermis.techniques.shared.light_signature), a constant wherever i is one (DERMIS_FOR_EACH_LIGHT's
 // light_i), so the other kinds' arithmetic folds away at compile time: llvmpipe runs both sides of a
 // branch, even one on a uniform, under a lane mask (benchmarks/results/round-24.md, irr24: tsd's
@@ -24,7 +24,7 @@ uniform float uMmPerUnit;
 #endif
 const int DERMIS_LIGHT_KINDS[SKIN_LIGHT_COUNT] = int[SKIN_LIGHT_COUNT](SKIN_LIGHT_KINDS);
 int light_kind(int i) {
-    return DERMIS_LIGHT_KINDS[i] >= 0 ? DERMIS_LIGHT_KINDS[i] : int(uLightPosType[i].w + 0.5);
+    return DERMIS_LIGHT_KINDS[i];  // every kind is known (dermis.techniques.shared.light_signature)
 }
 #else
 int light_kind(int i) {
