@@ -400,24 +400,16 @@ def test_gl_add_is_the_tent_of_the_gathered_grid_per_channel(gl_ctx):
         st.bake = bake
         st._upload(bake)
         st.lookup = lambda frame: bake
-        for size, want in ((g, _tent_clamped(grid)),
-                           (g // 2, _tent_clamped(grid.reshape(g // 2, 2, g // 2, 2, 3).mean((1, 3))))):
-            tgt = gl_ctx.texture((size, size), 4, dtype="f4")
-            fbo = gl_ctx.framebuffer(color_attachments=[tgt])
-            fbo.use()
-            fbo.clear(0.0, 0.0, 0.0, 0.0)
-            assert st.add(None, fbo, (size, size), irr)
-            got = np.frombuffer(tgt.read(), np.float32).reshape(size, size, 4).astype(np.float64)
-            fbo.release()
-            tgt.release()
-            assert np.all(got[..., 3] == 0.0)  # the target's coverage untouched
-            np.testing.assert_allclose(got[..., :3], want, atol=1e-4 * np.abs(want).max(), err_msg=f"target {size}")
+
+        def view_term(size):  # after each target's add: the view term at the level that target reads
             gl_ctx.disable(moderngl.BLEND)
             level = st.read_level((size, size))
             vgrid = view[:, 0].reshape(g, g, 3, 4).astype(np.float64)
             if level:
                 vgrid = vgrid.reshape(g // 2, 2, g // 2, 2, 3, 4).mean((1, 3))
             _check_view_term_is_the_tent(gl_ctx, st, level, vgrid, rng)
+
+        _check_add_is_the_tent(gl_ctx, st, irr, grid, 1e-4, "target", each=view_term)
     finally:
         st.release()
     # a sparse bake (a block at the grid's edge, scattered points): the box sums are drawn only in the tiles
@@ -452,6 +444,26 @@ def test_gl_add_is_the_tent_of_the_gathered_grid_per_channel(gl_ctx):
     _check_sparse_add_is_the_tent(gl_ctx, rng)
 
 
+def _check_add_is_the_tent(gl_ctx, st, irr, grid, rel, label, each=None):
+    """``st``'s add into cleared targets of the grid's size and half of it against numpy's tent of ``grid``
+    ((g, g, 3)) and of its 2 x 2 box mipmap, within ``rel`` of the largest; the target's coverage (alpha)
+    left 0. ``each(size)``: called after each target's check."""
+    g = grid.shape[0]
+    for size, want in ((g, _tent_clamped(grid)), (g // 2, _tent_clamped(grid.reshape(g // 2, 2, g // 2, 2, 3).mean((1, 3))))):
+        tgt = gl_ctx.texture((size, size), 4, dtype="f4")
+        fbo = gl_ctx.framebuffer(color_attachments=[tgt])
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 0.0)
+        assert st.add(None, fbo, (size, size), irr)
+        got = np.frombuffer(tgt.read(), np.float32).reshape(size, size, 4).astype(np.float64)
+        fbo.release()
+        tgt.release()
+        assert np.all(got[..., 3] == 0.0), label  # the target's coverage untouched
+        np.testing.assert_allclose(got[..., :3], want, atol=rel * np.abs(want).max(), err_msg=f"{label} {size}")
+        if each is not None:
+            each(size)
+
+
 def _check_sparse_add_is_the_tent(gl_ctx, rng):
     """The add over the tiles whose tent can reach a bake point (round 24, add_tiles; elsewhere it adds 0): every
     texel of targets of the grid's size and half of it against numpy's tent of a sparse 64 x 64 grid, points at
@@ -475,16 +487,7 @@ def _check_sparse_add_is_the_tent(gl_ctx, rng):
         st.bake = bake
         st._upload(bake)
         st.lookup = lambda frame: bake
-        for size, want in ((g, _tent_clamped(grid)), (g // 2, _tent_clamped(grid.reshape(g // 2, 2, g // 2, 2, 3).mean((1, 3))))):
-            tgt = gl_ctx.texture((size, size), 4, dtype="f4")
-            fbo = gl_ctx.framebuffer(color_attachments=[tgt])
-            fbo.use()
-            fbo.clear(0.0, 0.0, 0.0, 0.0)
-            assert st.add(None, fbo, (size, size), irr)
-            got = np.frombuffer(tgt.read(), np.float32).reshape(size, size, 4).astype(np.float64)
-            fbo.release()
-            tgt.release()
-            np.testing.assert_allclose(got[..., :3], want, atol=1e-5 * np.abs(want).max(), err_msg=f"sparse add, target {size}")
+        _check_add_is_the_tent(gl_ctx, st, irr, grid, 1e-5, "sparse add, target")
     finally:
         st.release()
         irr.release()
