@@ -1017,3 +1017,88 @@ def test_smooth_view_is_the_neighbourhood_mean_on_the_points_own_taps():
     relative = B.smooth_view(bake, pts, 1.2, tp_near, relative=True).tap_view
     assert np.abs(absolute[:, 0] - own).max() > 0.01
     np.testing.assert_allclose(relative[:, 0], own, atol=1e-6)
+
+
+def _tent_at(grid, size):
+    """common/subsurface_transfer.glsl's tent of ``grid`` ((g, g, c), one level) read at each texel centre of a
+    (size, size) target, numpy: per axis the mean of GL's bilinear reads (texel centres (j + 0.5) / g, clamped
+    at the edges) at u +- 0.5 / g, u = (x + 0.5) / size; separable."""
+    g = grid.shape[0]
+    u = (np.arange(size) + 0.5) / size
+    m = np.zeros((size, g))
+    for s in (u - 0.5 / g, u + 0.5 / g):
+        p = s * g - 0.5
+        j = np.floor(p).astype(int)
+        f = p - j
+        np.add.at(m, (np.arange(size), np.clip(j, 0, g - 1)), 0.5 * (1.0 - f))
+        np.add.at(m, (np.arange(size), np.clip(j + 1, 0, g - 1)), 0.5 * f)
+    return np.einsum("yj,jic,xi->yxc", m, grid, m)
+
+
+def test_gl_add_covers_the_rasterised_texels_at_any_target_size(gl_ctx):
+    """The add's tiles (add_tiles) and the view box's derive from the texels GL rasterised the bake points to
+    (SubsurfaceTransfer.held, round 24 tiles24), not floor(uv * grid): llvmpipe puts a point exactly on a texel
+    edge, 1e-6 or 0.4/256 texel past it, in the texel below. A sparse 64^2 bake of such points, every texel of
+    targets 40, 96, 138, 163 (level 1 at 1.25x, level 0 at 1.5x, 2.16x, 2.55x) against numpy's tent of the grid
+    as the point map holds it; then an empty bake uploads and adds nothing. Checked: the floor(uv * grid) tiles
+    fail at 138 and 163 (a target over 2x a level's size: add_tiles' half-texel margin is then under the one
+    level texel of the shift; 40 of sizes 100-259 fail, none of 8-132, 96 included) and the empty bake raised."""
+    from dermis.gl.subsurface_transfer import SubsurfaceTransfer
+
+    rng = np.random.default_rng(24)
+    g = 64
+    d = 1.0 / (256 * g)  # llvmpipe's snap of a point's position, in uv
+    # along each axis: the edge itself, just past it (rasterised below the edge) and a texel centre
+    offsets = np.array([0.0, 1e-6, 0.4 * d])
+    pts = [((16 * a + 8) / g + offsets[(a + b) % 3], (16 * b + 8) / g + offsets[(a + 2 * b) % 3])
+           for a in range(4) for b in range(4)]
+    uv = np.array(pts + [(0.5 / g, 0.5 / g), (33.5 / g, 0.5), (1.0 - 0.5 / g, 1.0 - 0.5 / g)], np.float32)
+    m = len(uv)
+    w = np.zeros((m, 1, 3), np.float32)
+    w[:, 0] = rng.uniform(0.05, 1.0, (m, 3))
+    bake = B.TransferBake(uv, uv[:, None], w, w.sum(1), np.zeros((m, 3)), {"grid": g})
+    irr = gl_ctx.texture((4, 4), 4, np.ones(64, np.float32).tobytes(), dtype="f4")
+    st = SubsurfaceTransfer(gl_ctx)
+    try:
+        st.bake = bake
+        st._upload(bake)
+        st.lookup = lambda frame: bake
+        held = np.frombuffer(st._point_map.read(), np.int32).reshape(g, g)  # the grid as rasterised: row = v
+        assert (held >= 0).sum() == m
+        assert (np.argwhere(held >= 0)[:, ::-1] != np.floor(uv.astype(np.float64) * g)).any()  # some moved
+        grid = np.where(held[..., None] >= 0, w[np.maximum(held, 0), 0], 0.0)
+        for size in (40, 96, 138, 163):
+            level = st.read_level((size, size))
+            want = _tent_at(grid.reshape(g >> level, 1 << level, g >> level, 1 << level, 3).mean((1, 3)), size)
+            tgt = gl_ctx.texture((size, size), 4, dtype="f4")
+            fbo = gl_ctx.framebuffer(color_attachments=[tgt])
+            fbo.use()
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            assert st.add(None, fbo, (size, size), irr)
+            got = np.frombuffer(tgt.read(), np.float32).reshape(size, size, 4).astype(np.float64)
+            fbo.release()
+            tgt.release()
+            assert np.all(got[..., 3] == 0.0)
+            np.testing.assert_allclose(got[..., :3], want, atol=1e-4 * want.max(), err_msg=f"target {size}")
+    finally:
+        st.release()
+    # a bake of no points: uploaded and added without error, nothing added
+    empty = B.TransferBake(np.zeros((0, 2), np.float32), np.zeros((0, 1, 2), np.float32), np.zeros((0, 1, 3), np.float32),
+                           np.zeros((0, 3)), np.zeros((0, 3)), {"grid": g}, tap_view=np.zeros((0, 1, 3, 4), np.float32))
+    st = SubsurfaceTransfer(gl_ctx)
+    try:
+        st.bake = empty
+        st._upload(empty)
+        st.lookup = lambda frame: empty
+        tgt = gl_ctx.texture((32, 32), 4, dtype="f4")
+        fbo = gl_ctx.framebuffer(color_attachments=[tgt])
+        fbo.use()
+        fbo.clear(0.25, 0.5, 0.75, 1.0)
+        assert st.add(None, fbo, (32, 32), irr)
+        got = np.frombuffer(tgt.read(), np.float32).reshape(32, 32, 4)
+        fbo.release()
+        tgt.release()
+        assert np.all(got == np.float32([0.25, 0.5, 0.75, 1.0]))
+    finally:
+        st.release()
+        irr.release()

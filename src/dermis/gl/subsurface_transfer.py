@@ -49,21 +49,23 @@ def source_index(variances_mm2) -> int:
     return int(big[0]) if len(big) else len(v) - 1
 
 
-def add_tiles(point_uv, grid_size, level: int, target_size, tile: int = BOX_TILE) -> np.ndarray:
+def add_tiles(texels, grid_size, level: int, target_size, tile: int = BOX_TILE) -> np.ndarray:
     """The tiles (``tile`` texels a side; (m, 2) float32 indices per axis, unique) of a target of
     ``target_size`` whose texels can read a non-zero grid texel through the add's tent
-    (common/subsurface_transfer.glsl at ``level``), where the grid's level 0 is non-zero only at the
-    points' texels (``point_uv``: the gather's pixels) and level L at their texels >> L (its box mipmap).
-    The tent's four bilinear reads at the target texel's centre u +- 0.5 level texel reach the level's
-    texels j with |(j + 0.5) / g - u| < 1.5 / g (g: the level's texels per axis); taken with 2 / g, so
-    target texel x is drawn where floor((i - 1.5) T / g - 0.5) <= x <= ceil((i + 2.5) T / g - 0.5) for a
-    non-zero texel i (T the target's texels). The other texels add 0: drawn or not, the target keeps
-    its value."""
-    uv = np.asarray(point_uv, np.float64).reshape(-1, 2)
+    (common/subsurface_transfer.glsl at ``level``), where the grid's level 0 is non-zero only at
+    ``texels`` ((m, 2) integer (x, y): the texels GL rasterised the bake points to, read back from the
+    point map, :attr:`SubsurfaceTransfer.held`; not floor(uv * grid), which llvmpipe's 1/256 px snap of
+    a point's position can put in the neighbouring texel for a uv on or near a texel edge) and level L at
+    their texels >> L (its box mipmap). The tent's four bilinear reads at the target texel's centre
+    u +- 0.5 level texel reach the level's texels j with |(j + 0.5) / g - u| < 1.5 / g (g: the level's
+    texels per axis); taken with 2 / g, so target texel x is drawn where
+    floor((i - 1.5) T / g - 0.5) <= x <= ceil((i + 2.5) T / g - 0.5) for a non-zero texel i (T the target's
+    texels). The other texels add 0: drawn or not, the target keeps its value."""
     grid = np.asarray(grid_size, np.int64)
     g = np.maximum(grid >> int(level), 1)
     T = np.asarray(target_size, np.float64)
-    i = np.unique(np.clip(np.floor(uv * grid).astype(np.int64), 0, grid - 1) >> int(level), axis=0)
+    held = np.asarray(texels, np.int64).reshape(-1, 2)
+    i = np.unique(np.clip(held, 0, grid - 1) >> int(level), axis=0)
     i = np.minimum(i, g - 1).astype(np.float64)
     lo = np.floor((i - 1.5) * T / g - 0.5).astype(np.int64)
     hi = np.ceil((i + 2.5) * T / g - 0.5).astype(np.int64)
@@ -138,6 +140,7 @@ class SubsurfaceTransfer:
         # vertex array, tiles' buffer, run count: tile_runs)
         self._box = None
         self._box_prog = None
+        self.held = np.zeros((0, 2), np.int64)  # the grid's non-zero texels (x, y) of the current bake (_upload)
         self._add = None  # the add's tiles: ((target size, level), vertex array, buffer, run count: tile_runs)
         self.index = 1.4
 
@@ -156,6 +159,7 @@ class SubsurfaceTransfer:
         for o in self._gpu:
             o.release()
         self._gpu = []
+        self.held = np.zeros((0, 2), np.int64)
         self._release_box()
         self._release_add()
 
@@ -181,6 +185,8 @@ class SubsurfaceTransfer:
 
             self._release_gpu()
             self.bake = find(frame.scene)
+            if self.bake is not None and not len(self.bake.point_uv):
+                self.bake = None  # a bake of no points transfers nothing: the image is the one without a bake
             self.key = key
             if self.bake is not None:
                 self._upload(self.bake)
@@ -229,15 +235,21 @@ class SubsurfaceTransfer:
         point_map = self.ctx.texture((grid, grid), 1, np.full(grid * grid, -1, np.int32).tobytes(), dtype="i4")
         point_map.filter = (moderngl.NEAREST, moderngl.NEAREST)
         map_fbo = self.ctx.framebuffer(color_attachments=[point_map])
-        buf = self.ctx.buffer(np.ascontiguousarray(bake.point_uv, np.float32).tobytes())
-        points = self.ctx.vertex_array(index, [(buf, "2f", "in_uv")])
-        map_fbo.use()
-        map_fbo.viewport = (0, 0, grid, grid)
-        self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-        points.render(moderngl.POINTS, vertices=n)
-        held = np.argwhere(np.frombuffer(point_map.read(), np.int32).reshape(grid, grid) >= 0)[:, ::-1]  # (x, y)
-        for o in (points, buf, map_fbo):
-            o.release()
+        if n:  # a bake of no points (ctx.buffer refuses 0 bytes) holds no texel: every pass draws no tile
+            buf = self.ctx.buffer(np.ascontiguousarray(bake.point_uv, np.float32).tobytes())
+            points = self.ctx.vertex_array(index, [(buf, "2f", "in_uv")])
+            map_fbo.use()
+            map_fbo.viewport = (0, 0, grid, grid)
+            self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+            points.render(moderngl.POINTS, vertices=n)
+            points.release()
+            buf.release()
+        map_fbo.release()
+        # the grid's non-zero texels, (m, 2) int (x, y): where GL rasterised the points, which is not always
+        # floor(uv * grid) (llvmpipe snaps a point's position to 1/256 px: a uv on or within that of a texel edge
+        # can land in the neighbouring texel); the gather's, the view box's and the add's tiles all derive from it
+        held = np.argwhere(np.frombuffer(point_map.read(), np.int32).reshape(grid, grid) >= 0)[:, ::-1]
+        self.held = held
         # the gather's tiles: those holding a point's texel (on the head 429 of 64^2, 19358 points in 27456 texels), in 88 runs
         runs = tile_runs(held // BOX_TILE)
         tile_buf = self.ctx.buffer(np.ascontiguousarray(runs).tobytes() or np.zeros(3, np.float32).tobytes())
@@ -312,7 +324,7 @@ class SubsurfaceTransfer:
             # the 512^2 translucency target; the full-screen add was ~6 of the pass's ~18 CPU ms on llvmpipe
             # (round 24, xfer24)
             self._release_add()
-            runs = tile_runs(add_tiles(self.bake.point_uv, self.grid_texture.size, level, size))
+            runs = tile_runs(add_tiles(self.held, self.grid_texture.size, level, size))
             buf = self.ctx.buffer(np.ascontiguousarray(runs).tobytes() or np.zeros(3, np.float32).tobytes())
             self._add = ((size, level), self.ctx.vertex_array(add, [(buf, "3f/i", "in_tile")]), buf, len(runs))
         _, vao, _, count = self._add
@@ -381,14 +393,13 @@ class SubsurfaceTransfer:
                 texs.append(t)
             fbo = self.ctx.framebuffer(color_attachments=texs)
             fbo.clear(0.0, 0.0, 0.0, 0.0)  # what every texel outside the tiles keeps
-            # the level's texel of each bake point (the gather's pixel: its uv's texel), and the box texels
-            # whose 2 x 2 holds it (t and t + 1 per axis), one texel more each side for safety
-            uv = np.asarray(self.bake.point_uv, np.float64)
-            texel = np.floor(uv * np.asarray(g, np.float64)).astype(np.int64) >> level
-            near = np.concatenate([texel + (dx, dy) for dx in range(-1, 3) for dy in range(-1, 3)])
+            # the level's non-zero texels (the rasterised points' texels >> level: self.held) and the box
+            # texels whose 2 x 2 holds one (t and t + 1 per axis: box texel k sums the level's k - 1 and k)
+            texel = np.asarray(self.held, np.int64).reshape(-1, 2) >> level
+            near = np.concatenate([texel + (dx, dy) for dx in range(2) for dy in range(2)])
             near = np.clip(near, 0, np.asarray(size) - 1)
             runs = tile_runs(near // BOX_TILE)
-            buf = self.ctx.buffer(np.ascontiguousarray(runs).tobytes())
+            buf = self.ctx.buffer(np.ascontiguousarray(runs).tobytes() or np.zeros(3, np.float32).tobytes())
             vao = self.ctx.vertex_array(prog, [(buf, "3f/i", "in_tile")])
             self._box = (texs, fbo, level, vao, buf, len(runs))
         for u, (name, t) in enumerate(zip(("uViewR", "uViewG", "uViewB"), self.view_grids)):
@@ -401,7 +412,8 @@ class SubsurfaceTransfer:
         fbo.use()
         fbo.viewport = (0, 0, *size)
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-        vao.render(moderngl.TRIANGLES, vertices=6, instances=count)
+        if count:
+            vao.render(moderngl.TRIANGLES, vertices=6, instances=count)
 
     def bind_view(self, prog, level) -> None:
         """The view term's images for a pass that reads common/subsurface_transfer.glsl's
