@@ -444,20 +444,47 @@ def test_gl_add_is_the_tent_of_the_gathered_grid_per_channel(gl_ctx):
     _check_sparse_add_is_the_tent(gl_ctx, rng)
 
 
+def _one_tap_bake(uv, g, rng):
+    """A bake of points at ``uv`` ((m, 2) float32) on a g x g grid, each one tap at itself with a random
+    weight per channel (0.05-1); returns (bake, the weights (m, 1, 3))."""
+    m = len(uv)
+    w = np.zeros((m, 1, 3), np.float32)
+    w[:, 0] = rng.uniform(0.05, 1.0, (m, 3))
+    return B.TransferBake(uv, uv[:, None], w, w.sum(1), np.zeros((m, 3)), {"grid": g}), w
+
+
+def _uploaded(gl_ctx, bake):
+    """A SubsurfaceTransfer with ``bake`` uploaded and read as every frame's bake."""
+    from dermis.gl.subsurface_transfer import SubsurfaceTransfer
+
+    st = SubsurfaceTransfer(gl_ctx)
+    st.bake = bake
+    st._upload(bake)
+    st.lookup = lambda frame: bake
+    return st
+
+
+def _added(gl_ctx, st, irr, size, clear=(0.0, 0.0, 0.0, 0.0)):
+    """What ``st``'s add (from ``irr``) leaves in a (size, size) RGBA32F target cleared to ``clear``: (size, size, 4)."""
+    tgt = gl_ctx.texture((size, size), 4, dtype="f4")
+    fbo = gl_ctx.framebuffer(color_attachments=[tgt])
+    try:
+        fbo.use()
+        fbo.clear(*clear)
+        assert st.add(None, fbo, (size, size), irr)
+        return np.frombuffer(tgt.read(), np.float32).reshape(size, size, 4).astype(np.float64)
+    finally:
+        fbo.release()
+        tgt.release()
+
+
 def _check_add_is_the_tent(gl_ctx, st, irr, grid, rel, label, each=None):
     """``st``'s add into cleared targets of the grid's size and half of it against numpy's tent of ``grid``
     ((g, g, 3)) and of its 2 x 2 box mipmap, within ``rel`` of the largest; the target's coverage (alpha)
     left 0. ``each(size)``: called after each target's check."""
     g = grid.shape[0]
     for size, want in ((g, _tent_clamped(grid)), (g // 2, _tent_clamped(grid.reshape(g // 2, 2, g // 2, 2, 3).mean((1, 3))))):
-        tgt = gl_ctx.texture((size, size), 4, dtype="f4")
-        fbo = gl_ctx.framebuffer(color_attachments=[tgt])
-        fbo.use()
-        fbo.clear(0.0, 0.0, 0.0, 0.0)
-        assert st.add(None, fbo, (size, size), irr)
-        got = np.frombuffer(tgt.read(), np.float32).reshape(size, size, 4).astype(np.float64)
-        fbo.release()
-        tgt.release()
+        got = _added(gl_ctx, st, irr, size)
         assert np.all(got[..., 3] == 0.0), label  # the target's coverage untouched
         np.testing.assert_allclose(got[..., :3], want, atol=rel * np.abs(want).max(), err_msg=f"{label} {size}")
         if each is not None:
@@ -468,25 +495,17 @@ def _check_sparse_add_is_the_tent(gl_ctx, rng):
     """The add over the tiles whose tent can reach a bake point (round 24, add_tiles; elsewhere it adds 0): every
     texel of targets of the grid's size and half of it against numpy's tent of a sparse 64 x 64 grid, points at
     the 8 x 8 tiles' edges and the grid's (checked: fails with the tiles of the points' own texels alone)."""
-    from dermis.gl.subsurface_transfer import SubsurfaceTransfer
-
     g = 64
     xy = np.array([(7, 7), (8, 20), (40, 39), (63, 0), (0, 63), (31, 16), (15, 47), (56, 55)])
     cells = np.unique(np.r_[xy[:, 1] * g + xy[:, 0], rng.choice(g * g, 6, replace=False)])
-    m = len(cells)
     uv = np.c_[(cells % g + 0.5) / g, (cells // g + 0.5) / g].astype(np.float32)
-    w = np.zeros((m, 1, 3), np.float32)
-    w[:, 0] = rng.uniform(0.05, 1.0, (m, 3))
-    bake = B.TransferBake(uv, uv[:, None], w, w.sum(1), np.zeros((m, 3)), {"grid": g})
+    bake, w = _one_tap_bake(uv, g, rng)
     grid = np.zeros((g * g, 3))
     grid[cells] = w[:, 0]
     grid = grid.reshape(g, g, 3)
     irr = gl_ctx.texture((4, 4), 4, np.ones(64, np.float32).tobytes(), dtype="f4")
-    st = SubsurfaceTransfer(gl_ctx)
+    st = _uploaded(gl_ctx, bake)
     try:
-        st.bake = bake
-        st._upload(bake)
-        st.lookup = lambda frame: bake
         _check_add_is_the_tent(gl_ctx, st, irr, grid, 1e-5, "sparse add, target")
     finally:
         st.release()
@@ -1054,15 +1073,10 @@ def test_gl_add_covers_the_rasterised_texels_at_any_target_size(gl_ctx):
            for a in range(4) for b in range(4)]
     uv = np.array(pts + [(0.5 / g, 0.5 / g), (33.5 / g, 0.5), (1.0 - 0.5 / g, 1.0 - 0.5 / g)], np.float32)
     m = len(uv)
-    w = np.zeros((m, 1, 3), np.float32)
-    w[:, 0] = rng.uniform(0.05, 1.0, (m, 3))
-    bake = B.TransferBake(uv, uv[:, None], w, w.sum(1), np.zeros((m, 3)), {"grid": g})
+    bake, w = _one_tap_bake(uv, g, rng)
     irr = gl_ctx.texture((4, 4), 4, np.ones(64, np.float32).tobytes(), dtype="f4")
-    st = SubsurfaceTransfer(gl_ctx)
+    st = _uploaded(gl_ctx, bake)
     try:
-        st.bake = bake
-        st._upload(bake)
-        st.lookup = lambda frame: bake
         held = np.frombuffer(st._point_map.read(), np.int32).reshape(g, g)  # the grid as rasterised: row = v
         assert (held >= 0).sum() == m
         assert (np.argwhere(held >= 0)[:, ::-1] != np.floor(uv.astype(np.float64) * g)).any()  # some moved
@@ -1070,14 +1084,7 @@ def test_gl_add_covers_the_rasterised_texels_at_any_target_size(gl_ctx):
         for size in (40, 96, 138, 163):
             level = st.read_level((size, size))
             want = _tent_at(grid.reshape(g >> level, 1 << level, g >> level, 1 << level, 3).mean((1, 3)), size)
-            tgt = gl_ctx.texture((size, size), 4, dtype="f4")
-            fbo = gl_ctx.framebuffer(color_attachments=[tgt])
-            fbo.use()
-            fbo.clear(0.0, 0.0, 0.0, 0.0)
-            assert st.add(None, fbo, (size, size), irr)
-            got = np.frombuffer(tgt.read(), np.float32).reshape(size, size, 4).astype(np.float64)
-            fbo.release()
-            tgt.release()
+            got = _added(gl_ctx, st, irr, size)
             assert np.all(got[..., 3] == 0.0)
             np.testing.assert_allclose(got[..., :3], want, atol=1e-4 * want.max(), err_msg=f"target {size}")
     finally:
@@ -1090,14 +1097,7 @@ def test_gl_add_covers_the_rasterised_texels_at_any_target_size(gl_ctx):
         st.bake = empty
         st._upload(empty)
         st.lookup = lambda frame: empty
-        tgt = gl_ctx.texture((32, 32), 4, dtype="f4")
-        fbo = gl_ctx.framebuffer(color_attachments=[tgt])
-        fbo.use()
-        fbo.clear(0.25, 0.5, 0.75, 1.0)
-        assert st.add(None, fbo, (32, 32), irr)
-        got = np.frombuffer(tgt.read(), np.float32).reshape(32, 32, 4)
-        fbo.release()
-        tgt.release()
+        got = _added(gl_ctx, st, irr, 32, clear=(0.25, 0.5, 0.75, 1.0))
         assert np.all(got == np.float32([0.25, 0.5, 0.75, 1.0]))
     finally:
         st.release()
