@@ -155,6 +155,14 @@ class SubsurfaceTransfer:
             self._progs = (gather, add, index)
         return self._progs
 
+    def _tile_draw(self, prog, tiles):
+        """``prog`` (vertex shader tsd/transfer_tiles.vert) drawn over ``tiles`` ((m, 2) tile indices, repeats
+        allowed): (vertex array, its buffer, run count), one instanced quad per :func:`tile_runs` run; a count
+        of 0 draws nothing (the buffer then holds one unused run: GL buffers cannot be empty)."""
+        runs = tile_runs(tiles)
+        buf = self.ctx.buffer(np.ascontiguousarray(runs).tobytes() or np.zeros(3, np.float32).tobytes())
+        return self.ctx.vertex_array(prog, [(buf, "3f/i", "in_tile")]), buf, len(runs)
+
     def _release_gpu(self):
         for o in self._gpu:
             o.release()
@@ -251,12 +259,10 @@ class SubsurfaceTransfer:
         held = np.argwhere(np.frombuffer(point_map.read(), np.int32).reshape(grid, grid) >= 0)[:, ::-1]
         self.held = held
         # the gather's tiles: those holding a point's texel (on the head 429 of 64^2, 19358 points in 27456 texels), in 88 runs
-        runs = tile_runs(held // BOX_TILE)
-        tile_buf = self.ctx.buffer(np.ascontiguousarray(runs).tobytes() or np.zeros(3, np.float32).tobytes())
-        vao = self.ctx.vertex_array(gather, [(tile_buf, "3f/i", "in_tile")])
+        vao, tile_buf, runs = self._tile_draw(gather, held // BOX_TILE)
         self._gpu = [*texs, fbo, *grids, point_map, vao, tile_buf]
         self._tap_uv, self._tap_weight, self.grid_texture, self._fbo, self._vao = texs[0], texs[1], target, fbo, vao
-        self._point_map, self._gather_tiles = point_map, len(runs)
+        self._point_map, self._gather_tiles = point_map, runs
         self._tap_view = texs[2:]
         self.view_grids = grids[1:]
         # uTransferIndex < 0: a bake without the view term (the cosine grid alone, as before round 22)
@@ -324,9 +330,7 @@ class SubsurfaceTransfer:
             # the 512^2 translucency target; the full-screen add was ~6 of the pass's ~18 CPU ms on llvmpipe
             # (round 24, xfer24)
             self._release_add()
-            runs = tile_runs(add_tiles(self.held, self.grid_texture.size, level, size))
-            buf = self.ctx.buffer(np.ascontiguousarray(runs).tobytes() or np.zeros(3, np.float32).tobytes())
-            self._add = ((size, level), self.ctx.vertex_array(add, [(buf, "3f/i", "in_tile")]), buf, len(runs))
+            self._add = ((size, level), *self._tile_draw(add, add_tiles(self.held, self.grid_texture.size, level, size)))
         _, vao, _, count = self._add
         set_uniform(add, "uTransfer", 0)
         set_uniform(add, "uTransferLevel", float(level))
@@ -398,10 +402,7 @@ class SubsurfaceTransfer:
             texel = np.asarray(self.held, np.int64).reshape(-1, 2) >> level
             near = np.concatenate([texel + (dx, dy) for dx in range(2) for dy in range(2)])
             near = np.clip(near, 0, np.asarray(size) - 1)
-            runs = tile_runs(near // BOX_TILE)
-            buf = self.ctx.buffer(np.ascontiguousarray(runs).tobytes() or np.zeros(3, np.float32).tobytes())
-            vao = self.ctx.vertex_array(prog, [(buf, "3f/i", "in_tile")])
-            self._box = (texs, fbo, level, vao, buf, len(runs))
+            self._box = (texs, fbo, level, *self._tile_draw(prog, near // BOX_TILE))
         for u, (name, t) in enumerate(zip(("uViewR", "uViewG", "uViewB"), self.view_grids)):
             set_uniform(prog, name, u)
             use_texture(t, u)
